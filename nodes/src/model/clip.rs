@@ -1,0 +1,196 @@
+//! Animation clips: per-frame local joint transforms on a shared skeleton.
+
+use std::sync::Arc;
+
+use glam::{Quat, Vec3};
+
+use super::skeleton::Skeleton;
+use super::units::ImportScale;
+
+/// Why clip data is inconsistent.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ClipError {
+    /// Frame rate is not a positive finite number.
+    #[error("frame rate must be positive and finite, got {fps}")]
+    BadFrameRate {
+        /// The rejected rate (frames per second).
+        fps: f64,
+    },
+    /// Buffers do not hold `frames × joints` entries.
+    #[error("clip data has {got} entries, expected {frames} frames × {joints} joints")]
+    BadLength {
+        /// Entries given.
+        got: usize,
+        /// Frame count.
+        frames: usize,
+        /// Joint count.
+        joints: usize,
+    },
+    /// A rotation or translation is NaN or infinite.
+    #[error("non-finite value at frame {frame}, joint '{joint}'")]
+    NonFinite {
+        /// Frame index.
+        frame: usize,
+        /// Joint name.
+        joint: String,
+    },
+}
+
+/// An animation: for every frame and joint, the joint's local rotation and translation
+/// relative to its parent.
+///
+/// Storage is frame-major (`[frame * joints + joint]`) because blending, FK and export all
+/// walk a frame at a time. Translations are metres and include the rest offset, so joints
+/// without animated translation simply repeat it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Clip {
+    skeleton: Arc<Skeleton>,
+    fps: f64,
+    frames: usize,
+    rotations: Vec<Quat>,
+    translations: Vec<Vec3>,
+    /// How the source file's lengths were converted to metres.
+    pub import_scale: ImportScale,
+}
+
+impl Clip {
+    /// Builds a clip after checking the frame rate, buffer sizes and finiteness.
+    /// Rotations are renormalised (files carry rounding).
+    pub fn new(
+        skeleton: Arc<Skeleton>,
+        fps: f64,
+        rotations: Vec<Quat>,
+        translations: Vec<Vec3>,
+        import_scale: ImportScale,
+    ) -> Result<Self, ClipError> {
+        if !(fps.is_finite() && fps > 0.0) {
+            return Err(ClipError::BadFrameRate { fps });
+        }
+        let joints = skeleton.len();
+        if rotations.len() != translations.len() || rotations.len() % joints != 0 {
+            return Err(ClipError::BadLength { got: rotations.len().max(translations.len()), frames: rotations.len() / joints, joints });
+        }
+        let frames = rotations.len() / joints;
+        for (i, (q, t)) in rotations.iter().zip(&translations).enumerate() {
+            if !q.is_finite() || !t.is_finite() || q.length_squared() < 1e-12 {
+                return Err(ClipError::NonFinite { frame: i / joints, joint: skeleton.joints()[i % joints].name.clone() });
+            }
+        }
+        let rotations = rotations.into_iter().map(crate::math::quat_normalize_or_identity).collect();
+        Ok(Clip { skeleton, fps, frames, rotations, translations, import_scale })
+    }
+
+    /// A clip of `frames` frames holding the skeleton's rest pose.
+    pub fn rest_pose(skeleton: Arc<Skeleton>, fps: f64, frames: usize) -> Result<Self, ClipError> {
+        let rotations: Vec<Quat> = (0..frames).flat_map(|_| skeleton.joints().iter().map(|j| j.rest_rotation)).collect();
+        let translations: Vec<Vec3> = (0..frames).flat_map(|_| skeleton.joints().iter().map(|j| j.rest_offset)).collect();
+        Clip::new(skeleton, fps, rotations, translations, ImportScale::METRES)
+    }
+
+    /// The skeleton every frame animates.
+    pub fn skeleton(&self) -> &Arc<Skeleton> {
+        &self.skeleton
+    }
+
+    /// Frames per second.
+    pub fn fps(&self) -> f64 {
+        self.fps
+    }
+
+    /// Number of frames.
+    pub fn frame_count(&self) -> usize {
+        self.frames
+    }
+
+    /// Number of joints per frame.
+    pub fn joint_count(&self) -> usize {
+        self.skeleton.len()
+    }
+
+    /// Length in seconds from the first to the last frame.
+    pub fn duration_secs(&self) -> f64 {
+        self.frames.saturating_sub(1) as f64 / self.fps
+    }
+
+    /// Local rotations of every joint at `frame`.
+    pub fn frame_rotations(&self, frame: usize) -> &[Quat] {
+        let j = self.joint_count();
+        &self.rotations[frame * j..(frame + 1) * j]
+    }
+
+    /// Local translations (metres) of every joint at `frame`.
+    pub fn frame_translations(&self, frame: usize) -> &[Vec3] {
+        let j = self.joint_count();
+        &self.translations[frame * j..(frame + 1) * j]
+    }
+
+    /// All local rotations, frame-major.
+    pub fn rotations(&self) -> &[Quat] {
+        &self.rotations
+    }
+
+    /// All local translations (metres), frame-major.
+    pub fn translations(&self) -> &[Vec3] {
+        &self.translations
+    }
+
+    /// The root's translation (metres) at every frame.
+    pub fn root_translations(&self) -> impl Iterator<Item = Vec3> + '_ {
+        self.translations.iter().step_by(self.joint_count()).copied()
+    }
+
+    /// Frames `start..end` (clamped to the clip) as a new clip at the same rate.
+    pub fn slice(&self, start: usize, end: usize) -> Clip {
+        let end = end.min(self.frames);
+        let start = start.min(end);
+        let j = self.joint_count();
+        Clip {
+            skeleton: self.skeleton.clone(),
+            fps: self.fps,
+            frames: end - start,
+            rotations: self.rotations[start * j..end * j].to_vec(),
+            translations: self.translations[start * j..end * j].to_vec(),
+            import_scale: self.import_scale,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::skeleton::Joint;
+
+    fn two_joint() -> Arc<Skeleton> {
+        Arc::new(Skeleton::new(vec![Joint::new("a", None, Vec3::ZERO), Joint::new("b", Some(0), Vec3::Y)]).unwrap())
+    }
+
+    #[test]
+    fn rejects_bad_rate_length_and_nan() {
+        let s = two_joint();
+        let q = vec![Quat::IDENTITY; 4];
+        let t = vec![Vec3::ZERO; 4];
+        assert!(matches!(Clip::new(s.clone(), 0.0, q.clone(), t.clone(), ImportScale::METRES), Err(ClipError::BadFrameRate { .. })));
+        assert!(matches!(Clip::new(s.clone(), -30.0, q.clone(), t.clone(), ImportScale::METRES), Err(ClipError::BadFrameRate { .. })));
+        assert!(matches!(Clip::new(s.clone(), 30.0, q[..3].to_vec(), t[..3].to_vec(), ImportScale::METRES), Err(ClipError::BadLength { .. })));
+        let mut tn = t.clone();
+        tn[3] = Vec3::new(f32::NAN, 0.0, 0.0);
+        assert!(matches!(Clip::new(s, 30.0, q, tn, ImportScale::METRES), Err(ClipError::NonFinite { frame: 1, .. })));
+    }
+
+    #[test]
+    fn empty_clip_is_valid_and_has_zero_duration() {
+        let c = Clip::rest_pose(two_joint(), 30.0, 0).unwrap();
+        assert_eq!(c.frame_count(), 0);
+        assert_eq!(c.duration_secs(), 0.0);
+        assert_eq!(c.slice(0, 10).frame_count(), 0);
+    }
+
+    #[test]
+    fn slice_keeps_rate_and_frames() {
+        let c = Clip::rest_pose(two_joint(), 120.0, 10).unwrap();
+        let s = c.slice(2, 5);
+        assert_eq!(s.frame_count(), 3);
+        assert_eq!(s.fps(), 120.0);
+        assert!((c.duration_secs() - 9.0 / 120.0).abs() < 1e-12);
+    }
+}
