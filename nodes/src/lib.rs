@@ -3,6 +3,7 @@
 //! Everything here is engine-free: kernels take plain domain values and return new ones,
 //! so they can be tested and reused without a graph.
 
+pub mod corpus;
 pub mod formats;
 pub mod math;
 pub mod model;

@@ -126,7 +126,7 @@ impl Parser<'_> {
             line: skipped_lines,
         };
         let joints = self.parse_hierarchy(&mut tokens)?;
-        let (claimed_frames, frame_time, header_line) = self.parse_motion_header(&mut tokens)?;
+        let (claimed_frames, frame_time, frames_line) = self.parse_motion_header(&mut tokens)?;
         let mut lines = tokens.lines;
         let rest_extent = rest_extent(&joints);
         let (unit, metres_per_unit, detected) = match options.metres_per_unit {
@@ -139,7 +139,7 @@ impl Parser<'_> {
         };
         let skeleton = self.build_skeleton(&joints, metres_per_unit as f32)?;
         let (rotations, translations) =
-            self.parse_frames(&mut lines, &joints, &skeleton, claimed_frames, header_line, metres_per_unit as f32)?;
+            self.parse_frames(&mut lines, &joints, &skeleton, claimed_frames, frames_line, metres_per_unit as f32)?;
         let scale = ImportScale { unit, metres_per_unit, detected };
         let clip = Clip::new(Arc::new(skeleton), 1.0 / frame_time, rotations, translations, scale)
             .map_err(|e| FormatError::file(self.path, Kind::Value, e.to_string()))?;
@@ -294,7 +294,7 @@ impl Parser<'_> {
                     if n < 0.0 || n.fract() != 0.0 {
                         return Err(self.err(line, Kind::Value, format!("frame count {n} is not a whole non-negative number")));
                     }
-                    frames = Some(n as usize);
+                    frames = Some((n as usize, line));
                 }
                 "Frame" => {
                     self.expect(tokens, "Time:")?;
@@ -310,7 +310,8 @@ impl Parser<'_> {
         if tokens.current.peek().is_some() {
             return Err(self.err(tokens.line, Kind::Syntax, "unexpected text after the frame time"));
         }
-        Ok((frames.unwrap_or(0), frame_time.unwrap_or(1.0), tokens.line))
+        let (frames, frames_line) = frames.unwrap_or((0, tokens.line));
+        Ok((frames, frame_time.unwrap_or(1.0), frames_line))
     }
 
     fn build_skeleton(&self, joints: &[RawJoint], scale: f32) -> Result<Skeleton, FormatError> {
@@ -354,7 +355,7 @@ impl Parser<'_> {
         joints: &[RawJoint],
         skeleton: &Skeleton,
         claimed: usize,
-        header_line: usize,
+        frames_line: usize,
         scale: f32,
     ) -> Result<(Vec<Quat>, Vec<Vec3>), FormatError> {
         let layout = FrameLayout::new(joints);
@@ -400,7 +401,7 @@ impl Parser<'_> {
         }
         if frames < claimed {
             return Err(self.err(
-                header_line,
+                frames_line,
                 Kind::Truncated,
                 format!("Frames: claims {claimed} frames but the file holds {frames}"),
             ));
@@ -441,7 +442,7 @@ impl FrameLayout {
             let mut rotation = Quat::IDENTITY;
             for (channel, &v) in channels.iter().zip(&values[*start..]) {
                 match channel {
-                    Channel::Position(axis) => translation[axis.index()] += v * scale,
+                    Channel::Position(axis) => translation[axis.index()] = v * scale,
                     Channel::Rotation(axis) => rotation *= axis.rotation(v.to_radians()),
                 }
             }

@@ -66,12 +66,11 @@ pub fn write_bvh(clip: &Clip) -> Loaded<String> {
         let rotations = clip.frame_rotations(frame);
         let translations = clip.frame_translations(frame);
         let mut first = true;
-        for (j, joint) in skeleton.joints().iter().enumerate() {
-            let layout = &layouts[j];
+        for (j, layout) in layouts.iter().enumerate() {
             if layout.is_empty() {
                 continue;
             }
-            let position = (translations[j] - joint.rest_offset) * to_file;
+            let position = translations[j] * to_file;
             let angles = euler_degrees(rotations[j], layout);
             let mut rotation_index = 0;
             for c in layout {
