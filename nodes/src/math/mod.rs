@@ -52,7 +52,10 @@ mod tests {
 
     #[test]
     fn normalize_degenerate_quaternions_gives_identity() {
-        assert_eq!(quat_normalize_or_identity(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0)), Quat::IDENTITY);
+        assert_eq!(
+            quat_normalize_or_identity(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0)),
+            Quat::IDENTITY
+        );
         assert_eq!(
             quat_normalize_or_identity(Quat::from_xyzw(f32::NAN, 0.0, 0.0, 1.0)),
             Quat::IDENTITY

@@ -68,22 +68,43 @@ impl Clip {
         }
         let joints = skeleton.len();
         if rotations.len() != translations.len() || rotations.len() % joints != 0 {
-            return Err(ClipError::BadLength { got: rotations.len().max(translations.len()), frames: rotations.len() / joints, joints });
+            return Err(ClipError::BadLength {
+                got: rotations.len().max(translations.len()),
+                frames: rotations.len() / joints,
+                joints,
+            });
         }
         let frames = rotations.len() / joints;
         for (i, (q, t)) in rotations.iter().zip(&translations).enumerate() {
             if !q.is_finite() || !t.is_finite() || q.length_squared() < 1e-12 {
-                return Err(ClipError::NonFinite { frame: i / joints, joint: skeleton.joints()[i % joints].name.clone() });
+                return Err(ClipError::NonFinite {
+                    frame: i / joints,
+                    joint: skeleton.joints()[i % joints].name.clone(),
+                });
             }
         }
-        let rotations = rotations.into_iter().map(crate::math::quat_normalize_or_identity).collect();
-        Ok(Clip { skeleton, fps, frames, rotations, translations, import_scale })
+        let rotations = rotations
+            .into_iter()
+            .map(crate::math::quat_normalize_or_identity)
+            .collect();
+        Ok(Clip {
+            skeleton,
+            fps,
+            frames,
+            rotations,
+            translations,
+            import_scale,
+        })
     }
 
     /// A clip of `frames` frames holding the skeleton's rest pose.
     pub fn rest_pose(skeleton: Arc<Skeleton>, fps: f64, frames: usize) -> Result<Self, ClipError> {
-        let rotations: Vec<Quat> = (0..frames).flat_map(|_| skeleton.joints().iter().map(|j| j.rest_rotation)).collect();
-        let translations: Vec<Vec3> = (0..frames).flat_map(|_| skeleton.joints().iter().map(|j| j.rest_offset)).collect();
+        let rotations: Vec<Quat> = (0..frames)
+            .flat_map(|_| skeleton.joints().iter().map(|j| j.rest_rotation))
+            .collect();
+        let translations: Vec<Vec3> = (0..frames)
+            .flat_map(|_| skeleton.joints().iter().map(|j| j.rest_offset))
+            .collect();
         Clip::new(skeleton, fps, rotations, translations, ImportScale::METRES)
     }
 
@@ -136,7 +157,10 @@ impl Clip {
 
     /// The root's translation (metres) at every frame.
     pub fn root_translations(&self) -> impl Iterator<Item = Vec3> + '_ {
-        self.translations.iter().step_by(self.joint_count()).copied()
+        self.translations
+            .iter()
+            .step_by(self.joint_count())
+            .copied()
     }
 
     /// Frames `start..end` (clamped to the clip) as a new clip at the same rate.
@@ -161,7 +185,13 @@ mod tests {
     use crate::model::skeleton::Joint;
 
     fn two_joint() -> Arc<Skeleton> {
-        Arc::new(Skeleton::new(vec![Joint::new("a", None, Vec3::ZERO), Joint::new("b", Some(0), Vec3::Y)]).unwrap())
+        Arc::new(
+            Skeleton::new(vec![
+                Joint::new("a", None, Vec3::ZERO),
+                Joint::new("b", Some(0), Vec3::Y),
+            ])
+            .unwrap(),
+        )
     }
 
     #[test]
@@ -169,12 +199,30 @@ mod tests {
         let s = two_joint();
         let q = vec![Quat::IDENTITY; 4];
         let t = vec![Vec3::ZERO; 4];
-        assert!(matches!(Clip::new(s.clone(), 0.0, q.clone(), t.clone(), ImportScale::METRES), Err(ClipError::BadFrameRate { .. })));
-        assert!(matches!(Clip::new(s.clone(), -30.0, q.clone(), t.clone(), ImportScale::METRES), Err(ClipError::BadFrameRate { .. })));
-        assert!(matches!(Clip::new(s.clone(), 30.0, q[..3].to_vec(), t[..3].to_vec(), ImportScale::METRES), Err(ClipError::BadLength { .. })));
+        assert!(matches!(
+            Clip::new(s.clone(), 0.0, q.clone(), t.clone(), ImportScale::METRES),
+            Err(ClipError::BadFrameRate { .. })
+        ));
+        assert!(matches!(
+            Clip::new(s.clone(), -30.0, q.clone(), t.clone(), ImportScale::METRES),
+            Err(ClipError::BadFrameRate { .. })
+        ));
+        assert!(matches!(
+            Clip::new(
+                s.clone(),
+                30.0,
+                q[..3].to_vec(),
+                t[..3].to_vec(),
+                ImportScale::METRES
+            ),
+            Err(ClipError::BadLength { .. })
+        ));
         let mut tn = t.clone();
         tn[3] = Vec3::new(f32::NAN, 0.0, 0.0);
-        assert!(matches!(Clip::new(s, 30.0, q, tn, ImportScale::METRES), Err(ClipError::NonFinite { frame: 1, .. })));
+        assert!(matches!(
+            Clip::new(s, 30.0, q, tn, ImportScale::METRES),
+            Err(ClipError::NonFinite { frame: 1, .. })
+        ));
     }
 
     #[test]

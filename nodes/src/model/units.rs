@@ -20,8 +20,13 @@ pub enum LengthUnit {
 
 impl LengthUnit {
     /// Every unit, in detection preference order.
-    pub const ALL: [LengthUnit; 5] =
-        [LengthUnit::Metre, LengthUnit::Decimetre, LengthUnit::Centimetre, LengthUnit::Inch, LengthUnit::CmuUnit];
+    pub const ALL: [LengthUnit; 5] = [
+        LengthUnit::Metre,
+        LengthUnit::Decimetre,
+        LengthUnit::Centimetre,
+        LengthUnit::Inch,
+        LengthUnit::CmuUnit,
+    ];
 
     /// Metres per one of this unit.
     pub fn metres(self) -> f64 {
@@ -80,8 +85,11 @@ pub struct ImportScale {
 
 impl ImportScale {
     /// No conversion: the file is in metres by specification (glTF).
-    pub const METRES: ImportScale =
-        ImportScale { unit: Some(LengthUnit::Metre), metres_per_unit: 1.0, detected: false };
+    pub const METRES: ImportScale = ImportScale {
+        unit: Some(LengthUnit::Metre),
+        metres_per_unit: 1.0,
+        detected: false,
+    };
 }
 
 #[cfg(test)]

@@ -33,14 +33,25 @@ pub struct BvhStats {
 }
 
 /// Reads a BVH file from disk.
-pub fn read_bvh_file(path: &Path, options: BvhReadOptions) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
+pub fn read_bvh_file(
+    path: &Path,
+    options: BvhReadOptions,
+) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
     let bytes = std::fs::read(path).map_err(|e| FormatError::io(path, &e))?;
     read_bvh(&bytes, path, options)
 }
 
 /// Parses BVH `bytes`; `path` only names the file in errors.
-pub fn read_bvh(bytes: &[u8], path: &Path, options: BvhReadOptions) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
-    Parser { path, warnings: Vec::new() }.parse(bytes, options)
+pub fn read_bvh(
+    bytes: &[u8],
+    path: &Path,
+    options: BvhReadOptions,
+) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
+    Parser {
+        path,
+        warnings: Vec::new(),
+    }
+    .parse(bytes, options)
 }
 
 struct Parser<'p> {
@@ -105,23 +116,47 @@ impl<'a> Tokens<'a> {
 
 impl Parser<'_> {
     fn err(&self, line: usize, kind: Kind, message: impl Into<String>) -> FormatError {
-        FormatError::new(self.path, Location::Line { line, column: None }, kind, message)
+        FormatError::new(
+            self.path,
+            Location::Line { line, column: None },
+            kind,
+            message,
+        )
     }
 
-    fn parse(mut self, bytes: &[u8], options: BvhReadOptions) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
+    fn parse(
+        mut self,
+        bytes: &[u8],
+        options: BvhReadOptions,
+    ) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
         let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
-        let start = find_subslice(bytes, b"HIERARCHY")
-            .ok_or_else(|| FormatError::file(self.path, Kind::Syntax, "no HIERARCHY keyword: not a BVH file"))?;
+        let start = find_subslice(bytes, b"HIERARCHY").ok_or_else(|| {
+            FormatError::file(
+                self.path,
+                Kind::Syntax,
+                "no HIERARCHY keyword: not a BVH file",
+            )
+        })?;
         let skipped_lines = bytes[..start].iter().filter(|&&b| b == b'\n').count();
         if bytes[..start].iter().any(|b| !b.is_ascii_whitespace()) {
-            self.warnings.push(format!("skipped {} bytes before HIERARCHY", start));
+            self.warnings
+                .push(format!("skipped {} bytes before HIERARCHY", start));
         }
         let text = std::str::from_utf8(&bytes[start..]).map_err(|e| {
-            let line = skipped_lines + 1 + bytes[start..start + e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
+            let line = skipped_lines
+                + 1
+                + bytes[start..start + e.valid_up_to()]
+                    .iter()
+                    .filter(|&&b| b == b'\n')
+                    .count();
             self.err(line, Kind::Syntax, "bytes that are not UTF-8 text")
         })?;
         let mut tokens = Tokens {
-            lines: Lines { text, pos: 0, line: skipped_lines },
+            lines: Lines {
+                text,
+                pos: 0,
+                line: skipped_lines,
+            },
             current: "".split_whitespace().peekable(),
             line: skipped_lines,
         };
@@ -131,38 +166,80 @@ impl Parser<'_> {
         let rest_extent = rest_extent(&joints);
         let (unit, metres_per_unit, detected) = match options.metres_per_unit {
             Some(m) if m.is_finite() && m > 0.0 => (None, m, false),
-            Some(m) => return Err(FormatError::file(self.path, Kind::Value, format!("scale override {m} is not a positive number"))),
+            Some(m) => {
+                return Err(FormatError::file(
+                    self.path,
+                    Kind::Value,
+                    format!("scale override {m} is not a positive number"),
+                ));
+            }
             None => {
                 let unit = detect_unit(rest_extent);
                 (Some(unit), unit.metres(), true)
             }
         };
         let skeleton = self.build_skeleton(&joints, metres_per_unit as f32)?;
-        let (rotations, translations) =
-            self.parse_frames(&mut lines, &joints, &skeleton, claimed_frames, frames_line, metres_per_unit as f32)?;
-        let scale = ImportScale { unit, metres_per_unit, detected };
-        let clip = Clip::new(Arc::new(skeleton), 1.0 / frame_time, rotations, translations, scale)
-            .map_err(|e| FormatError::file(self.path, Kind::Value, e.to_string()))?;
-        let stats = BvhStats { frame_time_secs: frame_time, rest_extent_file_units: rest_extent };
-        Ok(Loaded { value: (clip, stats), warnings: self.warnings })
+        let (rotations, translations) = self.parse_frames(
+            &mut lines,
+            &joints,
+            &skeleton,
+            claimed_frames,
+            frames_line,
+            metres_per_unit as f32,
+        )?;
+        let scale = ImportScale {
+            unit,
+            metres_per_unit,
+            detected,
+        };
+        let clip = Clip::new(
+            Arc::new(skeleton),
+            1.0 / frame_time,
+            rotations,
+            translations,
+            scale,
+        )
+        .map_err(|e| FormatError::file(self.path, Kind::Value, e.to_string()))?;
+        let stats = BvhStats {
+            frame_time_secs: frame_time,
+            rest_extent_file_units: rest_extent,
+        };
+        Ok(Loaded {
+            value: (clip, stats),
+            warnings: self.warnings,
+        })
     }
 
     fn parse_hierarchy(&mut self, tokens: &mut Tokens<'_>) -> Result<Vec<RawJoint>, FormatError> {
-        let (line, first) = tokens.next_token().ok_or_else(|| FormatError::file(self.path, Kind::Truncated, "empty file"))?;
+        let (line, first) = tokens
+            .next_token()
+            .ok_or_else(|| FormatError::file(self.path, Kind::Truncated, "empty file"))?;
         if first != "HIERARCHY" {
-            return Err(self.err(line, Kind::Syntax, format!("expected HIERARCHY, found '{first}'")));
+            return Err(self.err(
+                line,
+                Kind::Syntax,
+                format!("expected HIERARCHY, found '{first}'"),
+            ));
         }
         let mut joints: Vec<RawJoint> = Vec::new();
         // Stack of open blocks: index into `joints`.
         let mut stack: Vec<usize> = Vec::new();
         loop {
             let Some((line, token)) = tokens.next_token() else {
-                return Err(self.err(tokens.line, Kind::Truncated, "file ends inside the HIERARCHY section (no MOTION)"));
+                return Err(self.err(
+                    tokens.line,
+                    Kind::Truncated,
+                    "file ends inside the HIERARCHY section (no MOTION)",
+                ));
             };
             match token {
                 "ROOT" | "JOINT" => {
                     if token == "ROOT" && !stack.is_empty() {
-                        return Err(self.err(line, Kind::Syntax, "ROOT inside another joint's block"));
+                        return Err(self.err(
+                            line,
+                            Kind::Syntax,
+                            "ROOT inside another joint's block",
+                        ));
                     }
                     if token == "JOINT" && stack.is_empty() {
                         return Err(self.err(line, Kind::Syntax, "JOINT outside any ROOT block"));
@@ -173,7 +250,11 @@ impl Parser<'_> {
                         words.pop();
                     }
                     if words.is_empty() {
-                        return Err(self.err(line, Kind::Syntax, format!("{token} without a name")));
+                        return Err(self.err(
+                            line,
+                            Kind::Syntax,
+                            format!("{token} without a name"),
+                        ));
                     }
                     let name = words.join(" ");
                     joints.push(RawJoint {
@@ -226,15 +307,25 @@ impl Parser<'_> {
                         return Err(self.err(line, Kind::Syntax, "CHANNELS outside any joint"));
                     };
                     if joints[current].end_site {
-                        return Err(self.err(line, Kind::Syntax, "an End Site cannot have CHANNELS"));
+                        return Err(self.err(
+                            line,
+                            Kind::Syntax,
+                            "an End Site cannot have CHANNELS",
+                        ));
                     }
                     let count = self.number(tokens, "CHANNELS")?;
                     if !(0.0..=64.0).contains(&count) || count.fract() != 0.0 {
-                        return Err(self.err(line, Kind::Value, format!("channel count {count} is not a whole number from 0 to 64")));
+                        return Err(self.err(
+                            line,
+                            Kind::Value,
+                            format!("channel count {count} is not a whole number from 0 to 64"),
+                        ));
                     }
                     let mut channels = Vec::with_capacity(count as usize);
                     for _ in 0..count as usize {
-                        let (l, name) = tokens.next_token().ok_or_else(|| self.err(line, Kind::Truncated, "file ends in a CHANNELS list"))?;
+                        let (l, name) = tokens.next_token().ok_or_else(|| {
+                            self.err(line, Kind::Truncated, "file ends in a CHANNELS list")
+                        })?;
                         channels.push(parse_channel(name).ok_or_else(|| {
                             self.err(l, Kind::Syntax, format!("'{name}' is not a channel name (expected e.g. Xposition, Zrotation); the CHANNELS count may be wrong"))
                         })?);
@@ -248,11 +339,21 @@ impl Parser<'_> {
                 }
                 "MOTION" => {
                     if !stack.is_empty() {
-                        return Err(self.err(line, Kind::Syntax, "MOTION before every joint block is closed"));
+                        return Err(self.err(
+                            line,
+                            Kind::Syntax,
+                            "MOTION before every joint block is closed",
+                        ));
                     }
                     break;
                 }
-                other => return Err(self.err(line, Kind::Syntax, format!("unexpected '{other}' in HIERARCHY"))),
+                other => {
+                    return Err(self.err(
+                        line,
+                        Kind::Syntax,
+                        format!("unexpected '{other}' in HIERARCHY"),
+                    ));
+                }
             }
         }
         if joints.iter().all(|j| j.end_site) {
@@ -264,35 +365,67 @@ impl Parser<'_> {
     fn expect(&self, tokens: &mut Tokens<'_>, want: &str) -> Result<(), FormatError> {
         match tokens.next_token() {
             Some((_, t)) if t == want => Ok(()),
-            Some((l, t)) => Err(self.err(l, Kind::Syntax, format!("expected '{want}', found '{t}'"))),
-            None => Err(self.err(tokens.line, Kind::Truncated, format!("file ends where '{want}' was expected"))),
+            Some((l, t)) => {
+                Err(self.err(l, Kind::Syntax, format!("expected '{want}', found '{t}'")))
+            }
+            None => Err(self.err(
+                tokens.line,
+                Kind::Truncated,
+                format!("file ends where '{want}' was expected"),
+            )),
         }
     }
 
     fn number(&self, tokens: &mut Tokens<'_>, what: &str) -> Result<f32, FormatError> {
-        let (l, t) = tokens.next_token().ok_or_else(|| self.err(tokens.line, Kind::Truncated, format!("file ends inside {what}")))?;
+        let (l, t) = tokens.next_token().ok_or_else(|| {
+            self.err(
+                tokens.line,
+                Kind::Truncated,
+                format!("file ends inside {what}"),
+            )
+        })?;
         match t.parse::<f32>() {
             Ok(v) if v.is_finite() => Ok(v),
-            _ => Err(self.err(l, Kind::Value, format!("'{t}' in {what} is not a finite number"))),
+            _ => Err(self.err(
+                l,
+                Kind::Value,
+                format!("'{t}' in {what} is not a finite number"),
+            )),
         }
     }
 
-    fn parse_motion_header(&self, tokens: &mut Tokens<'_>) -> Result<(usize, f64, usize), FormatError> {
+    fn parse_motion_header(
+        &self,
+        tokens: &mut Tokens<'_>,
+    ) -> Result<(usize, f64, usize), FormatError> {
         let mut frames = None;
         let mut frame_time = None;
         while frames.is_none() || frame_time.is_none() {
             let Some((line, t)) = tokens.next_token() else {
-                return Err(self.err(tokens.line, Kind::Truncated, "file ends inside the MOTION header"));
+                return Err(self.err(
+                    tokens.line,
+                    Kind::Truncated,
+                    "file ends inside the MOTION header",
+                ));
             };
             let value = |tokens: &mut Tokens<'_>| -> Result<f64, FormatError> {
-                let (l, v) = tokens.next_token().ok_or_else(|| self.err(line, Kind::Truncated, "file ends inside the MOTION header"))?;
-                v.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| self.err(l, Kind::Value, format!("'{v}' is not a number")))
+                let (l, v) = tokens.next_token().ok_or_else(|| {
+                    self.err(line, Kind::Truncated, "file ends inside the MOTION header")
+                })?;
+                v.parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| self.err(l, Kind::Value, format!("'{v}' is not a number")))
             };
             match t {
                 "Frames:" => {
                     let n = value(tokens)?;
                     if n < 0.0 || n.fract() != 0.0 {
-                        return Err(self.err(line, Kind::Value, format!("frame count {n} is not a whole non-negative number")));
+                        return Err(self.err(
+                            line,
+                            Kind::Value,
+                            format!("frame count {n} is not a whole non-negative number"),
+                        ));
                     }
                     frames = Some((n as usize, line));
                 }
@@ -300,15 +433,29 @@ impl Parser<'_> {
                     self.expect(tokens, "Time:")?;
                     let dt = value(tokens)?;
                     if dt <= 0.0 {
-                        return Err(self.err(line, Kind::Value, format!("frame time {dt} s must be positive")));
+                        return Err(self.err(
+                            line,
+                            Kind::Value,
+                            format!("frame time {dt} s must be positive"),
+                        ));
                     }
                     frame_time = Some(dt);
                 }
-                other => return Err(self.err(line, Kind::Syntax, format!("expected 'Frames:' or 'Frame Time:', found '{other}'"))),
+                other => {
+                    return Err(self.err(
+                        line,
+                        Kind::Syntax,
+                        format!("expected 'Frames:' or 'Frame Time:', found '{other}'"),
+                    ));
+                }
             }
         }
         if tokens.current.peek().is_some() {
-            return Err(self.err(tokens.line, Kind::Syntax, "unexpected text after the frame time"));
+            return Err(self.err(
+                tokens.line,
+                Kind::Syntax,
+                "unexpected text after the frame time",
+            ));
         }
         let (frames, frames_line) = frames.unwrap_or((0, tokens.line));
         Ok((frames, frame_time.unwrap_or(1.0), frames_line))
@@ -328,8 +475,11 @@ impl Parser<'_> {
             })
             .collect();
         // An end-site name may collide with a real joint: make it unique, keep real names.
-        let mut taken: std::collections::BTreeSet<String> =
-            out.iter().filter(|j| !j.end_site).map(|j| j.name.clone()).collect();
+        let mut taken: std::collections::BTreeSet<String> = out
+            .iter()
+            .filter(|j| !j.end_site)
+            .map(|j| j.name.clone())
+            .collect();
         for j in out.iter_mut().filter(|j| j.end_site) {
             let mut name = j.name.clone();
             let mut n = 1;
@@ -371,17 +521,16 @@ impl Parser<'_> {
         let mut frames = 0usize;
         let mut extra_lines = 0usize;
         while let Some((line, text)) = lines.next_line() {
-            let mut count = 0usize;
-            for token in text.split_ascii_whitespace() {
-                let v = match token.parse::<f32>() {
-                    Ok(v) if v.is_finite() => v,
-                    _ => return Err(self.err(line, Kind::Value, format!("'{token}' is not a finite number"))),
-                };
-                if count < values.len() {
-                    values[count] = v;
+            let count = match parse_row(text.as_bytes(), &mut values) {
+                Ok(count) => count,
+                Err(token) => {
+                    return Err(self.err(
+                        line,
+                        Kind::Value,
+                        format!("'{token}' is not a finite number"),
+                    ));
                 }
-                count += 1;
-            }
+            };
             if count == 0 {
                 continue;
             }
@@ -393,7 +542,10 @@ impl Parser<'_> {
                 return Err(self.err(
                     line,
                     Kind::Structure,
-                    format!("frame {} has {count} values, the hierarchy declares {} channels", frames, layout.channel_count),
+                    format!(
+                        "frame {} has {count} values, the hierarchy declares {} channels",
+                        frames, layout.channel_count
+                    ),
                 ));
             }
             layout.push_frame(skeleton, &values, scale, &mut rotations, &mut translations);
@@ -407,7 +559,9 @@ impl Parser<'_> {
             ));
         }
         if extra_lines > 0 {
-            self.warnings.push(format!("ignored {extra_lines} rows after the {claimed} frames the header declares"));
+            self.warnings.push(format!(
+                "ignored {extra_lines} rows after the {claimed} frames the header declares"
+            ));
         }
         Ok((rotations, translations))
     }
@@ -431,12 +585,22 @@ impl FrameLayout {
                 (s, j.channels.clone())
             })
             .collect();
-        FrameLayout { joints, channel_count: start }
+        FrameLayout {
+            joints,
+            channel_count: start,
+        }
     }
 
     /// Converts one row (file units, degrees) into local transforms (metres, radians).
     #[inline]
-    fn push_frame(&self, skeleton: &Skeleton, values: &[f32], scale: f32, rotations: &mut Vec<Quat>, translations: &mut Vec<Vec3>) {
+    fn push_frame(
+        &self,
+        skeleton: &Skeleton,
+        values: &[f32],
+        scale: f32,
+        rotations: &mut Vec<Quat>,
+        translations: &mut Vec<Vec3>,
+    ) {
         for ((start, channels), joint) in self.joints.iter().zip(skeleton.joints()) {
             let mut translation = joint.rest_offset;
             let mut rotation = Quat::IDENTITY;
@@ -450,6 +614,92 @@ impl FrameLayout {
             translations.push(translation);
         }
     }
+}
+
+/// Parses the whitespace-separated numbers of one row into `values` (extra ones are only
+/// counted) and returns how many there were, or the offending token.
+#[inline]
+fn parse_row(line: &[u8], values: &mut [f32]) -> Result<usize, String> {
+    let mut count = 0;
+    let mut pos = 0;
+    loop {
+        while pos < line.len() && matches!(line[pos], b' ' | b'\t' | b'\r' | b'\x0c') {
+            pos += 1;
+        }
+        if pos == line.len() {
+            return Ok(count);
+        }
+        let parsed = parse_plain_decimal(&line[pos..])
+            .map(Ok)
+            .unwrap_or_else(|| fast_float2::parse_partial::<f32, _>(&line[pos..]));
+        match parsed {
+            Ok((v, used))
+                if v.is_finite()
+                    && line.get(pos + used).is_none_or(|b| b.is_ascii_whitespace()) =>
+            {
+                if let Some(slot) = values.get_mut(count) {
+                    *slot = v;
+                }
+                count += 1;
+                pos += used;
+            }
+            _ => {
+                let end = line[pos..]
+                    .iter()
+                    .position(|b| b.is_ascii_whitespace())
+                    .map_or(line.len(), |e| pos + e);
+                return Err(String::from_utf8_lossy(&line[pos..end]).into_owned());
+            }
+        }
+    }
+}
+
+/// Exact powers of ten representable in f64.
+const POW10: [f64; 16] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
+];
+
+/// Fast path for the plain decimals that make up nearly all BVH data (`-12.34567`): at
+/// most 15 digits, no exponent. The digits form an exact integer and the power of ten is
+/// exact, so the f64 division is correctly rounded; the final f32 rounding is within one
+/// ulp. Anything else (exponents, `nan`, long numbers) returns `None` for the general
+/// parser.
+#[inline]
+fn parse_plain_decimal(bytes: &[u8]) -> Option<(f32, usize)> {
+    let mut pos = 0;
+    let negative = match bytes.first() {
+        Some(b'-') => {
+            pos = 1;
+            true
+        }
+        Some(b'+') => {
+            pos = 1;
+            false
+        }
+        _ => false,
+    };
+    let mut mantissa: u64 = 0;
+    let mut digits = 0usize;
+    let mut fraction_digits = 0usize;
+    let mut seen_point = false;
+    while let Some(&b) = bytes.get(pos) {
+        match b {
+            b'0'..=b'9' => {
+                mantissa = mantissa * 10 + u64::from(b - b'0');
+                digits += 1;
+                fraction_digits += usize::from(seen_point);
+            }
+            b'.' if !seen_point => seen_point = true,
+            b'e' | b'E' => return None,
+            _ => break,
+        }
+        pos += 1;
+    }
+    if digits == 0 || digits > 15 {
+        return None;
+    }
+    let magnitude = mantissa as f64 / POW10[fraction_digits];
+    Some((if negative { -magnitude } else { magnitude } as f32, pos))
 }
 
 fn parse_channel(name: &str) -> Option<Channel> {
@@ -475,10 +725,49 @@ fn rest_extent(joints: &[RawJoint]) -> f64 {
         let p = j.parent.map(|p| positions[p]).unwrap_or(Vec3::ZERO) + j.offset;
         positions.push(p);
     }
-    let (lo, hi) = positions.iter().fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let (lo, hi) = positions.iter().fold(
+        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
     f64::from((hi - lo).max_element())
 }
 
 fn find_subslice(haystack: &[u8], needle: &[u8]) -> Option<usize> {
     haystack.windows(needle.len()).position(|w| w == needle)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fast path agrees with the standard library's correctly rounded parser to within
+    /// one f32 ulp, and declines what it does not handle.
+    #[test]
+    fn plain_decimal_fast_path_agrees_with_std() {
+        for text in [
+            "0",
+            "-0.0",
+            "12.34567",
+            "-179.99999",
+            ".0083333",
+            "5.",
+            "-1234567.891",
+            "0.000001",
+            "+3.5",
+        ] {
+            let (v, used) = parse_plain_decimal(text.as_bytes()).unwrap();
+            let expected: f32 = text.parse().unwrap();
+            assert_eq!(used, text.len(), "{text}");
+            assert!(
+                (v - expected).abs() <= expected.abs() * f32::EPSILON,
+                "{text}: {v} vs {expected}"
+            );
+        }
+        for text in ["1e5", "nan", "-", ".", "1234567890123456"] {
+            assert!(
+                parse_plain_decimal(text.as_bytes()).is_none_or(|(_, used)| used < text.len()),
+                "{text}"
+            );
+        }
+    }
 }
