@@ -3,7 +3,9 @@
 //! Everything here is engine-free: kernels take plain domain values and return new ones,
 //! so they can be tested and reused without a graph.
 
+pub mod builtin;
 pub mod corpus;
 pub mod formats;
 pub mod math;
 pub mod model;
+pub mod node;

@@ -1,0 +1,15 @@
+//! The built-in nodes, one file per family; each file holds the pure kernels and the thin
+//! node adapters over them.
+
+pub mod clip_edit;
+pub mod clip_io;
+pub mod scalar;
+
+use crate::node::Registry;
+
+/// Adds every built-in node to `registry`.
+pub fn register(registry: &mut Registry) {
+    clip_io::register(registry);
+    clip_edit::register(registry);
+    scalar::register(registry);
+}

@@ -1,0 +1,184 @@
+//! What a node sees while it runs: its inputs, checked parameters, a warnings sink,
+//! progress and cancellation, and the only sanctioned way to write files.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use super::param::{ChoiceParam, FloatParam, InputPathParam, IntParam, OutputPathParam, ParamValue};
+use super::port::{Input, Output};
+use super::value::{PortValue, Value};
+use super::{NodeError, NodeSchema};
+use crate::formats::atomic::write_atomic;
+
+/// Per-run services shared by every node of one evaluation.
+pub struct RunServices<'a> {
+    /// Folder relative input paths resolve against (the graph file's folder).
+    pub base_dir: &'a Path,
+    /// Folder exports write into; `None` forbids writing (e.g. `kg check`).
+    pub out_dir: Option<&'a Path>,
+    /// Set to stop the run; nodes poll it through [`NodeContext::check_cancelled`].
+    pub cancel: &'a AtomicBool,
+}
+
+/// One node's view of its evaluation.
+pub struct NodeContext<'a> {
+    schema: &'static NodeSchema,
+    inputs: Vec<Option<Value>>,
+    params: &'a BTreeMap<String, ParamValue>,
+    services: &'a RunServices<'a>,
+    progress: &'a (dyn Fn(f32) + Sync),
+    outputs: Vec<Option<Value>>,
+    warnings: Vec<String>,
+    files_written: Vec<PathBuf>,
+}
+
+/// What a node produced.
+#[derive(Debug, Default)]
+pub struct NodeOutcome {
+    /// Output values in schema order (`None` where the node set nothing).
+    pub outputs: Vec<Option<Value>>,
+    /// Warnings the node raised.
+    pub warnings: Vec<String>,
+    /// Files written, as absolute paths.
+    pub files_written: Vec<PathBuf>,
+}
+
+impl<'a> NodeContext<'a> {
+    /// Builds a context. `inputs` follow the schema's input order; `params` are already
+    /// checked and hold every defaulted value.
+    pub fn new(
+        schema: &'static NodeSchema,
+        inputs: Vec<Option<Value>>,
+        params: &'a BTreeMap<String, ParamValue>,
+        services: &'a RunServices<'a>,
+        progress: &'a (dyn Fn(f32) + Sync),
+    ) -> Self {
+        NodeContext {
+            schema,
+            inputs,
+            params,
+            services,
+            progress,
+            outputs: vec![None; schema.outputs.len()],
+            warnings: Vec::new(),
+            files_written: Vec::new(),
+        }
+    }
+
+    /// Ends the evaluation, handing back what the node produced.
+    pub fn finish(self) -> NodeOutcome {
+        NodeOutcome { outputs: self.outputs, warnings: self.warnings, files_written: self.files_written }
+    }
+
+    fn input_value(&self, name: &'static str) -> Option<&Value> {
+        let index = self.schema.inputs.iter().position(|p| p.name == name)?;
+        self.inputs.get(index)?.as_ref()
+    }
+
+    /// A required input's value.
+    pub fn input<T: PortValue>(&self, port: &Input<T>) -> Result<T, NodeError> {
+        self.optional_input(port)?.ok_or_else(|| NodeError::input(port.name(), "is not connected"))
+    }
+
+    /// An optional input's value, `None` when unconnected.
+    pub fn optional_input<T: PortValue>(&self, port: &Input<T>) -> Result<Option<T>, NodeError> {
+        match self.input_value(port.name()) {
+            None => Ok(None),
+            Some(v) => T::from_value(v)
+                .map(Some)
+                .ok_or_else(|| NodeError::input(port.name(), format!("carries a {}, expected {}", v.port_type().name(), T::TYPE.name()))),
+        }
+    }
+
+    /// Sets an output.
+    pub fn set_output<T: PortValue>(&mut self, port: &Output<T>, value: T) {
+        if let Some(index) = self.schema.outputs.iter().position(|p| p.name == port.name()) {
+            self.outputs[index] = Some(value.into_value());
+        }
+    }
+
+    fn param(&self, name: &'static str) -> Option<&ParamValue> {
+        self.params.get(name)
+    }
+
+    /// A real parameter; fails only if the parameter is unset and has no default.
+    pub fn float(&self, p: &FloatParam) -> Result<f64, NodeError> {
+        self.optional_float(p)?.ok_or_else(|| NodeError::param(p.0.name, "is not set"))
+    }
+
+    /// A real parameter that may be unset.
+    pub fn optional_float(&self, p: &FloatParam) -> Result<Option<f64>, NodeError> {
+        Ok(self.param(p.0.name).and_then(ParamValue::as_f64))
+    }
+
+    /// A whole-number parameter that may be unset.
+    pub fn optional_int(&self, p: &IntParam) -> Result<Option<i64>, NodeError> {
+        match self.param(p.0.name) {
+            None => Ok(None),
+            Some(ParamValue::Int(i)) => Ok(Some(*i)),
+            Some(other) => Err(NodeError::param(p.0.name, format!("expected a whole number, got {other}"))),
+        }
+    }
+
+    /// A whole-number parameter.
+    pub fn int(&self, p: &IntParam) -> Result<i64, NodeError> {
+        self.optional_int(p)?.ok_or_else(|| NodeError::param(p.0.name, "is not set"))
+    }
+
+    fn text(&self, name: &'static str) -> Result<&str, NodeError> {
+        match self.param(name) {
+            Some(ParamValue::Text(s)) => Ok(s),
+            Some(other) => Err(NodeError::param(name, format!("expected text, got {other}"))),
+            None => Err(NodeError::param(name, "is not set")),
+        }
+    }
+
+    /// A choice parameter.
+    pub fn choice(&self, p: &ChoiceParam) -> Result<&str, NodeError> {
+        self.text(p.0.name)
+    }
+
+    /// An input file, resolved against the graph's folder.
+    pub fn input_path(&self, p: &InputPathParam) -> Result<PathBuf, NodeError> {
+        Ok(self.services.base_dir.join(self.text(p.0.name)?))
+    }
+
+    /// Writes `bytes` atomically to the output file named by `p`, inside the run's output
+    /// folder, and returns the path relative to that folder.
+    pub fn write_output(&mut self, p: &OutputPathParam, bytes: &[u8]) -> Result<PathBuf, NodeError> {
+        let relative = PathBuf::from(self.text(p.0.name)?);
+        let out_dir = self
+            .services
+            .out_dir
+            .ok_or_else(|| NodeError::Failed("this run has no output folder, so nothing may be written".into()))?;
+        let path = out_dir.join(&relative);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).map_err(|e| NodeError::Failed(format!("cannot create {}: {e}", parent.display())))?;
+        }
+        self.check_cancelled()?;
+        write_atomic(&path, bytes)?;
+        self.files_written.push(path);
+        Ok(relative)
+    }
+
+    /// Records a warning: something odd that does not stop the run.
+    pub fn warn(&mut self, message: impl Into<String>) {
+        self.warnings.push(message.into());
+    }
+
+    /// Records several warnings.
+    pub fn warn_all(&mut self, messages: impl IntoIterator<Item = String>) {
+        self.warnings.extend(messages);
+    }
+
+    /// Reports progress of this node, from 0 to 1.
+    pub fn progress(&self, fraction: f32) {
+        (self.progress)(fraction.clamp(0.0, 1.0));
+    }
+
+    /// Fails with [`NodeError::Cancelled`] once the run has been cancelled.
+    pub fn check_cancelled(&self) -> Result<(), NodeError> {
+        if self.services.cancel.load(Ordering::Relaxed) { Err(NodeError::Cancelled) } else { Ok(()) }
+    }
+}

@@ -1,0 +1,177 @@
+//! The node contract: schemas with typed ports and parameters, the [`Node`] trait, errors,
+//! and the explicit registry of built-in nodes.
+
+mod context;
+mod param;
+mod port;
+mod value;
+
+use std::collections::BTreeMap;
+
+pub use context::{NodeContext, NodeOutcome, RunServices};
+pub use param::{ChoiceParam, FloatParam, InputPathParam, IntParam, OutputPathParam, ParamKind, ParamSpec, ParamValue};
+pub use port::{Input, Output, PortSpec};
+pub use value::{PortType, PortValue, Value};
+
+use crate::formats::FormatError;
+
+/// Everything the engine, the catalogue and the editor know about a node kind.
+#[derive(Debug, serde::Serialize)]
+pub struct NodeSchema {
+    /// Stable persisted kind, e.g. `"clip.load"`. Renaming it is a file-format change.
+    pub kind: &'static str,
+    /// Menu group in the editor and catalogue (`"io"`, `"clip"`, …).
+    pub category: &'static str,
+    /// What the node does, for animators (tooltip and catalogue text).
+    pub doc: &'static str,
+    /// Input ports.
+    pub inputs: &'static [PortSpec],
+    /// Output ports.
+    pub outputs: &'static [PortSpec],
+    /// Parameters.
+    pub params: &'static [ParamSpec],
+    /// Writes files: never served from the cache, and run only with an output folder.
+    pub writes_files: bool,
+}
+
+impl NodeSchema {
+    /// The input port called `name`.
+    pub fn input(&self, name: &str) -> Option<&PortSpec> {
+        self.inputs.iter().find(|p| p.name == name)
+    }
+
+    /// The output port called `name`.
+    pub fn output(&self, name: &str) -> Option<&PortSpec> {
+        self.outputs.iter().find(|p| p.name == name)
+    }
+
+    /// The parameter called `name`.
+    pub fn param(&self, name: &str) -> Option<&ParamSpec> {
+        self.params.iter().find(|p| p.name == name)
+    }
+}
+
+/// Why a node failed. The engine adds the node id.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NodeError {
+    /// An input is missing or unusable.
+    #[error("input '{port}' {message}")]
+    Input {
+        /// Port name.
+        port: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// A parameter is missing or unusable.
+    #[error("parameter '{param}' {message}")]
+    Param {
+        /// Parameter name.
+        param: &'static str,
+        /// What is wrong.
+        message: String,
+    },
+    /// A file could not be read or written.
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    /// The algorithm could not produce a result.
+    #[error("{0}")]
+    Failed(String),
+    /// The run was cancelled.
+    #[error("cancelled")]
+    Cancelled,
+}
+
+impl NodeError {
+    /// An input error.
+    pub fn input(port: &'static str, message: impl Into<String>) -> Self {
+        NodeError::Input { port, message: message.into() }
+    }
+
+    /// A parameter error.
+    pub fn param(param: &'static str, message: impl Into<String>) -> Self {
+        NodeError::Param { param, message: message.into() }
+    }
+}
+
+/// A node kind: a schema and an evaluation that adapts a pure kernel to the graph.
+pub trait Node: Send + Sync {
+    /// The node's schema (a `static`).
+    fn schema(&self) -> &'static NodeSchema;
+    /// Runs the node: read inputs and params from `ctx`, call the kernel, set outputs.
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError>;
+}
+
+/// The node kinds a graph may use, by kind name. Built explicitly: no inventory magic, so
+/// the catalogue is exactly what [`Registry::builtin`] lists.
+pub struct Registry {
+    nodes: BTreeMap<&'static str, Box<dyn Node>>,
+}
+
+impl Registry {
+    /// An empty registry (tests add their own nodes).
+    pub fn empty() -> Self {
+        Registry { nodes: BTreeMap::new() }
+    }
+
+    /// Every built-in node.
+    pub fn builtin() -> Self {
+        let mut r = Registry::empty();
+        crate::builtin::register(&mut r);
+        r
+    }
+
+    /// Adds a node kind, replacing one of the same kind.
+    pub fn add(&mut self, node: Box<dyn Node>) {
+        self.nodes.insert(node.schema().kind, node);
+    }
+
+    /// The node of `kind`.
+    pub fn get(&self, kind: &str) -> Option<&dyn Node> {
+        self.nodes.get(kind).map(|b| b.as_ref())
+    }
+
+    /// All nodes, sorted by kind.
+    pub fn iter(&self) -> impl Iterator<Item = &dyn Node> {
+        self.nodes.values().map(|b| b.as_ref())
+    }
+
+    /// The registered kind closest to `kind` by edit distance, for "did you mean" hints.
+    pub fn nearest_kind(&self, kind: &str) -> Option<&'static str> {
+        self.nodes.keys().copied().min_by_key(|k| edit_distance(k, kind)).filter(|k| edit_distance(k, kind) <= k.len() / 2 + 1)
+    }
+}
+
+/// Levenshtein distance between two short names.
+pub fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let cur = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != *cb)).min(row[j] + 1).min(cur + 1);
+            prev = cur;
+        }
+    }
+    row[b.len()]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn edit_distance_hand_cases() {
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(edit_distance("", "abc"), 3);
+        assert_eq!(edit_distance("clip.load", "clip.load"), 0);
+    }
+
+    #[test]
+    fn nearest_kind_suggests_typos_only() {
+        let r = Registry::builtin();
+        assert_eq!(r.nearest_kind("clip.lod"), Some("clip.load"));
+        assert_eq!(r.nearest_kind("completely.different.thing"), None);
+    }
+}

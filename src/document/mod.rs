@@ -1,0 +1,276 @@
+//! The graph file: a versioned RON document.
+//!
+//! ```ron
+//! (
+//!     format: "kinegraph.graph",
+//!     version: 2,
+//!     description: "Walk cycle to GLB",
+//!     inputs: { "clip_path": "load.path" },
+//!     nodes: {
+//!         "load": (kind: "clip.load", params: { "path": "../assets/walk.bvh" }),
+//!         "export": (kind: "export.glb", params: { "file": "walk.glb" }),
+//!     },
+//!     edges: [ (from: "load.clip", to: "export.clip") ],
+//!     layout: { "load": (0.0, 0.0), "export": (240.0, 0.0) },
+//! )
+//! ```
+//!
+//! `format` and `version` are checked before anything else; older versions are migrated
+//! (see [`v1`]), newer ones refused. Maps are sorted and edges ordered on save, so saving
+//! twice gives identical bytes and diffs stay small.
+
+mod locate;
+pub mod v1;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use kinegraph_nodes::node::ParamValue;
+use serde::{Deserialize, Serialize};
+
+pub use locate::SourceMap;
+
+/// The `format` string every graph file carries.
+pub const FORMAT: &str = "kinegraph.graph";
+/// The version this build writes.
+pub const CURRENT_VERSION: u32 = 2;
+
+/// A graph file (current version).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GraphDoc {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// Always [`CURRENT_VERSION`] once loaded.
+    pub version: u32,
+    /// Free text shown in catalogues and the editor.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub description: String,
+    /// Graph inputs: promoted parameters, by public name, as `"node.param"`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub inputs: BTreeMap<String, String>,
+    /// Nodes by id (a repeated id is a parse error, not a silent overwrite).
+    #[serde(deserialize_with = "unique_keys")]
+    pub nodes: BTreeMap<String, NodeDoc>,
+    /// Connections.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub edges: Vec<EdgeDoc>,
+    /// Editor positions of nodes, by id (canvas units).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub layout: BTreeMap<String, (f32, f32)>,
+}
+
+/// One node of a graph file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NodeDoc {
+    /// Node kind, e.g. `"clip.load"`.
+    pub kind: String,
+    /// Parameter values by name; unset ones take the schema default.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub params: BTreeMap<String, ParamValue>,
+}
+
+/// A connection `"node.port" → "node.port"`.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EdgeDoc {
+    /// Source, `"node.output"`.
+    pub from: String,
+    /// Destination, `"node.input"`.
+    pub to: String,
+}
+
+/// Deserialises a map, refusing repeated keys (serde's default keeps the last silently).
+fn unique_keys<'de, D, V>(deserializer: D) -> Result<BTreeMap<String, V>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    V: Deserialize<'de>,
+{
+    struct Visitor<V>(std::marker::PhantomData<V>);
+    impl<'de, V: Deserialize<'de>> serde::de::Visitor<'de> for Visitor<V> {
+        type Value = BTreeMap<String, V>;
+        fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("a map of node ids to nodes")
+        }
+        fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Self::Value, A::Error> {
+            let mut out = BTreeMap::new();
+            while let Some((key, value)) = map.next_entry::<String, V>()? {
+                if out.contains_key(&key) {
+                    return Err(serde::de::Error::custom(format!("duplicate node id '{key}'")));
+                }
+                out.insert(key, value);
+            }
+            Ok(out)
+        }
+    }
+    deserializer.deserialize_map(Visitor(std::marker::PhantomData))
+}
+
+/// Splits `"node.port"` at its last dot (node ids may contain dots; port names do not).
+pub fn split_endpoint(s: &str) -> Option<(&str, &str)> {
+    s.rsplit_once('.').filter(|(n, p)| !n.is_empty() && !p.is_empty())
+}
+
+/// Why a graph file could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum DocumentError {
+    /// The file could not be read or written.
+    #[error("{}: {message}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        message: String,
+    },
+    /// RON syntax or shape error at a position.
+    #[error("{}:{line}:{column}: {message}", path.display())]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// Not a graph file, or a version this build cannot read.
+    #[error("{}: {message}", path.display())]
+    Version {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+#[derive(Deserialize)]
+struct Header {
+    format: Option<String>,
+    version: Option<u32>,
+}
+
+/// A loaded graph with where it came from.
+#[derive(Clone, Debug)]
+pub struct LoadedGraph {
+    /// The document, migrated to the current version.
+    pub doc: GraphDoc,
+    /// Line lookups into the original text (empty for migrated files).
+    pub source: SourceMap,
+    /// The file it was read from.
+    pub path: PathBuf,
+    /// The version found in the file before migration.
+    pub file_version: u32,
+}
+
+impl LoadedGraph {
+    /// Folder that relative input paths resolve against.
+    pub fn base_dir(&self) -> PathBuf {
+        self.path.parent().map(Path::to_path_buf).unwrap_or_default()
+    }
+}
+
+/// Reads a graph file from disk.
+pub fn load_file(path: &Path) -> Result<LoadedGraph, DocumentError> {
+    let text = std::fs::read_to_string(path).map_err(|e| DocumentError::Io { path: path.to_path_buf(), message: e.to_string() })?;
+    parse(&text, path)
+}
+
+fn parse_error(path: &Path, e: ron::error::SpannedError) -> DocumentError {
+    DocumentError::Parse { path: path.to_path_buf(), line: e.span.start.line, column: e.span.start.col, message: e.code.to_string() }
+}
+
+/// Parses graph text; `path` names the file in errors and anchors relative paths.
+pub fn parse(text: &str, path: &Path) -> Result<LoadedGraph, DocumentError> {
+    let header: Header = ron::from_str(text).map_err(|e| parse_error(path, e))?;
+    let version_error = |message: String| DocumentError::Version { path: path.to_path_buf(), message };
+    match header.format.as_deref() {
+        Some(FORMAT) => {}
+        Some(other) => return Err(version_error(format!("format is '{other}', expected '{FORMAT}'"))),
+        None => return Err(version_error(format!("no 'format' field: not a kinegraph graph (expected format: \"{FORMAT}\")"))),
+    }
+    let file_version = header.version.ok_or_else(|| version_error("no 'version' field".into()))?;
+    let doc = match file_version {
+        CURRENT_VERSION => ron::from_str::<GraphDoc>(text).map_err(|e| parse_error(path, e))?,
+        1 => v1::migrate(ron::from_str::<v1::GraphDocV1>(text).map_err(|e| parse_error(path, e))?),
+        v if v > CURRENT_VERSION => {
+            return Err(version_error(format!(
+                "graph version {v} is newer than this kinegraph understands (up to {CURRENT_VERSION}): upgrade kinegraph"
+            )));
+        }
+        v => return Err(version_error(format!("graph version {v} is not a known version (1..={CURRENT_VERSION})"))),
+    };
+    let source = if file_version == CURRENT_VERSION { SourceMap::new(text) } else { SourceMap::default() };
+    Ok(LoadedGraph { doc, source, path: path.to_path_buf(), file_version })
+}
+
+/// Serialises a graph deterministically (sorted maps, sorted edges).
+pub fn to_string(doc: &GraphDoc) -> String {
+    let mut doc = doc.clone();
+    doc.edges.sort();
+    doc.edges.dedup();
+    doc.format = FORMAT.to_string();
+    doc.version = CURRENT_VERSION;
+    let config = ron::ser::PrettyConfig::new().indentor("    ").struct_names(false);
+    let mut text = ron::ser::to_string_pretty(&doc, config).unwrap_or_else(|e| format!("// serialisation failed: {e}\n"));
+    text.push('\n');
+    text
+}
+
+/// Writes a graph file atomically.
+pub fn save_file(doc: &GraphDoc, path: &Path) -> Result<(), DocumentError> {
+    kinegraph_nodes::formats::atomic::write_atomic(path, to_string(doc).as_bytes())
+        .map_err(|e| DocumentError::Io { path: path.to_path_buf(), message: e.message })
+}
+
+impl GraphDoc {
+    /// An empty current-version document.
+    pub fn new() -> Self {
+        GraphDoc {
+            format: FORMAT.to_string(),
+            version: CURRENT_VERSION,
+            description: String::new(),
+            inputs: BTreeMap::new(),
+            nodes: BTreeMap::new(),
+            edges: Vec::new(),
+            layout: BTreeMap::new(),
+        }
+    }
+
+    /// Resolves a `--set` name (a graph input, or `node.param`) to `(node, param)`.
+    pub fn resolve_setting(&self, name: &str) -> Result<(String, String), String> {
+        let target = self.inputs.get(name).map(String::as_str).unwrap_or(name);
+        let (node, param) = split_endpoint(target).ok_or_else(|| {
+            let inputs: Vec<&str> = self.inputs.keys().map(String::as_str).collect();
+            format!("'{name}' is neither a graph input ({}) nor node.param", if inputs.is_empty() { "none".into() } else { inputs.join(", ") })
+        })?;
+        if !self.nodes.contains_key(node) {
+            return Err(format!("'{name}' names node '{node}', which the graph does not have"));
+        }
+        Ok((node.to_string(), param.to_string()))
+    }
+
+    /// Sets a parameter by graph-input name or `node.param`.
+    pub fn set_param(&mut self, name: &str, value: ParamValue) -> Result<(), String> {
+        let (node, param) = self.resolve_setting(name)?;
+        if let Some(n) = self.nodes.get_mut(&node) {
+            n.params.insert(param, value);
+        }
+        Ok(())
+    }
+}
+
+impl Default for GraphDoc {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Parses a `--set` value: a RON number, bool or quoted string, else the raw text.
+pub fn parse_param_value(text: &str) -> ParamValue {
+    match ron::from_str::<ParamValue>(text) {
+        Ok(v) => v,
+        Err(_) => ParamValue::Text(text.to_string()),
+    }
+}

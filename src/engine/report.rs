@@ -1,0 +1,65 @@
+//! What a run reports, per node and overall; serialises to the `--json` report.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use kinegraph_nodes::node::Value;
+use serde::Serialize;
+
+/// How a node's evaluation ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NodeStatus {
+    /// Ran and succeeded.
+    Ok,
+    /// Result reused from an earlier run with identical inputs and parameters.
+    Cached,
+    /// Ran and failed.
+    Error,
+    /// Not run because an upstream node failed or was blocked.
+    Blocked,
+    /// Not run (or stopped) because the run was cancelled.
+    Cancelled,
+}
+
+/// One node's part of a run.
+#[derive(Clone, Debug, Serialize)]
+pub struct NodeReport {
+    /// Node kind.
+    pub kind: String,
+    /// Outcome.
+    pub status: NodeStatus,
+    /// Wall time spent in the node (0 when cached or not run), seconds.
+    pub seconds: f64,
+    /// Oddities the node reported.
+    pub warnings: Vec<String>,
+    /// The failure, for `error`, or what blocked it, for `blocked`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// The result of one run.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct RunReport {
+    /// Per node id, the nodes the run needed.
+    pub nodes: BTreeMap<String, NodeReport>,
+    /// Files written, absolute paths, sorted.
+    pub files_written: Vec<PathBuf>,
+    /// Whole run, seconds.
+    pub seconds: f64,
+    /// Output values per node id, in schema order (not serialised).
+    #[serde(skip)]
+    pub outputs: BTreeMap<String, Vec<Option<Value>>>,
+}
+
+impl RunReport {
+    /// True when every needed node succeeded (ran or cached).
+    pub fn succeeded(&self) -> bool {
+        self.nodes.values().all(|n| matches!(n.status, NodeStatus::Ok | NodeStatus::Cached))
+    }
+
+    /// How many nodes ended with `status`.
+    pub fn count(&self, status: NodeStatus) -> usize {
+        self.nodes.values().filter(|n| n.status == status).count()
+    }
+}
