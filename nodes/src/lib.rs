@@ -6,3 +6,5 @@
 pub mod formats;
 pub mod math;
 pub mod model;
+#[cfg(any(test, feature = "test-support"))]
+pub mod test_support;
