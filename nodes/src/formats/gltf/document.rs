@@ -160,6 +160,13 @@ pub(crate) fn load(bytes: &[u8], file: &Path) -> Result<Document, ReadError> {
             warnings.push(format!("required extension not understood, ignored: {p}"));
             return;
         }
+        // Many exporters omit POSITION bounds; kinegraph does not need them.
+        if err == ValidationError::Missing && (p.as_str().ends_with("POSITION\"].min") || p.as_str().ends_with("POSITION\"].max")) {
+            if !warnings.iter().any(|w| w.starts_with("POSITION accessor")) {
+                warnings.push(format!("POSITION accessor without min/max ({})", json_pointer(p.as_str())));
+            }
+            return;
+        }
         if first_error.is_none() {
             let kind = match err {
                 ValidationError::IndexOutOfBounds | ValidationError::Missing => Kind::Structure,
