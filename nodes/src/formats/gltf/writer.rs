@@ -268,7 +268,6 @@ fn write_mesh(
             name: None,
             skeleton: None,
         }));
-        // Sort weights descending? Not required by glTF; kept in source order.
     }
 
     let flat: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
