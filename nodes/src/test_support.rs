@@ -10,13 +10,21 @@ use std::path::PathBuf;
 pub fn shared_data() -> Option<PathBuf> {
     let dir = std::env::var_os("KG_SHARED_DATA")
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data")));
+        .unwrap_or_else(|| {
+            PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"))
+        });
     if dir.join("README.md").is_file() {
         return Some(dir);
     }
     if std::env::var_os("CI").is_some() {
-        panic!("shared test data not found at {} (set KG_SHARED_DATA); CI requires it", dir.display());
+        panic!(
+            "shared test data not found at {} (set KG_SHARED_DATA); CI requires it",
+            dir.display()
+        );
     }
-    eprintln!("skipping: shared test data not found at {} (set KG_SHARED_DATA)", dir.display());
+    eprintln!(
+        "skipping: shared test data not found at {} (set KG_SHARED_DATA)",
+        dir.display()
+    );
     None
 }

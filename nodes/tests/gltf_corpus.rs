@@ -1,17 +1,26 @@
 //! The glTF and OBJ files of the shared corpus: counts checked against the files' own
 //! JSON (parsed here independently with serde_json), keyframes, bind pose and round trips.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed unwrap is a failed test
+
 use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Quat, Vec3, Vec4};
-use kinegraph_nodes::formats::gltf::{GltfAsset, GltfReadOptions, read_gltf, read_gltf_file, write_glb};
+use kinegraph_nodes::formats::gltf::{
+    GltfAsset, GltfReadOptions, read_gltf, read_gltf_file, write_glb,
+};
 use kinegraph_nodes::formats::obj::read_obj_file;
 use kinegraph_nodes::math::quat_normalize_or_identity;
 use kinegraph_nodes::model::{Clip, Mesh, forward_kinematics};
 use kinegraph_nodes::test_support::shared_data;
 use serde_json::Value;
 
-const SAMPLES: [&str; 4] = ["CesiumMan.glb", "Fox.glb", "RiggedSimple.glb", "SimpleSkin.gltf"];
+const SAMPLES: [&str; 4] = [
+    "CesiumMan.glb",
+    "Fox.glb",
+    "RiggedSimple.glb",
+    "SimpleSkin.gltf",
+];
 
 /// The JSON document and binary buffers of a sample, decoded without the crate under test.
 struct RawGltf {
@@ -26,7 +35,8 @@ fn raw(path: &Path) -> RawGltf {
         let json = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
         let bin_start = 20 + json_len;
         let bin = (bin_start + 8 <= bytes.len()).then(|| {
-            let len = u32::from_le_bytes(bytes[bin_start..bin_start + 4].try_into().unwrap()) as usize;
+            let len =
+                u32::from_le_bytes(bytes[bin_start..bin_start + 4].try_into().unwrap()) as usize;
             bytes[bin_start + 8..bin_start + 8 + len].to_vec()
         });
         (json, bin)
@@ -39,7 +49,9 @@ fn raw(path: &Path) -> RawGltf {
         .unwrap()
         .iter()
         .map(|b| match b["uri"].as_str() {
-            Some(uri) => base64::engine::general_purpose::STANDARD.decode(uri.split_once(',').unwrap().1).unwrap(),
+            Some(uri) => base64::engine::general_purpose::STANDARD
+                .decode(uri.split_once(',').unwrap().1)
+                .unwrap(),
             None => bin.clone().unwrap(),
         })
         .collect();
@@ -60,8 +72,12 @@ impl RawGltf {
         };
         let view = &self.json["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
         let buf = &self.buffers[view["buffer"].as_u64().unwrap() as usize];
-        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize + a["byteOffset"].as_u64().unwrap_or(0) as usize;
-        let stride = view["byteStride"].as_u64().map(|s| s as usize).unwrap_or(4 * n);
+        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize
+            + a["byteOffset"].as_u64().unwrap_or(0) as usize;
+        let stride = view["byteStride"]
+            .as_u64()
+            .map(|s| s as usize)
+            .unwrap_or(4 * n);
         let count = a["count"].as_u64().unwrap() as usize;
         let mut out = Vec::new();
         for i in 0..count {
@@ -80,7 +96,8 @@ fn samples() -> Option<Vec<PathBuf>> {
 }
 
 fn load(path: &Path) -> GltfAsset {
-    let loaded = read_gltf_file(path, &GltfReadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+    let loaded =
+        read_gltf_file(path, &GltfReadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
     eprintln!("{}: warnings {:?}", path.display(), loaded.warnings);
     loaded.value
 }
@@ -109,7 +126,13 @@ fn every_sample_loads_with_the_counts_its_json_states() {
                 hi = hi.max(*times.last().unwrap() as f64);
             }
             let c = &clip.clip;
-            assert!((c.duration_secs() - (hi - lo)).abs() <= 0.5 / c.fps() + 1e-6, "{}: {} vs {}", path.display(), c.duration_secs(), hi - lo);
+            assert!(
+                (c.duration_secs() - (hi - lo)).abs() <= 0.5 / c.fps() + 1e-6,
+                "{}: {} vs {}",
+                path.display(),
+                c.duration_secs(),
+                hi - lo
+            );
             assert!((clip.start_secs - lo).abs() < 1e-6);
         }
         // Vertices: every node mesh's primitives' POSITION counts.
@@ -128,7 +151,11 @@ fn every_sample_loads_with_the_counts_its_json_states() {
         let got: Vec<usize> = asset.meshes.iter().map(|m| m.positions.len()).collect();
         assert_eq!(got, expected_vertices, "{}", path.display());
         for mesh in &asset.meshes {
-            assert!(mesh.skin.is_some(), "{}: every sample mesh is skinned", path.display());
+            assert!(
+                mesh.skin.is_some(),
+                "{}: every sample mesh is skinned",
+                path.display()
+            );
             assert_eq!(mesh.normals.len(), mesh.positions.len());
         }
     }
@@ -143,11 +170,18 @@ fn sampled_clips_equal_raw_keyframes_at_key_times() {
         let asset = load(&path);
         let r = raw(&path);
         let mut checked = 0;
-        for (a, clip) in r.json["animations"].as_array().unwrap().iter().zip(&asset.clips) {
+        for (a, clip) in r.json["animations"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(&asset.clips)
+        {
             let c = &clip.clip;
             for ch in a["channels"].as_array().unwrap() {
                 let node = ch["target"]["node"].as_u64().unwrap() as usize;
-                let Some(joint) = asset.joint_nodes.iter().position(|&n| n == node) else { continue };
+                let Some(joint) = asset.joint_nodes.iter().position(|&n| n == node) else {
+                    continue;
+                };
                 if c.skeleton().joints()[joint].parent.is_none() {
                     continue;
                 }
@@ -163,15 +197,25 @@ fn sampled_clips_equal_raw_keyframes_at_key_times() {
                     match ch["target"]["path"].as_str().unwrap() {
                         "rotation" => {
                             // Files may store keys slightly off unit length; the clip holds unit quaternions.
-                            let q = quat_normalize_or_identity(Quat::from_slice(&values[4 * k..4 * k + 4]));
+                            let q = quat_normalize_or_identity(Quat::from_slice(
+                                &values[4 * k..4 * k + 4],
+                            ));
                             let got = c.frame_rotations(f)[joint];
-                            assert!(got.dot(q).abs() > 1.0 - 1e-5, "{} node {node} key {k}: {got} vs {q}", path.display());
+                            assert!(
+                                got.dot(q).abs() > 1.0 - 1e-5,
+                                "{} node {node} key {k}: {got} vs {q}",
+                                path.display()
+                            );
                             checked += 1;
                         }
                         "translation" => {
                             let t = Vec3::from_slice(&values[3 * k..3 * k + 3]);
                             let got = c.frame_translations(f)[joint];
-                            assert!((got - t).length() < 1e-4 * t.length().max(1.0), "{} node {node} key {k}: {got} vs {t}", path.display());
+                            assert!(
+                                (got - t).length() < 1e-4 * t.length().max(1.0),
+                                "{} node {node} key {k}: {got} vs {t}",
+                                path.display()
+                            );
                             checked += 1;
                         }
                         _ => {}
@@ -192,13 +236,21 @@ fn bind_pose_skinning_reproduces_mesh_positions() {
         let asset = load(&path);
         let skeleton = asset.skeleton.clone().unwrap();
         let rest = Clip::rest_pose(skeleton.clone(), 30.0, 1).unwrap();
-        let world: Vec<Mat4> = forward_kinematics(&rest).frame(0).iter().map(|t| t.to_mat4()).collect();
+        let world: Vec<Mat4> = forward_kinematics(&rest)
+            .frame(0)
+            .iter()
+            .map(|t| t.to_mat4())
+            .collect();
         for mesh in &asset.meshes {
             let skinned = skin_positions(mesh, &world);
             let (lo, hi) = mesh.bounds().unwrap();
             let tol = 1e-4 * (hi - lo).length();
             for (v, (p, s)) in mesh.positions.iter().zip(&skinned).enumerate() {
-                assert!((*p - *s).length() < tol, "{} vertex {v}: {p} vs {s}", path.display());
+                assert!(
+                    (*p - *s).length() < tol,
+                    "{} vertex {v}: {p} vs {s}",
+                    path.display()
+                );
             }
         }
     }
@@ -213,7 +265,8 @@ fn skin_positions(mesh: &Mesh, world_from_joint: &[Mat4]) -> Vec<Vec3> {
             let mut out = Vec4::ZERO;
             for k in 0..4 {
                 let j = skin.joints[v][k] as usize;
-                out += skin.weights[v][k] * (world_from_joint[j] * skin.inverse_bind_matrices[j] * p.extend(1.0));
+                out += skin.weights[v][k]
+                    * (world_from_joint[j] * skin.inverse_bind_matrices[j] * p.extend(1.0));
             }
             out.truncate()
         })
@@ -227,7 +280,10 @@ fn cesium_man_stands_up_along_y() {
     let asset = load(&dir.join("gltf/CesiumMan.glb"));
     let (lo, hi) = asset.meshes[0].bounds().unwrap();
     let size = hi - lo;
-    assert!(size.y > 1.2 && size.y < 2.0 && size.y > size.x && size.y > size.z, "{size}");
+    assert!(
+        size.y > 1.2 && size.y < 2.0 && size.y > size.x && size.y > size.z,
+        "{size}"
+    );
     assert!(lo.y.abs() < 0.1, "feet at y = {}", lo.y);
 }
 
@@ -241,10 +297,20 @@ fn glb_round_trip_reproduces_world_positions() {
         let asset = load(&path);
         for clip in &asset.clips {
             let glb = write_glb(&clip.clip, asset.meshes.first()).unwrap();
-            let options = GltfReadOptions { sample_fps: Some(clip.clip.fps()), ..Default::default() };
-            let back = read_gltf(&glb.value, Path::new("roundtrip.glb"), &options).unwrap().value;
+            let options = GltfReadOptions {
+                sample_fps: Some(clip.clip.fps()),
+                ..Default::default()
+            };
+            let back = read_gltf(&glb.value, Path::new("roundtrip.glb"), &options)
+                .unwrap()
+                .value;
             let c2 = &back.clips[0].clip;
-            assert_eq!(c2.frame_count(), clip.clip.frame_count(), "{}", path.display());
+            assert_eq!(
+                c2.frame_count(),
+                clip.clip.frame_count(),
+                "{}",
+                path.display()
+            );
             let (p1, p2) = (forward_kinematics(&clip.clip), forward_kinematics(c2));
             for f in 0..c2.frame_count() {
                 for j in 0..c2.joint_count() {
@@ -252,7 +318,12 @@ fn glb_round_trip_reproduces_world_positions() {
                     // ~100 units across: one f32 ulp at 64 is 7.6e-6).
                     let d = (p1.position(f, j) - p2.position(f, j)).length();
                     let tol = 1e-5 * p1.position(f, j).length().max(1.0);
-                    assert!(d < tol, "{} '{}' frame {f} joint {j}: {d} m", path.display(), clip.name);
+                    assert!(
+                        d < tol,
+                        "{} '{}' frame {f} joint {j}: {d} m",
+                        path.display(),
+                        clip.name
+                    );
                 }
             }
             let (m1, m2) = (&asset.meshes[0], &back.meshes[0]);
@@ -283,16 +354,29 @@ fn every_obj_loads() {
         let loaded = read_obj_file(&path, None).unwrap_or_else(|e| panic!("{e}"));
         // Independent count: a polygon of n corners is n - 2 triangles.
         let text = std::fs::read_to_string(&path).unwrap();
-        let expected: usize = text.lines().filter(|l| l.starts_with("f ")).map(|l| l.split_whitespace().count() - 3).sum();
+        let expected: usize = text
+            .lines()
+            .filter(|l| l.starts_with("f "))
+            .map(|l| l.split_whitespace().count() - 3)
+            .sum();
         let got: usize = loaded.value.iter().map(|m| m.triangles.len()).sum();
         assert_eq!(got, expected, "{}", path.display());
         for m in &loaded.value {
             assert_eq!(m.normals.len(), m.positions.len());
             assert!(m.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-4));
         }
-        eprintln!("{}: {} meshes, warnings {:?}", path.display(), loaded.value.len(), loaded.warnings.first());
+        eprintln!(
+            "{}: {} meshes, warnings {:?}",
+            path.display(),
+            loaded.value.len(),
+            loaded.warnings.first()
+        );
         if path.ends_with("base.obj") {
-            assert!(loaded.warnings.iter().any(|w| w.contains("dm")), "{:?}", loaded.warnings);
+            assert!(
+                loaded.warnings.iter().any(|w| w.contains("dm")),
+                "{:?}",
+                loaded.warnings
+            );
         }
     }
 }

@@ -6,6 +6,8 @@
 //! `npm install gltf-validator`). Missing node or validator: the test fails when `CI` is
 //! set and is skipped with a message otherwise.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed unwrap is a failed test
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Arc;
@@ -16,13 +18,24 @@ use kinegraph_nodes::model::{Clip, ImportScale, Joint, Mesh, Skeleton, Skin, for
 use kinegraph_nodes::test_support::shared_data;
 
 fn validator() -> Option<(PathBuf, PathBuf)> {
-    let dir = std::env::var_os("KG_GLTF_VALIDATOR_DIR").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("/work/tools/gltf-validator"));
-    let script = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/tools/validate_gltf.mjs"));
-    let node_ok = Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
+    let dir = std::env::var_os("KG_GLTF_VALIDATOR_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("/work/tools/gltf-validator"));
+    let script = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/tools/validate_gltf.mjs"
+    ));
+    let node_ok = Command::new("node")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
     if node_ok && dir.join("node_modules/gltf-validator").is_dir() {
         return Some((dir, script));
     }
-    let why = format!("node or gltf-validator missing (looked in {}; set KG_GLTF_VALIDATOR_DIR)", dir.display());
+    let why = format!(
+        "node or gltf-validator missing (looked in {}; set KG_GLTF_VALIDATOR_DIR)",
+        dir.display()
+    );
     if std::env::var_os("CI").is_some() {
         panic!("{why}; CI requires the validator");
     }
@@ -32,8 +45,15 @@ fn validator() -> Option<(PathBuf, PathBuf)> {
 
 /// Runs the validator on `files`, panicking with its report on any error.
 fn validate(files: &[PathBuf]) {
-    let Some((dir, script)) = validator() else { return };
-    let out = Command::new("node").arg(&script).args(files).env("KG_GLTF_VALIDATOR_DIR", dir).output().unwrap();
+    let Some((dir, script)) = validator() else {
+        return;
+    };
+    let out = Command::new("node")
+        .arg(&script)
+        .args(files)
+        .env("KG_GLTF_VALIDATOR_DIR", dir)
+        .output()
+        .unwrap();
     let report = String::from_utf8_lossy(&out.stdout);
     eprintln!("{report}{}", String::from_utf8_lossy(&out.stderr));
     assert!(out.status.success(), "validator reported errors:\n{report}");
@@ -59,29 +79,95 @@ fn synthetic() -> (Clip, Mesh) {
     let mut translations = Vec::new();
     for f in 0..frames {
         let a = f as f32 * 0.05;
-        rotations.extend([Quat::from_rotation_y(a), Quat::from_rotation_x(a), Quat::from_rotation_z(-a), Quat::IDENTITY]);
-        translations.extend([Vec3::new(0.02 * f as f32, 1.0, 0.0), Vec3::new(0.0, 0.5, 0.0), Vec3::new(0.0, 0.5, 0.0), Vec3::new(0.0, 0.3, 0.0)]);
+        rotations.extend([
+            Quat::from_rotation_y(a),
+            Quat::from_rotation_x(a),
+            Quat::from_rotation_z(-a),
+            Quat::IDENTITY,
+        ]);
+        translations.extend([
+            Vec3::new(0.02 * f as f32, 1.0, 0.0),
+            Vec3::new(0.0, 0.5, 0.0),
+            Vec3::new(0.0, 0.5, 0.0),
+            Vec3::new(0.0, 0.3, 0.0),
+        ]);
     }
-    let clip = Clip::new(skeleton.clone(), 30.0, rotations, translations, ImportScale::METRES).unwrap();
+    let clip = Clip::new(
+        skeleton.clone(),
+        30.0,
+        rotations,
+        translations,
+        ImportScale::METRES,
+    )
+    .unwrap();
 
     let mut positions = Vec::new();
     for i in 0..8 {
-        positions.push(Vec3::new(if i & 1 == 0 { -0.5 } else { 0.5 }, if i & 2 == 0 { 0.5 } else { 2.5 }, if i & 4 == 0 { -0.5 } else { 0.5 }));
+        positions.push(Vec3::new(
+            if i & 1 == 0 { -0.5 } else { 0.5 },
+            if i & 2 == 0 { 0.5 } else { 2.5 },
+            if i & 4 == 0 { -0.5 } else { 0.5 },
+        ));
     }
-    let triangles = vec![[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4], [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]];
+    let triangles = vec![
+        [0, 2, 3],
+        [0, 3, 1],
+        [4, 5, 7],
+        [4, 7, 6],
+        [0, 1, 5],
+        [0, 5, 4],
+        [2, 6, 7],
+        [2, 7, 3],
+        [0, 4, 6],
+        [0, 6, 2],
+        [1, 3, 7],
+        [1, 7, 5],
+    ];
     let normals = Mesh::compute_normals(&positions, &triangles);
-    let joints = positions.iter().map(|p| if p.y < 1.0 { [0, 0, 0, 0] } else { [1, 2, 0, 0] }).collect();
-    let weights = positions.iter().map(|p| if p.y < 1.0 { [1.0, 0.0, 0.0, 0.0] } else { [0.3, 0.7, 0.0, 0.0] }).collect();
+    let joints = positions
+        .iter()
+        .map(|p| {
+            if p.y < 1.0 {
+                [0, 0, 0, 0]
+            } else {
+                [1, 2, 0, 0]
+            }
+        })
+        .collect();
+    let weights = positions
+        .iter()
+        .map(|p| {
+            if p.y < 1.0 {
+                [1.0, 0.0, 0.0, 0.0]
+            } else {
+                [0.3, 0.7, 0.0, 0.0]
+            }
+        })
+        .collect();
     let rest = Clip::rest_pose(skeleton.clone(), 30.0, 1).unwrap();
-    let inverse_bind_matrices = forward_kinematics(&rest).frame(0).iter().map(|t| t.to_mat4().inverse()).collect::<Vec<Mat4>>();
-    let uvs = Some(positions.iter().map(|p| glam::Vec2::new(p.x + 0.5, p.z + 0.5)).collect());
+    let inverse_bind_matrices = forward_kinematics(&rest)
+        .frame(0)
+        .iter()
+        .map(|t| t.to_mat4().inverse())
+        .collect::<Vec<Mat4>>();
+    let uvs = Some(
+        positions
+            .iter()
+            .map(|p| glam::Vec2::new(p.x + 0.5, p.z + 0.5))
+            .collect(),
+    );
     let mesh = Mesh {
         name: "box".into(),
         positions,
         normals,
         uvs,
         triangles,
-        skin: Some(Skin { skeleton, joints, weights, inverse_bind_matrices }),
+        skin: Some(Skin {
+            skeleton,
+            joints,
+            weights,
+            inverse_bind_matrices,
+        }),
     };
     (clip, mesh)
 }
@@ -97,14 +183,20 @@ fn synthetic_skinned_box_passes_the_validator_and_reads_back() {
     write_glb_file(&bare, &clip, None).unwrap();
     validate(&[path.clone(), bare]);
 
-    let options = GltfReadOptions { sample_fps: Some(30.0), ..Default::default() };
+    let options = GltfReadOptions {
+        sample_fps: Some(30.0),
+        ..Default::default()
+    };
     let back = read_gltf_file(&path, &options).unwrap().value;
     let c2 = &back.clips[0].clip;
     assert_eq!(c2.frame_count(), 20);
     let (p1, p2) = (forward_kinematics(&clip), forward_kinematics(c2));
     for f in 0..20 {
         for j in 0..4 {
-            assert!((p1.position(f, j) - p2.position(f, j)).length() < 1e-5, "frame {f} joint {j}");
+            assert!(
+                (p1.position(f, j) - p2.position(f, j)).length() < 1e-5,
+                "frame {f} joint {j}"
+            );
         }
     }
     let m2 = &back.meshes[0];
@@ -136,7 +228,10 @@ fn mesh_on_another_skeleton_is_refused() {
         skin.skeleton = other;
     }
     let err = write_glb_file(Path::new("/tmp/never-written.glb"), &clip, Some(&mesh)).unwrap_err();
-    assert!(err.to_string().contains("never-written.glb") && err.message.contains("different skeleton"), "{err}");
+    assert!(
+        err.to_string().contains("never-written.glb") && err.message.contains("different skeleton"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -144,8 +239,15 @@ fn corpus_samples_re_exported_pass_the_validator() {
     let Some(data) = shared_data() else { return };
     let dir = tempfile::tempdir().unwrap();
     let mut files = Vec::new();
-    for name in ["CesiumMan.glb", "Fox.glb", "RiggedSimple.glb", "SimpleSkin.gltf"] {
-        let asset = read_gltf_file(&data.join("gltf").join(name), &GltfReadOptions::default()).unwrap().value;
+    for name in [
+        "CesiumMan.glb",
+        "Fox.glb",
+        "RiggedSimple.glb",
+        "SimpleSkin.gltf",
+    ] {
+        let asset = read_gltf_file(&data.join("gltf").join(name), &GltfReadOptions::default())
+            .unwrap()
+            .value;
         for (k, clip) in asset.clips.iter().enumerate() {
             let path = dir.path().join(format!("{name}.{k}.glb"));
             write_glb_file(&path, &clip.clip, asset.meshes.first()).unwrap();

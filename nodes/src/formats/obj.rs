@@ -24,50 +24,102 @@ const SUSPICIOUS_EXTENT_M: f64 = 3.0;
 /// `metres_per_unit` scales positions (e.g. `0.01` for centimetres); `None` takes the
 /// file to be in metres and warns when a mesh is larger than 3 m, naming the unit its
 /// size suggests (`base.obj`, ~17 units tall, suggests decimetres).
-pub fn read_obj_file(path: &Path, metres_per_unit: Option<f64>) -> Result<Loaded<Vec<Mesh>>, FormatError> {
+pub fn read_obj_file(
+    path: &Path,
+    metres_per_unit: Option<f64>,
+) -> Result<Loaded<Vec<Mesh>>, FormatError> {
     let bytes = std::fs::read(path).map_err(|e| FormatError::io(path, &e))?;
     read_obj(&bytes, path, metres_per_unit)
 }
 
 /// Parses OBJ `bytes`; `path` names the file in errors.
-pub fn read_obj(bytes: &[u8], path: &Path, metres_per_unit: Option<f64>) -> Result<Loaded<Vec<Mesh>>, FormatError> {
+pub fn read_obj(
+    bytes: &[u8],
+    path: &Path,
+    metres_per_unit: Option<f64>,
+) -> Result<Loaded<Vec<Mesh>>, FormatError> {
     if let Some(s) = metres_per_unit
         && !(s.is_finite() && s > 0.0)
     {
-        return Err(FormatError::file(path, Kind::Value, format!("metres per unit must be positive and finite, got {s}")));
+        return Err(FormatError::file(
+            path,
+            Kind::Value,
+            format!("metres per unit must be positive and finite, got {s}"),
+        ));
     }
-    let options = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
     let mut reader = BufReader::new(bytes);
-    let (models, _materials) = tobj::load_obj_buf(&mut reader, &options, |_| Ok((Vec::new(), Default::default())))
-        .map_err(|e| map_tobj_error(e, bytes, path))?;
+    let (models, _materials) = tobj::load_obj_buf(&mut reader, &options, |_| {
+        Ok((Vec::new(), Default::default()))
+    })
+    .map_err(|e| map_tobj_error(e, bytes, path))?;
 
     let scale = metres_per_unit.unwrap_or(1.0) as f32;
     let mut warnings = Vec::new();
     let mut meshes = Vec::with_capacity(models.len());
     for model in models {
         let m = model.mesh;
-        let positions: Vec<Vec3> = m.positions.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2]) * scale).collect();
+        let positions: Vec<Vec3> = m
+            .positions
+            .chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]) * scale)
+            .collect();
         if positions.iter().any(|p| !p.is_finite()) {
-            return Err(FormatError::file(path, Kind::Value, format!("object '{}' has a non-finite vertex position", model.name)));
+            return Err(FormatError::file(
+                path,
+                Kind::Value,
+                format!("object '{}' has a non-finite vertex position", model.name),
+            ));
         }
         let n = positions.len();
-        let triangles: Vec<[u32; 3]> = m.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let triangles: Vec<[u32; 3]> = m
+            .indices
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect();
         if triangles.is_empty() {
             warnings.push(format!("object '{}' has no faces; skipped", model.name));
             continue;
         }
         if triangles.iter().flatten().any(|&i| i as usize >= n) {
-            return Err(FormatError::file(path, Kind::Structure, format!("object '{}' has a face index past its vertices", model.name)));
+            return Err(FormatError::file(
+                path,
+                Kind::Structure,
+                format!("object '{}' has a face index past its vertices", model.name),
+            ));
         }
-        let file_normals: Vec<Vec3> = m.normals.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+        let file_normals: Vec<Vec3> = m
+            .normals
+            .chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect();
         let normals = if file_normals.len() == n && file_normals.iter().all(|v| v.is_finite()) {
-            file_normals.into_iter().map(|v| v.try_normalize().unwrap_or(Vec3::Y)).collect()
+            file_normals
+                .into_iter()
+                .map(|v| v.try_normalize().unwrap_or(Vec3::Y))
+                .collect()
         } else {
             Mesh::compute_normals(&positions, &triangles)
         };
-        let uvs = (m.texcoords.len() == 2 * n && n > 0)
-            .then(|| m.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect::<Vec<_>>());
-        let mesh = Mesh { name: model.name, positions, normals, uvs, triangles, skin: None };
+        let uvs = (m.texcoords.len() == 2 * n && n > 0).then(|| {
+            m.texcoords
+                .chunks_exact(2)
+                .map(|c| Vec2::new(c[0], 1.0 - c[1]))
+                .collect::<Vec<_>>()
+        });
+        let mesh = Mesh {
+            name: model.name,
+            positions,
+            normals,
+            uvs,
+            triangles,
+            skin: None,
+        };
         if metres_per_unit.is_none()
             && let Some((lo, hi)) = mesh.bounds()
         {
@@ -86,9 +138,16 @@ pub fn read_obj(bytes: &[u8], path: &Path, metres_per_unit: Option<f64>) -> Resu
         meshes.push(mesh);
     }
     if meshes.is_empty() {
-        return Err(FormatError::file(path, Kind::Structure, "no faces in the file"));
+        return Err(FormatError::file(
+            path,
+            Kind::Structure,
+            "no faces in the file",
+        ));
     }
-    Ok(Loaded { value: meshes, warnings })
+    Ok(Loaded {
+        value: meshes,
+        warnings,
+    })
 }
 
 /// Maps a tobj error to a located [`FormatError`], finding the offending line when the
@@ -116,7 +175,11 @@ fn find_bad_line(bytes: &[u8]) -> Option<usize> {
     let text = String::from_utf8_lossy(bytes);
     let (mut v, mut vt, mut vn) = (0i64, 0i64, 0i64);
     let floats_ok = |rest: &[&str], lo: usize, hi: usize| {
-        rest.len() >= lo && rest.len() <= hi && rest.iter().all(|t| t.parse::<f64>().is_ok_and(f64::is_finite))
+        rest.len() >= lo
+            && rest.len() <= hi
+            && rest
+                .iter()
+                .all(|t| t.parse::<f64>().is_ok_and(f64::is_finite))
     };
     let index_ok = |tok: &str, count: i64| -> bool {
         if tok.is_empty() {
@@ -194,17 +257,35 @@ mod tests {
         assert!((scaled.value[0].positions[1].x - 1.7).abs() < 1e-6);
         assert!(scaled.warnings.is_empty());
         let unscaled = read_obj(big.as_bytes(), Path::new("big.obj"), None).unwrap();
-        assert!(unscaled.warnings.iter().any(|w| w.contains("cm")), "{:?}", unscaled.warnings);
+        assert!(
+            unscaled.warnings.iter().any(|w| w.contains("cm")),
+            "{:?}",
+            unscaled.warnings
+        );
     }
 
     #[test]
     fn parse_errors_name_the_line() {
         let bad = "v 0 0 0\nv 1 0 0\nv 1 x 0\nf 1 2 3\n";
         let err = read_obj(bad.as_bytes(), Path::new("bad.obj"), None).unwrap_err();
-        assert_eq!(err.location, Location::Line { line: 3, column: None }, "{err}");
+        assert_eq!(
+            err.location,
+            Location::Line {
+                line: 3,
+                column: None
+            },
+            "{err}"
+        );
         let out_of_range = "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 9\n";
         let err = read_obj(out_of_range.as_bytes(), Path::new("oob.obj"), None).unwrap_err();
-        assert_eq!(err.location, Location::Line { line: 4, column: None }, "{err}");
+        assert_eq!(
+            err.location,
+            Location::Line {
+                line: 4,
+                column: None
+            },
+            "{err}"
+        );
         assert_eq!(err.kind, Kind::Structure);
     }
 }

@@ -67,7 +67,7 @@ impl Clip {
             return Err(ClipError::BadFrameRate { fps });
         }
         let joints = skeleton.len();
-        if rotations.len() != translations.len() || rotations.len() % joints != 0 {
+        if rotations.len() != translations.len() || !rotations.len().is_multiple_of(joints) {
             return Err(ClipError::BadLength { got: rotations.len().max(translations.len()), frames: rotations.len() / joints, joints });
         }
         let frames = rotations.len() / joints;

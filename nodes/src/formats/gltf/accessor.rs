@@ -76,7 +76,11 @@ fn read_component(bytes: &[u8], t: ComponentType, normalized: bool) -> f64 {
         }
         ComponentType::I16 => {
             let v = i16::from_le_bytes([b(0), b(1)]) as f64;
-            if normalized { (v / 32767.0).max(-1.0) } else { v }
+            if normalized {
+                (v / 32767.0).max(-1.0)
+            } else {
+                v
+            }
         }
         ComponentType::U16 => {
             let v = u16::from_le_bytes([b(0), b(1)]) as f64;
@@ -102,8 +106,18 @@ impl ElementLayout {
         let (columns, rows) = shape(t);
         let size = component_size(c);
         let column_bytes = rows * size;
-        let column_stride = if columns > 1 { column_bytes.div_ceil(4) * 4 } else { column_bytes };
-        ElementLayout { columns, rows, size, column_stride, element_size: column_stride * columns }
+        let column_stride = if columns > 1 {
+            column_bytes.div_ceil(4) * 4
+        } else {
+            column_bytes
+        };
+        ElementLayout {
+            columns,
+            rows,
+            size,
+            column_stride,
+            element_size: column_stride * columns,
+        }
     }
 }
 
@@ -115,28 +129,48 @@ struct ViewSlice<'a> {
 
 /// Resolves buffer view `view_index`, checking it lies inside its buffer. `at` is the JSON
 /// path holding the view index.
-fn view_slice<'a>(doc: &'a Document, view_index: usize, at: &str) -> Result<ViewSlice<'a>, super::ReadError> {
-    let view = doc
-        .root
-        .buffer_views
-        .get(view_index)
-        .ok_or_else(|| super::ReadError::new(at, Kind::Structure, format!("buffer view {view_index} does not exist")))?;
+fn view_slice<'a>(
+    doc: &'a Document,
+    view_index: usize,
+    at: &str,
+) -> Result<ViewSlice<'a>, super::ReadError> {
+    let view = doc.root.buffer_views.get(view_index).ok_or_else(|| {
+        super::ReadError::new(
+            at,
+            Kind::Structure,
+            format!("buffer view {view_index} does not exist"),
+        )
+    })?;
     let view_path = format!("/bufferViews/{view_index}");
     let buffer_index = view.buffer.value();
     let data = doc.buffers.get(buffer_index).ok_or_else(|| {
-        super::ReadError::new(format!("{view_path}/buffer"), Kind::Structure, format!("buffer {buffer_index} does not exist"))
+        super::ReadError::new(
+            format!("{view_path}/buffer"),
+            Kind::Structure,
+            format!("buffer {buffer_index} does not exist"),
+        )
     })?;
     let offset = view.byte_offset.map(|o| o.0).unwrap_or(0);
     let length = view.byte_length.0;
-    let end = offset.checked_add(length).filter(|&e| e <= data.len() as u64).ok_or_else(|| {
-        super::ReadError::new(
-            &view_path,
-            Kind::Truncated,
-            format!("view bytes {offset}..{} run past the end of buffer {buffer_index} ({} bytes)", offset.saturating_add(length), data.len()),
-        )
-    })?;
+    let end = offset
+        .checked_add(length)
+        .filter(|&e| e <= data.len() as u64)
+        .ok_or_else(|| {
+            super::ReadError::new(
+                &view_path,
+                Kind::Truncated,
+                format!(
+                    "view bytes {offset}..{} run past the end of buffer {buffer_index} ({} bytes)",
+                    offset.saturating_add(length),
+                    data.len()
+                ),
+            )
+        })?;
     let stride = view.byte_stride.map(|s| s.0);
-    Ok(ViewSlice { bytes: &data[offset as usize..end as usize], stride })
+    Ok(ViewSlice {
+        bytes: &data[offset as usize..end as usize],
+        stride,
+    })
 }
 
 /// Decodes `count` elements starting `offset` bytes into `view`, checking bounds first.
@@ -159,7 +193,10 @@ fn decode_elements(
         return Err(super::ReadError::new(
             at,
             Kind::Structure,
-            format!("byte stride {stride} is smaller than the element size {}", layout.element_size),
+            format!(
+                "byte stride {stride} is smaller than the element size {}",
+                layout.element_size
+            ),
         ));
     }
     let needed = (count as u64 - 1)
@@ -186,7 +223,11 @@ fn decode_elements(
         for c in 0..layout.columns {
             for r in 0..layout.rows {
                 let at_byte = base + c * layout.column_stride + r * layout.size;
-                out.push(read_component(&view.bytes[at_byte..at_byte + layout.size], component_type, normalized));
+                out.push(read_component(
+                    &view.bytes[at_byte..at_byte + layout.size],
+                    component_type,
+                    normalized,
+                ));
             }
         }
     }
@@ -195,41 +236,69 @@ fn decode_elements(
 
 /// Decodes accessor `index`. `referenced_at` is the JSON path that named the accessor,
 /// used when the index itself is out of range.
-pub(crate) fn decode(doc: &Document, index: usize, referenced_at: &str) -> Result<Decoded, super::ReadError> {
+pub(crate) fn decode(
+    doc: &Document,
+    index: usize,
+    referenced_at: &str,
+) -> Result<Decoded, super::ReadError> {
     let path = format!("/accessors/{index}");
-    let accessor = doc
-        .root
-        .accessors
-        .get(index)
-        .ok_or_else(|| super::ReadError::new(referenced_at, Kind::Structure, format!("accessor {index} does not exist")))?;
-    let (Checked::Valid(component_type), Checked::Valid(type_)) = (&accessor.component_type, &accessor.type_) else {
-        return Err(super::ReadError::new(&path, Kind::Value, "unknown componentType or type"));
+    let accessor = doc.root.accessors.get(index).ok_or_else(|| {
+        super::ReadError::new(
+            referenced_at,
+            Kind::Structure,
+            format!("accessor {index} does not exist"),
+        )
+    })?;
+    let (Checked::Valid(component_type), Checked::Valid(type_)) =
+        (&accessor.component_type, &accessor.type_)
+    else {
+        return Err(super::ReadError::new(
+            &path,
+            Kind::Value,
+            "unknown componentType or type",
+        ));
     };
     let component_type = component_type.0;
     let type_ = *type_;
     let layout = ElementLayout::new(type_, component_type);
     let components = layout.columns * layout.rows;
     let count_claim = accessor.count.0;
-    let count = usize::try_from(count_claim)
-        .map_err(|_| super::ReadError::new(format!("{path}/count"), Kind::Value, "count too large"))?;
+    let count = usize::try_from(count_claim).map_err(|_| {
+        super::ReadError::new(format!("{path}/count"), Kind::Value, "count too large")
+    })?;
 
     let mut values = Vec::new();
     match accessor.buffer_view {
         Some(view_index) => {
             let view = view_slice(doc, view_index.value(), &format!("{path}/bufferView"))?;
             let offset = accessor.byte_offset.map(|o| o.0).unwrap_or(0);
-            decode_elements(&view, offset, count, &layout, component_type, accessor.normalized, &path, &mut values)?;
+            decode_elements(
+                &view,
+                offset,
+                count,
+                &layout,
+                component_type,
+                accessor.normalized,
+                &path,
+                &mut values,
+            )?;
         }
         None => {
             if count_claim.saturating_mul(components as u64) > MAX_UNBACKED_VALUES {
                 return Err(super::ReadError::new(
                     format!("{path}/count"),
                     Kind::Unsupported,
-                    format!("{count_claim} elements without a buffer view is more than kinegraph accepts"),
+                    format!(
+                        "{count_claim} elements without a buffer view is more than kinegraph accepts"
+                    ),
                 ));
             }
             if accessor.sparse.is_none() {
-                return Err(super::ReadError::new(format!("{path}/bufferView"), Kind::Structure, "accessor has neither bufferView nor sparse"));
+                return Err(super::ReadError::new(
+                    format!("{path}/bufferView"),
+                    Kind::Structure,
+                    "accessor has neither bufferView nor sparse",
+                ));
             }
             values = vec![0.0; count * components];
         }
@@ -242,18 +311,39 @@ pub(crate) fn decode(doc: &Document, index: usize, referenced_at: &str) -> Resul
             return Err(super::ReadError::new(
                 format!("{sparse_path}/count"),
                 Kind::Structure,
-                format!("{} sparse entries for an accessor of {count} elements", sparse.count.0),
+                format!(
+                    "{} sparse entries for an accessor of {count} elements",
+                    sparse.count.0
+                ),
             ));
         }
         let Checked::Valid(index_type) = &sparse.indices.component_type else {
-            return Err(super::ReadError::new(format!("{sparse_path}/indices/componentType"), Kind::Value, "unknown index type"));
+            return Err(super::ReadError::new(
+                format!("{sparse_path}/indices/componentType"),
+                Kind::Value,
+                "unknown index type",
+            ));
         };
         let index_type = index_type.0;
-        if !matches!(index_type, ComponentType::U8 | ComponentType::U16 | ComponentType::U32) {
-            return Err(super::ReadError::new(format!("{sparse_path}/indices/componentType"), Kind::Value, "sparse indices must be unsigned"));
+        if !matches!(
+            index_type,
+            ComponentType::U8 | ComponentType::U16 | ComponentType::U32
+        ) {
+            return Err(super::ReadError::new(
+                format!("{sparse_path}/indices/componentType"),
+                Kind::Value,
+                "sparse indices must be unsigned",
+            ));
         }
-        let index_view = view_slice(doc, sparse.indices.buffer_view.value(), &format!("{sparse_path}/indices/bufferView"))?;
-        let index_view = ViewSlice { bytes: index_view.bytes, stride: None };
+        let index_view = view_slice(
+            doc,
+            sparse.indices.buffer_view.value(),
+            &format!("{sparse_path}/indices/bufferView"),
+        )?;
+        let index_view = ViewSlice {
+            bytes: index_view.bytes,
+            stride: None,
+        };
         let mut indices = Vec::new();
         decode_elements(
             &index_view,
@@ -265,8 +355,15 @@ pub(crate) fn decode(doc: &Document, index: usize, referenced_at: &str) -> Resul
             &format!("{sparse_path}/indices"),
             &mut indices,
         )?;
-        let value_view = view_slice(doc, sparse.values.buffer_view.value(), &format!("{sparse_path}/values/bufferView"))?;
-        let value_view = ViewSlice { bytes: value_view.bytes, stride: None };
+        let value_view = view_slice(
+            doc,
+            sparse.values.buffer_view.value(),
+            &format!("{sparse_path}/values/bufferView"),
+        )?;
+        let value_view = ViewSlice {
+            bytes: value_view.bytes,
+            stride: None,
+        };
         let mut sparse_values = Vec::new();
         decode_elements(
             &value_view,
@@ -285,7 +382,9 @@ pub(crate) fn decode(doc: &Document, index: usize, referenced_at: &str) -> Resul
                 return Err(super::ReadError::new(
                     format!("{sparse_path}/indices"),
                     Kind::Structure,
-                    format!("sparse index {k} is {target}: indices must increase and stay below {count}"),
+                    format!(
+                        "sparse index {k} is {target}: indices must increase and stay below {count}"
+                    ),
                 ));
             }
             previous = Some(target);
@@ -301,5 +400,10 @@ pub(crate) fn decode(doc: &Document, index: usize, referenced_at: &str) -> Resul
             format!("element {} holds a non-finite value", i / components.max(1)),
         ));
     }
-    Ok(Decoded { count, components, values, component_type })
+    Ok(Decoded {
+        count,
+        components,
+        values,
+        component_type,
+    })
 }

@@ -43,12 +43,19 @@ impl GlbBuilder {
     pub fn new(generator: &str) -> Self {
         let mut root = json::Root::default();
         root.asset.generator = Some(generator.to_string());
-        GlbBuilder { root, bin: Vec::new() }
+        GlbBuilder {
+            root,
+            bin: Vec::new(),
+        }
     }
 
     /// Appends `bytes` as a new buffer view (4-byte aligned).
-    fn push_view(&mut self, bytes: &[u8], target: Option<Target>) -> json::Index<json::buffer::View> {
-        while self.bin.len() % 4 != 0 {
+    fn push_view(
+        &mut self,
+        bytes: &[u8],
+        target: Option<Target>,
+    ) -> json::Index<json::buffer::View> {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let offset = self.bin.len();
@@ -96,7 +103,13 @@ impl GlbBuilder {
     }
 
     /// An `f32` accessor of `type_` elements from `values` (element-major).
-    pub fn accessor_f32(&mut self, values: &[f32], type_: Type, target: Option<Target>, bounds: Bounds) -> json::Index<json::Accessor> {
+    pub fn accessor_f32(
+        &mut self,
+        values: &[f32],
+        type_: Type,
+        target: Option<Target>,
+        bounds: Bounds,
+    ) -> json::Index<json::Accessor> {
         let c = components(type_);
         let count = values.len() / c;
         let min_max = (bounds == Bounds::Record).then(|| {
@@ -115,21 +128,37 @@ impl GlbBuilder {
     }
 
     /// A `u16` accessor of `type_` elements.
-    pub fn accessor_u16(&mut self, values: &[u16], type_: Type, target: Option<Target>) -> json::Index<json::Accessor> {
+    pub fn accessor_u16(
+        &mut self,
+        values: &[u16],
+        type_: Type,
+        target: Option<Target>,
+    ) -> json::Index<json::Accessor> {
         let count = values.len() / components(type_);
         let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
         self.push_accessor(&bytes, count, ComponentType::U16, type_, target, None)
     }
 
     /// A `u32` scalar accessor (triangle indices).
-    pub fn accessor_u32(&mut self, values: &[u32], target: Option<Target>) -> json::Index<json::Accessor> {
+    pub fn accessor_u32(
+        &mut self,
+        values: &[u32],
+        target: Option<Target>,
+    ) -> json::Index<json::Accessor> {
         let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
-        self.push_accessor(&bytes, values.len(), ComponentType::U32, Type::Scalar, target, None)
+        self.push_accessor(
+            &bytes,
+            values.len(),
+            ComponentType::U32,
+            Type::Scalar,
+            target,
+            None,
+        )
     }
 
     /// Serialises the document and binary chunk as GLB bytes.
     pub fn finish(mut self) -> Result<Vec<u8>, String> {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         if !self.bin.is_empty() {
@@ -143,12 +172,28 @@ impl GlbBuilder {
         }
         let json_bytes = json::serialize::to_vec(&self.root).map_err(|e| e.to_string())?;
         let padded = |n: usize| n.div_ceil(4) * 4;
-        let length = 12 + 8 + padded(json_bytes.len()) + if self.bin.is_empty() { 0 } else { 8 + self.bin.len() };
-        let length = u32::try_from(length).map_err(|_| format!("GLB of {length} bytes exceeds the 4 GiB format limit"))?;
+        let length = 12
+            + 8
+            + padded(json_bytes.len())
+            + if self.bin.is_empty() {
+                0
+            } else {
+                8 + self.bin.len()
+            };
+        let length = u32::try_from(length)
+            .map_err(|_| format!("GLB of {length} bytes exceeds the 4 GiB format limit"))?;
         let glb = gltf::binary::Glb {
-            header: gltf::binary::Header { magic: *b"glTF", version: 2, length },
+            header: gltf::binary::Header {
+                magic: *b"glTF",
+                version: 2,
+                length,
+            },
             json: Cow::Owned(json_bytes),
-            bin: if self.bin.is_empty() { None } else { Some(Cow::Owned(self.bin)) },
+            bin: if self.bin.is_empty() {
+                None
+            } else {
+                Some(Cow::Owned(self.bin))
+            },
         };
         glb.to_vec().map_err(|e| e.to_string())
     }

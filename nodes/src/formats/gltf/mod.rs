@@ -26,7 +26,9 @@ mod document;
 mod reader;
 mod writer;
 
-pub use reader::{GltfAsset, GltfClip, GltfReadOptions, infer_sample_fps, read_gltf, read_gltf_file};
+pub use reader::{
+    GltfAsset, GltfClip, GltfReadOptions, infer_sample_fps, read_gltf, read_gltf_file,
+};
 pub use writer::{write_glb, write_glb_file};
 
 use crate::formats::error::{FormatError, FormatErrorKind, Location};
@@ -46,7 +48,11 @@ pub(crate) struct ReadError {
 impl ReadError {
     /// An error at JSON path `path`.
     pub fn new(path: impl Into<String>, kind: FormatErrorKind, message: impl Into<String>) -> Self {
-        ReadError { path: path.into(), kind, message: message.into() }
+        ReadError {
+            path: path.into(),
+            kind,
+            message: message.into(),
+        }
     }
 
     /// An error about the whole file.
@@ -56,7 +62,11 @@ impl ReadError {
 
     /// Attaches the file name.
     pub fn into_format_error(self, file: &std::path::Path) -> FormatError {
-        let location = if self.path.is_empty() { Location::File } else { Location::JsonPath(self.path) };
+        let location = if self.path.is_empty() {
+            Location::File
+        } else {
+            Location::JsonPath(self.path)
+        };
         FormatError::new(file, location, self.kind, self.message)
     }
 }

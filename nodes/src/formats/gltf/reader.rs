@@ -84,14 +84,21 @@ pub struct GltfAsset {
 }
 
 /// Reads a `.gltf` or `.glb` file from disk.
-pub fn read_gltf_file(path: &Path, options: &GltfReadOptions) -> Result<Loaded<GltfAsset>, FormatError> {
+pub fn read_gltf_file(
+    path: &Path,
+    options: &GltfReadOptions,
+) -> Result<Loaded<GltfAsset>, FormatError> {
     let bytes = std::fs::read(path).map_err(|e| FormatError::io(path, &e))?;
     read_gltf(&bytes, path, options)
 }
 
 /// Parses glTF or GLB `bytes`. `path` names the file in errors and is the base for
 /// external buffer files (relative URIs only).
-pub fn read_gltf(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Loaded<GltfAsset>, FormatError> {
+pub fn read_gltf(
+    bytes: &[u8],
+    path: &Path,
+    options: &GltfReadOptions,
+) -> Result<Loaded<GltfAsset>, FormatError> {
     read_inner(bytes, path, options).map_err(|e| e.into_format_error(path))
 }
 
@@ -112,8 +119,16 @@ pub fn infer_sample_fps<'a>(key_times_secs: impl IntoIterator<Item = &'a [f64]>)
     let median = deltas[deltas.len() / 2];
     let fps = 1.0 / median;
     let rounded = fps.round();
-    let fps = if (fps - rounded).abs() <= 0.01 * fps { rounded } else { fps };
-    if INFERRED_FPS_RANGE.contains(&fps) { fps } else { FALLBACK_SAMPLE_FPS }
+    let fps = if (fps - rounded).abs() <= 0.01 * fps {
+        rounded
+    } else {
+        fps
+    };
+    if INFERRED_FPS_RANGE.contains(&fps) {
+        fps
+    } else {
+        FALLBACK_SAMPLE_FPS
+    }
 }
 
 /// A similarity transform: rotation, translation and one uniform scale.
@@ -125,7 +140,11 @@ struct Similarity {
 }
 
 impl Similarity {
-    const IDENTITY: Similarity = Similarity { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: 1.0 };
+    const IDENTITY: Similarity = Similarity {
+        translation: Vec3::ZERO,
+        rotation: Quat::IDENTITY,
+        scale: 1.0,
+    };
 
     /// `self ∘ child`.
     fn compose(&self, child: &Similarity) -> Similarity {
@@ -158,7 +177,11 @@ fn uniform_scale(scale: Vec3) -> f32 {
 
 fn is_uniform(scale: Vec3) -> bool {
     let m = uniform_scale(scale).abs().max(f32::MIN_POSITIVE);
-    ((scale - Vec3::splat(uniform_scale(scale))).abs().max_element() / m) <= SCALE_TOL
+    ((scale - Vec3::splat(uniform_scale(scale)))
+        .abs()
+        .max_element()
+        / m)
+        <= SCALE_TOL
 }
 
 /// The node tree: local rest transforms, parents and a parents-first order.
@@ -180,22 +203,45 @@ fn read_node_tree(doc: &Document, warnings: &mut Vec<String>) -> Result<NodeTree
         names.push(node.name.clone().unwrap_or_else(|| format!("node_{i}")));
         let trs = if let Some(m) = node.matrix {
             if m.iter().any(|v| !v.is_finite()) {
-                return Err(ReadError::new(format!("{path}/matrix"), Kind::Value, "matrix holds a non-finite value"));
+                return Err(ReadError::new(
+                    format!("{path}/matrix"),
+                    Kind::Value,
+                    "matrix holds a non-finite value",
+                ));
             }
             let mat = Mat4::from_cols_array(&m);
             if mat.determinant() < 0.0 {
-                warnings.push(format!("node {i} ('{}') has a mirroring matrix; its reflection is not kept", names[i]));
+                warnings.push(format!(
+                    "node {i} ('{}') has a mirroring matrix; its reflection is not kept",
+                    names[i]
+                ));
             }
             let (scale, rotation, translation) = mat.to_scale_rotation_translation();
-            Trs { translation, rotation: quat_normalize_or_identity(rotation), scale: scale.abs() }
+            Trs {
+                translation,
+                rotation: quat_normalize_or_identity(rotation),
+                scale: scale.abs(),
+            }
         } else {
             let t = node.translation.unwrap_or([0.0; 3]);
-            let r = node.rotation.as_ref().map(|q| q.0).unwrap_or([0.0, 0.0, 0.0, 1.0]);
+            let r = node
+                .rotation
+                .as_ref()
+                .map(|q| q.0)
+                .unwrap_or([0.0, 0.0, 0.0, 1.0]);
             let s = node.scale.unwrap_or([1.0; 3]);
             if t.iter().chain(&r).chain(&s).any(|v| !v.is_finite()) {
-                return Err(ReadError::new(path, Kind::Value, "translation, rotation or scale holds a non-finite value"));
+                return Err(ReadError::new(
+                    path,
+                    Kind::Value,
+                    "translation, rotation or scale holds a non-finite value",
+                ));
             }
-            Trs { translation: Vec3::from(t), rotation: quat_normalize_or_identity(Quat::from_array(r)), scale: Vec3::from(s) }
+            Trs {
+                translation: Vec3::from(t),
+                rotation: quat_normalize_or_identity(Quat::from_array(r)),
+                scale: Vec3::from(s),
+            }
         };
         rest.push(trs);
     }
@@ -206,13 +252,25 @@ fn read_node_tree(doc: &Document, warnings: &mut Vec<String>) -> Result<NodeTree
             let c = child.value();
             let at = format!("/nodes/{i}/children/{k}");
             if c >= n {
-                return Err(ReadError::new(at, Kind::Structure, format!("node {c} does not exist")));
+                return Err(ReadError::new(
+                    at,
+                    Kind::Structure,
+                    format!("node {c} does not exist"),
+                ));
             }
             if c == i {
-                return Err(ReadError::new(at, Kind::Structure, format!("node {i} lists itself as a child (cycle)")));
+                return Err(ReadError::new(
+                    at,
+                    Kind::Structure,
+                    format!("node {i} lists itself as a child (cycle)"),
+                ));
             }
             if let Some(p) = parent[c] {
-                return Err(ReadError::new(at, Kind::Structure, format!("node {c} already has parent {p}; a node may have only one")));
+                return Err(ReadError::new(
+                    at,
+                    Kind::Structure,
+                    format!("node {c} already has parent {p}; a node may have only one"),
+                ));
             }
             parent[c] = Some(i);
         }
@@ -237,9 +295,18 @@ fn read_node_tree(doc: &Document, warnings: &mut Vec<String>) -> Result<NodeTree
         }
     }
     if let Some(i) = visited.iter().position(|v| !v) {
-        return Err(ReadError::new(format!("/nodes/{i}"), Kind::Structure, format!("node {i} is part of a cycle in the node hierarchy")));
+        return Err(ReadError::new(
+            format!("/nodes/{i}"),
+            Kind::Structure,
+            format!("node {i} is part of a cycle in the node hierarchy"),
+        ));
     }
-    Ok(NodeTree { rest, parent, order, names })
+    Ok(NodeTree {
+        rest,
+        parent,
+        order,
+        names,
+    })
 }
 
 /// Chooses the joint nodes and orders them parents first.
@@ -278,8 +345,15 @@ fn joint_set(tree: &NodeTree, seeds: &[usize]) -> JointSet {
     for (j, &v) in nodes.iter().enumerate() {
         joint_of_node[v] = Some(j);
     }
-    let parent_joint = nodes.iter().map(|&v| tree.parent[v].and_then(|p| joint_of_node[p])).collect();
-    JointSet { nodes, joint_of_node, parent_joint }
+    let parent_joint = nodes
+        .iter()
+        .map(|&v| tree.parent[v].and_then(|p| joint_of_node[p]))
+        .collect();
+    JointSet {
+        nodes,
+        joint_of_node,
+        parent_joint,
+    }
 }
 
 /// One animation channel with decoded keys.
@@ -308,7 +382,10 @@ fn sample_channel(ch: &Channel<'_>, t: f64) -> [f32; 4] {
     if t >= times[last] {
         return to_f32(value(last));
     }
-    let k = times.partition_point(|&x| x <= t).saturating_sub(1).min(last - 1);
+    let k = times
+        .partition_point(|&x| x <= t)
+        .saturating_sub(1)
+        .min(last - 1);
     let dt = times[k + 1] - times[k];
     if dt <= 0.0 {
         return to_f32(value(k + 1));
@@ -322,7 +399,12 @@ fn sample_channel(ch: &Channel<'_>, t: f64) -> [f32; 4] {
             if is_rotation {
                 let qa = Quat::from_array(to_f32(a));
                 let qb = Quat::from_array(to_f32(b));
-                slerp_short(quat_normalize_or_identity(qa), quat_normalize_or_identity(qb), s as f32).to_array()
+                slerp_short(
+                    quat_normalize_or_identity(qa),
+                    quat_normalize_or_identity(qb),
+                    s as f32,
+                )
+                .to_array()
             } else {
                 to_f32(std::array::from_fn(|i| a[i] + (b[i] - a[i]) * s))
             }
@@ -340,15 +422,26 @@ fn sample_channel(ch: &Channel<'_>, t: f64) -> [f32; 4] {
             let c = ch.values.components;
             let mut out = [0.0f64; 4];
             for i in 0..c.min(4) {
-                out[i] = h00 * p0[i] + h10 * dt * out_tangent[i] + h01 * p1[i] + h11 * dt * in_tangent[i];
+                out[i] = h00 * p0[i]
+                    + h10 * dt * out_tangent[i]
+                    + h01 * p1[i]
+                    + h11 * dt * in_tangent[i];
             }
             let out = to_f32(out);
-            if is_rotation { quat_normalize_or_identity(Quat::from_array(out)).to_array() } else { out }
+            if is_rotation {
+                quat_normalize_or_identity(Quat::from_array(out)).to_array()
+            } else {
+                out
+            }
         }
     }
 }
 
-fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Loaded<GltfAsset>, ReadError> {
+fn read_inner(
+    bytes: &[u8],
+    path: &Path,
+    options: &GltfReadOptions,
+) -> Result<Loaded<GltfAsset>, ReadError> {
     let doc = load(bytes, path)?;
     let mut warnings = doc.warnings.clone();
     let tree = read_node_tree(&doc, &mut warnings)?;
@@ -357,14 +450,20 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
     if let Some(fps) = options.sample_fps
         && !(fps.is_finite() && fps > 0.0)
     {
-        return Err(ReadError::file(Kind::Value, format!("sample rate must be positive and finite, got {fps}")));
+        return Err(ReadError::file(
+            Kind::Value,
+            format!("sample rate must be positive and finite, got {fps}"),
+        ));
     }
     let animation_indices: Vec<usize> = match options.animation {
         Some(a) if a >= root.animations.len() => {
             return Err(ReadError::new(
                 "/animations",
                 Kind::Structure,
-                format!("animation {a} requested, the file has {}", root.animations.len()),
+                format!(
+                    "animation {a} requested, the file has {}",
+                    root.animations.len()
+                ),
             ));
         }
         Some(a) => vec![a],
@@ -374,7 +473,11 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
     // Seeds of the skeleton: a skin's joints, else the animated nodes.
     let skin_index = match options.skin {
         Some(s) if s >= root.skins.len() => {
-            return Err(ReadError::new("/skins", Kind::Structure, format!("skin {s} requested, the file has {}", root.skins.len())));
+            return Err(ReadError::new(
+                "/skins",
+                Kind::Structure,
+                format!("skin {s} requested, the file has {}", root.skins.len()),
+            ));
         }
         Some(s) => Some(s),
         None if root.skins.is_empty() => None,
@@ -387,10 +490,18 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
             let v = joint.value();
             let at = format!("/skins/{s}/joints/{k}");
             if v >= tree.parent.len() {
-                return Err(ReadError::new(at, Kind::Structure, format!("node {v} does not exist")));
+                return Err(ReadError::new(
+                    at,
+                    Kind::Structure,
+                    format!("node {v} does not exist"),
+                ));
             }
             if seen[v] {
-                return Err(ReadError::new(at, Kind::Structure, format!("node {v} is listed twice")));
+                return Err(ReadError::new(
+                    at,
+                    Kind::Structure,
+                    format!("node {v} is listed twice"),
+                ));
             }
             seen[v] = true;
             seeds.push(v);
@@ -400,7 +511,11 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
             for (c, ch) in root.animations[a].channels.iter().enumerate() {
                 let v = ch.target.node.value();
                 if v >= tree.parent.len() {
-                    return Err(ReadError::new(format!("/animations/{a}/channels/{c}/target/node"), Kind::Structure, format!("node {v} does not exist")));
+                    return Err(ReadError::new(
+                        format!("/animations/{a}/channels/{c}/target/node"),
+                        Kind::Structure,
+                        format!("node {v} does not exist"),
+                    ));
                 }
                 if !seeds.contains(&v) {
                     seeds.push(v);
@@ -410,27 +525,60 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
     }
 
     let joints = joint_set(&tree, &seeds);
-    let skeleton = if joints.nodes.is_empty() { None } else { Some(build_skeleton(&tree, &joints, &mut warnings)?) };
+    let skeleton = if joints.nodes.is_empty() {
+        None
+    } else {
+        Some(build_skeleton(&tree, &joints, &mut warnings)?)
+    };
 
     let mut clips = Vec::new();
     if let Some(skeleton) = &skeleton {
         let mut cache: BTreeMap<usize, Decoded> = BTreeMap::new();
         for &a in &animation_indices {
-            clips.push(read_animation(&doc, a, &tree, &joints, skeleton, options, &mut cache, &mut warnings)?);
+            clips.push(read_animation(
+                &doc,
+                a,
+                &tree,
+                &joints,
+                skeleton,
+                options,
+                &mut cache,
+                &mut warnings,
+            )?);
         }
     } else if !animation_indices.is_empty() {
-        warnings.push("animations found but no skeleton could be formed; no clips read".to_string());
+        warnings
+            .push("animations found but no skeleton could be formed; no clips read".to_string());
     }
 
-    let meshes = read_meshes(&doc, &tree, &joints, skeleton.as_ref(), skin_index, &mut warnings)?;
-    Ok(Loaded { value: GltfAsset { skeleton, joint_nodes: joints.nodes.clone(), clips, meshes }, warnings })
+    let meshes = read_meshes(
+        &doc,
+        &tree,
+        &joints,
+        skeleton.as_ref(),
+        skin_index,
+        &mut warnings,
+    )?;
+    Ok(Loaded {
+        value: GltfAsset {
+            skeleton,
+            joint_nodes: joints.nodes.clone(),
+            clips,
+            meshes,
+        },
+        warnings,
+    })
 }
 
 /// World similarity of every node for local transforms `local` (parents first).
 fn world_similarities(tree: &NodeTree, local: &[Trs], out: &mut [Similarity]) {
     for &v in &tree.order {
         let l = local[v];
-        let own = Similarity { translation: l.translation, rotation: l.rotation, scale: uniform_scale(l.scale) };
+        let own = Similarity {
+            translation: l.translation,
+            rotation: l.rotation,
+            scale: uniform_scale(l.scale),
+        };
         out[v] = match tree.parent[v] {
             Some(p) => out[p].compose(&own),
             None => own,
@@ -440,20 +588,33 @@ fn world_similarities(tree: &NodeTree, local: &[Trs], out: &mut [Similarity]) {
 
 /// A joint's clip-space local transform: rotation and translation in its parent joint's
 /// unscaled frame, with non-joint ancestors baked in for roots.
-fn joint_local(tree: &NodeTree, joints: &JointSet, j: usize, local: &[Trs], world: &[Similarity]) -> (Quat, Vec3) {
+fn joint_local(
+    tree: &NodeTree,
+    joints: &JointSet,
+    j: usize,
+    local: &[Trs],
+    world: &[Similarity],
+) -> (Quat, Vec3) {
     let v = joints.nodes[j];
     let l = local[v];
     match tree.parent[v] {
         Some(p) if joints.parent_joint[j].is_some() => (l.rotation, world[p].scale * l.translation),
         Some(p) => {
             let a = world[p];
-            (a.rotation * l.rotation, a.translation + a.rotation * (a.scale * l.translation))
+            (
+                a.rotation * l.rotation,
+                a.translation + a.rotation * (a.scale * l.translation),
+            )
         }
         None => (l.rotation, l.translation),
     }
 }
 
-fn build_skeleton(tree: &NodeTree, joints: &JointSet, warnings: &mut Vec<String>) -> Result<Arc<Skeleton>, ReadError> {
+fn build_skeleton(
+    tree: &NodeTree,
+    joints: &JointSet,
+    warnings: &mut Vec<String>,
+) -> Result<Arc<Skeleton>, ReadError> {
     let mut world = vec![Similarity::IDENTITY; tree.parent.len()];
     world_similarities(tree, &tree.rest, &mut world);
     // Non-uniform scale on the joints or their ancestors.
@@ -477,7 +638,9 @@ fn build_skeleton(tree: &NodeTree, joints: &JointSet, warnings: &mut Vec<String>
         let mut name = tree.names[v].clone();
         if names_seen.contains_key(&name) {
             let renamed = format!("{name}_node{v}");
-            warnings.push(format!("duplicate joint name '{name}' (node {v}) renamed to '{renamed}'"));
+            warnings.push(format!(
+                "duplicate joint name '{name}' (node {v}) renamed to '{renamed}'"
+            ));
             name = renamed;
         }
         names_seen.insert(name.clone(), j);
@@ -486,9 +649,13 @@ fn build_skeleton(tree: &NodeTree, joints: &JointSet, warnings: &mut Vec<String>
         joint.rest_rotation = rotation;
         list.push(joint);
     }
-    Skeleton::new(list)
-        .map(Arc::new)
-        .map_err(|e| ReadError::new(format!("/nodes/{}", joints.nodes.first().copied().unwrap_or(0)), Kind::Structure, e.to_string()))
+    Skeleton::new(list).map(Arc::new).map_err(|e| {
+        ReadError::new(
+            format!("/nodes/{}", joints.nodes.first().copied().unwrap_or(0)),
+            Kind::Structure,
+            e.to_string(),
+        )
+    })
 }
 
 /// Decodes accessor `index` once per file.
@@ -498,11 +665,12 @@ fn cached<'c>(
     index: usize,
     referenced_at: &str,
 ) -> Result<&'c Decoded, ReadError> {
-    if !cache.contains_key(&index) {
-        let d = decode(doc, index, referenced_at)?;
-        cache.insert(index, d);
+    match cache.entry(index) {
+        std::collections::btree_map::Entry::Occupied(slot) => Ok(slot.into_mut()),
+        std::collections::btree_map::Entry::Vacant(slot) => {
+            Ok(slot.insert(decode(doc, index, referenced_at)?))
+        }
     }
-    cache.get(&index).ok_or_else(|| ReadError::new(referenced_at, Kind::Structure, "accessor cache miss"))
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -518,7 +686,10 @@ fn read_animation(
 ) -> Result<GltfClip, ReadError> {
     let animation = &doc.root.animations[a];
     let apath = format!("/animations/{a}");
-    let name = animation.name.clone().unwrap_or_else(|| format!("animation_{a}"));
+    let name = animation
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("animation_{a}"));
     let n_nodes = tree.parent.len();
 
     // Decode and check every sampler used.
@@ -534,38 +705,65 @@ fn read_animation(
     for (c, ch) in animation.channels.iter().enumerate() {
         let cpath = format!("{apath}/channels/{c}");
         let s = ch.sampler.value();
-        let sampler = animation
-            .samplers
-            .get(s)
-            .ok_or_else(|| ReadError::new(format!("{cpath}/sampler"), Kind::Structure, format!("sampler {s} does not exist")))?;
+        let sampler = animation.samplers.get(s).ok_or_else(|| {
+            ReadError::new(
+                format!("{cpath}/sampler"),
+                Kind::Structure,
+                format!("sampler {s} does not exist"),
+            )
+        })?;
         let node = ch.target.node.value();
         if node >= n_nodes {
-            return Err(ReadError::new(format!("{cpath}/target/node"), Kind::Structure, format!("node {node} does not exist")));
+            return Err(ReadError::new(
+                format!("{cpath}/target/node"),
+                Kind::Structure,
+                format!("node {node} does not exist"),
+            ));
         }
         let Checked::Valid(property) = ch.target.path else {
-            return Err(ReadError::new(format!("{cpath}/target/path"), Kind::Value, "unknown target path"));
+            return Err(ReadError::new(
+                format!("{cpath}/target/path"),
+                Kind::Value,
+                "unknown target path",
+            ));
         };
         if property == Property::MorphTargetWeights {
             skipped_weights = true;
             continue;
         }
         let Checked::Valid(interpolation) = sampler.interpolation else {
-            return Err(ReadError::new(format!("{apath}/samplers/{s}/interpolation"), Kind::Value, "unknown interpolation"));
+            return Err(ReadError::new(
+                format!("{apath}/samplers/{s}/interpolation"),
+                Kind::Value,
+                "unknown interpolation",
+            ));
         };
         let spath = format!("{apath}/samplers/{s}");
         let input = sampler.input.value();
         let output = sampler.output.value();
         let times = cached(doc, cache, input, &format!("{spath}/input"))?;
         if times.components != 1 || times.count == 0 {
-            return Err(ReadError::new(format!("/accessors/{input}"), Kind::Structure, "animation input must be a non-empty SCALAR accessor"));
+            return Err(ReadError::new(
+                format!("/accessors/{input}"),
+                Kind::Structure,
+                "animation input must be a non-empty SCALAR accessor",
+            ));
         }
         if let Some(k) = times.values.windows(2).position(|w| w[1] < w[0]) {
-            return Err(ReadError::new(format!("/accessors/{input}"), Kind::Value, format!("key time {} decreases", k + 1)));
+            return Err(ReadError::new(
+                format!("/accessors/{input}"),
+                Kind::Value,
+                format!("key time {} decreases", k + 1),
+            ));
         }
         let key_count = times.count;
         let values = cached(doc, cache, output, &format!("{spath}/output"))?;
         let want_components = if property == Property::Rotation { 4 } else { 3 };
-        let per_key = if interpolation == Interpolation::CubicSpline { 3 } else { 1 };
+        let per_key = if interpolation == Interpolation::CubicSpline {
+            3
+        } else {
+            1
+        };
         if values.components != want_components || values.count != key_count * per_key {
             return Err(ReadError::new(
                 format!("{spath}/output"),
@@ -578,10 +776,18 @@ fn read_animation(
                 ),
             ));
         }
-        specs.push(Spec { node, property, interpolation, input, output });
+        specs.push(Spec {
+            node,
+            property,
+            interpolation,
+            input,
+            output,
+        });
     }
     if skipped_weights {
-        warnings.push(format!("animation '{name}': morph target weight channels ignored"));
+        warnings.push(format!(
+            "animation '{name}': morph target weight channels ignored"
+        ));
     }
     let channels: Vec<Channel<'_>> = specs
         .iter()
@@ -610,16 +816,31 @@ fn read_animation(
         warnings.push(format!("animation '{name}': {outside} channel(s) target nodes outside the skeleton and are ignored"));
     }
 
-    let start_secs = channels.iter().map(|c| c.times[0]).fold(f64::INFINITY, f64::min);
-    let end_secs = channels.iter().map(|c| c.times[c.times.len() - 1]).fold(f64::NEG_INFINITY, f64::max);
-    let (start_secs, end_secs) = if channels.is_empty() { (0.0, 0.0) } else { (start_secs, end_secs) };
-    let fps = options.sample_fps.unwrap_or_else(|| infer_sample_fps(channels.iter().map(|c| c.times)));
+    let start_secs = channels
+        .iter()
+        .map(|c| c.times[0])
+        .fold(f64::INFINITY, f64::min);
+    let end_secs = channels
+        .iter()
+        .map(|c| c.times[c.times.len() - 1])
+        .fold(f64::NEG_INFINITY, f64::max);
+    let (start_secs, end_secs) = if channels.is_empty() {
+        (0.0, 0.0)
+    } else {
+        (start_secs, end_secs)
+    };
+    let fps = options
+        .sample_fps
+        .unwrap_or_else(|| infer_sample_fps(channels.iter().map(|c| c.times)));
     let span_frames = (end_secs - start_secs) * fps;
     if !span_frames.is_finite() || (span_frames + 1.0) * skeleton.len() as f64 > MAX_CLIP_SAMPLES {
         return Err(ReadError::new(
             apath,
             Kind::Unsupported,
-            format!("{:.3} s at {fps} fps is more samples than kinegraph accepts", end_secs - start_secs),
+            format!(
+                "{:.3} s at {fps} fps is more samples than kinegraph accepts",
+                end_secs - start_secs
+            ),
         ));
     }
     let frames = span_frames.round() as usize + 1;
@@ -645,7 +866,8 @@ fn read_animation(
                     let rest = tree.rest[ch.node].scale;
                     if affects[ch.node]
                         && !scale_reported[ch.node]
-                        && (s - rest).abs().max_element() > SCALE_TOL * rest.abs().max_element().max(1.0)
+                        && (s - rest).abs().max_element()
+                            > SCALE_TOL * rest.abs().max_element().max(1.0)
                     {
                         scale_reported[ch.node] = true;
                         warnings.push(format!(
@@ -664,10 +886,24 @@ fn read_animation(
             translations.push(tr);
         }
     }
-    let clip = Clip::new(skeleton.clone(), fps, rotations, translations, ImportScale::METRES)
-        .map_err(|e| ReadError::new(format!("/animations/{a}"), Kind::Value, e.to_string()))?;
-    Ok(GltfClip { name, animation_index: a, start_secs, clip })
+    let clip = Clip::new(
+        skeleton.clone(),
+        fps,
+        rotations,
+        translations,
+        ImportScale::METRES,
+    )
+    .map_err(|e| ReadError::new(format!("/animations/{a}"), Kind::Value, e.to_string()))?;
+    Ok(GltfClip {
+        name,
+        animation_index: a,
+        start_secs,
+        clip,
+    })
 }
+
+/// Per vertex: skin joint indices and their weights.
+type Influences = (Vec<[u16; 4]>, Vec<[f32; 4]>);
 
 /// Primitive data gathered before merging.
 struct PrimitiveData {
@@ -676,14 +912,21 @@ struct PrimitiveData {
     uvs: Option<Vec<Vec2>>,
     triangles: Vec<[u32; 3]>,
     /// (skin joint indices, weights) per vertex.
-    influences: Option<(Vec<[u16; 4]>, Vec<[f32; 4]>)>,
+    influences: Option<Influences>,
 }
 
 fn vec3s(d: &Decoded, at: &str, what: &str) -> Result<Vec<Vec3>, ReadError> {
     if d.components != 3 {
-        return Err(ReadError::new(at, Kind::Structure, format!("{what} must be VEC3")));
+        return Err(ReadError::new(
+            at,
+            Kind::Structure,
+            format!("{what} must be VEC3"),
+        ));
     }
-    Ok(d.values.chunks_exact(3).map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32)).collect())
+    Ok(d.values
+        .chunks_exact(3)
+        .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
+        .collect())
 }
 
 fn read_primitive(
@@ -698,16 +941,26 @@ fn read_primitive(
     match prim.mode {
         Checked::Valid(Mode::Triangles) => {}
         _ => {
-            warnings.push(format!("mesh {m} primitive {p}: only triangle primitives are read; skipped"));
+            warnings.push(format!(
+                "mesh {m} primitive {p}: only triangle primitives are read; skipped"
+            ));
             return Ok(None);
         }
     }
     let attribute = |s: Semantic| prim.attributes.get(&Checked::Valid(s)).map(|i| i.value());
     let apath = |name: &str| format!("{ppath}/attributes/{name}");
     let Some(pos_index) = attribute(Semantic::Positions) else {
-        return Err(ReadError::new(format!("{ppath}/attributes"), Kind::Structure, "primitive has no POSITION"));
+        return Err(ReadError::new(
+            format!("{ppath}/attributes"),
+            Kind::Structure,
+            "primitive has no POSITION",
+        ));
     };
-    let positions = vec3s(&decode(doc, pos_index, &apath("POSITION"))?, &format!("/accessors/{pos_index}"), "POSITION")?;
+    let positions = vec3s(
+        &decode(doc, pos_index, &apath("POSITION"))?,
+        &format!("/accessors/{pos_index}"),
+        "POSITION",
+    )?;
     let n = positions.len();
     let check_count = |d: &Decoded, index: usize, name: &str| -> Result<(), ReadError> {
         if d.count != n {
@@ -732,9 +985,18 @@ fn read_primitive(
             let d = decode(doc, i, &apath("TEXCOORD_0"))?;
             check_count(&d, i, "TEXCOORD_0")?;
             if d.components != 2 {
-                return Err(ReadError::new(format!("/accessors/{i}"), Kind::Structure, "TEXCOORD_0 must be VEC2"));
+                return Err(ReadError::new(
+                    format!("/accessors/{i}"),
+                    Kind::Structure,
+                    "TEXCOORD_0 must be VEC2",
+                ));
             }
-            Some(d.values.chunks_exact(2).map(|c| Vec2::new(c[0] as f32, c[1] as f32)).collect())
+            Some(
+                d.values
+                    .chunks_exact(2)
+                    .map(|c| Vec2::new(c[0] as f32, c[1] as f32))
+                    .collect(),
+            )
         }
         None => None,
     };
@@ -743,35 +1005,62 @@ fn read_primitive(
             let i = index.value();
             let d = decode(doc, i, &format!("{ppath}/indices"))?;
             if d.components != 1 || d.count % 3 != 0 {
-                return Err(ReadError::new(format!("/accessors/{i}"), Kind::Structure, "indices must be SCALAR with a multiple of 3 elements"));
+                return Err(ReadError::new(
+                    format!("/accessors/{i}"),
+                    Kind::Structure,
+                    "indices must be SCALAR with a multiple of 3 elements",
+                ));
             }
-            if let Some(k) = d.values.iter().position(|&v| v < 0.0 || v >= n as f64 || v.fract() != 0.0) {
+            if let Some(k) = d
+                .values
+                .iter()
+                .position(|&v| v < 0.0 || v >= n as f64 || v.fract() != 0.0)
+            {
                 return Err(ReadError::new(
                     format!("/accessors/{i}"),
                     Kind::Value,
                     format!("index {k} is {}, outside 0..{n}", d.values[k]),
                 ));
             }
-            d.values.chunks_exact(3).map(|c| [c[0] as u32, c[1] as u32, c[2] as u32]).collect()
+            d.values
+                .chunks_exact(3)
+                .map(|c| [c[0] as u32, c[1] as u32, c[2] as u32])
+                .collect()
         }
         None => {
             if n % 3 != 0 {
-                return Err(ReadError::new(apath("POSITION"), Kind::Structure, "non-indexed triangles need a multiple of 3 vertices"));
+                return Err(ReadError::new(
+                    apath("POSITION"),
+                    Kind::Structure,
+                    "non-indexed triangles need a multiple of 3 vertices",
+                ));
             }
-            (0..n as u32 / 3).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect()
+            (0..n as u32 / 3)
+                .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+                .collect()
         }
     };
-    let influences = match (skin_joint_count, attribute(Semantic::Joints(0)), attribute(Semantic::Weights(0))) {
+    let influences = match (
+        skin_joint_count,
+        attribute(Semantic::Joints(0)),
+        attribute(Semantic::Weights(0)),
+    ) {
         (Some(skin_joints), Some(ji), Some(wi)) => {
             let jd = decode(doc, ji, &apath("JOINTS_0"))?;
             let wd = decode(doc, wi, &apath("WEIGHTS_0"))?;
             check_count(&jd, ji, "JOINTS_0")?;
             check_count(&wd, wi, "WEIGHTS_0")?;
             if jd.components != 4 || wd.components != 4 {
-                return Err(ReadError::new(format!("{ppath}/attributes"), Kind::Structure, "JOINTS_0 and WEIGHTS_0 must be VEC4"));
+                return Err(ReadError::new(
+                    format!("{ppath}/attributes"),
+                    Kind::Structure,
+                    "JOINTS_0 and WEIGHTS_0 must be VEC4",
+                ));
             }
             if attribute(Semantic::Joints(1)).is_some() {
-                warnings.push(format!("mesh {m} primitive {p}: JOINTS_1/WEIGHTS_1 ignored (at most 4 influences kept)"));
+                warnings.push(format!(
+                    "mesh {m} primitive {p}: JOINTS_1/WEIGHTS_1 ignored (at most 4 influences kept)"
+                ));
             }
             let mut joints = Vec::with_capacity(n);
             let mut weights = Vec::with_capacity(n);
@@ -783,7 +1072,9 @@ fn read_primitive(
                     return Err(ReadError::new(
                         format!("/accessors/{wi}"),
                         Kind::Value,
-                        format!("vertex {v} of mesh {m} primitive {p}: weights {w:?} are negative or sum to {sum}, not a positive number"),
+                        format!(
+                            "vertex {v} of mesh {m} primitive {p}: weights {w:?} are negative or sum to {sum}, not a positive number"
+                        ),
                     ));
                 }
                 if (sum - 1.0).abs() > WEIGHT_SUM_TOL {
@@ -800,7 +1091,9 @@ fn read_primitive(
                             return Err(ReadError::new(
                                 format!("/accessors/{ji}"),
                                 Kind::Value,
-                                format!("vertex {v}: joint {idx} is outside the skin's {skin_joints} joints"),
+                                format!(
+                                    "vertex {v}: joint {idx} is outside the skin's {skin_joints} joints"
+                                ),
                             ));
                         }
                         jrow[k] = idx as u16;
@@ -822,7 +1115,13 @@ fn read_primitive(
         }
         (None, _, _) => None,
     };
-    Ok(Some(PrimitiveData { positions, normals, uvs, triangles, influences }))
+    Ok(Some(PrimitiveData {
+        positions,
+        normals,
+        uvs,
+        triangles,
+        influences,
+    }))
 }
 
 fn read_meshes(
@@ -851,13 +1150,21 @@ fn read_meshes(
         let Some(mesh_ref) = node.mesh else { continue };
         let m = mesh_ref.value();
         let Some(gmesh) = root.meshes.get(m) else {
-            return Err(ReadError::new(format!("/nodes/{node_index}/mesh"), Kind::Structure, format!("mesh {m} does not exist")));
+            return Err(ReadError::new(
+                format!("/nodes/{node_index}/mesh"),
+                Kind::Structure,
+                format!("mesh {m} does not exist"),
+            ));
         };
         // Which skin, and can it be expressed on our skeleton?
         let mut skin = None;
         if let Some(s) = node.skin.map(|s| s.value()) {
             let Some(gskin) = root.skins.get(s) else {
-                return Err(ReadError::new(format!("/nodes/{node_index}/skin"), Kind::Structure, format!("skin {s} does not exist")));
+                return Err(ReadError::new(
+                    format!("/nodes/{node_index}/skin"),
+                    Kind::Structure,
+                    format!("skin {s} does not exist"),
+                ));
             };
             let mapped: Option<Vec<usize>> = gskin
                 .joints
@@ -874,23 +1181,35 @@ fn read_meshes(
 
         let mut prims = Vec::new();
         for p in 0..gmesh.primitives.len() {
-            if let Some(d) = read_primitive(doc, m, p, skin.as_ref().map(|s| s.1.len()), warnings)? {
+            if let Some(d) = read_primitive(doc, m, p, skin.as_ref().map(|s| s.1.len()), warnings)?
+            {
                 prims.push(d);
             }
         }
-        let name = gmesh.name.clone().or_else(|| node.name.clone()).unwrap_or_else(|| format!("mesh_{m}"));
-        let mut mesh = Mesh { name, ..Mesh::default() };
+        let name = gmesh
+            .name
+            .clone()
+            .or_else(|| node.name.clone())
+            .unwrap_or_else(|| format!("mesh_{m}"));
+        let mut mesh = Mesh {
+            name,
+            ..Mesh::default()
+        };
         let all_normals = prims.iter().all(|p| p.normals.is_some());
         let all_uvs = !prims.is_empty() && prims.iter().all(|p| p.uvs.is_some());
         if !all_uvs && prims.iter().any(|p| p.uvs.is_some()) {
-            warnings.push(format!("mesh '{}': TEXCOORD_0 on only some primitives; UVs dropped", mesh.name));
+            warnings.push(format!(
+                "mesh '{}': TEXCOORD_0 on only some primitives; UVs dropped",
+                mesh.name
+            ));
         }
         let mut uvs = Vec::new();
         let mut skin_joints: Vec<[u16; 4]> = Vec::new();
         let mut skin_weights: Vec<[f32; 4]> = Vec::new();
         for prim in &prims {
             let base = mesh.positions.len() as u32;
-            mesh.triangles.extend(prim.triangles.iter().map(|t| t.map(|i| i + base)));
+            mesh.triangles
+                .extend(prim.triangles.iter().map(|t| t.map(|i| i + base)));
             mesh.positions.extend_from_slice(&prim.positions);
             if let Some(n) = &prim.normals {
                 mesh.normals.extend_from_slice(n);
@@ -919,11 +1238,21 @@ fn read_meshes(
                             return Err(ReadError::new(
                                 format!("/skins/{s}/inverseBindMatrices"),
                                 Kind::Structure,
-                                format!("need {} MAT4 elements, accessor {} has {} of {} numbers", mapped.len(), i.value(), d.count, d.components),
+                                format!(
+                                    "need {} MAT4 elements, accessor {} has {} of {} numbers",
+                                    mapped.len(),
+                                    i.value(),
+                                    d.count,
+                                    d.components
+                                ),
                             ));
                         }
                         (0..mapped.len())
-                            .map(|k| Mat4::from_cols_slice(&d.element(k).iter().map(|&x| x as f32).collect::<Vec<_>>()))
+                            .map(|k| {
+                                Mat4::from_cols_slice(
+                                    &d.element(k).iter().map(|&x| x as f32).collect::<Vec<_>>(),
+                                )
+                            })
                             .collect()
                     }
                     None => vec![Mat4::IDENTITY; mapped.len()],
@@ -945,11 +1274,16 @@ fn read_meshes(
                         load[js[k] as usize] += ws[k] as f64;
                     }
                 }
-                let reference = (0..mapped.len()).max_by(|a, b| load[*a].total_cmp(&load[*b])).unwrap_or(0);
+                let reference = (0..mapped.len())
+                    .max_by(|a, b| load[*a].total_cmp(&load[*b]))
+                    .unwrap_or(0);
                 let reference_joint = mapped.get(reference).copied().unwrap_or(0);
                 let mut bind_to_rest = fk(reference_joint) * ibm[reference_joint];
                 if !bind_to_rest.is_finite() || bind_to_rest.determinant().abs() < 1e-12 {
-                    warnings.push(format!("mesh '{}': degenerate inverse bind matrix; kept as in the file", mesh.name));
+                    warnings.push(format!(
+                        "mesh '{}': degenerate inverse bind matrix; kept as in the file",
+                        mesh.name
+                    ));
                     bind_to_rest = Mat4::IDENTITY;
                 }
                 let mismatched = mapped
@@ -969,8 +1303,16 @@ fn read_meshes(
                     *m *= rest_from_bind;
                 }
                 transform_mesh(&mut mesh, bind_to_rest);
-                let joints_remapped = skin_joints.iter().map(|row| row.map(|k| mapped.get(k as usize).copied().unwrap_or(0) as u16)).collect();
-                mesh.skin = Some(Skin { skeleton, joints: joints_remapped, weights: skin_weights, inverse_bind_matrices: ibm });
+                let joints_remapped = skin_joints
+                    .iter()
+                    .map(|row| row.map(|k| mapped.get(k as usize).copied().unwrap_or(0) as u16))
+                    .collect();
+                mesh.skin = Some(Skin {
+                    skeleton,
+                    joints: joints_remapped,
+                    weights: skin_weights,
+                    inverse_bind_matrices: ibm,
+                });
             }
             None => transform_mesh(&mut mesh, world_mat[node_index]),
         }

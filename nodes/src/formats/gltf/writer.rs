@@ -64,10 +64,18 @@ pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, Fo
             ..Default::default()
         });
     }
-    let roots: Vec<json::Index<json::Node>> =
-        joints.iter().enumerate().filter(|(_, j)| j.parent.is_none()).map(|(i, _)| json::Index::new(i as u32)).collect();
+    let roots: Vec<json::Index<json::Node>> = joints
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| j.parent.is_none())
+        .map(|(i, _)| json::Index::new(i as u32))
+        .collect();
     let mut scene_nodes = if roots.len() > 1 {
-        vec![b.root.push(json::Node { name: Some("kinegraph_skeleton".into()), children: Some(roots), ..Default::default() })]
+        vec![b.root.push(json::Node {
+            name: Some("kinegraph_skeleton".into()),
+            children: Some(roots),
+            ..Default::default()
+        })]
     } else {
         roots
     };
@@ -77,33 +85,36 @@ pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, Fo
     if frames == 0 {
         warnings.push("the clip has no frames; no animation written".to_string());
     } else {
-        let times: Vec<f32> = (0..frames).map(|f| (f as f64 / clip.fps()) as f32).collect();
+        let times: Vec<f32> = (0..frames)
+            .map(|f| (f as f64 / clip.fps()) as f32)
+            .collect();
         let input = b.accessor_f32(&times, Type::Scalar, None, Bounds::Record);
         let mut samplers = Vec::new();
         let mut channels = Vec::new();
         let jc = clip.joint_count();
-        let mut add_channel = |b: &mut GlbBuilder, j: usize, property: Property, values: Vec<f32>, type_: Type| {
-            let output = b.accessor_f32(&values, type_, None, Bounds::Omit);
-            let sampler = json::Index::new(samplers.len() as u32);
-            samplers.push(json::animation::Sampler {
-                extensions: Default::default(),
-                extras: Default::default(),
-                input,
-                interpolation: Valid(Interpolation::Linear),
-                output,
-            });
-            channels.push(json::animation::Channel {
-                sampler,
-                target: json::animation::Target {
+        let mut add_channel =
+            |b: &mut GlbBuilder, j: usize, property: Property, values: Vec<f32>, type_: Type| {
+                let output = b.accessor_f32(&values, type_, None, Bounds::Omit);
+                let sampler = json::Index::new(samplers.len() as u32);
+                samplers.push(json::animation::Sampler {
                     extensions: Default::default(),
                     extras: Default::default(),
-                    node: json::Index::new(j as u32),
-                    path: Valid(property),
-                },
-                extensions: Default::default(),
-                extras: Default::default(),
-            });
-        };
+                    input,
+                    interpolation: Valid(Interpolation::Linear),
+                    output,
+                });
+                channels.push(json::animation::Channel {
+                    sampler,
+                    target: json::animation::Target {
+                        extensions: Default::default(),
+                        extras: Default::default(),
+                        node: json::Index::new(j as u32),
+                        path: Valid(property),
+                    },
+                    extensions: Default::default(),
+                    extras: Default::default(),
+                });
+            };
         for (j, joint) in joints.iter().enumerate() {
             let mut rotations = Vec::with_capacity(frames * 4);
             let mut previous: Option<glam::Quat> = None;
@@ -119,10 +130,16 @@ pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, Fo
                 rotations.extend_from_slice(&q.to_array());
             }
             add_channel(&mut b, j, Property::Rotation, rotations, Type::Vec4);
-            let animated = (0..frames)
-                .any(|f| (clip.translations()[f * jc + j] - joint.rest_offset).abs().max_element() > ANIMATED_TRANSLATION_M);
+            let animated = (0..frames).any(|f| {
+                (clip.translations()[f * jc + j] - joint.rest_offset)
+                    .abs()
+                    .max_element()
+                    > ANIMATED_TRANSLATION_M
+            });
             if animated {
-                let translations: Vec<f32> = (0..frames).flat_map(|f| clip.translations()[f * jc + j].to_array()).collect();
+                let translations: Vec<f32> = (0..frames)
+                    .flat_map(|f| clip.translations()[f * jc + j].to_array())
+                    .collect();
                 add_channel(&mut b, j, Property::Translation, translations, Type::Vec3);
             }
         }
@@ -152,12 +169,22 @@ pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, Fo
     });
     b.root.scene = Some(scene);
     let bytes = b.finish().map_err(|m| err(Kind::Unsupported, m))?;
-    Ok(Loaded { value: bytes, warnings })
+    Ok(Loaded {
+        value: bytes,
+        warnings,
+    })
 }
 
 /// Writes `write_glb(clip, mesh)` to `path` atomically; returns the warnings.
-pub fn write_glb_file(path: &Path, clip: &Clip, mesh: Option<&Mesh>) -> Result<Vec<String>, FormatError> {
-    let loaded = write_glb(clip, mesh).map_err(|e| FormatError { file: path.to_path_buf(), ..e })?;
+pub fn write_glb_file(
+    path: &Path,
+    clip: &Clip,
+    mesh: Option<&Mesh>,
+) -> Result<Vec<String>, FormatError> {
+    let loaded = write_glb(clip, mesh).map_err(|e| FormatError {
+        file: path.to_path_buf(),
+        ..e
+    })?;
     write_atomic(path, &loaded.value)?;
     Ok(loaded.warnings)
 }
@@ -171,32 +198,76 @@ fn write_mesh(
 ) -> Result<Option<json::Index<json::Node>>, (Kind, String)> {
     let n = mesh.positions.len();
     if n == 0 || mesh.triangles.is_empty() {
-        warnings.push(format!("mesh '{}' has no triangles; not written", mesh.name));
+        warnings.push(format!(
+            "mesh '{}' has no triangles; not written",
+            mesh.name
+        ));
         return Ok(None);
     }
     if mesh.positions.iter().any(|p| !p.is_finite()) {
-        return Err((Kind::Value, format!("mesh '{}' has a non-finite position", mesh.name)));
+        return Err((
+            Kind::Value,
+            format!("mesh '{}' has a non-finite position", mesh.name),
+        ));
     }
-    if let Some(t) = mesh.triangles.iter().position(|t| t.iter().any(|&i| i as usize >= n)) {
-        return Err((Kind::Structure, format!("mesh '{}' triangle {t} indexes past its {n} vertices", mesh.name)));
+    if let Some(t) = mesh
+        .triangles
+        .iter()
+        .position(|t| t.iter().any(|&i| i as usize >= n))
+    {
+        return Err((
+            Kind::Structure,
+            format!(
+                "mesh '{}' triangle {t} indexes past its {n} vertices",
+                mesh.name
+            ),
+        ));
     }
     let mut attributes = BTreeMap::new();
     let positions: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
-    attributes.insert(Valid(Semantic::Positions), b.accessor_f32(&positions, Type::Vec3, Some(Target::ArrayBuffer), Bounds::Record));
+    attributes.insert(
+        Valid(Semantic::Positions),
+        b.accessor_f32(
+            &positions,
+            Type::Vec3,
+            Some(Target::ArrayBuffer),
+            Bounds::Record,
+        ),
+    );
     let normals_source = if mesh.normals.len() == n {
         mesh.normals.clone()
     } else {
-        warnings.push(format!("mesh '{}': normals missing or miscounted; recomputed", mesh.name));
+        warnings.push(format!(
+            "mesh '{}': normals missing or miscounted; recomputed",
+            mesh.name
+        ));
         Mesh::compute_normals(&mesh.positions, &mesh.triangles)
     };
-    let normals: Vec<f32> = normals_source.iter().flat_map(|v| v.try_normalize().unwrap_or(Vec3::Y).to_array()).collect();
-    attributes.insert(Valid(Semantic::Normals), b.accessor_f32(&normals, Type::Vec3, Some(Target::ArrayBuffer), Bounds::Omit));
+    let normals: Vec<f32> = normals_source
+        .iter()
+        .flat_map(|v| v.try_normalize().unwrap_or(Vec3::Y).to_array())
+        .collect();
+    attributes.insert(
+        Valid(Semantic::Normals),
+        b.accessor_f32(
+            &normals,
+            Type::Vec3,
+            Some(Target::ArrayBuffer),
+            Bounds::Omit,
+        ),
+    );
     if let Some(uvs) = &mesh.uvs {
         if uvs.len() == n && uvs.iter().all(|u| u.is_finite()) {
             let uv: Vec<f32> = uvs.iter().flat_map(|u| u.to_array()).collect();
-            attributes.insert(Valid(Semantic::TexCoords(0)), b.accessor_f32(&uv, Type::Vec2, Some(Target::ArrayBuffer), Bounds::Omit));
+            attributes.insert(
+                Valid(Semantic::TexCoords(0)),
+                b.accessor_f32(&uv, Type::Vec2, Some(Target::ArrayBuffer), Bounds::Omit),
+            );
         } else {
-            warnings.push(format!("mesh '{}': UVs miscounted or non-finite; not written", mesh.name));
+            warnings.push(format!(
+                "mesh '{}': UVs miscounted or non-finite; not written",
+                mesh.name
+            ));
         }
     }
 
@@ -204,12 +275,32 @@ fn write_mesh(
     if let Some(skin) = &mesh.skin {
         let skeleton = clip.skeleton();
         let same = skin.skeleton.len() == skeleton.len()
-            && skin.skeleton.joints().iter().zip(skeleton.joints()).all(|(a, b)| a.name == b.name && a.parent == b.parent);
+            && skin
+                .skeleton
+                .joints()
+                .iter()
+                .zip(skeleton.joints())
+                .all(|(a, b)| a.name == b.name && a.parent == b.parent);
         if !same {
-            return Err((Kind::Structure, format!("mesh '{}' is skinned to a different skeleton than the clip's", mesh.name)));
+            return Err((
+                Kind::Structure,
+                format!(
+                    "mesh '{}' is skinned to a different skeleton than the clip's",
+                    mesh.name
+                ),
+            ));
         }
-        if skin.joints.len() != n || skin.weights.len() != n || skin.inverse_bind_matrices.len() != skeleton.len() {
-            return Err((Kind::Structure, format!("mesh '{}': skin arrays do not match the vertex and joint counts", mesh.name)));
+        if skin.joints.len() != n
+            || skin.weights.len() != n
+            || skin.inverse_bind_matrices.len() != skeleton.len()
+        {
+            return Err((
+                Kind::Structure,
+                format!(
+                    "mesh '{}': skin arrays do not match the vertex and joint counts",
+                    mesh.name
+                ),
+            ));
         }
         let mut joint_data = Vec::with_capacity(n * 4);
         let mut weight_data = Vec::with_capacity(n * 4);
@@ -221,7 +312,13 @@ fn write_mesh(
                     continue;
                 }
                 if j as usize >= skeleton.len() {
-                    return Err((Kind::Structure, format!("mesh '{}' vertex {v}: joint {j} outside the skeleton", mesh.name)));
+                    return Err((
+                        Kind::Structure,
+                        format!(
+                            "mesh '{}' vertex {v}: joint {j} outside the skeleton",
+                            mesh.name
+                        ),
+                    ));
                 }
                 match row.iter_mut().find(|(k, _)| *k == j) {
                     Some(e) => e.1 += w,
@@ -230,7 +327,10 @@ fn write_mesh(
             }
             let sum: f32 = row.iter().map(|e| e.1).sum();
             if row.is_empty() || sum <= 0.0 {
-                return Err((Kind::Value, format!("mesh '{}' vertex {v} has no positive weight", mesh.name)));
+                return Err((
+                    Kind::Value,
+                    format!("mesh '{}' vertex {v} has no positive weight", mesh.name),
+                ));
             }
             let mut jrow = [0u16; 4];
             let mut wrow = [0f32; 4];
@@ -244,12 +344,26 @@ fn write_mesh(
             joint_data.extend_from_slice(&jrow);
             weight_data.extend_from_slice(&wrow);
         }
-        attributes.insert(Valid(Semantic::Joints(0)), b.accessor_u16(&joint_data, Type::Vec4, Some(Target::ArrayBuffer)));
-        attributes.insert(Valid(Semantic::Weights(0)), b.accessor_f32(&weight_data, Type::Vec4, Some(Target::ArrayBuffer), Bounds::Omit));
+        attributes.insert(
+            Valid(Semantic::Joints(0)),
+            b.accessor_u16(&joint_data, Type::Vec4, Some(Target::ArrayBuffer)),
+        );
+        attributes.insert(
+            Valid(Semantic::Weights(0)),
+            b.accessor_f32(
+                &weight_data,
+                Type::Vec4,
+                Some(Target::ArrayBuffer),
+                Bounds::Omit,
+            ),
+        );
         let mut ibm = Vec::with_capacity(skeleton.len() * 16);
         for m in &skin.inverse_bind_matrices {
             if !m.is_finite() {
-                return Err((Kind::Value, format!("mesh '{}' has a non-finite inverse bind matrix", mesh.name)));
+                return Err((
+                    Kind::Value,
+                    format!("mesh '{}' has a non-finite inverse bind matrix", mesh.name),
+                ));
             }
             // An affine matrix's last row is exactly (0, 0, 0, 1) in glTF.
             let mut m: Mat4 = *m;
