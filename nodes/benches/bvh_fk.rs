@@ -39,21 +39,14 @@ fn bench(c: &mut Criterion) {
 
     let longest = files
         .iter()
-        .filter_map(|(p, b)| {
-            read_bvh(b, p, BvhReadOptions::default())
-                .ok()
-                .map(|l| l.value.0)
-        })
+        .filter_map(|(p, b)| read_bvh(b, p, BvhReadOptions::default()).ok().map(|l| l.value.0))
         .max_by_key(|c| c.frame_count() * c.joint_count());
     if let Some(clip) = longest {
         let mut group = c.benchmark_group("fk");
-        group.throughput(Throughput::Elements(
-            (clip.frame_count() * clip.joint_count()) as u64,
-        ));
-        group.bench_function(
-            format!("whole_clip_{}x{}", clip.frame_count(), clip.joint_count()),
-            |b| b.iter(|| black_box(forward_kinematics(black_box(&clip)))),
-        );
+        group.throughput(Throughput::Elements((clip.frame_count() * clip.joint_count()) as u64));
+        group.bench_function(format!("whole_clip_{}x{}", clip.frame_count(), clip.joint_count()), |b| {
+            b.iter(|| black_box(forward_kinematics(black_box(&clip))))
+        });
         group.finish();
     }
 }

@@ -10,22 +10,14 @@ use std::path::PathBuf;
 pub fn shared_data() -> Option<PathBuf> {
     let dir = std::env::var_os("KG_SHARED_DATA")
         .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"))
-        });
+        .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data")));
     if dir.join("MANIFEST.sha256").is_file() || dir.join("bvh").is_dir() {
         return Some(dir);
     }
     if std::env::var_os("CI").is_some() {
-        panic!(
-            "CI is set but the shared data corpus is missing at {}",
-            dir.display()
-        );
+        panic!("CI is set but the shared data corpus is missing at {}", dir.display());
     }
-    eprintln!(
-        "skipping: shared data corpus not found at {} (set KG_SHARED_DATA)",
-        dir.display()
-    );
+    eprintln!("skipping: shared data corpus not found at {} (set KG_SHARED_DATA)", dir.display());
     None
 }
 

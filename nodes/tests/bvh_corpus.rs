@@ -8,10 +8,7 @@ use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh, read_bvh_file, wri
 use kinegraph_nodes::model::{LengthUnit, forward_kinematics};
 
 fn load(path: &Path) -> kinegraph_nodes::model::Clip {
-    read_bvh_file(path, BvhReadOptions::default())
-        .unwrap_or_else(|e| panic!("{e}"))
-        .value
-        .0
+    read_bvh_file(path, BvhReadOptions::default()).unwrap_or_else(|e| panic!("{e}")).value.0
 }
 
 #[test]
@@ -21,36 +18,17 @@ fn every_corpus_file_loads_with_its_declared_frames() {
     assert_eq!(files.len(), 39, "the corpus README lists 39 BVH clips");
     for path in files {
         let text = std::fs::read_to_string(&path).unwrap();
-        let claimed: usize = text
-            .lines()
-            .find_map(|l| l.trim().strip_prefix("Frames:"))
-            .unwrap()
-            .trim()
-            .parse()
-            .unwrap();
+        let claimed: usize =
+            text.lines().find_map(|l| l.trim().strip_prefix("Frames:")).unwrap().trim().parse().unwrap();
         let joints_in_text = text.lines().filter(|l| {
             let t = l.trim_start();
             t.starts_with("ROOT ") || t.starts_with("JOINT ") || t.starts_with("End Site")
         });
         let clip = load(&path);
         assert_eq!(clip.frame_count(), claimed, "{}", path.display());
-        assert_eq!(
-            clip.joint_count(),
-            joints_in_text.count(),
-            "{}",
-            path.display()
-        );
-        assert!(
-            clip.fps() > 20.0 && clip.fps() < 130.0,
-            "{}: fps {}",
-            path.display(),
-            clip.fps()
-        );
-        assert!(
-            clip.rotations()
-                .iter()
-                .all(|q| q.is_finite() && (q.length() - 1.0).abs() < 1e-4)
-        );
+        assert_eq!(clip.joint_count(), joints_in_text.count(), "{}", path.display());
+        assert!(clip.fps() > 20.0 && clip.fps() < 130.0, "{}: fps {}", path.display(), clip.fps());
+        assert!(clip.rotations().iter().all(|q| q.is_finite() && (q.length() - 1.0).abs() < 1e-4));
     }
 }
 
@@ -81,18 +59,9 @@ fn scale_override_replaces_detection() {
     let Some(data) = shared_data() else { return };
     let path = data.join("bvh/cmu/02_02.bvh");
     let auto = load(&path);
-    let cm = read_bvh_file(
-        &path,
-        BvhReadOptions {
-            metres_per_unit: Some(0.01),
-        },
-    )
-    .unwrap()
-    .value
-    .0;
+    let cm = read_bvh_file(&path, BvhReadOptions { metres_per_unit: Some(0.01) }).unwrap().value.0;
     assert!(!cm.import_scale.detected);
-    let ratio =
-        auto.skeleton().rest_extent().max_element() / cm.skeleton().rest_extent().max_element();
+    let ratio = auto.skeleton().rest_extent().max_element() / cm.skeleton().rest_extent().max_element();
     assert!((f64::from(ratio) - LengthUnit::CmuUnit.metres() / 0.01).abs() < 1e-3);
 }
 
@@ -112,8 +81,7 @@ fn forward_kinematics_matches_the_independent_reference() {
     let refs = files_with_extension(&data.join("reference"), "json");
     assert_eq!(refs.len(), 5);
     for ref_path in refs {
-        let r: Reference =
-            serde_json::from_str(&std::fs::read_to_string(&ref_path).unwrap()).unwrap();
+        let r: Reference = serde_json::from_str(&std::fs::read_to_string(&ref_path).unwrap()).unwrap();
         let clip = load(&data.join(&r.source));
         let poses = forward_kinematics(&clip);
         let scale = clip.import_scale.metres_per_unit;
@@ -122,24 +90,14 @@ fn forward_kinematics_matches_the_independent_reference() {
         let mut worst = 0.0f64;
         for (fi, &frame) in r.frames.iter().enumerate() {
             for (ji, name) in r.joints.iter().enumerate() {
-                let j = skeleton
-                    .index_of(name)
-                    .unwrap_or_else(|| panic!("{}: no joint {name}", r.source));
+                let j = skeleton.index_of(name).unwrap_or_else(|| panic!("{}: no joint {name}", r.source));
                 let p = poses.position(frame, j);
                 let expected = r.positions[fi][ji];
-                let err = (0..3)
-                    .map(|k| (f64::from(p[k]) / scale - expected[k]).powi(2))
-                    .sum::<f64>()
-                    .sqrt()
-                    * scale;
+                let err = (0..3).map(|k| (f64::from(p[k]) / scale - expected[k]).powi(2)).sum::<f64>().sqrt() * scale;
                 worst = worst.max(err);
             }
         }
-        assert!(
-            worst < 1e-4 * height_m,
-            "{}: worst error {worst} m (height {height_m} m)",
-            r.source
-        );
+        assert!(worst < 1e-4 * height_m, "{}: worst error {worst} m (height {height_m} m)", r.source);
     }
 }
 
@@ -149,32 +107,13 @@ fn write_then_read_reproduces_every_world_position_on_every_file() {
     for path in files_with_extension(&data.join("bvh"), "bvh") {
         let original = load(&path);
         let written = write_bvh(&original);
-        assert!(
-            written.warnings.is_empty(),
-            "{}: {:?}",
-            path.display(),
-            written.warnings
-        );
-        let back = read_bvh(written.value.as_bytes(), &path, BvhReadOptions::default())
-            .unwrap()
-            .value
-            .0;
-        assert_eq!(
-            back.import_scale.metres_per_unit,
-            original.import_scale.metres_per_unit
-        );
+        assert!(written.warnings.is_empty(), "{}: {:?}", path.display(), written.warnings);
+        let back = read_bvh(written.value.as_bytes(), &path, BvhReadOptions::default()).unwrap().value.0;
+        assert_eq!(back.import_scale.metres_per_unit, original.import_scale.metres_per_unit);
         assert_eq!(back.frame_count(), original.frame_count());
         assert!((back.fps() - original.fps()).abs() < 1e-9 * original.fps());
-        for (a, b) in original
-            .skeleton()
-            .joints()
-            .iter()
-            .zip(back.skeleton().joints())
-        {
-            assert_eq!(
-                (&a.name, a.parent, &a.channels, a.end_site),
-                (&b.name, b.parent, &b.channels, b.end_site)
-            );
+        for (a, b) in original.skeleton().joints().iter().zip(back.skeleton().joints()) {
+            assert_eq!((&a.name, a.parent, &a.channels, a.end_site), (&b.name, b.parent, &b.channels, b.end_site));
         }
         let (pa, pb) = (forward_kinematics(&original), forward_kinematics(&back));
         let mut worst = 0.0f32;
@@ -183,10 +122,6 @@ fn write_then_read_reproduces_every_world_position_on_every_file() {
                 worst = worst.max((ta.translation - tb.translation).length());
             }
         }
-        assert!(
-            worst < 1e-5,
-            "{}: worst round-trip error {worst} m",
-            path.display()
-        );
+        assert!(worst < 1e-5, "{}: worst round-trip error {worst} m", path.display());
     }
 }

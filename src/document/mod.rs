@@ -173,12 +173,18 @@ impl LoadedGraph {
 
 /// Reads a graph file from disk.
 pub fn load_file(path: &Path) -> Result<LoadedGraph, DocumentError> {
-    let text = std::fs::read_to_string(path).map_err(|e| DocumentError::Io { path: path.to_path_buf(), message: e.to_string() })?;
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| DocumentError::Io { path: path.to_path_buf(), message: e.to_string() })?;
     parse(&text, path)
 }
 
 fn parse_error(path: &Path, e: ron::error::SpannedError) -> DocumentError {
-    DocumentError::Parse { path: path.to_path_buf(), line: e.span.start.line, column: e.span.start.col, message: e.code.to_string() }
+    DocumentError::Parse {
+        path: path.to_path_buf(),
+        line: e.span.start.line,
+        column: e.span.start.col,
+        message: e.code.to_string(),
+    }
 }
 
 /// Parses graph text; `path` names the file in errors and anchors relative paths.
@@ -188,7 +194,11 @@ pub fn parse(text: &str, path: &Path) -> Result<LoadedGraph, DocumentError> {
     match header.format.as_deref() {
         Some(FORMAT) => {}
         Some(other) => return Err(version_error(format!("format is '{other}', expected '{FORMAT}'"))),
-        None => return Err(version_error(format!("no 'format' field: not a kinegraph graph (expected format: \"{FORMAT}\")"))),
+        None => {
+            return Err(version_error(format!(
+                "no 'format' field: not a kinegraph graph (expected format: \"{FORMAT}\")"
+            )));
+        }
     }
     let file_version = header.version.ok_or_else(|| version_error("no 'version' field".into()))?;
     let doc = match file_version {
@@ -213,7 +223,8 @@ pub fn to_string(doc: &GraphDoc) -> String {
     doc.format = FORMAT.to_string();
     doc.version = CURRENT_VERSION;
     let config = ron::ser::PrettyConfig::new().indentor("    ").struct_names(false);
-    let mut text = ron::ser::to_string_pretty(&doc, config).unwrap_or_else(|e| format!("// serialisation failed: {e}\n"));
+    let mut text =
+        ron::ser::to_string_pretty(&doc, config).unwrap_or_else(|e| format!("// serialisation failed: {e}\n"));
     text.push('\n');
     text
 }
@@ -243,7 +254,10 @@ impl GraphDoc {
         let target = self.inputs.get(name).map(String::as_str).unwrap_or(name);
         let (node, param) = split_endpoint(target).ok_or_else(|| {
             let inputs: Vec<&str> = self.inputs.keys().map(String::as_str).collect();
-            format!("'{name}' is neither a graph input ({}) nor node.param", if inputs.is_empty() { "none".into() } else { inputs.join(", ") })
+            format!(
+                "'{name}' is neither a graph input ({}) nor node.param",
+                if inputs.is_empty() { "none".into() } else { inputs.join(", ") }
+            )
         })?;
         if !self.nodes.contains_key(node) {
             return Err(format!("'{name}' names node '{node}', which the graph does not have"));

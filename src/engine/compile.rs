@@ -131,7 +131,8 @@ pub fn compile<'r>(
             check.node(id, "node ids must be non-empty and contain no spaces".into());
         }
         let Some(node) = registry.get(&node_doc.kind) else {
-            let hint = registry.nearest_kind(&node_doc.kind).map(|k| format!(" (did you mean '{k}'?)")).unwrap_or_default();
+            let hint =
+                registry.nearest_kind(&node_doc.kind).map(|k| format!(" (did you mean '{k}'?)")).unwrap_or_default();
             check.node(id, format!("unknown node kind '{}'{hint}; `kg nodes` lists them", node_doc.kind));
             continue;
         };
@@ -165,20 +166,36 @@ pub fn compile<'r>(
             }
         }
         known.insert(id, nodes.len());
-        nodes.push(CompiledNode { id: id.clone(), node, params, inputs: vec![None; schema.inputs.len()], dependents: Vec::new() });
+        nodes.push(CompiledNode {
+            id: id.clone(),
+            node,
+            params,
+            inputs: vec![None; schema.inputs.len()],
+            dependents: Vec::new(),
+        });
     }
 
     for edge in &doc.edges {
         let ends = (split_endpoint(&edge.from), split_endpoint(&edge.to));
         let (Some((from_node, from_port)), Some((to_node, to_port))) = ends else {
-            check.edge(&edge.from, None, None, format!("edge {} → {} must join \"node.port\" to \"node.port\"", edge.from, edge.to));
+            check.edge(
+                &edge.from,
+                None,
+                None,
+                format!("edge {} → {} must join \"node.port\" to \"node.port\"", edge.from, edge.to),
+            );
             continue;
         };
         let mut endpoint = |node: &str, endpoint: &str| -> Option<usize> {
             let found = known.get(node).copied();
             if found.is_none() && !doc.nodes.contains_key(node) {
                 let hint = nearest(node, doc.nodes.keys().map(String::as_str));
-                check.edge(endpoint, Some(node), None, format!("edge names node '{node}', which the graph does not have{hint}"));
+                check.edge(
+                    endpoint,
+                    Some(node),
+                    None,
+                    format!("edge names node '{node}', which the graph does not have{hint}"),
+                );
             }
             found
         };
@@ -186,12 +203,22 @@ pub fn compile<'r>(
         let (src_schema, dst_schema) = (nodes[src].node.schema(), nodes[dst].node.schema());
         let Some(out_index) = src_schema.outputs.iter().position(|p| p.name == from_port) else {
             let hint = nearest(from_port, src_schema.outputs.iter().map(|p| p.name));
-            check.edge(&edge.from, Some(from_node), Some(from_port), format!("'{}' has no output '{from_port}'{hint}", src_schema.kind));
+            check.edge(
+                &edge.from,
+                Some(from_node),
+                Some(from_port),
+                format!("'{}' has no output '{from_port}'{hint}", src_schema.kind),
+            );
             continue;
         };
         let Some(in_index) = dst_schema.inputs.iter().position(|p| p.name == to_port) else {
             let hint = nearest(to_port, dst_schema.inputs.iter().map(|p| p.name));
-            check.edge(&edge.to, Some(to_node), Some(to_port), format!("'{}' has no input '{to_port}'{hint}", dst_schema.kind));
+            check.edge(
+                &edge.to,
+                Some(to_node),
+                Some(to_port),
+                format!("'{}' has no input '{to_port}'{hint}", dst_schema.kind),
+            );
             continue;
         };
         let (out_ty, in_ty) = (src_schema.outputs[out_index].ty, dst_schema.inputs[in_index].ty);
@@ -200,7 +227,13 @@ pub fn compile<'r>(
                 &edge.to,
                 Some(to_node),
                 Some(to_port),
-                format!("type mismatch: {} is a {}, but {} takes a {}", edge.from, out_ty.name(), edge.to, in_ty.name()),
+                format!(
+                    "type mismatch: {} is a {}, but {} takes a {}",
+                    edge.from,
+                    out_ty.name(),
+                    edge.to,
+                    in_ty.name()
+                ),
             );
             continue;
         }
@@ -227,7 +260,9 @@ pub fn compile<'r>(
     }
 
     for (name, target) in &doc.inputs {
-        let ok = split_endpoint(target).and_then(|(n, p)| known.get(n).map(|&i| (i, p))).is_some_and(|(i, p)| nodes[i].node.schema().param(p).is_some());
+        let ok = split_endpoint(target)
+            .and_then(|(n, p)| known.get(n).map(|&i| (i, p)))
+            .is_some_and(|(i, p)| nodes[i].node.schema().param(p).is_some());
         if !ok {
             let location = source.input(name);
             check.diagnostics.push(Diagnostic {
@@ -254,7 +289,10 @@ pub fn compile<'r>(
                 if cyclic {
                     let mut ids: Vec<&str> = component.iter().map(|&n| nodes[graph[n]].id.as_str()).collect();
                     ids.sort();
-                    check.node(ids[0], format!("cycle through nodes {}: a node cannot depend on its own output", ids.join(" → ")));
+                    check.node(
+                        ids[0],
+                        format!("cycle through nodes {}: a node cannot depend on its own output", ids.join(" → ")),
+                    );
                 }
             }
             Vec::new()

@@ -67,7 +67,14 @@ pub struct RunOptions<'a> {
 impl RunOptions<'_> {
     /// Options with no output folder, every sink as target and no observer.
     pub fn new(base_dir: PathBuf) -> Self {
-        RunOptions { base_dir, out_dir: None, targets: None, cancel: Arc::new(AtomicBool::new(false)), threads: None, observer: None }
+        RunOptions {
+            base_dir,
+            out_dir: None,
+            targets: None,
+            cancel: Arc::new(AtomicBool::new(false)),
+            threads: None,
+            observer: None,
+        }
     }
 }
 
@@ -122,25 +129,31 @@ impl Engine {
         if let Some(observe) = options.observer {
             observe(&RunEvent::Planned { total: needed.iter().filter(|n| **n).count() });
         }
-        let remaining_inputs = graph
-            .nodes
-            .iter()
-            .map(|n| n.inputs.iter().flatten().filter(|(src, _)| needed[*src]).count())
-            .collect();
+        let remaining_inputs =
+            graph.nodes.iter().map(|n| n.inputs.iter().flatten().filter(|(src, _)| needed[*src]).count()).collect();
         let state = Mutex::new(RunState {
             remaining_inputs,
             slots: graph.nodes.iter().map(|_| Slot::Pending).collect(),
             reports: BTreeMap::new(),
             files: Vec::new(),
         });
-        let services = RunServices { base_dir: &options.base_dir, out_dir: options.out_dir.as_deref(), cancel: &options.cancel };
+        let services =
+            RunServices { base_dir: &options.base_dir, out_dir: options.out_dir.as_deref(), cancel: &options.cancel };
         let ready: Vec<usize> = graph
             .order
             .iter()
             .copied()
             .filter(|&i| needed[i] && graph.nodes[i].inputs.iter().flatten().all(|(src, _)| !needed[*src]))
             .collect();
-        let job = Job { engine: self, graph, needed: &needed, fingerprints: &fingerprints, state: &state, services: &services, options };
+        let job = Job {
+            engine: self,
+            graph,
+            needed: &needed,
+            fingerprints: &fingerprints,
+            state: &state,
+            services: &services,
+            options,
+        };
         let schedule = || {
             rayon::scope(|scope| {
                 for i in ready {
@@ -219,7 +232,8 @@ impl Job<'_, '_> {
         } else if cancelled {
             (NodeStatus::Cancelled, None, Some("run cancelled".to_string()))
         } else if let Some(hit) = (!schema.writes_files).then(|| self.cached(fingerprint)).flatten() {
-            let outcome = NodeOutcome { outputs: hit.outputs.clone(), warnings: hit.warnings.clone(), files_written: Vec::new() };
+            let outcome =
+                NodeOutcome { outputs: hit.outputs.clone(), warnings: hit.warnings.clone(), files_written: Vec::new() };
             (NodeStatus::Cached, Some(outcome), None)
         } else {
             self.observe(RunEvent::Started { node: node.id.clone() });
@@ -231,7 +245,11 @@ impl Job<'_, '_> {
                     let outcome = ctx.finish();
                     if !schema.writes_files {
                         let cached = Cached { outputs: outcome.outputs.clone(), warnings: outcome.warnings.clone() };
-                        self.engine.cache.lock().unwrap_or_else(PoisonError::into_inner).insert(fingerprint, Arc::new(cached));
+                        self.engine
+                            .cache
+                            .lock()
+                            .unwrap_or_else(PoisonError::into_inner)
+                            .insert(fingerprint, Arc::new(cached));
                     }
                     (NodeStatus::Ok, Some(outcome), None)
                 }
@@ -239,7 +257,8 @@ impl Job<'_, '_> {
                 Err(e) => (NodeStatus::Error, None, Some(e.to_string())),
             }
         };
-        let seconds = if matches!(status, NodeStatus::Ok | NodeStatus::Error) { started.elapsed().as_secs_f64() } else { 0.0 };
+        let seconds =
+            if matches!(status, NodeStatus::Ok | NodeStatus::Error) { started.elapsed().as_secs_f64() } else { 0.0 };
         let mut ready = Vec::new();
         {
             let mut state = self.lock();
@@ -251,7 +270,10 @@ impl Job<'_, '_> {
                 None => (Slot::Failed, Vec::new()),
             };
             state.slots[index] = slot;
-            state.reports.insert(node.id.clone(), NodeReport { kind: schema.kind.to_string(), status, seconds, warnings, error });
+            state.reports.insert(
+                node.id.clone(),
+                NodeReport { kind: schema.kind.to_string(), status, seconds, warnings, error },
+            );
             for &d in &node.dependents {
                 if self.needed[d] {
                     state.remaining_inputs[d] -= node.inputs_to(d, self.graph);

@@ -57,9 +57,15 @@ pub fn resample(clip: &Clip, fps: f64) -> Result<Clip, ClipError> {
 
 const CLIP: Input<Arc<Clip>> = Input::required("clip", "The clip to edit.");
 const OUT: Output<Arc<Clip>> = Output::new("clip", "The edited clip.");
-const START: FloatParam = FloatParam::new("start_secs", "First kept moment, seconds from the clip's start.", 0.0, 0.0, 1e6, "s");
-const END: FloatParam =
-    FloatParam::optional("end_secs", "Last kept moment, seconds from the clip's start; unset keeps the rest.", 0.0, 1e6, "s");
+const START: FloatParam =
+    FloatParam::new("start_secs", "First kept moment, seconds from the clip's start.", 0.0, 0.0, 1e6, "s");
+const END: FloatParam = FloatParam::optional(
+    "end_secs",
+    "Last kept moment, seconds from the clip's start; unset keeps the rest.",
+    0.0,
+    1e6,
+    "s",
+);
 
 /// `clip.trim`.
 pub struct Trim;

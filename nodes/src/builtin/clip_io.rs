@@ -5,7 +5,8 @@ use std::sync::Arc;
 use crate::formats::bvh::{BvhReadOptions, read_bvh_file, write_bvh};
 use crate::model::Clip;
 use crate::node::{
-    FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam, Registry,
+    FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
+    Registry,
 };
 
 /// Registers the clip I/O nodes.
@@ -26,7 +27,8 @@ const SCALE: FloatParam = FloatParam::optional(
     1e6,
     "m",
 );
-const ANIMATION: IntParam = IntParam::optional("animation", "Which animation of a glTF file to load (0 = first).", 0, 10_000);
+const ANIMATION: IntParam =
+    IntParam::optional("animation", "Which animation of a glTF file to load (0 = first).", 0, 10_000);
 const CLIP_OUT: Output<Arc<Clip>> = Output::new("clip", "The loaded clip, in metres and seconds.");
 
 /// `clip.load`: reads a clip from a file.
@@ -67,13 +69,10 @@ impl Node for LoadClip {
 }
 
 const CLIP_IN: Input<Arc<Clip>> = Input::required("clip", "The clip to write.");
-const FILE_OUT: Output<Arc<std::path::PathBuf>> = Output::new("file", "The written file, relative to the output folder.");
-const BVH_FILE: OutputPathParam = OutputPathParam::new(
-    "file",
-    "Where to write, relative to the run's output folder.",
-    "bvh",
-    "clip.bvh",
-);
+const FILE_OUT: Output<Arc<std::path::PathBuf>> =
+    Output::new("file", "The written file, relative to the output folder.");
+const BVH_FILE: OutputPathParam =
+    OutputPathParam::new("file", "Where to write, relative to the run's output folder.", "bvh", "clip.bvh");
 
 /// `export.bvh`: writes a clip as BVH.
 pub struct ExportBvh;

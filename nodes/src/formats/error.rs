@@ -23,10 +23,7 @@ impl fmt::Display for Location {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Location::File => Ok(()),
-            Location::Line {
-                line,
-                column: Some(c),
-            } => write!(f, ":{line}:{c}"),
+            Location::Line { line, column: Some(c) } => write!(f, ":{line}:{c}"),
             Location::Line { line, column: None } => write!(f, ":{line}"),
             Location::JsonPath(p) => write!(f, " at {p}"),
         }
@@ -66,18 +63,8 @@ pub struct FormatError {
 
 impl FormatError {
     /// An error at `location` in `file`.
-    pub fn new(
-        file: &Path,
-        location: Location,
-        kind: FormatErrorKind,
-        message: impl Into<String>,
-    ) -> Self {
-        FormatError {
-            file: file.to_path_buf(),
-            location,
-            kind,
-            message: message.into(),
-        }
+    pub fn new(file: &Path, location: Location, kind: FormatErrorKind, message: impl Into<String>) -> Self {
+        FormatError { file: file.to_path_buf(), location, kind, message: message.into() }
     }
 
     /// An error about the whole of `file`.

@@ -3,5 +3,7 @@
 pub mod atomic;
 pub mod bvh;
 pub mod error;
+pub mod gltf;
+pub mod obj;
 
 pub use error::{FormatError, FormatErrorKind, Loaded, Location};

@@ -7,9 +7,7 @@
 use glam::{EulerRot, Quat, Vec3};
 
 /// A principal axis.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
 pub enum Axis {
     /// The x axis.
     X,
@@ -50,11 +48,7 @@ impl Axis {
 
 /// Composes rotations about `axes` in written order: `R = R(axes[0]) · R(axes[1]) · …`.
 pub fn compose(axes: &[Axis], angles: &[f32]) -> Quat {
-    axes.iter()
-        .zip(angles)
-        .fold(Quat::IDENTITY, |acc, (axis, &angle)| {
-            acc * axis.rotation(angle)
-        })
+    axes.iter().zip(angles).fold(Quat::IDENTITY, |acc, (axis, &angle)| acc * axis.rotation(angle))
 }
 
 /// Decomposes `q` into angles about three distinct `axes` (written order), the inverse of
@@ -111,9 +105,7 @@ mod tests {
         let angles = [0.3, -1.1, 2.0];
         for order in ORDERS {
             let q = compose(&order, &angles);
-            let m = matrix(order[0], angles[0])
-                * matrix(order[1], angles[1])
-                * matrix(order[2], angles[2]);
+            let m = matrix(order[0], angles[0]) * matrix(order[1], angles[1]) * matrix(order[2], angles[2]);
             let v = glam::Vec3::new(0.2, -0.7, 1.3);
             assert!((q * v - m * v).length() < EXACT_TOL, "order {order:?}");
         }
@@ -128,20 +120,14 @@ mod tests {
             let q2 = compose(&order, &back);
             assert!(q.angle_between(q2) < 1e-4, "order {order:?}");
             for (a, b) in angles.iter().zip(back) {
-                assert!(
-                    (a - b).abs() < 1e-4,
-                    "order {order:?}: {angles:?} vs {back:?}"
-                );
+                assert!((a - b).abs() < 1e-4, "order {order:?}: {angles:?} vs {back:?}");
             }
         }
     }
 
     #[test]
     fn decompose_survives_gimbal_lock() {
-        let q = compose(
-            &[Axis::Z, Axis::X, Axis::Y],
-            &[0.5, std::f32::consts::FRAC_PI_2, 0.2],
-        );
+        let q = compose(&[Axis::Z, Axis::X, Axis::Y], &[0.5, std::f32::consts::FRAC_PI_2, 0.2]);
         let back = decompose3(q, [Axis::Z, Axis::X, Axis::Y]).unwrap();
         assert!(back.iter().all(|a| a.is_finite()));
         let q2 = compose(&[Axis::Z, Axis::X, Axis::Y], &back);

@@ -33,11 +33,7 @@ pub const APPROX_TOL: f32 = 1e-3;
 /// length, so a degenerate rotation never turns into NaN downstream.
 pub fn quat_normalize_or_identity(q: Quat) -> Quat {
     let len_sq = q.length_squared();
-    if len_sq.is_finite() && len_sq > 1e-20 {
-        q * len_sq.sqrt().recip()
-    } else {
-        Quat::IDENTITY
-    }
+    if len_sq.is_finite() && len_sq > 1e-20 { q * len_sq.sqrt().recip() } else { Quat::IDENTITY }
 }
 
 /// Spherical interpolation that takes the short way round and never returns NaN.
@@ -52,14 +48,8 @@ mod tests {
 
     #[test]
     fn normalize_degenerate_quaternions_gives_identity() {
-        assert_eq!(
-            quat_normalize_or_identity(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0)),
-            Quat::IDENTITY
-        );
-        assert_eq!(
-            quat_normalize_or_identity(Quat::from_xyzw(f32::NAN, 0.0, 0.0, 1.0)),
-            Quat::IDENTITY
-        );
+        assert_eq!(quat_normalize_or_identity(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0)), Quat::IDENTITY);
+        assert_eq!(quat_normalize_or_identity(Quat::from_xyzw(f32::NAN, 0.0, 0.0, 1.0)), Quat::IDENTITY);
         let q = quat_normalize_or_identity(Quat::from_xyzw(0.0, 0.0, 2.0, 0.0));
         assert!((q.z - 1.0).abs() < EXACT_TOL);
     }

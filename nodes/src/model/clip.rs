@@ -67,7 +67,7 @@ impl Clip {
             return Err(ClipError::BadFrameRate { fps });
         }
         let joints = skeleton.len();
-        if rotations.len() != translations.len() || rotations.len() % joints != 0 {
+        if rotations.len() != translations.len() || !rotations.len().is_multiple_of(joints) {
             return Err(ClipError::BadLength {
                 got: rotations.len().max(translations.len()),
                 frames: rotations.len() / joints,
@@ -83,28 +83,16 @@ impl Clip {
                 });
             }
         }
-        let rotations = rotations
-            .into_iter()
-            .map(crate::math::quat_normalize_or_identity)
-            .collect();
-        Ok(Clip {
-            skeleton,
-            fps,
-            frames,
-            rotations,
-            translations,
-            import_scale,
-        })
+        let rotations = rotations.into_iter().map(crate::math::quat_normalize_or_identity).collect();
+        Ok(Clip { skeleton, fps, frames, rotations, translations, import_scale })
     }
 
     /// A clip of `frames` frames holding the skeleton's rest pose.
     pub fn rest_pose(skeleton: Arc<Skeleton>, fps: f64, frames: usize) -> Result<Self, ClipError> {
-        let rotations: Vec<Quat> = (0..frames)
-            .flat_map(|_| skeleton.joints().iter().map(|j| j.rest_rotation))
-            .collect();
-        let translations: Vec<Vec3> = (0..frames)
-            .flat_map(|_| skeleton.joints().iter().map(|j| j.rest_offset))
-            .collect();
+        let rotations: Vec<Quat> =
+            (0..frames).flat_map(|_| skeleton.joints().iter().map(|j| j.rest_rotation)).collect();
+        let translations: Vec<Vec3> =
+            (0..frames).flat_map(|_| skeleton.joints().iter().map(|j| j.rest_offset)).collect();
         Clip::new(skeleton, fps, rotations, translations, ImportScale::METRES)
     }
 
@@ -157,10 +145,7 @@ impl Clip {
 
     /// The root's translation (metres) at every frame.
     pub fn root_translations(&self) -> impl Iterator<Item = Vec3> + '_ {
-        self.translations
-            .iter()
-            .step_by(self.joint_count())
-            .copied()
+        self.translations.iter().step_by(self.joint_count()).copied()
     }
 
     /// Frames `start..end` (clamped to the clip) as a new clip at the same rate.
@@ -185,13 +170,7 @@ mod tests {
     use crate::model::skeleton::Joint;
 
     fn two_joint() -> Arc<Skeleton> {
-        Arc::new(
-            Skeleton::new(vec![
-                Joint::new("a", None, Vec3::ZERO),
-                Joint::new("b", Some(0), Vec3::Y),
-            ])
-            .unwrap(),
-        )
+        Arc::new(Skeleton::new(vec![Joint::new("a", None, Vec3::ZERO), Joint::new("b", Some(0), Vec3::Y)]).unwrap())
     }
 
     #[test]
@@ -208,21 +187,12 @@ mod tests {
             Err(ClipError::BadFrameRate { .. })
         ));
         assert!(matches!(
-            Clip::new(
-                s.clone(),
-                30.0,
-                q[..3].to_vec(),
-                t[..3].to_vec(),
-                ImportScale::METRES
-            ),
+            Clip::new(s.clone(), 30.0, q[..3].to_vec(), t[..3].to_vec(), ImportScale::METRES),
             Err(ClipError::BadLength { .. })
         ));
         let mut tn = t.clone();
         tn[3] = Vec3::new(f32::NAN, 0.0, 0.0);
-        assert!(matches!(
-            Clip::new(s, 30.0, q, tn, ImportScale::METRES),
-            Err(ClipError::NonFinite { frame: 1, .. })
-        ));
+        assert!(matches!(Clip::new(s, 30.0, q, tn, ImportScale::METRES), Err(ClipError::NonFinite { frame: 1, .. })));
     }
 
     #[test]

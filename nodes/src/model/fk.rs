@@ -16,10 +16,7 @@ pub struct Transform {
 
 impl Transform {
     /// The identity transform.
-    pub const IDENTITY: Transform = Transform {
-        rotation: Quat::IDENTITY,
-        translation: Vec3::ZERO,
-    };
+    pub const IDENTITY: Transform = Transform { rotation: Quat::IDENTITY, translation: Vec3::ZERO };
 
     /// `self ∘ child`: applies `child` first, then `self`.
     #[inline]
@@ -52,10 +49,7 @@ pub struct ClipPoses {
 impl ClipPoses {
     /// Number of frames.
     pub fn frame_count(&self) -> usize {
-        self.world_from_joint
-            .len()
-            .checked_div(self.joints)
-            .unwrap_or(0)
+        self.world_from_joint.len().checked_div(self.joints).unwrap_or(0)
     }
 
     /// World transforms of every joint at `frame`.
@@ -72,12 +66,7 @@ impl ClipPoses {
 /// Computes world transforms for one frame's local transforms into `out`.
 /// All three slices have one entry per joint, parents before children.
 #[inline]
-pub fn pose_world(
-    skeleton: &Skeleton,
-    rotations: &[Quat],
-    translations: &[Vec3],
-    out: &mut [Transform],
-) {
+pub fn pose_world(skeleton: &Skeleton, rotations: &[Quat], translations: &[Vec3], out: &mut [Transform]) {
     for (j, joint) in skeleton.joints().iter().enumerate() {
         let parent = match joint.parent {
             Some(p) => out[p],
@@ -92,17 +81,9 @@ pub fn forward_kinematics(clip: &Clip) -> ClipPoses {
     let joints = clip.joint_count();
     let mut world_from_joint = vec![Transform::IDENTITY; joints * clip.frame_count()];
     for (frame, out) in world_from_joint.chunks_exact_mut(joints).enumerate() {
-        pose_world(
-            clip.skeleton(),
-            clip.frame_rotations(frame),
-            clip.frame_translations(frame),
-            out,
-        );
+        pose_world(clip.skeleton(), clip.frame_rotations(frame), clip.frame_translations(frame), out);
     }
-    ClipPoses {
-        joints,
-        world_from_joint,
-    }
+    ClipPoses { joints, world_from_joint }
 }
 
 #[cfg(test)]
@@ -131,25 +112,14 @@ mod tests {
         let mut rotations = Vec::new();
         let mut translations = Vec::new();
         for (a, b) in angles {
-            rotations.extend([
-                Quat::from_rotation_z(a),
-                Quat::from_rotation_z(b),
-                Quat::IDENTITY,
-            ]);
+            rotations.extend([Quat::from_rotation_z(a), Quat::from_rotation_z(b), Quat::IDENTITY]);
             translations.extend(skeleton.joints().iter().map(|j| j.rest_offset));
         }
         let clip = Clip::new(skeleton, 30.0, rotations, translations, ImportScale::METRES).unwrap();
         let poses = forward_kinematics(&clip);
         for (f, (a, b)) in angles.iter().enumerate() {
-            let expected = Vec3::new(
-                l1 * a.cos() + l2 * (a + b).cos(),
-                l1 * a.sin() + l2 * (a + b).sin(),
-                0.0,
-            );
-            assert!(
-                (poses.position(f, 2) - expected).length() < EXACT_TOL,
-                "frame {f}"
-            );
+            let expected = Vec3::new(l1 * a.cos() + l2 * (a + b).cos(), l1 * a.sin() + l2 * (a + b).sin(), 0.0);
+            assert!((poses.position(f, 2) - expected).length() < EXACT_TOL, "frame {f}");
         }
         assert_eq!(poses.frame_count(), 3);
     }
@@ -157,19 +127,10 @@ mod tests {
     #[test]
     fn zero_length_bones_stay_finite() {
         let skeleton = Arc::new(
-            Skeleton::new(vec![
-                Joint::new("a", None, Vec3::ZERO),
-                Joint::new("b", Some(0), Vec3::ZERO),
-            ])
-            .unwrap(),
+            Skeleton::new(vec![Joint::new("a", None, Vec3::ZERO), Joint::new("b", Some(0), Vec3::ZERO)]).unwrap(),
         );
         let clip = Clip::rest_pose(skeleton, 24.0, 2).unwrap();
         let poses = forward_kinematics(&clip);
-        assert!(
-            poses
-                .frame(1)
-                .iter()
-                .all(|t| t.translation.is_finite() && t.rotation.is_finite())
-        );
+        assert!(poses.frame(1).iter().all(|t| t.translation.is_finite() && t.rotation.is_finite()));
     }
 }

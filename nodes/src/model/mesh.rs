@@ -43,9 +43,7 @@ impl Mesh {
         let mut normals = vec![Vec3::ZERO; positions.len()];
         for tri in triangles {
             let [a, b, c] = tri.map(|i| i as usize);
-            let (Some(pa), Some(pb), Some(pc)) =
-                (positions.get(a), positions.get(b), positions.get(c))
-            else {
+            let (Some(pa), Some(pb), Some(pc)) = (positions.get(a), positions.get(b), positions.get(c)) else {
                 continue;
             };
             let n = (*pb - *pa).cross(*pc - *pa);
@@ -53,20 +51,13 @@ impl Mesh {
                 normals[i] += n;
             }
         }
-        normals
-            .into_iter()
-            .map(|n| n.try_normalize().unwrap_or(Vec3::Y))
-            .collect()
+        normals.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Y)).collect()
     }
 
     /// Axis-aligned bounds `(min, max)` of the positions, `None` when empty.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let first = *self.positions.first()?;
-        Some(
-            self.positions
-                .iter()
-                .fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))),
-        )
+        Some(self.positions.iter().fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))))
     }
 }
 
@@ -76,13 +67,7 @@ mod tests {
 
     #[test]
     fn normals_of_a_ccw_quad_point_up_and_degenerate_ones_stay_finite() {
-        let positions = vec![
-            Vec3::ZERO,
-            Vec3::X,
-            Vec3::new(1.0, 0.0, -1.0),
-            Vec3::new(0.0, 0.0, -1.0),
-            Vec3::ZERO,
-        ];
+        let positions = vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 0.0, -1.0), Vec3::ZERO];
         let normals = Mesh::compute_normals(&positions, &[[0, 1, 2], [0, 2, 3], [4, 4, 4]]);
         for n in &normals[..4] {
             assert!((*n - Vec3::Y).length() < 1e-6);

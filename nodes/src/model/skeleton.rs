@@ -79,9 +79,7 @@ pub enum SkeletonError {
         second: usize,
     },
     /// A parent index does not come before its child.
-    #[error(
-        "joint '{name}' (index {index}) has parent index {parent}, which does not come before it"
-    )]
+    #[error("joint '{name}' (index {index}) has parent index {parent}, which does not come before it")]
     ParentOrder {
         /// Joint name.
         name: String,
@@ -130,23 +128,13 @@ impl Skeleton {
             if let Some(parent) = joint.parent
                 && parent >= index
             {
-                return Err(SkeletonError::ParentOrder {
-                    name: joint.name.clone(),
-                    index,
-                    parent,
-                });
+                return Err(SkeletonError::ParentOrder { name: joint.name.clone(), index, parent });
             }
             if !joint.rest_offset.is_finite() || !joint.rest_rotation.is_finite() {
-                return Err(SkeletonError::NonFinite {
-                    name: joint.name.clone(),
-                });
+                return Err(SkeletonError::NonFinite { name: joint.name.clone() });
             }
             if let Some(&first) = by_name.get(&joint.name) {
-                return Err(SkeletonError::DuplicateName {
-                    name: joint.name.clone(),
-                    first,
-                    second: index,
-                });
+                return Err(SkeletonError::DuplicateName { name: joint.name.clone(), first, second: index });
             }
             by_name.insert(joint.name.clone(), index);
         }
@@ -175,11 +163,7 @@ impl Skeleton {
 
     /// Children of joint `index`, in order.
     pub fn children(&self, index: usize) -> impl Iterator<Item = usize> + '_ {
-        self.joints
-            .iter()
-            .enumerate()
-            .filter(move |(_, j)| j.parent == Some(index))
-            .map(|(i, _)| i)
+        self.joints.iter().enumerate().filter(move |(_, j)| j.parent == Some(index)).map(|(i, _)| i)
     }
 
     /// Joint positions in the rest pose (metres, model space), from offsets and rest
@@ -202,10 +186,9 @@ impl Skeleton {
     /// relative tolerances.
     pub fn rest_extent(&self) -> Vec3 {
         let positions = self.rest_positions();
-        let (lo, hi) = positions.iter().fold(
-            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
-            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-        );
+        let (lo, hi) = positions
+            .iter()
+            .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
         hi - lo
     }
 }
@@ -217,27 +200,12 @@ mod tests {
     #[test]
     fn rejects_empty_duplicate_and_misordered() {
         assert_eq!(Skeleton::new(vec![]), Err(SkeletonError::Empty));
-        let dup = vec![
-            Joint::new("a", None, Vec3::ZERO),
-            Joint::new("a", Some(0), Vec3::X),
-        ];
-        assert!(matches!(
-            Skeleton::new(dup),
-            Err(SkeletonError::DuplicateName { .. })
-        ));
-        let order = vec![
-            Joint::new("a", Some(1), Vec3::ZERO),
-            Joint::new("b", None, Vec3::X),
-        ];
-        assert!(matches!(
-            Skeleton::new(order),
-            Err(SkeletonError::ParentOrder { .. })
-        ));
+        let dup = vec![Joint::new("a", None, Vec3::ZERO), Joint::new("a", Some(0), Vec3::X)];
+        assert!(matches!(Skeleton::new(dup), Err(SkeletonError::DuplicateName { .. })));
+        let order = vec![Joint::new("a", Some(1), Vec3::ZERO), Joint::new("b", None, Vec3::X)];
+        assert!(matches!(Skeleton::new(order), Err(SkeletonError::ParentOrder { .. })));
         let nan = vec![Joint::new("a", None, Vec3::NAN)];
-        assert!(matches!(
-            Skeleton::new(nan),
-            Err(SkeletonError::NonFinite { .. })
-        ));
+        assert!(matches!(Skeleton::new(nan), Err(SkeletonError::NonFinite { .. })));
     }
 
     #[test]

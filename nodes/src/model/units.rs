@@ -20,13 +20,8 @@ pub enum LengthUnit {
 
 impl LengthUnit {
     /// Every unit, in detection preference order.
-    pub const ALL: [LengthUnit; 5] = [
-        LengthUnit::Metre,
-        LengthUnit::Decimetre,
-        LengthUnit::Centimetre,
-        LengthUnit::Inch,
-        LengthUnit::CmuUnit,
-    ];
+    pub const ALL: [LengthUnit; 5] =
+        [LengthUnit::Metre, LengthUnit::Decimetre, LengthUnit::Centimetre, LengthUnit::Inch, LengthUnit::CmuUnit];
 
     /// Metres per one of this unit.
     pub fn metres(self) -> f64 {
@@ -66,10 +61,7 @@ pub const TYPICAL_HUMAN_EXTENT_M: f64 = 1.6;
 /// in the wild) carry; a non-human rig needs the scale override.
 pub fn detect_unit(extent: f64) -> LengthUnit {
     let badness = |u: LengthUnit| (extent * u.metres() / TYPICAL_HUMAN_EXTENT_M).ln().abs();
-    LengthUnit::ALL
-        .into_iter()
-        .min_by(|a, b| badness(*a).total_cmp(&badness(*b)))
-        .unwrap_or(LengthUnit::Metre)
+    LengthUnit::ALL.into_iter().min_by(|a, b| badness(*a).total_cmp(&badness(*b))).unwrap_or(LengthUnit::Metre)
 }
 
 /// How a clip's lengths were brought to metres on import.
@@ -85,11 +77,8 @@ pub struct ImportScale {
 
 impl ImportScale {
     /// No conversion: the file is in metres by specification (glTF).
-    pub const METRES: ImportScale = ImportScale {
-        unit: Some(LengthUnit::Metre),
-        metres_per_unit: 1.0,
-        detected: false,
-    };
+    pub const METRES: ImportScale =
+        ImportScale { unit: Some(LengthUnit::Metre), metres_per_unit: 1.0, detected: false };
 }
 
 #[cfg(test)]

@@ -85,9 +85,12 @@ impl<'a> NodeContext<'a> {
     pub fn optional_input<T: PortValue>(&self, port: &Input<T>) -> Result<Option<T>, NodeError> {
         match self.input_value(port.name()) {
             None => Ok(None),
-            Some(v) => T::from_value(v)
-                .map(Some)
-                .ok_or_else(|| NodeError::input(port.name(), format!("carries a {}, expected {}", v.port_type().name(), T::TYPE.name()))),
+            Some(v) => T::from_value(v).map(Some).ok_or_else(|| {
+                NodeError::input(
+                    port.name(),
+                    format!("carries a {}, expected {}", v.port_type().name(), T::TYPE.name()),
+                )
+            }),
         }
     }
 
@@ -154,7 +157,8 @@ impl<'a> NodeContext<'a> {
             .ok_or_else(|| NodeError::Failed("this run has no output folder, so nothing may be written".into()))?;
         let path = out_dir.join(&relative);
         if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent).map_err(|e| NodeError::Failed(format!("cannot create {}: {e}", parent.display())))?;
+            std::fs::create_dir_all(parent)
+                .map_err(|e| NodeError::Failed(format!("cannot create {}: {e}", parent.display())))?;
         }
         self.check_cancelled()?;
         write_atomic(&path, bytes)?;

@@ -137,7 +137,11 @@ impl Registry {
 
     /// The registered kind closest to `kind` by edit distance, for "did you mean" hints.
     pub fn nearest_kind(&self, kind: &str) -> Option<&'static str> {
-        self.nodes.keys().copied().min_by_key(|k| edit_distance(k, kind)).filter(|k| edit_distance(k, kind) <= k.len() / 2 + 1)
+        self.nodes
+            .keys()
+            .copied()
+            .min_by_key(|k| edit_distance(k, kind))
+            .filter(|k| edit_distance(k, kind) <= k.len() / 2 + 1)
     }
 }
 

@@ -140,7 +140,9 @@ impl ParamSpec {
                     _ => Err(format!("'{s}' does not end in one of .{}", extensions.join(", ."))),
                 }
             }
-            (ParamKind::OutputPath { extension, .. }, ParamValue::Text(s)) => check_output_path(s, extension).map(|()| value.clone()),
+            (ParamKind::OutputPath { extension, .. }, ParamValue::Text(s)) => {
+                check_output_path(s, extension).map(|()| value.clone())
+            }
             (kind, other) => Err(format!("expected {}, got {other}", kind_name(kind))),
         }
     }
@@ -184,7 +186,14 @@ pub struct OutputPathParam(pub ParamSpec);
 
 impl FloatParam {
     /// Declares a real parameter with a default.
-    pub const fn new(name: &'static str, doc: &'static str, default: f64, min: f64, max: f64, unit: &'static str) -> Self {
+    pub const fn new(
+        name: &'static str,
+        doc: &'static str,
+        default: f64,
+        min: f64,
+        max: f64,
+        unit: &'static str,
+    ) -> Self {
         FloatParam(ParamSpec { name, doc, kind: ParamKind::Float { default: Some(default), min, max, unit } })
     }
     /// Declares a real parameter that may stay unset.
@@ -206,7 +215,12 @@ impl IntParam {
 
 impl ChoiceParam {
     /// Declares a choice parameter.
-    pub const fn new(name: &'static str, doc: &'static str, choices: &'static [&'static str], default: &'static str) -> Self {
+    pub const fn new(
+        name: &'static str,
+        doc: &'static str,
+        choices: &'static [&'static str],
+        default: &'static str,
+    ) -> Self {
         ChoiceParam(ParamSpec { name, doc, kind: ParamKind::Choice { choices, default } })
     }
 }
@@ -249,6 +263,9 @@ mod tests {
     #[test]
     fn untagged_values_parse_from_ron_literals() {
         let v: Vec<ParamValue> = serde_json::from_str(r#"[true, 3, 2.5, "a"]"#).unwrap();
-        assert_eq!(v, vec![ParamValue::Bool(true), ParamValue::Int(3), ParamValue::Float(2.5), ParamValue::Text("a".into())]);
+        assert_eq!(
+            v,
+            vec![ParamValue::Bool(true), ParamValue::Int(3), ParamValue::Float(2.5), ParamValue::Text("a".into())]
+        );
     }
 }

@@ -33,25 +33,14 @@ pub struct BvhStats {
 }
 
 /// Reads a BVH file from disk.
-pub fn read_bvh_file(
-    path: &Path,
-    options: BvhReadOptions,
-) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
+pub fn read_bvh_file(path: &Path, options: BvhReadOptions) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
     let bytes = std::fs::read(path).map_err(|e| FormatError::io(path, &e))?;
     read_bvh(&bytes, path, options)
 }
 
 /// Parses BVH `bytes`; `path` only names the file in errors.
-pub fn read_bvh(
-    bytes: &[u8],
-    path: &Path,
-    options: BvhReadOptions,
-) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
-    Parser {
-        path,
-        warnings: Vec::new(),
-    }
-    .parse(bytes, options)
+pub fn read_bvh(bytes: &[u8], path: &Path, options: BvhReadOptions) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
+    Parser { path, warnings: Vec::new() }.parse(bytes, options)
 }
 
 struct Parser<'p> {
@@ -116,47 +105,24 @@ impl<'a> Tokens<'a> {
 
 impl Parser<'_> {
     fn err(&self, line: usize, kind: Kind, message: impl Into<String>) -> FormatError {
-        FormatError::new(
-            self.path,
-            Location::Line { line, column: None },
-            kind,
-            message,
-        )
+        FormatError::new(self.path, Location::Line { line, column: None }, kind, message)
     }
 
-    fn parse(
-        mut self,
-        bytes: &[u8],
-        options: BvhReadOptions,
-    ) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
+    fn parse(mut self, bytes: &[u8], options: BvhReadOptions) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
         let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
-        let start = find_subslice(bytes, b"HIERARCHY").ok_or_else(|| {
-            FormatError::file(
-                self.path,
-                Kind::Syntax,
-                "no HIERARCHY keyword: not a BVH file",
-            )
-        })?;
+        let start = find_subslice(bytes, b"HIERARCHY")
+            .ok_or_else(|| FormatError::file(self.path, Kind::Syntax, "no HIERARCHY keyword: not a BVH file"))?;
         let skipped_lines = bytes[..start].iter().filter(|&&b| b == b'\n').count();
         if bytes[..start].iter().any(|b| !b.is_ascii_whitespace()) {
-            self.warnings
-                .push(format!("skipped {} bytes before HIERARCHY", start));
+            self.warnings.push(format!("skipped {} bytes before HIERARCHY", start));
         }
         let text = std::str::from_utf8(&bytes[start..]).map_err(|e| {
-            let line = skipped_lines
-                + 1
-                + bytes[start..start + e.valid_up_to()]
-                    .iter()
-                    .filter(|&&b| b == b'\n')
-                    .count();
+            let line =
+                skipped_lines + 1 + bytes[start..start + e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
             self.err(line, Kind::Syntax, "bytes that are not UTF-8 text")
         })?;
         let mut tokens = Tokens {
-            lines: Lines {
-                text,
-                pos: 0,
-                line: skipped_lines,
-            },
+            lines: Lines { text, pos: 0, line: skipped_lines },
             current: "".split_whitespace().peekable(),
             line: skipped_lines,
         };
@@ -179,47 +145,20 @@ impl Parser<'_> {
             }
         };
         let skeleton = self.build_skeleton(&joints, metres_per_unit as f32)?;
-        let (rotations, translations) = self.parse_frames(
-            &mut lines,
-            &joints,
-            &skeleton,
-            claimed_frames,
-            frames_line,
-            metres_per_unit as f32,
-        )?;
-        let scale = ImportScale {
-            unit,
-            metres_per_unit,
-            detected,
-        };
-        let clip = Clip::new(
-            Arc::new(skeleton),
-            1.0 / frame_time,
-            rotations,
-            translations,
-            scale,
-        )
-        .map_err(|e| FormatError::file(self.path, Kind::Value, e.to_string()))?;
-        let stats = BvhStats {
-            frame_time_secs: frame_time,
-            rest_extent_file_units: rest_extent,
-        };
-        Ok(Loaded {
-            value: (clip, stats),
-            warnings: self.warnings,
-        })
+        let (rotations, translations) =
+            self.parse_frames(&mut lines, &joints, &skeleton, claimed_frames, frames_line, metres_per_unit as f32)?;
+        let scale = ImportScale { unit, metres_per_unit, detected };
+        let clip = Clip::new(Arc::new(skeleton), 1.0 / frame_time, rotations, translations, scale)
+            .map_err(|e| FormatError::file(self.path, Kind::Value, e.to_string()))?;
+        let stats = BvhStats { frame_time_secs: frame_time, rest_extent_file_units: rest_extent };
+        Ok(Loaded { value: (clip, stats), warnings: self.warnings })
     }
 
     fn parse_hierarchy(&mut self, tokens: &mut Tokens<'_>) -> Result<Vec<RawJoint>, FormatError> {
-        let (line, first) = tokens
-            .next_token()
-            .ok_or_else(|| FormatError::file(self.path, Kind::Truncated, "empty file"))?;
+        let (line, first) =
+            tokens.next_token().ok_or_else(|| FormatError::file(self.path, Kind::Truncated, "empty file"))?;
         if first != "HIERARCHY" {
-            return Err(self.err(
-                line,
-                Kind::Syntax,
-                format!("expected HIERARCHY, found '{first}'"),
-            ));
+            return Err(self.err(line, Kind::Syntax, format!("expected HIERARCHY, found '{first}'")));
         }
         let mut joints: Vec<RawJoint> = Vec::new();
         // Stack of open blocks: index into `joints`.
@@ -235,11 +174,7 @@ impl Parser<'_> {
             match token {
                 "ROOT" | "JOINT" => {
                     if token == "ROOT" && !stack.is_empty() {
-                        return Err(self.err(
-                            line,
-                            Kind::Syntax,
-                            "ROOT inside another joint's block",
-                        ));
+                        return Err(self.err(line, Kind::Syntax, "ROOT inside another joint's block"));
                     }
                     if token == "JOINT" && stack.is_empty() {
                         return Err(self.err(line, Kind::Syntax, "JOINT outside any ROOT block"));
@@ -250,11 +185,7 @@ impl Parser<'_> {
                         words.pop();
                     }
                     if words.is_empty() {
-                        return Err(self.err(
-                            line,
-                            Kind::Syntax,
-                            format!("{token} without a name"),
-                        ));
+                        return Err(self.err(line, Kind::Syntax, format!("{token} without a name")));
                     }
                     let name = words.join(" ");
                     joints.push(RawJoint {
@@ -307,11 +238,7 @@ impl Parser<'_> {
                         return Err(self.err(line, Kind::Syntax, "CHANNELS outside any joint"));
                     };
                     if joints[current].end_site {
-                        return Err(self.err(
-                            line,
-                            Kind::Syntax,
-                            "an End Site cannot have CHANNELS",
-                        ));
+                        return Err(self.err(line, Kind::Syntax, "an End Site cannot have CHANNELS"));
                     }
                     let count = self.number(tokens, "CHANNELS")?;
                     if !(0.0..=64.0).contains(&count) || count.fract() != 0.0 {
@@ -323,9 +250,9 @@ impl Parser<'_> {
                     }
                     let mut channels = Vec::with_capacity(count as usize);
                     for _ in 0..count as usize {
-                        let (l, name) = tokens.next_token().ok_or_else(|| {
-                            self.err(line, Kind::Truncated, "file ends in a CHANNELS list")
-                        })?;
+                        let (l, name) = tokens
+                            .next_token()
+                            .ok_or_else(|| self.err(line, Kind::Truncated, "file ends in a CHANNELS list"))?;
                         channels.push(parse_channel(name).ok_or_else(|| {
                             self.err(l, Kind::Syntax, format!("'{name}' is not a channel name (expected e.g. Xposition, Zrotation); the CHANNELS count may be wrong"))
                         })?);
@@ -339,20 +266,12 @@ impl Parser<'_> {
                 }
                 "MOTION" => {
                     if !stack.is_empty() {
-                        return Err(self.err(
-                            line,
-                            Kind::Syntax,
-                            "MOTION before every joint block is closed",
-                        ));
+                        return Err(self.err(line, Kind::Syntax, "MOTION before every joint block is closed"));
                     }
                     break;
                 }
                 other => {
-                    return Err(self.err(
-                        line,
-                        Kind::Syntax,
-                        format!("unexpected '{other}' in HIERARCHY"),
-                    ));
+                    return Err(self.err(line, Kind::Syntax, format!("unexpected '{other}' in HIERARCHY")));
                 }
             }
         }
@@ -365,53 +284,32 @@ impl Parser<'_> {
     fn expect(&self, tokens: &mut Tokens<'_>, want: &str) -> Result<(), FormatError> {
         match tokens.next_token() {
             Some((_, t)) if t == want => Ok(()),
-            Some((l, t)) => {
-                Err(self.err(l, Kind::Syntax, format!("expected '{want}', found '{t}'")))
-            }
-            None => Err(self.err(
-                tokens.line,
-                Kind::Truncated,
-                format!("file ends where '{want}' was expected"),
-            )),
+            Some((l, t)) => Err(self.err(l, Kind::Syntax, format!("expected '{want}', found '{t}'"))),
+            None => Err(self.err(tokens.line, Kind::Truncated, format!("file ends where '{want}' was expected"))),
         }
     }
 
     fn number(&self, tokens: &mut Tokens<'_>, what: &str) -> Result<f32, FormatError> {
-        let (l, t) = tokens.next_token().ok_or_else(|| {
-            self.err(
-                tokens.line,
-                Kind::Truncated,
-                format!("file ends inside {what}"),
-            )
-        })?;
+        let (l, t) = tokens
+            .next_token()
+            .ok_or_else(|| self.err(tokens.line, Kind::Truncated, format!("file ends inside {what}")))?;
         match t.parse::<f32>() {
             Ok(v) if v.is_finite() => Ok(v),
-            _ => Err(self.err(
-                l,
-                Kind::Value,
-                format!("'{t}' in {what} is not a finite number"),
-            )),
+            _ => Err(self.err(l, Kind::Value, format!("'{t}' in {what} is not a finite number"))),
         }
     }
 
-    fn parse_motion_header(
-        &self,
-        tokens: &mut Tokens<'_>,
-    ) -> Result<(usize, f64, usize), FormatError> {
+    fn parse_motion_header(&self, tokens: &mut Tokens<'_>) -> Result<(usize, f64, usize), FormatError> {
         let mut frames = None;
         let mut frame_time = None;
         while frames.is_none() || frame_time.is_none() {
             let Some((line, t)) = tokens.next_token() else {
-                return Err(self.err(
-                    tokens.line,
-                    Kind::Truncated,
-                    "file ends inside the MOTION header",
-                ));
+                return Err(self.err(tokens.line, Kind::Truncated, "file ends inside the MOTION header"));
             };
             let value = |tokens: &mut Tokens<'_>| -> Result<f64, FormatError> {
-                let (l, v) = tokens.next_token().ok_or_else(|| {
-                    self.err(line, Kind::Truncated, "file ends inside the MOTION header")
-                })?;
+                let (l, v) = tokens
+                    .next_token()
+                    .ok_or_else(|| self.err(line, Kind::Truncated, "file ends inside the MOTION header"))?;
                 v.parse::<f64>()
                     .ok()
                     .filter(|x| x.is_finite())
@@ -433,11 +331,7 @@ impl Parser<'_> {
                     self.expect(tokens, "Time:")?;
                     let dt = value(tokens)?;
                     if dt <= 0.0 {
-                        return Err(self.err(
-                            line,
-                            Kind::Value,
-                            format!("frame time {dt} s must be positive"),
-                        ));
+                        return Err(self.err(line, Kind::Value, format!("frame time {dt} s must be positive")));
                     }
                     frame_time = Some(dt);
                 }
@@ -451,11 +345,7 @@ impl Parser<'_> {
             }
         }
         if tokens.current.peek().is_some() {
-            return Err(self.err(
-                tokens.line,
-                Kind::Syntax,
-                "unexpected text after the frame time",
-            ));
+            return Err(self.err(tokens.line, Kind::Syntax, "unexpected text after the frame time"));
         }
         let (frames, frames_line) = frames.unwrap_or((0, tokens.line));
         Ok((frames, frame_time.unwrap_or(1.0), frames_line))
@@ -475,11 +365,8 @@ impl Parser<'_> {
             })
             .collect();
         // An end-site name may collide with a real joint: make it unique, keep real names.
-        let mut taken: std::collections::BTreeSet<String> = out
-            .iter()
-            .filter(|j| !j.end_site)
-            .map(|j| j.name.clone())
-            .collect();
+        let mut taken: std::collections::BTreeSet<String> =
+            out.iter().filter(|j| !j.end_site).map(|j| j.name.clone()).collect();
         for j in out.iter_mut().filter(|j| j.end_site) {
             let mut name = j.name.clone();
             let mut n = 1;
@@ -524,11 +411,7 @@ impl Parser<'_> {
             let count = match parse_row(text.as_bytes(), &mut values) {
                 Ok(count) => count,
                 Err(token) => {
-                    return Err(self.err(
-                        line,
-                        Kind::Value,
-                        format!("'{token}' is not a finite number"),
-                    ));
+                    return Err(self.err(line, Kind::Value, format!("'{token}' is not a finite number")));
                 }
             };
             if count == 0 {
@@ -559,9 +442,7 @@ impl Parser<'_> {
             ));
         }
         if extra_lines > 0 {
-            self.warnings.push(format!(
-                "ignored {extra_lines} rows after the {claimed} frames the header declares"
-            ));
+            self.warnings.push(format!("ignored {extra_lines} rows after the {claimed} frames the header declares"));
         }
         Ok((rotations, translations))
     }
@@ -585,10 +466,7 @@ impl FrameLayout {
                 (s, j.channels.clone())
             })
             .collect();
-        FrameLayout {
-            joints,
-            channel_count: start,
-        }
+        FrameLayout { joints, channel_count: start }
     }
 
     /// Converts one row (file units, degrees) into local transforms (metres, radians).
@@ -633,10 +511,7 @@ fn parse_row(line: &[u8], values: &mut [f32]) -> Result<usize, String> {
             .map(Ok)
             .unwrap_or_else(|| fast_float2::parse_partial::<f32, _>(&line[pos..]));
         match parsed {
-            Ok((v, used))
-                if v.is_finite()
-                    && line.get(pos + used).is_none_or(|b| b.is_ascii_whitespace()) =>
-            {
+            Ok((v, used)) if v.is_finite() && line.get(pos + used).is_none_or(|b| b.is_ascii_whitespace()) => {
                 if let Some(slot) = values.get_mut(count) {
                     *slot = v;
                 }
@@ -644,10 +519,7 @@ fn parse_row(line: &[u8], values: &mut [f32]) -> Result<usize, String> {
                 pos += used;
             }
             _ => {
-                let end = line[pos..]
-                    .iter()
-                    .position(|b| b.is_ascii_whitespace())
-                    .map_or(line.len(), |e| pos + e);
+                let end = line[pos..].iter().position(|b| b.is_ascii_whitespace()).map_or(line.len(), |e| pos + e);
                 return Err(String::from_utf8_lossy(&line[pos..end]).into_owned());
             }
         }
@@ -655,9 +527,7 @@ fn parse_row(line: &[u8], values: &mut [f32]) -> Result<usize, String> {
 }
 
 /// Exact powers of ten representable in f64.
-const POW10: [f64; 16] = [
-    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
-];
+const POW10: [f64; 16] = [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15];
 
 /// Fast path for the plain decimals that make up nearly all BVH data (`-12.34567`): at
 /// most 15 digits, no exponent. The digits form an exact integer and the power of ten is
@@ -725,10 +595,8 @@ fn rest_extent(joints: &[RawJoint]) -> f64 {
         let p = j.parent.map(|p| positions[p]).unwrap_or(Vec3::ZERO) + j.offset;
         positions.push(p);
     }
-    let (lo, hi) = positions.iter().fold(
-        (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
+    let (lo, hi) =
+        positions.iter().fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
     f64::from((hi - lo).max_element())
 }
 
@@ -744,30 +612,14 @@ mod tests {
     /// one f32 ulp, and declines what it does not handle.
     #[test]
     fn plain_decimal_fast_path_agrees_with_std() {
-        for text in [
-            "0",
-            "-0.0",
-            "12.34567",
-            "-179.99999",
-            ".0083333",
-            "5.",
-            "-1234567.891",
-            "0.000001",
-            "+3.5",
-        ] {
+        for text in ["0", "-0.0", "12.34567", "-179.99999", ".0083333", "5.", "-1234567.891", "0.000001", "+3.5"] {
             let (v, used) = parse_plain_decimal(text.as_bytes()).unwrap();
             let expected: f32 = text.parse().unwrap();
             assert_eq!(used, text.len(), "{text}");
-            assert!(
-                (v - expected).abs() <= expected.abs() * f32::EPSILON,
-                "{text}: {v} vs {expected}"
-            );
+            assert!((v - expected).abs() <= expected.abs() * f32::EPSILON, "{text}: {v} vs {expected}");
         }
         for text in ["1e5", "nan", "-", ".", "1234567890123456"] {
-            assert!(
-                parse_plain_decimal(text.as_bytes()).is_none_or(|(_, used)| used < text.len()),
-                "{text}"
-            );
+            assert!(parse_plain_decimal(text.as_bytes()).is_none_or(|(_, used)| used < text.len()), "{text}");
         }
     }
 }

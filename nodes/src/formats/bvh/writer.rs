@@ -24,9 +24,7 @@ pub fn write_bvh(clip: &Clip) -> Loaded<String> {
     let skeleton = clip.skeleton();
     let unit = clip.import_scale.metres_per_unit as f32;
     let to_file = 1.0 / unit;
-    let layouts: Vec<Vec<Channel>> = (0..skeleton.len())
-        .map(|j| channel_layout(clip, j))
-        .collect();
+    let layouts: Vec<Vec<Channel>> = (0..skeleton.len()).map(|j| channel_layout(clip, j)).collect();
     let mut warnings = Vec::new();
     for (j, joint) in skeleton.joints().iter().enumerate() {
         if joint.rest_rotation != Quat::IDENTITY && !joint.end_site {
@@ -44,30 +42,18 @@ pub fn write_bvh(clip: &Clip) -> Loaded<String> {
         }
     }
 
-    let mut out =
-        String::with_capacity(64 * skeleton.len() + clip.frame_count() * skeleton.len() * 30);
+    let mut out = String::with_capacity(64 * skeleton.len() + clip.frame_count() * skeleton.len() * 30);
     out.push_str("HIERARCHY\n");
     for (j, joint) in skeleton.joints().iter().enumerate() {
         let depth = depth(clip, j);
         let pad = "\t".repeat(depth);
         let o = joint.rest_offset * to_file;
         if joint.end_site {
-            let _ = writeln!(
-                out,
-                "{pad}End Site\n{pad}{{\n{pad}\tOFFSET {:.6} {:.6} {:.6}",
-                o.x, o.y, o.z
-            );
+            let _ = writeln!(out, "{pad}End Site\n{pad}{{\n{pad}\tOFFSET {:.6} {:.6} {:.6}", o.x, o.y, o.z);
         } else {
-            let keyword = if joint.parent.is_none() {
-                "ROOT"
-            } else {
-                "JOINT"
-            };
-            let _ = writeln!(
-                out,
-                "{pad}{keyword} {}\n{pad}{{\n{pad}\tOFFSET {:.6} {:.6} {:.6}",
-                joint.name, o.x, o.y, o.z
-            );
+            let keyword = if joint.parent.is_none() { "ROOT" } else { "JOINT" };
+            let _ =
+                writeln!(out, "{pad}{keyword} {}\n{pad}{{\n{pad}\tOFFSET {:.6} {:.6} {:.6}", joint.name, o.x, o.y, o.z);
             let _ = write!(out, "{pad}\tCHANNELS {}", layouts[j].len());
             for c in &layouts[j] {
                 out.push(' ');
@@ -76,21 +62,12 @@ pub fn write_bvh(clip: &Clip) -> Loaded<String> {
             out.push('\n');
         }
         // Close this block and every ancestor block that ends here.
-        let next_depth = if j + 1 < skeleton.len() {
-            self::depth(clip, j + 1)
-        } else {
-            0
-        };
+        let next_depth = if j + 1 < skeleton.len() { self::depth(clip, j + 1) } else { 0 };
         for d in (next_depth..=depth).rev() {
             let _ = writeln!(out, "{}}}", "\t".repeat(d));
         }
     }
-    let _ = writeln!(
-        out,
-        "MOTION\nFrames: {}\nFrame Time: {}",
-        clip.frame_count(),
-        1.0 / clip.fps()
-    );
+    let _ = writeln!(out, "MOTION\nFrames: {}\nFrame Time: {}", clip.frame_count(), 1.0 / clip.fps());
 
     for frame in 0..clip.frame_count() {
         let rotations = clip.frame_rotations(frame);
@@ -120,10 +97,7 @@ pub fn write_bvh(clip: &Clip) -> Loaded<String> {
         }
         out.push('\n');
     }
-    Loaded {
-        value: out,
-        warnings,
-    }
+    Loaded { value: out, warnings }
 }
 
 /// Writes `clip` to `path` atomically.
@@ -145,9 +119,7 @@ fn depth(clip: &Clip, mut j: usize) -> usize {
 
 fn translation_is_animated(clip: &Clip, j: usize) -> bool {
     let rest = clip.skeleton().joints()[j].rest_offset;
-    (0..clip.frame_count()).any(|f| {
-        (clip.frame_translations(f)[j] - rest).abs().max_element() > ANIMATED_TRANSLATION_M
-    })
+    (0..clip.frame_count()).any(|f| (clip.frame_translations(f)[j] - rest).abs().max_element() > ANIMATED_TRANSLATION_M)
 }
 
 fn channel_layout(clip: &Clip, j: usize) -> Vec<Channel> {
@@ -180,17 +152,10 @@ fn euler_degrees(q: Quat, layout: &[Channel]) -> Vec<f32> {
         [a, b] => {
             // Complete to three distinct axes; the dropped third angle is zero for any
             // rotation the two channels can express.
-            let c = [Axis::X, Axis::Y, Axis::Z]
-                .into_iter()
-                .find(|x| x != a && x != b)
-                .unwrap_or(Axis::X);
-            decompose3(q, [*a, *b, c])
-                .map(|r| vec![r[0], r[1]])
-                .unwrap_or_else(|| vec![0.0; 2])
+            let c = [Axis::X, Axis::Y, Axis::Z].into_iter().find(|x| x != a && x != b).unwrap_or(Axis::X);
+            decompose3(q, [*a, *b, c]).map(|r| vec![r[0], r[1]]).unwrap_or_else(|| vec![0.0; 2])
         }
-        [a, b, c] => decompose3(q, [*a, *b, *c])
-            .map(|r| r.to_vec())
-            .unwrap_or_else(|| vec![0.0; 3]),
+        [a, b, c] => decompose3(q, [*a, *b, *c]).map(|r| r.to_vec()).unwrap_or_else(|| vec![0.0; 3]),
         more => {
             // Unusual repeated-axis layouts: put the rotation in the first three distinct
             // axes' decomposition when possible, zero the rest.
