@@ -3,6 +3,7 @@
 
 pub mod clip_edit;
 pub mod clip_io;
+pub mod mesh_io;
 pub mod scalar;
 
 use crate::node::Registry;
@@ -10,6 +11,7 @@ use crate::node::Registry;
 /// Adds every built-in node to `registry`.
 pub fn register(registry: &mut Registry) {
     clip_io::register(registry);
+    mesh_io::register(registry);
     clip_edit::register(registry);
     scalar::register(registry);
 }

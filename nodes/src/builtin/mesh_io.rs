@@ -1,0 +1,63 @@
+//! Loading meshes.
+
+use std::sync::Arc;
+
+use super::clip_io::load_meshes;
+use crate::formats::{FormatError, FormatErrorKind, Loaded};
+use crate::model::Mesh;
+use crate::node::{FloatParam, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry};
+
+/// Registers the mesh nodes.
+pub fn register(registry: &mut Registry) {
+    registry.add(Box::new(LoadMesh));
+}
+
+const PATH: InputPathParam = InputPathParam::new(
+    "path",
+    "Mesh file to read: OBJ, or glTF/GLB (skinned meshes keep their skin). Relative paths start at the graph file's folder.",
+    &["obj", "gltf", "glb"],
+);
+const SCALE: FloatParam = FloatParam::optional(
+    "metres_per_unit",
+    "OBJ only: metres per file unit (0.01 for centimetres). Unset reads metres and warns when the size suggests another unit.",
+    1e-6,
+    1e6,
+    "m",
+);
+const INDEX: IntParam = IntParam::new("index", "Which mesh of the file to output (0 = first).", 0, 0, 100_000);
+const MESH_OUT: Output<Arc<Mesh>> = Output::new("mesh", "The mesh, in metres.");
+
+/// `mesh.load`: reads one mesh from a file.
+pub struct LoadMesh;
+
+static LOAD_MESH: NodeSchema = NodeSchema {
+    kind: "mesh.load",
+    category: "io",
+    doc: "Loads a triangle mesh from an OBJ or glTF file; normals are computed when the file has none.",
+    inputs: &[],
+    outputs: &[MESH_OUT.spec()],
+    params: &[PATH.0, SCALE.0, INDEX.0],
+    writes_files: false,
+};
+
+impl Node for LoadMesh {
+    fn schema(&self) -> &'static NodeSchema {
+        &LOAD_MESH
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let path = ctx.input_path(&PATH)?;
+        let Loaded { value: meshes, warnings } = load_meshes(&path, ctx.optional_float(&SCALE)?)?;
+        ctx.warn_all(warnings);
+        let index = ctx.int(&INDEX)? as usize;
+        let count = meshes.len();
+        let mesh = meshes.into_iter().nth(index).ok_or_else(|| {
+            FormatError::file(
+                &path,
+                FormatErrorKind::Structure,
+                format!("has {count} meshes, so there is no mesh {index}"),
+            )
+        })?;
+        ctx.set_output(&MESH_OUT, Arc::new(mesh));
+        Ok(())
+    }
+}

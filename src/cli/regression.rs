@@ -1,0 +1,303 @@
+//! `kg test`: saved graphs as regression tests. Each `graphs/NAME.ron` runs into a
+//! temporary folder and the facts of every node output are compared with
+//! `graphs/NAME.expect.ron`: counts and hashes exactly, real numbers within the file's
+//! relative tolerance. `--bless` rewrites the expectations from the current results.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use kinegraph_nodes::model::forward_kinematics;
+use kinegraph_nodes::node::{Registry, Value};
+use serde::{Deserialize, Serialize};
+use sha2::Digest;
+
+use super::EXIT_FAILED;
+use super::run::{execute, load_graph};
+use crate::engine::{Engine, RunReport};
+
+/// Checkable facts about one output value.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Facts {
+    /// A clip.
+    Clip {
+        /// Frame count (exact).
+        frames: usize,
+        /// Joint count, end sites included (exact).
+        joints: usize,
+        /// Frames per second.
+        fps: f64,
+        /// Length, seconds.
+        duration_secs: f64,
+        /// Path length of the root over the clip, metres.
+        root_travel_m: f64,
+        /// Mean world height of all joints over all frames (FK), metres.
+        mean_joint_height_m: f64,
+    },
+    /// A mesh.
+    Mesh {
+        /// Vertex count (exact).
+        vertices: usize,
+        /// Triangle count (exact).
+        triangles: usize,
+        /// Whether it is skinned (exact).
+        skinned: bool,
+        /// Bounding-box size, metres.
+        extent_m: [f64; 3],
+    },
+    /// A number.
+    Scalar(f64),
+    /// A written file: size and SHA-256 (exact).
+    File {
+        /// Size in bytes.
+        bytes: u64,
+        /// Hex SHA-256 of the content.
+        sha256: String,
+    },
+}
+
+/// A graph's stored expectations.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Expectation {
+    /// Relative tolerance for real numbers (absolute below magnitude 1).
+    pub tolerance: f64,
+    /// Facts per `node.port`.
+    pub outputs: BTreeMap<String, Facts>,
+}
+
+/// Facts of a value; files are read from `out_dir`.
+pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
+    match value {
+        Value::Clip(clip) => {
+            let poses = forward_kinematics(clip);
+            let samples = (clip.frame_count() * clip.joint_count()).max(1) as f64;
+            let height_sum: f64 =
+                (0..clip.frame_count()).flat_map(|f| poses.frame(f).iter().map(|t| f64::from(t.translation.y))).sum();
+            let roots: Vec<_> = clip.root_translations().collect();
+            let travel: f64 = roots.windows(2).map(|w| f64::from((w[1] - w[0]).length())).sum();
+            Facts::Clip {
+                frames: clip.frame_count(),
+                joints: clip.joint_count(),
+                fps: clip.fps(),
+                duration_secs: clip.duration_secs(),
+                root_travel_m: travel,
+                mean_joint_height_m: height_sum / samples,
+            }
+        }
+        Value::Mesh(mesh) => {
+            let extent = mesh.bounds().map(|(lo, hi)| hi - lo).unwrap_or_default();
+            Facts::Mesh {
+                vertices: mesh.positions.len(),
+                triangles: mesh.triangles.len(),
+                skinned: mesh.skin.is_some(),
+                extent_m: [extent.x, extent.y, extent.z].map(f64::from),
+            }
+        }
+        Value::Scalar(x) => Facts::Scalar(*x),
+        Value::File(relative) => {
+            let bytes = std::fs::read(out_dir.join(relative.as_path())).unwrap_or_default();
+            Facts::File { bytes: bytes.len() as u64, sha256: format!("{:x}", sha2::Sha256::digest(&bytes)) }
+        }
+    }
+}
+
+/// Facts of every output of a run, by `node.port`.
+pub fn run_facts(
+    report: &RunReport,
+    engine: &Engine,
+    kinds: &BTreeMap<String, String>,
+    out_dir: &Path,
+) -> BTreeMap<String, Facts> {
+    let mut facts = BTreeMap::new();
+    for (id, outputs) in &report.outputs {
+        let Some(schema) = kinds.get(id).and_then(|k| engine.registry().get(k)).map(|n| n.schema()) else { continue };
+        for (spec, value) in schema.outputs.iter().zip(outputs) {
+            if let Some(v) = value {
+                facts.insert(format!("{id}.{}", spec.name), facts_of(v, out_dir));
+            }
+        }
+    }
+    facts
+}
+
+fn close(a: f64, b: f64, tolerance: f64) -> bool {
+    (a - b).abs() <= tolerance * b.abs().max(1.0)
+}
+
+/// Differences between expected and actual facts, one line each.
+pub fn compare(expected: &Expectation, actual: &BTreeMap<String, Facts>) -> Vec<String> {
+    let tol = expected.tolerance;
+    let mut problems = Vec::new();
+    for (key, want) in &expected.outputs {
+        let Some(got) = actual.get(key) else {
+            problems.push(format!("{key}: expected an output, the run produced none"));
+            continue;
+        };
+        let mut field = |name: &str, ok: bool, want: String, got: String| {
+            if !ok {
+                problems.push(format!("{key}.{name}: expected {want}, got {got}"));
+            }
+        };
+        match (want, got) {
+            (
+                Facts::Clip { frames, joints, fps, duration_secs, root_travel_m, mean_joint_height_m },
+                Facts::Clip {
+                    frames: f2,
+                    joints: j2,
+                    fps: fps2,
+                    duration_secs: d2,
+                    root_travel_m: r2,
+                    mean_joint_height_m: h2,
+                },
+            ) => {
+                field("frames", frames == f2, frames.to_string(), f2.to_string());
+                field("joints", joints == j2, joints.to_string(), j2.to_string());
+                field("fps", close(*fps, *fps2, tol), fps.to_string(), fps2.to_string());
+                field("duration_secs", close(*duration_secs, *d2, tol), duration_secs.to_string(), d2.to_string());
+                field("root_travel_m", close(*root_travel_m, *r2, tol), root_travel_m.to_string(), r2.to_string());
+                field(
+                    "mean_joint_height_m",
+                    close(*mean_joint_height_m, *h2, tol),
+                    mean_joint_height_m.to_string(),
+                    h2.to_string(),
+                );
+            }
+            (
+                Facts::Mesh { vertices, triangles, skinned, extent_m },
+                Facts::Mesh { vertices: v2, triangles: t2, skinned: s2, extent_m: e2 },
+            ) => {
+                field("vertices", vertices == v2, vertices.to_string(), v2.to_string());
+                field("triangles", triangles == t2, triangles.to_string(), t2.to_string());
+                field("skinned", skinned == s2, skinned.to_string(), s2.to_string());
+                let ok = extent_m.iter().zip(e2).all(|(a, b)| close(*a, *b, tol));
+                field("extent_m", ok, format!("{extent_m:?}"), format!("{e2:?}"));
+            }
+            (Facts::Scalar(a), Facts::Scalar(b)) => field("value", close(*a, *b, tol), a.to_string(), b.to_string()),
+            (Facts::File { bytes, sha256 }, Facts::File { bytes: b2, sha256: s2 }) => {
+                field("bytes", bytes == b2, bytes.to_string(), b2.to_string());
+                field("sha256", sha256 == s2, sha256.clone(), s2.clone());
+            }
+            (want, got) => problems.push(format!("{key}: expected {want:?}, got {got:?}")),
+        }
+    }
+    for key in actual.keys().filter(|k| !expected.outputs.contains_key(*k)) {
+        problems.push(format!("{key}: new output not in the expectation (run kg test --bless to accept)"));
+    }
+    problems
+}
+
+/// `graphs/NAME.ron` → `graphs/NAME.expect.ron`.
+pub fn expectation_path(graph: &Path) -> PathBuf {
+    let stem = graph.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    graph.with_file_name(format!("{stem}.expect.ron"))
+}
+
+/// Every graph in `dir` (not expectations), sorted.
+pub fn graphs_in(dir: &Path) -> Vec<PathBuf> {
+    let mut graphs: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .flatten()
+                .map(|e| e.path())
+                .filter(|p| p.extension().is_some_and(|e| e == "ron") && !p.to_string_lossy().ends_with(".expect.ron"))
+                .collect()
+        })
+        .unwrap_or_default();
+    graphs.sort();
+    graphs
+}
+
+/// Runs one graph and compares (or blesses); returns the problems found.
+pub fn test_graph(engine: &Engine, graph: &Path, bless: bool) -> Vec<String> {
+    let loaded = match load_graph(graph, &[], engine.registry()) {
+        Ok(l) => l,
+        Err(e) => return vec![e],
+    };
+    let out_dir = match tempfile::tempdir() {
+        Ok(d) => d,
+        Err(e) => return vec![format!("cannot create a temporary folder: {e}")],
+    };
+    let report = match execute(engine, &loaded, Some(out_dir.path()), None, None, false) {
+        Ok(r) => r,
+        Err(_) => return vec!["the graph is invalid (see above)".into()],
+    };
+    let mut problems: Vec<String> = report
+        .nodes
+        .iter()
+        .filter_map(|(id, n)| n.error.as_ref().map(|e| format!("node '{id}' {:?}: {e}", n.status)))
+        .collect();
+    if !problems.is_empty() {
+        return problems;
+    }
+    let kinds = loaded.doc.nodes.iter().map(|(id, n)| (id.clone(), n.kind.clone())).collect();
+    let actual = run_facts(&report, engine, &kinds, out_dir.path());
+    let path = expectation_path(graph);
+    let existing = std::fs::read_to_string(&path)
+        .ok()
+        .map(|t| ron::from_str::<Expectation>(&t).map_err(|e| format!("{}:{e}", path.display())));
+    if bless {
+        let tolerance = match existing {
+            Some(Ok(e)) => e.tolerance,
+            _ => 1e-5,
+        };
+        let expectation = Expectation { tolerance, outputs: actual };
+        let config = ron::ser::PrettyConfig::new().indentor("    ");
+        let text = ron::ser::to_string_pretty(&expectation, config).map(|t| t + "\n").unwrap_or_default();
+        if let Err(e) = kinegraph_nodes::formats::atomic::write_atomic(&path, text.as_bytes()) {
+            problems.push(e.to_string());
+        }
+        return problems;
+    }
+    match existing {
+        None => vec![format!("no expectation file {}: run `kg test --bless` to create it", path.display())],
+        Some(Err(e)) => vec![e],
+        Some(Ok(expected)) => compare(&expected, &actual),
+    }
+}
+
+pub(super) fn test_command(graphs: Vec<PathBuf>, bless: bool) -> u8 {
+    let graphs = if graphs.is_empty() { graphs_in(Path::new("graphs")) } else { graphs };
+    let engine = Engine::new(Registry::builtin());
+    let (mut passed, mut failed) = (0, 0);
+    for graph in &graphs {
+        let problems = test_graph(&engine, graph, bless);
+        if problems.is_empty() {
+            passed += 1;
+            eprintln!("{} {}", if bless { "blessed" } else { "ok     " }, graph.display());
+        } else {
+            failed += 1;
+            eprintln!("FAILED  {}", graph.display());
+            for p in problems {
+                eprintln!("        {p}");
+            }
+        }
+    }
+    println!("kg test: {passed} passed, {failed} failed");
+    if failed > 0 { EXIT_FAILED } else { 0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn comparison_uses_the_tolerance_for_reals_and_exactness_for_counts() {
+        let clip = |frames, fps| Facts::Clip {
+            frames,
+            joints: 3,
+            fps,
+            duration_secs: 1.0,
+            root_travel_m: 2.0,
+            mean_joint_height_m: 1.0,
+        };
+        let expected = Expectation { tolerance: 1e-3, outputs: [("a.clip".to_string(), clip(10, 30.0))].into() };
+        let same = [("a.clip".to_string(), clip(10, 30.01))].into();
+        assert!(compare(&expected, &same).is_empty());
+        let off = [("a.clip".to_string(), clip(11, 30.1))].into();
+        let problems = compare(&expected, &off);
+        assert_eq!(problems.len(), 2, "{problems:?}");
+        assert!(problems[0].contains("frames"));
+        let extra: BTreeMap<String, Facts> =
+            [("a.clip".to_string(), clip(10, 30.0)), ("b.value".to_string(), Facts::Scalar(1.0))].into();
+        assert_eq!(compare(&expected, &extra).len(), 1);
+    }
+}

@@ -1,0 +1,298 @@
+//! `kg run`, `kg check` and `kg convert`, and the loading steps every command shares.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
+
+use kinegraph_nodes::node::{ParamKind, ParamValue, Registry};
+
+use super::{EXIT_FAILED, EXIT_INVALID};
+use crate::document::{self, EdgeDoc, GraphDoc, LoadedGraph, NodeDoc, SourceMap};
+use crate::engine::{Engine, NodeStatus, RunEvent, RunOptions, RunReport, compile};
+
+/// A `NAME=VALUE` override from the command line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Setting {
+    /// Graph input name or `node.param`.
+    pub name: String,
+    /// The raw value text.
+    pub value: String,
+}
+
+impl FromStr for Setting {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (name, value) = s.split_once('=').ok_or_else(|| format!("'{s}' is not NAME=VALUE"))?;
+        if name.is_empty() {
+            return Err(format!("'{s}' has an empty name"));
+        }
+        Ok(Setting { name: name.to_string(), value: value.to_string() })
+    }
+}
+
+/// Applies `--set` overrides. Values for input-file parameters given as relative paths are
+/// taken relative to the current directory (where the user typed them), not the graph's.
+pub fn apply_settings(doc: &mut GraphDoc, settings: &[Setting], registry: &Registry) -> Result<(), String> {
+    for setting in settings {
+        let (node, param) = doc.resolve_setting(&setting.name)?;
+        let kind = doc.nodes.get(&node).map(|n| n.kind.clone()).unwrap_or_default();
+        let is_input_file = registry
+            .get(&kind)
+            .and_then(|n| n.schema().param(&param))
+            .is_some_and(|p| matches!(p.kind, ParamKind::InputPath { .. }));
+        let value = if is_input_file {
+            ParamValue::Text(absolute(Path::new(&setting.value)).to_string_lossy().into_owned())
+        } else {
+            document::parse_param_value(&setting.value)
+        };
+        doc.set_param(&setting.name, value)?;
+    }
+    Ok(())
+}
+
+/// `path` made absolute against the current directory.
+pub fn absolute(path: &Path) -> PathBuf {
+    std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// Loads a graph file and applies overrides; the error text is ready to print.
+pub fn load_graph(path: &Path, settings: &[Setting], registry: &Registry) -> Result<LoadedGraph, String> {
+    let mut loaded = document::load_file(path).map_err(|e| e.to_string())?;
+    apply_settings(&mut loaded.doc, settings, registry).map_err(|e| format!("{}: --set: {e}", path.display()))?;
+    Ok(loaded)
+}
+
+/// The cancellation flag Ctrl-C sets (installed once per process).
+pub fn cancel_flag() -> Arc<AtomicBool> {
+    static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+    FLAG.get_or_init(|| {
+        let flag = Arc::new(AtomicBool::new(false));
+        let handler_flag = flag.clone();
+        if let Err(e) = ctrlc::set_handler(move || handler_flag.store(true, Ordering::Relaxed)) {
+            eprintln!("warning: Ctrl-C will not cancel cleanly: {e}");
+        }
+        flag
+    })
+    .clone()
+}
+
+/// Loads, validates and runs a graph; returns the report or the exit code for an invalid
+/// graph (after printing why).
+pub fn execute(
+    engine: &Engine,
+    loaded: &LoadedGraph,
+    out: Option<&Path>,
+    threads: Option<usize>,
+    targets: Option<Vec<String>>,
+    progress: bool,
+) -> Result<RunReport, u8> {
+    let compiled = compile(&loaded.doc, engine.registry(), &loaded.path, &loaded.source).map_err(|e| {
+        eprint!("{e}");
+        EXIT_INVALID
+    })?;
+    if let Some(targets) = &targets {
+        let unknown: Vec<&String> = targets.iter().filter(|t| compiled.index_of(t).is_none()).collect();
+        if !unknown.is_empty() {
+            eprintln!("{}: --target names unknown nodes: {unknown:?}", loaded.path.display());
+            return Err(EXIT_INVALID);
+        }
+    }
+    if let Some(out) = out
+        && let Err(e) = std::fs::create_dir_all(out)
+    {
+        eprintln!("{}: cannot create the output folder: {e}", out.display());
+        return Err(EXIT_INVALID);
+    }
+    let bar = (progress && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(0);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} nodes {msg}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let observer = |event: &RunEvent| {
+        if let Some(bar) = &bar {
+            match event {
+                RunEvent::Planned { total } => bar.set_length(*total as u64),
+                RunEvent::Started { node } => bar.set_message(node.clone()),
+                RunEvent::Finished { .. } => bar.inc(1),
+                RunEvent::Progress { .. } => bar.tick(),
+            }
+        }
+    };
+    let options = RunOptions {
+        base_dir: loaded.base_dir(),
+        out_dir: out.map(absolute),
+        targets,
+        cancel: cancel_flag(),
+        threads,
+        observer: Some(&observer),
+    };
+    let report = engine.run(&compiled, &options);
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    Ok(report)
+}
+
+/// Prints a human-readable report on stderr.
+pub fn print_report(graph: &Path, report: &RunReport) {
+    for (id, node) in &report.nodes {
+        let status = match node.status {
+            NodeStatus::Ok => "ok",
+            NodeStatus::Cached => "cached",
+            NodeStatus::Error => "ERROR",
+            NodeStatus::Blocked => "blocked",
+            NodeStatus::Cancelled => "cancelled",
+        };
+        eprintln!("  {status:<9} {id} ({}) {:.3} s", node.kind, node.seconds);
+        for w in &node.warnings {
+            eprintln!("            warning: {w}");
+        }
+        if let Some(e) = &node.error {
+            eprintln!("            {e}");
+        }
+    }
+    for f in &report.files_written {
+        eprintln!("  wrote {}", f.display());
+    }
+    let failed =
+        report.count(NodeStatus::Error) + report.count(NodeStatus::Blocked) + report.count(NodeStatus::Cancelled);
+    eprintln!(
+        "{}: {} nodes, {} failed or blocked, {:.3} s",
+        graph.display(),
+        report.nodes.len(),
+        failed,
+        report.seconds
+    );
+}
+
+/// The `--json` report object.
+pub fn json_report(graph: &Path, report: &RunReport, exit_code: u8) -> serde_json::Value {
+    serde_json::json!({
+        "graph": graph,
+        "exit_code": exit_code,
+        "ok": report.succeeded(),
+        "seconds": report.seconds,
+        "nodes": report.nodes,
+        "files_written": report.files_written,
+    })
+}
+
+fn exit_code(report: &RunReport) -> u8 {
+    if report.succeeded() { 0 } else { EXIT_FAILED }
+}
+
+pub(super) fn run_command(
+    graph: &Path,
+    settings: &[Setting],
+    out: &Path,
+    json: bool,
+    threads: Option<usize>,
+    targets: Vec<String>,
+) -> u8 {
+    let engine = Engine::new(Registry::builtin());
+    let loaded = match load_graph(graph, settings, engine.registry()) {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("{e}");
+            return EXIT_INVALID;
+        }
+    };
+    let targets = (!targets.is_empty()).then_some(targets);
+    let report = match execute(&engine, &loaded, Some(out), threads, targets, !json) {
+        Ok(r) => r,
+        Err(code) => return code,
+    };
+    let code = exit_code(&report);
+    if json {
+        println!("{}", json_report(graph, &report, code));
+    } else {
+        print_report(graph, &report);
+    }
+    code
+}
+
+pub(super) fn check_command(graphs: &[PathBuf], json: bool) -> u8 {
+    let registry = Registry::builtin();
+    let mut worst = 0;
+    let mut results = Vec::new();
+    for path in graphs {
+        let outcome = document::load_file(path).map_err(|e| vec![e.to_string()]).and_then(|loaded| {
+            compile(&loaded.doc, &registry, path, &loaded.source)
+                .map(|_| ())
+                .map_err(|e| e.diagnostics.iter().map(|d| format!("{}:{d}", path.display())).collect())
+        });
+        match &outcome {
+            Ok(()) => {
+                if !json {
+                    eprintln!("{}: ok", path.display());
+                }
+            }
+            Err(problems) => {
+                worst = EXIT_INVALID;
+                if !json {
+                    for p in problems {
+                        eprintln!("{p}");
+                    }
+                }
+            }
+        }
+        results.push(
+            serde_json::json!({ "graph": path, "ok": outcome.is_ok(), "problems": outcome.err().unwrap_or_default() }),
+        );
+    }
+    if json {
+        println!("{}", serde_json::Value::Array(results));
+    }
+    worst
+}
+
+/// The built-in load → export graph `kg convert` runs.
+pub fn convert_graph(input: &Path, output: &Path) -> Result<GraphDoc, String> {
+    let ext = output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let export = match ext.as_str() {
+        "bvh" => "export.bvh",
+        "glb" => "export.glb",
+        _ => return Err(format!("{}: the output must end in .bvh or .glb", output.display())),
+    };
+    let file_name = output.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let mut doc = GraphDoc::new();
+    doc.description = "kg convert".into();
+    let load_params = [("path".to_string(), ParamValue::Text(absolute(input).to_string_lossy().into_owned()))];
+    doc.nodes.insert("load".into(), NodeDoc { kind: "clip.load".into(), params: load_params.into_iter().collect() });
+    let export_params = [("file".to_string(), ParamValue::Text(file_name))];
+    doc.nodes.insert("export".into(), NodeDoc { kind: export.into(), params: export_params.into_iter().collect() });
+    doc.edges.push(EdgeDoc { from: "load.clip".into(), to: "export.clip".into() });
+    Ok(doc)
+}
+
+pub(super) fn convert_command(input: &Path, output: &Path, settings: &[Setting]) -> u8 {
+    let engine = Engine::new(Registry::builtin());
+    let mut doc = match convert_graph(input, output) {
+        Ok(d) => d,
+        Err(e) => {
+            eprintln!("{e}");
+            return EXIT_INVALID;
+        }
+    };
+    let prefixed: Vec<Setting> =
+        settings.iter().map(|s| Setting { name: format!("load.{}", s.name), value: s.value.clone() }).collect();
+    if let Err(e) = apply_settings(&mut doc, &prefixed, engine.registry()) {
+        eprintln!("--set: {e}");
+        return EXIT_INVALID;
+    }
+    let out_dir = output.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let loaded =
+        LoadedGraph { doc, source: SourceMap::default(), path: PathBuf::from("<kg convert>"), file_version: 2 };
+    let report = match execute(&engine, &loaded, Some(out_dir), None, None, true) {
+        Ok(r) => r,
+        Err(code) => return code,
+    };
+    let code = exit_code(&report);
+    print_report(&loaded.path, &report);
+    code
+}
