@@ -145,10 +145,13 @@ pub enum DocumentError {
     },
 }
 
+/// The two fields read before anything else; absent ones stay empty / zero.
 #[derive(Deserialize)]
 struct Header {
-    format: Option<String>,
-    version: Option<u32>,
+    #[serde(default)]
+    format: String,
+    #[serde(default)]
+    version: u32,
 }
 
 /// A loaded graph with where it came from.
@@ -191,16 +194,19 @@ fn parse_error(path: &Path, e: ron::error::SpannedError) -> DocumentError {
 pub fn parse(text: &str, path: &Path) -> Result<LoadedGraph, DocumentError> {
     let header: Header = ron::from_str(text).map_err(|e| parse_error(path, e))?;
     let version_error = |message: String| DocumentError::Version { path: path.to_path_buf(), message };
-    match header.format.as_deref() {
-        Some(FORMAT) => {}
-        Some(other) => return Err(version_error(format!("format is '{other}', expected '{FORMAT}'"))),
-        None => {
+    match header.format.as_str() {
+        FORMAT => {}
+        "" => {
             return Err(version_error(format!(
                 "no 'format' field: not a kinegraph graph (expected format: \"{FORMAT}\")"
             )));
         }
+        other => return Err(version_error(format!("format is '{other}', expected '{FORMAT}'"))),
     }
-    let file_version = header.version.ok_or_else(|| version_error("no 'version' field".into()))?;
+    let file_version = header.version;
+    if file_version == 0 {
+        return Err(version_error("no 'version' field (or version 0)".into()));
+    }
     let doc = match file_version {
         CURRENT_VERSION => ron::from_str::<GraphDoc>(text).map_err(|e| parse_error(path, e))?,
         1 => v1::migrate(ron::from_str::<v1::GraphDocV1>(text).map_err(|e| parse_error(path, e))?),

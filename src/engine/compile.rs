@@ -67,7 +67,7 @@ pub struct CompiledNode<'r> {
     pub params: BTreeMap<String, ParamValue>,
     /// Per schema input: the (source node index, source output index) feeding it.
     pub inputs: Vec<Option<(usize, usize)>>,
-    /// Nodes reading this node's outputs.
+    /// Nodes reading this node's outputs, sorted, each once.
     pub dependents: Vec<usize>,
 }
 
@@ -274,6 +274,10 @@ pub fn compile<'r>(
         }
     }
 
+    for node in &mut nodes {
+        node.dependents.sort_unstable();
+        node.dependents.dedup();
+    }
     let mut graph: DiGraph<usize, ()> = DiGraph::new();
     let indices: Vec<NodeIndex> = (0..nodes.len()).map(|i| graph.add_node(i)).collect();
     for (i, node) in nodes.iter().enumerate() {

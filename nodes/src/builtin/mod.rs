@@ -3,6 +3,7 @@
 
 pub mod clip_edit;
 pub mod clip_io;
+pub mod mannequin;
 pub mod mesh_io;
 pub mod scalar;
 
@@ -14,4 +15,5 @@ pub fn register(registry: &mut Registry) {
     mesh_io::register(registry);
     clip_edit::register(registry);
     scalar::register(registry);
+    mannequin::register(registry);
 }
