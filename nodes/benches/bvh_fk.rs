@@ -1,6 +1,8 @@
 //! BVH parse throughput over the whole corpus and FK throughput on the longest clip.
 //! Run: `cargo bench -p kinegraph-nodes --bench bvh_fk`.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use std::hint::black_box;
 use std::path::Path;
 

@@ -112,6 +112,15 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Rewrite graph files in canonical form (sorted, current version; migrates old files).
+    Fmt {
+        /// Graph files.
+        #[arg(required = true)]
+        graphs: Vec<PathBuf>,
+        /// Only report files that are not in canonical form (exit 1 if any).
+        #[arg(long)]
+        check: bool,
+    },
     /// Regression-test saved graphs against their NAME.expect.ron files.
     Test {
         /// Graph files (default: every graph in ./graphs).
@@ -136,6 +145,7 @@ pub fn main() -> ExitCode {
         Command::Batch { graph, input, out, jobs, set, json } => {
             batch::batch_command(&graph, &input, &out, jobs, &set, json)
         }
+        Command::Fmt { graphs, check } => run::fmt_command(&graphs, check),
         Command::Test { graphs, bless } => regression::test_command(graphs, bless),
     };
     ExitCode::from(code)

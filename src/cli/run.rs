@@ -296,3 +296,36 @@ pub(super) fn convert_command(input: &Path, output: &Path, settings: &[Setting])
     print_report(&loaded.path, &report);
     code
 }
+
+pub(super) fn fmt_command(graphs: &[PathBuf], check: bool) -> u8 {
+    let mut code = 0;
+    for path in graphs {
+        let loaded = match document::load_file(path) {
+            Ok(l) => l,
+            Err(e) => {
+                eprintln!("{e}");
+                code = EXIT_INVALID;
+                continue;
+            }
+        };
+        let canonical = document::to_string(&loaded.doc);
+        let current = std::fs::read_to_string(path).unwrap_or_default();
+        if canonical == current {
+            continue;
+        }
+        if check {
+            eprintln!("{}: not in canonical form (run kg fmt)", path.display());
+            code = code.max(EXIT_FAILED);
+        } else if let Err(e) = document::save_file(&loaded.doc, path) {
+            eprintln!("{e}");
+            code = EXIT_INVALID;
+        } else {
+            eprintln!(
+                "{}: rewritten{}",
+                path.display(),
+                if loaded.file_version < document::CURRENT_VERSION { " (migrated)" } else { "" }
+            );
+        }
+    }
+    code
+}

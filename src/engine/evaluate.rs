@@ -227,10 +227,10 @@ impl Job<'_, '_> {
         let cancelled = self.services.cancel.load(Ordering::Relaxed);
         let fingerprint = self.fingerprints[index];
         let started = Instant::now();
-        let (status, outcome, error) = if let Some(upstream) = blocked_by {
-            (NodeStatus::Blocked, None, Some(format!("upstream node '{upstream}' did not produce a result")))
-        } else if cancelled {
+        let (status, outcome, error) = if cancelled {
             (NodeStatus::Cancelled, None, Some("run cancelled".to_string()))
+        } else if let Some(upstream) = blocked_by {
+            (NodeStatus::Blocked, None, Some(format!("upstream node '{upstream}' did not produce a result")))
         } else if let Some(hit) = (!schema.writes_files).then(|| self.cached(fingerprint)).flatten() {
             let outcome =
                 NodeOutcome { outputs: hit.outputs.clone(), warnings: hit.warnings.clone(), files_written: Vec::new() };

@@ -1,0 +1,263 @@
+//! `kg` as users run it: exit codes, located messages, reports, and the commands a
+//! pipeline calls.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn kg(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_kg")).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Every file in tests/bad_graphs, with the line it must name and a phrase it must say.
+#[test]
+fn every_bad_graph_is_refused_with_a_located_message_and_exit_code_2() {
+    let cases = [
+        ("cycle.ron", Some(5), "cycle through nodes a → b"),
+        ("duplicate_id.ron", Some(6), "duplicate node id 'x'"),
+        ("escaping_export.ron", Some(6), "leaves the output folder"),
+        ("missing_input.ron", Some(5), "required input 'clip' (clip) is not connected"),
+        ("newer_version.ron", None, "newer than this kinegraph understands"),
+        ("not_a_graph.ron", None, "not a kinegraph graph"),
+        ("param_out_of_range.ron", Some(6), "-5 is outside 1..=1000 fps"),
+        ("syntax_error.ron", Some(6), "Expected identifier"),
+        ("type_mismatch.ron", Some(8), "type mismatch: mesh.mesh is a mesh, but trim.clip takes a clip"),
+        ("unknown_kind.ron", Some(5), "did you mean 'clip.load'?"),
+        ("unknown_param.ron", Some(5), "did you mean 'metres_per_unit'?"),
+        ("unknown_port.ron", Some(8), "has no output 'clips' (did you mean 'clip'?)"),
+    ];
+    let listed: Vec<&str> = cases.iter().map(|c| c.0).chain(["many_problems.ron"]).collect();
+    let mut on_disk: Vec<String> = std::fs::read_dir("tests/bad_graphs")
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    on_disk.sort();
+    let mut listed_sorted: Vec<String> = listed.iter().map(|s| s.to_string()).collect();
+    listed_sorted.sort();
+    assert_eq!(on_disk, listed_sorted, "every bad graph has a case");
+    for (file, line, phrase) in cases {
+        let path = format!("tests/bad_graphs/{file}");
+        for command in [vec!["check", path.as_str()], vec!["run", path.as_str(), "--out", "target/bad-graph-out"]] {
+            let out = kg(&command);
+            let err = stderr(&out);
+            assert_eq!(out.status.code(), Some(2), "{file} {command:?}: {err}");
+            assert!(err.contains(phrase), "{file}: {err}");
+            let prefix = match line {
+                Some(l) => format!("{path}:{l}:"),
+                None => format!("{path}:"),
+            };
+            assert!(err.contains(&prefix), "{file}: expected '{prefix}' in {err}");
+        }
+    }
+}
+
+#[test]
+fn all_problems_of_a_graph_are_reported_at_once() {
+    let out = kg(&["check", "tests/bad_graphs/many_problems.ron"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    for phrase in
+        ["'path': is required", "expected a number, got \"soon\"", "unknown node kind 'no.such.node'", "node 'nobody'"]
+    {
+        assert!(err.contains(phrase), "missing '{phrase}' in {err}");
+    }
+    assert_eq!(err.lines().count(), 5, "{err}");
+}
+
+#[test]
+fn a_missing_input_file_fails_that_node_with_exit_1_and_the_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = kg(&[
+        "run",
+        "graphs/demo.ron",
+        "--set",
+        "clip_path=does/not/exist.bvh",
+        "--out",
+        dir.path().to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["exit_code"], 1);
+    assert_eq!(report["nodes"]["clip"]["status"], "error");
+    assert!(report["nodes"]["clip"]["error"].as_str().unwrap().contains("does/not/exist.bvh"));
+    // Downstream is blocked; the independent mesh branch still ran.
+    assert_eq!(report["nodes"]["glb"]["status"], "blocked");
+    assert_eq!(report["nodes"]["mesh"]["status"], "ok");
+    // Nothing half-written.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
+
+#[test]
+fn run_writes_exports_and_a_json_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = kg(&["run", "graphs/demo.ron", "--out", dir.path().to_str().unwrap(), "--json", "--threads", "2"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["ok"], true);
+    let files: Vec<PathBuf> =
+        report["files_written"].as_array().unwrap().iter().map(|f| PathBuf::from(f.as_str().unwrap())).collect();
+    assert_eq!(files.len(), 2);
+    for f in &files {
+        assert!(f.starts_with(dir.path()) && f.is_file(), "{f:?}");
+    }
+    for node in ["clip", "mesh", "trim", "resample", "glb", "bvh"] {
+        assert_eq!(report["nodes"][node]["status"], "ok", "{node}");
+        assert!(report["nodes"][node]["seconds"].as_f64().unwrap() >= 0.0);
+    }
+    // The loader reported the unit it detected.
+    let warnings = report["nodes"]["clip"]["warnings"].as_array().unwrap();
+    assert!(warnings.iter().any(|w| w.as_str().unwrap().contains("detected unit 'm'")));
+}
+
+#[test]
+fn set_overrides_a_param_and_target_limits_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = kg(&[
+        "run",
+        "graphs/demo.ron",
+        "--set",
+        "bvh.file=renamed.bvh",
+        "--target",
+        "bvh",
+        "--out",
+        dir.path().to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(dir.path().join("renamed.bvh").is_file());
+    assert!(report["nodes"].get("glb").is_none() && report["nodes"].get("mesh").is_none());
+    let bad = kg(&["run", "graphs/demo.ron", "--set", "nosuch=1", "--out", dir.path().to_str().unwrap()]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(stderr(&bad).contains("'nosuch' is neither a graph input"));
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    assert_eq!(kg(&["run"]).status.code(), Some(2));
+    assert_eq!(kg(&["frobnicate"]).status.code(), Some(2));
+    assert_eq!(kg(&["run", "no/such/graph.ron"]).status.code(), Some(2));
+}
+
+#[test]
+fn node_catalogue_json_lists_every_schema_with_its_fields() {
+    let out = kg(&["nodes", "--json"]);
+    assert_eq!(out.status.code(), Some(0));
+    let nodes: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let kinds: Vec<&str> = nodes.iter().map(|n| n["kind"].as_str().unwrap()).collect();
+    for kind in ["clip.load", "mesh.load", "clip.trim", "clip.resample", "export.glb", "export.bvh"] {
+        assert!(kinds.contains(&kind), "{kind} missing from {kinds:?}");
+    }
+    for n in &nodes {
+        for field in ["kind", "category", "doc", "inputs", "outputs", "params"] {
+            assert!(n.get(field).is_some(), "{} lacks {field}", n["kind"]);
+        }
+        assert!(!n["doc"].as_str().unwrap().is_empty());
+    }
+    let markdown = kg(&["nodes", "--markdown"]);
+    assert!(String::from_utf8_lossy(&markdown.stdout).contains("## `clip.load` (io)"));
+}
+
+fn shared_data() -> Option<PathBuf> {
+    kinegraph::nodes::corpus::shared_data()
+}
+
+#[test]
+fn convert_runs_load_and_export_through_the_engine() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("walk.glb");
+    let out = kg(&["convert", data.join("bvh/cmu/02_02.bvh").to_str().unwrap(), glb.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let facts = kg(&["inspect", glb.to_str().unwrap(), "--json"]);
+    let facts: serde_json::Value = serde_json::from_slice(&facts.stdout).unwrap();
+    assert_eq!(facts["animations"][0]["frames"], 299);
+    let bad =
+        kg(&["convert", data.join("bvh/cmu/02_02.bvh").to_str().unwrap(), dir.path().join("x.fbx").to_str().unwrap()]);
+    assert_eq!(bad.status.code(), Some(2));
+}
+
+#[test]
+fn inspect_reports_units_and_counts() {
+    let Some(data) = shared_data() else { return };
+    let out = kg(&["inspect", data.join("bvh/cmu_daz/02_02.bvh").to_str().unwrap(), "--json"]);
+    assert_eq!(out.status.code(), Some(0));
+    let facts: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(facts["unit"], "cm");
+    assert_eq!(facts["frames"], 299);
+    let bad = kg(&["inspect", "Cargo.toml"]);
+    assert_eq!(bad.status.code(), Some(2));
+}
+
+#[test]
+fn batch_exports_every_corpus_bvh_and_continues_past_failures() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    // One broken input among the real ones: the batch goes on and reports it.
+    let broken = dir.path().join("inputs");
+    std::fs::create_dir_all(&broken).unwrap();
+    std::fs::write(broken.join("broken.bvh"), "HIERARCHY\nROOT a\n{\n").unwrap();
+    let graph = dir.path().join("to_glb.ron");
+    std::fs::write(
+        &graph,
+        r#"(format: "kinegraph.graph", version: 2, inputs: { "clip": "load.path" },
+            nodes: { "load": (kind: "clip.load", params: { "path": "none.bvh" }), "glb": (kind: "export.glb", params: { "file": "clip.glb" }) },
+            edges: [ (from: "load.clip", to: "glb.clip") ])"#,
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    for (pattern, expected_runs, expected_code) in
+        [(format!("{}/bvh/**/*.bvh", data.display()), 39, 0), (format!("{}/*.bvh", broken.display()), 1, 1)]
+    {
+        let out = kg(&[
+            "batch",
+            graph.to_str().unwrap(),
+            "--input",
+            &format!("clip={pattern}"),
+            "--out",
+            out_dir.to_str().unwrap(),
+            "--json",
+        ]);
+        assert_eq!(out.status.code(), Some(expected_code), "{}", stderr(&out));
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let runs = report["runs"].as_array().unwrap();
+        assert_eq!(runs.len(), expected_runs);
+        for run in runs.iter().filter(|r| r["exit_code"] == 0) {
+            let file = PathBuf::from(run["files_written"][0].as_str().unwrap());
+            assert!(file.is_file() && std::fs::metadata(&file).unwrap().len() > 1000);
+        }
+    }
+    assert!(out_dir.join("batch_report.json").is_file());
+    // The two 02_02 takes got separate folders.
+    assert!(out_dir.join("cmu-02_02/clip.glb").is_file() && out_dir.join("cmu_daz-02_02/clip.glb").is_file());
+}
+
+#[test]
+fn kg_test_passes_on_the_shipped_graphs_and_fails_visibly_on_a_broken_expectation() {
+    let ok = kg(&["test"]);
+    assert_eq!(ok.status.code(), Some(0), "{}", stderr(&ok));
+    assert!(String::from_utf8_lossy(&ok.stdout).contains("0 failed"));
+    // Break a copy of the demo's expectation: one frame count and one tolerance-checked real.
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    std::fs::create_dir_all(dir.path().join("graphs")).unwrap();
+    let graph_text = std::fs::read_to_string(root.join("graphs/demo.ron"))
+        .unwrap()
+        .replace("../assets/", &format!("{}/assets/", root.display()));
+    std::fs::write(dir.path().join("graphs/demo.ron"), graph_text).unwrap();
+    let expect = std::fs::read_to_string(root.join("graphs/demo.expect.ron")).unwrap();
+    let broken = expect.replacen("frames: 25,", "frames: 26,", 1).replacen("fps: 24.0,", "fps: 24.5,", 1);
+    assert_ne!(broken, expect);
+    std::fs::write(dir.path().join("graphs/demo.expect.ron"), broken).unwrap();
+    let fail = Command::new(env!("CARGO_BIN_EXE_kg")).arg("test").current_dir(dir.path()).output().unwrap();
+    assert_eq!(fail.status.code(), Some(1));
+    let err = stderr(&fail);
+    assert!(err.contains("resample.clip.frames: expected 26, got 25"), "{err}");
+    assert!(err.contains("resample.clip.fps: expected 24.5, got 24"), "{err}");
+}

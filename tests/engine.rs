@@ -1,0 +1,236 @@
+//! The evaluator through its library API: caching and incremental re-runs, failure
+//! isolation, cancellation, parallel branches, deterministic files and migrations.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+use kinegraph::document::{self, EdgeDoc, GraphDoc, NodeDoc, SourceMap};
+use kinegraph::engine::{Engine, NodeStatus, RunOptions, compile};
+use kinegraph_nodes::node::{
+    FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, ParamValue, Registry, Value,
+};
+
+fn node(kind: &str, params: &[(&str, ParamValue)]) -> NodeDoc {
+    NodeDoc { kind: kind.into(), params: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect() }
+}
+
+fn edge(from: &str, to: &str) -> EdgeDoc {
+    EdgeDoc { from: from.into(), to: to.into() }
+}
+
+/// c → a1 → a2 → a3, and c → b1 (a second branch).
+fn chain_doc(offset_a2: f64) -> GraphDoc {
+    let mut doc = GraphDoc::new();
+    doc.nodes.insert("c".into(), node("scalar.constant", &[("value", ParamValue::Float(1.0))]));
+    doc.nodes.insert("a1".into(), node("scalar.add", &[("offset", ParamValue::Float(1.0))]));
+    doc.nodes.insert("a2".into(), node("scalar.add", &[("offset", ParamValue::Float(offset_a2))]));
+    doc.nodes.insert("a3".into(), node("scalar.add", &[("offset", ParamValue::Float(1.0))]));
+    doc.nodes.insert("b1".into(), node("scalar.add", &[("offset", ParamValue::Float(10.0))]));
+    doc.edges = vec![edge("c.value", "a1.a"), edge("a1.sum", "a2.a"), edge("a2.sum", "a3.a"), edge("c.value", "b1.a")];
+    doc
+}
+
+fn scalar(report: &kinegraph::engine::RunReport, id: &str) -> f64 {
+    match report.outputs[id][0] {
+        Some(Value::Scalar(x)) => x,
+        ref other => panic!("{id}: {other:?}"),
+    }
+}
+
+#[test]
+fn rerun_after_one_param_change_recomputes_only_its_downstream() {
+    let engine = Engine::new(Registry::builtin());
+    let options = RunOptions::new(PathBuf::from("."));
+    let doc = chain_doc(1.0);
+    let g = compile(&doc, engine.registry(), Path::new("chain"), &SourceMap::default()).unwrap();
+    let first = engine.run(&g, &options);
+    assert_eq!(first.count(NodeStatus::Ok), 5);
+    assert_eq!(scalar(&first, "a3"), 4.0); // 1 + 1 + 1 + 1
+    assert_eq!(scalar(&first, "b1"), 11.0);
+
+    let changed = chain_doc(5.0);
+    let g = compile(&changed, engine.registry(), Path::new("chain"), &SourceMap::default()).unwrap();
+    let second = engine.run(&g, &options);
+    let ran: Vec<&str> =
+        second.nodes.iter().filter(|(_, n)| n.status == NodeStatus::Ok).map(|(id, _)| id.as_str()).collect();
+    assert_eq!(ran, vec!["a2", "a3"]);
+    assert_eq!(second.count(NodeStatus::Cached), 3);
+    assert_eq!(scalar(&second, "a3"), 8.0);
+}
+
+/// A node that fails on demand, counts its runs and can cancel the run it is in.
+struct Probe {
+    runs: Arc<AtomicUsize>,
+    cancel: Option<Arc<AtomicBool>>,
+}
+
+const PROBE_IN: Input<f64> = Input::optional("x", "");
+const PROBE_OUT: Output<f64> = Output::new("y", "");
+const FAIL_IF: FloatParam = FloatParam::new("fail_if", "", -1.0, -1e9, 1e9, "");
+static PROBE: NodeSchema = NodeSchema {
+    kind: "test.probe",
+    category: "test",
+    doc: "Test node.",
+    inputs: &[PROBE_IN.spec()],
+    outputs: &[PROBE_OUT.spec()],
+    params: &[FAIL_IF.0],
+    writes_files: false,
+};
+
+impl Node for Probe {
+    fn schema(&self) -> &'static NodeSchema {
+        &PROBE
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        self.runs.fetch_add(1, Ordering::SeqCst);
+        let x = ctx.optional_input(&PROBE_IN)?.unwrap_or(0.0);
+        if x == ctx.float(&FAIL_IF)? {
+            return Err(NodeError::Failed(format!("refusing {x}")));
+        }
+        if let Some(c) = &self.cancel {
+            c.store(true, Ordering::SeqCst);
+        }
+        ctx.set_output(&PROBE_OUT, x + 1.0);
+        Ok(())
+    }
+}
+
+#[test]
+fn a_failure_blocks_its_downstream_while_other_branches_finish() {
+    let runs = Arc::new(AtomicUsize::new(0));
+    let mut registry = Registry::builtin();
+    registry.add(Box::new(Probe { runs: runs.clone(), cancel: None }));
+    let engine = Engine::new(registry);
+    let mut doc = GraphDoc::new();
+    doc.nodes.insert("bad".into(), node("test.probe", &[("fail_if", ParamValue::Float(0.0))]));
+    doc.nodes.insert("after_bad".into(), node("test.probe", &[]));
+    doc.nodes.insert("good".into(), node("test.probe", &[]));
+    doc.nodes.insert("after_good".into(), node("test.probe", &[]));
+    doc.edges = vec![edge("bad.y", "after_bad.x"), edge("good.y", "after_good.x")];
+    let g = compile(&doc, engine.registry(), Path::new("g"), &SourceMap::default()).unwrap();
+    let report = engine.run(&g, &RunOptions::new(PathBuf::from(".")));
+    assert_eq!(report.nodes["bad"].status, NodeStatus::Error);
+    assert!(report.nodes["bad"].error.as_deref().unwrap().contains("refusing 0"));
+    assert_eq!(report.nodes["after_bad"].status, NodeStatus::Blocked);
+    assert_eq!(report.nodes["after_good"].status, NodeStatus::Ok);
+    assert_eq!(scalar(&report, "after_good"), 2.0);
+    assert_eq!(runs.load(Ordering::SeqCst), 3);
+    assert!(!report.succeeded());
+}
+
+#[test]
+fn cancelling_stops_the_run_and_leaves_no_export() {
+    let cancel = Arc::new(AtomicBool::new(false));
+    let mut registry = Registry::builtin();
+    registry.add(Box::new(Probe { runs: Arc::new(AtomicUsize::new(0)), cancel: Some(cancel.clone()) }));
+    let engine = Engine::new(registry);
+    // mannequin → export, with the probe (which cancels the run) on the way.
+    let mut doc = GraphDoc::new();
+    doc.nodes.insert("probe".into(), node("test.probe", &[]));
+    doc.nodes.insert("m".into(), node("generate.mannequin", &[]));
+    doc.nodes.insert("gate".into(), node("scalar.add", &[]));
+    doc.nodes.insert("out".into(), node("export.bvh", &[]));
+    doc.edges = vec![edge("probe.y", "gate.a"), edge("m.clip", "out.clip")];
+    let g = compile(&doc, engine.registry(), Path::new("g"), &SourceMap::default()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut options = RunOptions::new(PathBuf::from("."));
+    options.out_dir = Some(dir.path().to_path_buf());
+    options.cancel = cancel.clone();
+    options.threads = Some(1);
+    options.targets = Some(vec!["gate".into()]);
+    // First the probe alone: it cancels; then everything later in the same run stops.
+    let report = engine.run(&g, &options);
+    assert_eq!(report.nodes["probe"].status, NodeStatus::Ok);
+    assert_eq!(report.nodes["gate"].status, NodeStatus::Cancelled);
+    // A cancelled flag stops exports before they write anything.
+    options.targets = None;
+    let report = engine.run(&g, &options);
+    assert_eq!(report.nodes["out"].status, NodeStatus::Cancelled);
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    assert!(report.files_written.is_empty());
+}
+
+#[test]
+fn independent_branches_run_in_parallel() {
+    /// Sleeps, so overlap shows in wall time even on a loaded machine.
+    struct Sleepy;
+    const OUT: Output<f64> = Output::new("y", "");
+    static SLEEPY: NodeSchema = NodeSchema {
+        kind: "test.sleepy",
+        category: "test",
+        doc: "Sleeps 150 ms.",
+        inputs: &[],
+        outputs: &[OUT.spec()],
+        params: &[],
+        writes_files: false,
+    };
+    impl Node for Sleepy {
+        fn schema(&self) -> &'static NodeSchema {
+            &SLEEPY
+        }
+        fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+            std::thread::sleep(std::time::Duration::from_millis(150));
+            ctx.set_output(&OUT, 1.0);
+            Ok(())
+        }
+    }
+    let mut registry = Registry::empty();
+    registry.add(Box::new(Sleepy));
+    let engine = Engine::new(registry);
+    let mut doc = GraphDoc::new();
+    doc.nodes.insert("a".into(), node("test.sleepy", &[]));
+    doc.nodes.insert("b".into(), node("test.sleepy", &[]));
+    let g = compile(&doc, engine.registry(), Path::new("g"), &SourceMap::default()).unwrap();
+    let mut options = RunOptions::new(PathBuf::from("."));
+    options.threads = Some(2);
+    let report = engine.run(&g, &options);
+    // Each node slept 150 ms; serially that is ≥ 300 ms. Both ran, and their node times
+    // add up to more than the run took: they overlapped.
+    let node_secs: f64 = report.nodes.values().map(|n| n.seconds).sum();
+    assert!(node_secs >= 0.3);
+    assert!(report.seconds < node_secs, "run {} s vs nodes {} s", report.seconds, node_secs);
+}
+
+#[test]
+fn saving_is_deterministic_and_round_trips() {
+    let loaded = document::load_file(Path::new("graphs/demo.ron")).unwrap();
+    let once = document::to_string(&loaded.doc);
+    let again = document::to_string(&document::parse(&once, Path::new("x.ron")).unwrap().doc);
+    assert_eq!(once, again);
+    // The shipped graph is itself in saved form.
+    assert_eq!(once, std::fs::read_to_string("graphs/demo.ron").unwrap());
+    // Edge order in memory does not change the file.
+    let mut shuffled = loaded.doc.clone();
+    shuffled.edges.reverse();
+    assert_eq!(document::to_string(&shuffled), once);
+}
+
+#[test]
+fn version_1_fixture_migrates_and_runs() {
+    let path = Path::new("graphs/legacy/v1/load_export.ron");
+    let loaded = document::load_file(path).unwrap();
+    assert_eq!(loaded.file_version, 1);
+    assert_eq!(loaded.doc.version, document::CURRENT_VERSION);
+    let load = &loaded.doc.nodes["load"];
+    assert_eq!(load.params.get("metres_per_unit"), Some(&ParamValue::Float(1.0)));
+    assert!(!load.params.contains_key("scale"));
+    assert_eq!(loaded.doc.edges, vec![edge("load.clip", "trim.clip"), edge("trim.clip", "export.clip")]);
+    let engine = Engine::new(Registry::builtin());
+    let g = compile(&loaded.doc, engine.registry(), path, &loaded.source).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut options = RunOptions::new(loaded.base_dir());
+    options.out_dir = Some(dir.path().to_path_buf());
+    let report = engine.run(&g, &options);
+    assert!(report.succeeded(), "{:?}", report.nodes);
+    assert!(dir.path().join("legacy.bvh").is_file());
+}
+
+#[test]
+fn node_catalogue_snapshot() {
+    let registry = Registry::builtin();
+    let schemas: Vec<_> = registry.iter().map(|n| n.schema()).collect();
+    insta::assert_json_snapshot!("node_catalogue", schemas);
+}
