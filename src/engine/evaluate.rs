@@ -129,8 +129,18 @@ impl Engine {
         if let Some(observe) = options.observer {
             observe(&RunEvent::Planned { total: needed.iter().filter(|n| **n).count() });
         }
-        let remaining_inputs =
-            graph.nodes.iter().map(|n| n.inputs.iter().flatten().filter(|(src, _)| needed[*src]).count()).collect();
+        // Per node: how many distinct needed upstream nodes it still waits for.
+        let remaining_inputs = graph
+            .nodes
+            .iter()
+            .map(|n| {
+                let mut sources: Vec<usize> =
+                    n.inputs.iter().flatten().map(|(src, _)| *src).filter(|s| needed[*s]).collect();
+                sources.sort_unstable();
+                sources.dedup();
+                sources.len()
+            })
+            .collect();
         let state = Mutex::new(RunState {
             remaining_inputs,
             slots: graph.nodes.iter().map(|_| Slot::Pending).collect(),
@@ -276,7 +286,7 @@ impl Job<'_, '_> {
             );
             for &d in &node.dependents {
                 if self.needed[d] {
-                    state.remaining_inputs[d] -= node.inputs_to(d, self.graph);
+                    state.remaining_inputs[d] -= 1;
                     if state.remaining_inputs[d] == 0 {
                         ready.push(d);
                     }
@@ -291,18 +301,6 @@ impl Job<'_, '_> {
 
     fn cached(&self, fingerprint: u64) -> Option<Arc<Cached>> {
         self.engine.cache.lock().unwrap_or_else(PoisonError::into_inner).get(&fingerprint).cloned()
-    }
-}
-
-trait InputsTo {
-    fn inputs_to(&self, dependent: usize, graph: &CompiledGraph<'_>) -> usize;
-}
-
-impl InputsTo for super::compile::CompiledNode<'_> {
-    /// How many of `dependent`'s inputs this node feeds (a node may feed several).
-    fn inputs_to(&self, dependent: usize, graph: &CompiledGraph<'_>) -> usize {
-        let me = graph.index_of(&self.id);
-        graph.nodes[dependent].inputs.iter().flatten().filter(|(src, _)| Some(*src) == me).count()
     }
 }
 
