@@ -38,7 +38,7 @@ fn mesh_facts(mesh: &Mesh) -> Value {
 
 /// Facts about `path` as JSON, or the located error text.
 pub fn inspect(path: &Path) -> Result<Value, String> {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let ext = kinegraph_nodes::formats::extension(path);
     match ext.as_str() {
         "bvh" => {
             let loaded = read_bvh_file(path, BvhReadOptions::default()).map_err(|e| e.to_string())?;

@@ -253,7 +253,7 @@ pub(super) fn check_command(graphs: &[PathBuf], json: bool) -> u8 {
 
 /// The built-in load → export graph `kg convert` runs.
 pub fn convert_graph(input: &Path, output: &Path) -> Result<GraphDoc, String> {
-    let ext = output.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let ext = kinegraph_nodes::formats::extension(output);
     let export = match ext.as_str() {
         "bvh" => "export.bvh",
         "glb" => "export.glb",

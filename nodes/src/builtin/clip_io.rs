@@ -34,7 +34,7 @@ pub struct ClipLoadOptions {
 /// Reads a clip from a BVH, glTF or GLB file (by extension), with the warnings found,
 /// including the unit a BVH was taken to be in.
 pub fn load_clip(path: &Path, options: ClipLoadOptions) -> Result<Loaded<Clip>, FormatError> {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let ext = crate::formats::extension(path);
     match ext.as_str() {
         "bvh" => {
             let loaded = read_bvh_file(path, BvhReadOptions { metres_per_unit: options.metres_per_unit })?;
@@ -91,7 +91,7 @@ pub fn load_clip(path: &Path, options: ClipLoadOptions) -> Result<Loaded<Clip>, 
 
 /// Reads meshes from an OBJ, glTF or GLB file (by extension).
 pub fn load_meshes(path: &Path, metres_per_unit: Option<f64>) -> Result<Loaded<Vec<Mesh>>, FormatError> {
-    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let ext = crate::formats::extension(path);
     match ext.as_str() {
         "obj" => crate::formats::obj::read_obj_file(path, metres_per_unit),
         "gltf" | "glb" => {

@@ -7,3 +7,9 @@ pub mod gltf;
 pub mod obj;
 
 pub use error::{FormatError, FormatErrorKind, Loaded, Location};
+
+/// The lowercase extension of `path` without the dot (`""` when it has none), which is
+/// how every loader picks a format.
+pub fn extension(path: &std::path::Path) -> String {
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+}

@@ -134,10 +134,10 @@ impl ParamSpec {
                 }
             }
             (ParamKind::InputPath { extensions }, ParamValue::Text(s)) => {
-                let ext = std::path::Path::new(s).extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
-                match ext {
-                    Some(e) if extensions.contains(&e.as_str()) => Ok(value.clone()),
-                    _ => Err(format!("'{s}' does not end in one of .{}", extensions.join(", ."))),
+                if extensions.contains(&crate::formats::extension(std::path::Path::new(s)).as_str()) {
+                    Ok(value.clone())
+                } else {
+                    Err(format!("'{s}' does not end in one of .{}", extensions.join(", .")))
                 }
             }
             (ParamKind::OutputPath { extension, .. }, ParamValue::Text(s)) => {
