@@ -76,6 +76,16 @@ pub fn pose_world(skeleton: &Skeleton, rotations: &[Quat], translations: &[Vec3]
     }
 }
 
+/// World transforms of every joint in the skeleton's rest pose (offsets and rest
+/// rotations only).
+pub fn rest_world(skeleton: &Skeleton) -> Vec<Transform> {
+    let rotations: Vec<Quat> = skeleton.joints().iter().map(|j| j.rest_rotation).collect();
+    let translations: Vec<Vec3> = skeleton.joints().iter().map(|j| j.rest_offset).collect();
+    let mut out = vec![Transform::IDENTITY; skeleton.len()];
+    pose_world(skeleton, &rotations, &translations, &mut out);
+    out
+}
+
 /// Forward kinematics for the whole clip: world transform of every joint at every frame.
 pub fn forward_kinematics(clip: &Clip) -> ClipPoses {
     let joints = clip.joint_count();

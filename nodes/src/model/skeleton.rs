@@ -169,17 +169,7 @@ impl Skeleton {
     /// Joint positions in the rest pose (metres, model space), from offsets and rest
     /// rotations only.
     pub fn rest_positions(&self) -> Vec<Vec3> {
-        let mut rotations: Vec<Quat> = Vec::with_capacity(self.joints.len());
-        let mut positions: Vec<Vec3> = Vec::with_capacity(self.joints.len());
-        for joint in &self.joints {
-            let (parent_rotation, parent_position) = match joint.parent {
-                Some(p) => (rotations[p], positions[p]),
-                None => (Quat::IDENTITY, Vec3::ZERO),
-            };
-            positions.push(parent_position + parent_rotation * joint.rest_offset);
-            rotations.push(parent_rotation * joint.rest_rotation);
-        }
-        positions
+        super::fk::rest_world(self).into_iter().map(|t| t.translation).collect()
     }
 
     /// Axis-aligned size of the rest pose (metres): the extent used for unit detection and

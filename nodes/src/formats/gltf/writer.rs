@@ -23,6 +23,7 @@ use json::validation::Checked::Valid;
 use crate::formats::atomic::write_atomic;
 use crate::formats::error::{FormatError, FormatErrorKind as Kind, Loaded};
 use crate::math::quat_normalize_or_identity;
+use crate::model::fk::rest_world;
 use crate::model::{Clip, Mesh};
 
 use super::builder::{Bounds, GlbBuilder};
@@ -146,12 +147,30 @@ pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, Fo
     }
 
     // Mesh.
+    let mut skinned = false;
     if let Some(mesh) = mesh {
         match write_mesh(&mut b, clip, mesh, &mut warnings) {
-            Ok(Some(node)) => scene_nodes.push(node),
+            Ok(Some(node)) => {
+                skinned = mesh.skin.is_some();
+                scene_nodes.push(node);
+            }
             Ok(None) => {}
             Err((kind, message)) => return Err(err(kind, message)),
         }
+    }
+    if !skinned {
+        // A skin with no mesh marks the joints as a skeleton, so DCCs (Blender) import an
+        // armature rather than a tree of empties.
+        let ibm: Vec<f32> = rest_world(skeleton).iter().flat_map(|t| t.to_mat4().inverse().to_cols_array()).collect();
+        let inverse_bind_matrices = Some(b.accessor_f32(&ibm, Type::Mat4, None, Bounds::Omit));
+        b.root.push(json::Skin {
+            extensions: Default::default(),
+            extras: Default::default(),
+            inverse_bind_matrices,
+            joints: (0..joints.len() as u32).map(json::Index::new).collect(),
+            name: Some("skeleton".into()),
+            skeleton: None,
+        });
     }
 
     let scene = b.root.push(json::Scene {
