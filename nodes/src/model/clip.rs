@@ -75,15 +75,20 @@ impl Clip {
             });
         }
         let frames = rotations.len() / joints;
-        for (i, (q, t)) in rotations.iter().zip(&translations).enumerate() {
-            if !q.is_finite() || !t.is_finite() || q.length_squared() < 1e-12 {
+        let mut rotations = rotations;
+        for (i, (q, t)) in rotations.iter_mut().zip(&translations).enumerate() {
+            let length_sq = q.length_squared();
+            if !q.is_finite() || !t.is_finite() || length_sq < 1e-12 {
                 return Err(ClipError::NonFinite {
                     frame: i / joints,
                     joint: skeleton.joints()[i % joints].name.clone(),
                 });
             }
+            // Only rescale what is visibly off unit length (most sources are exact).
+            if (length_sq - 1.0).abs() > 1e-6 {
+                *q *= length_sq.sqrt().recip();
+            }
         }
-        let rotations = rotations.into_iter().map(crate::math::quat_normalize_or_identity).collect();
         Ok(Clip { skeleton, fps, frames, rotations, translations, import_scale })
     }
 
