@@ -25,6 +25,7 @@ fn every_bad_graph_is_refused_with_a_located_message_and_exit_code_2() {
         ("newer_version.ron", None, "newer than this kinegraph understands"),
         ("not_a_graph.ron", None, "not a kinegraph graph"),
         ("param_out_of_range.ron", Some(6), "-5 is outside 1..=1000 fps"),
+        ("same_output_file.ron", Some(7), "writes './walk.bvh', which node 'a' also writes"),
         ("syntax_error.ron", Some(6), "Expected identifier"),
         ("type_mismatch.ron", Some(8), "type mismatch: mesh.mesh is a mesh, but trim.clip takes a clip"),
         ("unknown_kind.ron", Some(5), "did you mean 'clip.load'?"),

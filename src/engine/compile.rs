@@ -259,6 +259,21 @@ pub fn compile<'r>(
         }
     }
 
+    // Two exports writing one file would race and one result would silently vanish.
+    let mut writers: BTreeMap<String, &str> = BTreeMap::new();
+    for node in &nodes {
+        for spec in node.node.schema().params.iter().filter(|p| matches!(p.kind, ParamKind::OutputPath { .. })) {
+            if let Some(ParamValue::Text(file)) = node.params.get(spec.name) {
+                let normalised: std::path::PathBuf =
+                    std::path::Path::new(file).components().filter(|c| !matches!(c, std::path::Component::CurDir)).collect();
+                let key = normalised.to_string_lossy().to_lowercase();
+                if let Some(first) = writers.insert(key, &node.id) {
+                    check.param(&node.id, spec.name, format!("writes '{file}', which node '{first}' also writes"));
+                }
+            }
+        }
+    }
+
     for (name, target) in &doc.inputs {
         let ok = split_endpoint(target)
             .and_then(|(n, p)| known.get(n).map(|&i| (i, p)))
