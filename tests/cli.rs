@@ -262,3 +262,15 @@ fn kg_test_passes_on_the_shipped_graphs_and_fails_visibly_on_a_broken_expectatio
     assert!(err.contains("resample.clip.frames: expected 26, got 25"), "{err}");
     assert!(err.contains("resample.clip.fps: expected 24.5, got 24"), "{err}");
 }
+
+#[test]
+fn shipped_assets_are_exactly_what_make_assets_produces() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = kg(&["run", "graphs/make_assets.ron", "--out", dir.path().to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    for file in ["mannequin_walk.bvh", "mannequin.glb"] {
+        let made = std::fs::read(dir.path().join(file)).unwrap();
+        let shipped = std::fs::read(Path::new("assets").join(file)).unwrap();
+        assert!(made == shipped, "assets/{file} differs from what graphs/make_assets.ron makes: regenerate it");
+    }
+}
