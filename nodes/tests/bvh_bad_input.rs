@@ -86,13 +86,14 @@ fn broken_documents_give_located_typed_errors() {
         ),
         ("channel count too small", GOOD.replace("CHANNELS 3", "CHANNELS 2"), FormatErrorKind::Syntax, Some(9)),
         ("non-UTF-8 bytes", GOOD.replace("Spine", "Sp\u{FFFD}ine"), FormatErrorKind::Syntax, Some(6)),
+        ("non-UTF-8 bytes in a row", GOOD.replace("1 90 0 0 0 90", "1 9\u{FFFD}0 0 0 0 90"), FormatErrorKind::Value, Some(20)),
         ("unbalanced braces", GOOD.replacen("}\n", "", 1), FormatErrorKind::Syntax, Some(15)),
         ("not a BVH at all", "hello world".to_string(), FormatErrorKind::Syntax, None),
         ("empty", String::new(), FormatErrorKind::Syntax, None),
     ];
     for (what, text, kind, line) in cases {
         let mut bytes = text.into_bytes();
-        if what == "non-UTF-8 bytes" {
+        if what.starts_with("non-UTF-8 bytes") {
             // Replace the UTF-8 replacement character with a lone invalid byte.
             let pos = bytes.windows(3).position(|w| w == "\u{FFFD}".as_bytes()).unwrap();
             bytes.splice(pos..pos + 3, [0xFFu8]);

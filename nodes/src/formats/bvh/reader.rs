@@ -58,23 +58,22 @@ struct RawJoint {
     line: usize,
 }
 
-/// Lines of a text with their 1-based numbers, line endings stripped.
+/// Lines of the file with their 1-based numbers (line endings stripped). Bytes, not text:
+/// frame rows are parsed as bytes, so only the hierarchy pays for UTF-8 checks.
 struct Lines<'a> {
-    text: &'a str,
+    bytes: &'a [u8],
     pos: usize,
     line: usize,
 }
 
 impl<'a> Lines<'a> {
-    fn next_line(&mut self) -> Option<(usize, &'a str)> {
-        if self.pos >= self.text.len() {
-            return None;
-        }
-        let rest = &self.text[self.pos..];
-        let end = rest.find('\n').unwrap_or(rest.len());
+    fn next_line(&mut self) -> Option<(usize, &'a [u8])> {
+        let rest = self.bytes.get(self.pos..).filter(|r| !r.is_empty())?;
+        let end = memchr::memchr(b'\n', rest).unwrap_or(rest.len());
         self.pos += (end + 1).min(rest.len());
         self.line += 1;
-        Some((self.line, rest[..end].trim_end_matches('\r')))
+        let line = &rest[..end];
+        Some((self.line, line.strip_suffix(b"\r").unwrap_or(line)))
     }
 }
 
@@ -83,6 +82,8 @@ struct Tokens<'a> {
     lines: Lines<'a>,
     current: std::iter::Peekable<std::str::SplitWhitespace<'a>>,
     line: usize,
+    /// The first line that was not UTF-8; tokens stop there.
+    not_utf8: Option<usize>,
 }
 
 impl<'a> Tokens<'a> {
@@ -93,7 +94,11 @@ impl<'a> Tokens<'a> {
             }
             let (n, l) = self.lines.next_line()?;
             self.line = n;
-            self.current = l.split_whitespace().peekable();
+            let Ok(text) = std::str::from_utf8(l) else {
+                self.not_utf8 = Some(n);
+                return None;
+            };
+            self.current = text.split_whitespace().peekable();
         }
     }
 
@@ -116,18 +121,22 @@ impl Parser<'_> {
         if bytes[..start].iter().any(|b| !b.is_ascii_whitespace()) {
             self.warnings.push(format!("skipped {} bytes before HIERARCHY", start));
         }
-        let text = std::str::from_utf8(&bytes[start..]).map_err(|e| {
-            let line =
-                skipped_lines + 1 + bytes[start..start + e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
-            self.err(line, Kind::Syntax, "bytes that are not UTF-8 text")
-        })?;
         let mut tokens = Tokens {
-            lines: Lines { text, pos: 0, line: skipped_lines },
+            lines: Lines { bytes: &bytes[start..], pos: 0, line: skipped_lines },
             current: "".split_whitespace().peekable(),
             line: skipped_lines,
+            not_utf8: None,
         };
-        let joints = self.parse_hierarchy(&mut tokens)?;
-        let (claimed_frames, frame_time, frames_line) = self.parse_motion_header(&mut tokens)?;
+        let header = self.parse_hierarchy(&mut tokens).and_then(|joints| {
+            let motion = self.parse_motion_header(&mut tokens)?;
+            Ok((joints, motion))
+        });
+        // A line that is not text ends the token stream; say that rather than what the
+        // parser made of the early end.
+        if let Some(line) = tokens.not_utf8 {
+            return Err(self.err(line, Kind::Syntax, "bytes that are not UTF-8 text"));
+        }
+        let (joints, (claimed_frames, frame_time, frames_line)) = header?;
         let mut lines = tokens.lines;
         let rest_extent = rest_extent(&joints);
         let (unit, metres_per_unit, detected) = match options.metres_per_unit {
@@ -399,7 +408,7 @@ impl Parser<'_> {
         let joint_count = joints.len();
         // Reserve from the data present, not from the claim: a row takes at least two
         // bytes per channel.
-        let remaining = lines.text.len() - lines.pos;
+        let remaining = lines.bytes.len().saturating_sub(lines.pos);
         let plausible = remaining / (2 * layout.channel_count.max(1)) + 1;
         let reserve = claimed.min(plausible) * joint_count;
         let mut rotations = Vec::with_capacity(reserve);
@@ -408,7 +417,7 @@ impl Parser<'_> {
         let mut frames = 0usize;
         let mut extra_lines = 0usize;
         while let Some((line, text)) = lines.next_line() {
-            let count = match parse_row(text.as_bytes(), &mut values) {
+            let count = match parse_row(text, &mut values) {
                 Ok(count) => count,
                 Err(token) => {
                     return Err(self.err(line, Kind::Value, format!("'{token}' is not a finite number")));
