@@ -86,7 +86,12 @@ fn broken_documents_give_located_typed_errors() {
         ),
         ("channel count too small", GOOD.replace("CHANNELS 3", "CHANNELS 2"), FormatErrorKind::Syntax, Some(9)),
         ("non-UTF-8 bytes", GOOD.replace("Spine", "Sp\u{FFFD}ine"), FormatErrorKind::Syntax, Some(6)),
-        ("non-UTF-8 bytes in a row", GOOD.replace("1 90 0 0 0 90", "1 9\u{FFFD}0 0 0 0 90"), FormatErrorKind::Value, Some(20)),
+        (
+            "non-UTF-8 bytes in a row",
+            GOOD.replace("1 90 0 0 0 90", "1 9\u{FFFD}0 0 0 0 90"),
+            FormatErrorKind::Value,
+            Some(20),
+        ),
         ("unbalanced braces", GOOD.replacen("}\n", "", 1), FormatErrorKind::Syntax, Some(15)),
         ("not a BVH at all", "hello world".to_string(), FormatErrorKind::Syntax, None),
         ("empty", String::new(), FormatErrorKind::Syntax, None),
@@ -115,6 +120,10 @@ fn real_world_oddities_are_accepted() {
         ("BOM and junk before HIERARCHY", format!("\u{FEFF}exported by SomeTool 1.0\n\n{GOOD}")),
         ("tabs and trailing spaces", GOOD.replace("  ", "\t").replace("Frames: 2", "Frames:\t2 ")),
         ("scientific notation", GOOD.replace("1 90 0 0 0 90", "1e0 9.0E1 0 0 0 9e+1")),
+        (
+            "numbers longer than 15 digits",
+            GOOD.replace("1 90 0 0 0 90", "1.00000000000000000000 90 0 0 0 90.0000000000000000000000001"),
+        ),
         ("brace on the joint line", GOOD.replace("JOINT Spine\n  {", "JOINT Spine {")),
     ];
     let reference = forward_kinematics(&read(GOOD.as_bytes()).unwrap());

@@ -566,8 +566,11 @@ fn parse_plain_decimal(bytes: &[u8]) -> Option<(f32, usize)> {
     while let Some(&b) = bytes.get(pos) {
         match b {
             b'0'..=b'9' => {
-                mantissa = mantissa * 10 + u64::from(b - b'0');
                 digits += 1;
+                if digits > 15 {
+                    return None;
+                }
+                mantissa = mantissa * 10 + u64::from(b - b'0');
                 fraction_digits += usize::from(seen_point);
             }
             b'.' if !seen_point => seen_point = true,
@@ -576,7 +579,7 @@ fn parse_plain_decimal(bytes: &[u8]) -> Option<(f32, usize)> {
         }
         pos += 1;
     }
-    if digits == 0 || digits > 15 {
+    if digits == 0 {
         return None;
     }
     let magnitude = mantissa as f64 * INV_POW10[fraction_digits];
@@ -629,7 +632,7 @@ mod tests {
             assert_eq!(used, text.len(), "{text}");
             assert!((v - expected).abs() <= expected.abs() * f32::EPSILON, "{text}: {v} vs {expected}");
         }
-        for text in ["1e5", "nan", "-", ".", "1234567890123456"] {
+        for text in ["1e5", "nan", "-", ".", "1234567890123456", "12345678901234567890123456789"] {
             assert!(parse_plain_decimal(text.as_bytes()).is_none_or(|(_, used)| used < text.len()), "{text}");
         }
     }
