@@ -264,8 +264,10 @@ pub fn compile<'r>(
     for node in &nodes {
         for spec in node.node.schema().params.iter().filter(|p| matches!(p.kind, ParamKind::OutputPath { .. })) {
             if let Some(ParamValue::Text(file)) = node.params.get(spec.name) {
-                let normalised: std::path::PathBuf =
-                    std::path::Path::new(file).components().filter(|c| !matches!(c, std::path::Component::CurDir)).collect();
+                let normalised: std::path::PathBuf = std::path::Path::new(file)
+                    .components()
+                    .filter(|c| !matches!(c, std::path::Component::CurDir))
+                    .collect();
                 let key = normalised.to_string_lossy().to_lowercase();
                 if let Some(first) = writers.insert(key, &node.id) {
                     check.param(&node.id, spec.name, format!("writes '{file}', which node '{first}' also writes"));

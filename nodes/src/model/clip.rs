@@ -26,8 +26,11 @@ pub enum ClipError {
         /// Joint count.
         joints: usize,
     },
-    /// A rotation or translation is NaN or infinite.
-    #[error("non-finite value at frame {frame}, joint '{joint}'")]
+    /// A rotation is NaN, infinite or zero, or a translation is not finite or beyond
+    /// ±[`super::MAX_COORDINATE_M`].
+    #[error(
+        "non-finite or out-of-range value at frame {frame}, joint '{joint}' (translations must stay within ±1e6 m)"
+    )]
     NonFinite {
         /// Frame index.
         frame: usize,
@@ -78,7 +81,7 @@ impl Clip {
         let mut rotations = rotations;
         for (i, (q, t)) in rotations.iter_mut().zip(&translations).enumerate() {
             let length_sq = q.length_squared();
-            if !q.is_finite() || !t.is_finite() || length_sq < 1e-12 {
+            if !q.is_finite() || !super::coordinate_in_range(*t) || length_sq < 1e-12 {
                 return Err(ClipError::NonFinite {
                     frame: i / joints,
                     joint: skeleton.joints()[i % joints].name.clone(),

@@ -7,6 +7,16 @@ pub mod skeleton;
 pub mod units;
 
 pub use clip::{Clip, ClipError};
+
+/// Largest coordinate (metres) a joint offset or translation may have. Real scenes stay far
+/// below it; the bound keeps sums along joint chains finite in f32, so forward kinematics
+/// can never produce infinities from finite input.
+pub const MAX_COORDINATE_M: f32 = 1e6;
+
+/// True when every component of `v` is finite and within ±[`MAX_COORDINATE_M`].
+pub fn coordinate_in_range(v: glam::Vec3) -> bool {
+    v.is_finite() && v.abs().max_element() <= MAX_COORDINATE_M
+}
 pub use fk::{ClipPoses, Transform, forward_kinematics};
 pub use mesh::{Mesh, Skin};
 pub use skeleton::{Channel, Joint, JointLimits, Skeleton, SkeletonError};

@@ -88,8 +88,9 @@ pub enum SkeletonError {
         /// Offending parent index.
         parent: usize,
     },
-    /// A rest offset or rotation is NaN or infinite.
-    #[error("joint '{name}' has a non-finite rest transform")]
+    /// A rest offset or rotation is NaN or infinite, or an offset is beyond
+    /// ±[`super::MAX_COORDINATE_M`].
+    #[error("joint '{name}' has a non-finite or out-of-range rest transform (offsets must stay within ±1e6 m)")]
     NonFinite {
         /// Joint name.
         name: String,
@@ -130,7 +131,7 @@ impl Skeleton {
             {
                 return Err(SkeletonError::ParentOrder { name: joint.name.clone(), index, parent });
             }
-            if !joint.rest_offset.is_finite() || !joint.rest_rotation.is_finite() {
+            if !super::coordinate_in_range(joint.rest_offset) || !joint.rest_rotation.is_finite() {
                 return Err(SkeletonError::NonFinite { name: joint.name.clone() });
             }
             if let Some(&first) = by_name.get(&joint.name) {

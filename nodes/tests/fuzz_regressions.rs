@@ -1,0 +1,42 @@
+//! Inputs the fuzz targets once broke the readers with (`fuzz/regressions/`): each must now
+//! load or fail with a located error, and what loads must have finite forward kinematics.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::Path;
+
+use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh};
+use kinegraph_nodes::model::forward_kinematics;
+
+#[test]
+fn bvh_reader_regressions_never_panic_and_stay_finite() {
+    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/regressions/bvh_reader"));
+    let mut files: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+    files.sort();
+    assert!(files.len() >= 2, "the regression inputs are missing from {}", dir.display());
+    for path in files {
+        let bytes = std::fs::read(&path).unwrap();
+        match read_bvh(&bytes, &path, BvhReadOptions::default()) {
+            Ok(loaded) => {
+                let clip = &loaded.value.0;
+                let poses = forward_kinematics(clip);
+                for f in 0..clip.frame_count() {
+                    assert!(
+                        poses.frame(f).iter().all(|t| t.translation.is_finite() && t.rotation.is_finite()),
+                        "{}",
+                        path.display()
+                    );
+                }
+            }
+            Err(e) => assert!(e.to_string().contains(path.file_name().unwrap().to_str().unwrap()), "{e}"),
+        }
+    }
+    // The huge-offset case is refused, naming the joint.
+    let err = read_bvh(
+        &std::fs::read(dir.join("fk_offsets_overflow.bvh")).unwrap(),
+        Path::new("x.bvh"),
+        BvhReadOptions::default(),
+    )
+    .unwrap_err();
+    assert!(err.message.contains("joint 'b'"), "{err}");
+}
