@@ -127,3 +127,20 @@ fn write_then_read_reproduces_every_world_position_on_every_file() {
         assert!(worst < 1e-5, "{}: worst round-trip error {worst} m", path.display());
     }
 }
+
+#[test]
+fn z_up_files_are_flagged_and_converted_on_request() {
+    use kinegraph_nodes::builtin::clip_io::{ClipLoadOptions, UpAxis, load_clip};
+    let Some(data) = shared_data() else { return };
+    let path = data.join("bvh/makehuman/tpose.bvh");
+    let as_is = load_clip(&path, ClipLoadOptions::default()).unwrap();
+    assert!(as_is.warnings.iter().any(|w| w.contains("looks Z-up")), "{:?}", as_is.warnings);
+    let converted = load_clip(&path, ClipLoadOptions { up_axis: UpAxis::Z, ..Default::default() }).unwrap();
+    assert!(!converted.warnings.iter().any(|w| w.contains("looks Z-up")));
+    let (before, after) = (as_is.value.skeleton().rest_extent(), converted.value.skeleton().rest_extent());
+    // Height moves from Z to Y; the rest of the body keeps its size.
+    assert!((after.y - before.z).abs() < 1e-4 && (after.x - before.x).abs() < 1e-4, "{before} → {after}");
+    // Y-up files raise no such warning.
+    let cmu = load_clip(&data.join("bvh/cmu/02_02.bvh"), ClipLoadOptions::default()).unwrap();
+    assert!(!cmu.warnings.iter().any(|w| w.contains("Z-up")));
+}

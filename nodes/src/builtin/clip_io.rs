@@ -9,8 +9,8 @@ use crate::formats::gltf::{GltfReadOptions, read_gltf_file, write_glb};
 use crate::formats::{FormatError, FormatErrorKind, Loaded};
 use crate::model::{Clip, Mesh};
 use crate::node::{
-    FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
-    Registry,
+    ChoiceParam, FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output,
+    OutputPathParam, Registry,
 };
 
 /// Registers the clip I/O nodes.
@@ -29,6 +29,24 @@ pub struct ClipLoadOptions {
     pub animation: Option<usize>,
     /// glTF only: sampling rate; `None` infers it from the key spacing.
     pub sample_fps: Option<f64>,
+    /// BVH only: the file's up axis; Z-up files are turned to kinegraph's Y up.
+    pub up_axis: UpAxis,
+}
+
+/// Which axis points up in a source file.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum UpAxis {
+    /// Y up (kinegraph's own convention, and most BVH exporters').
+    #[default]
+    Y,
+    /// Z up (some MakeHuman and 3ds Max exports).
+    Z,
+}
+
+/// A rest pose much taller along Z than along Y, and tallest along Z, is probably Z-up.
+fn looks_z_up(clip: &Clip) -> bool {
+    let e = clip.skeleton().rest_extent();
+    e.z >= e.max_element() && e.z > 1.5 * e.y
 }
 
 /// Reads a clip from a BVH, glTF or GLB file (by extension), with the warnings found,
@@ -49,6 +67,20 @@ pub fn load_clip(path: &Path, options: ClipLoadOptions) -> Result<Loaded<Clip>, 
                     stats.rest_extent_file_units
                 ));
             }
+            let clip = match options.up_axis {
+                UpAxis::Z => clip
+                    .rotated(glam::Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2))
+                    .map_err(|e| FormatError::file(path, FormatErrorKind::Value, e.to_string()))?,
+                UpAxis::Y => {
+                    if looks_z_up(&clip) {
+                        warnings.push(format!(
+                            "{}: the skeleton is tallest along Z, so the file looks Z-up; set up_axis to \"z\" to convert",
+                            path.display()
+                        ));
+                    }
+                    clip
+                }
+            };
             Ok(Loaded { value: clip, warnings })
         }
         "gltf" | "glb" => {
@@ -123,6 +155,12 @@ const SAMPLE_FPS: FloatParam = FloatParam::optional(
     1000.0,
     "fps",
 );
+const UP_AXIS: ChoiceParam = ChoiceParam::new(
+    "up_axis",
+    "BVH only: the axis that points up in the file; \"z\" converts a Z-up file to Y up.",
+    &["y", "z"],
+    "y",
+);
 const CLIP_OUT: Output<Arc<Clip>> = Output::new("clip", "The loaded clip, in metres and seconds.");
 
 /// `clip.load`: reads a clip from a file.
@@ -134,7 +172,7 @@ static LOAD_CLIP: NodeSchema = NodeSchema {
     doc: "Loads an animation clip from a BVH or glTF file, converting it to metres, Y up.",
     inputs: &[],
     outputs: &[CLIP_OUT.spec()],
-    params: &[PATH.0, SCALE.0, ANIMATION.0, SAMPLE_FPS.0],
+    params: &[PATH.0, SCALE.0, ANIMATION.0, SAMPLE_FPS.0, UP_AXIS.0],
     writes_files: false,
 };
 
@@ -148,6 +186,7 @@ impl Node for LoadClip {
             metres_per_unit: ctx.optional_float(&SCALE)?,
             animation: ctx.optional_int(&ANIMATION)?.map(|a| a as usize),
             sample_fps: ctx.optional_float(&SAMPLE_FPS)?,
+            up_axis: if ctx.choice(&UP_AXIS)? == "z" { UpAxis::Z } else { UpAxis::Y },
         };
         let Loaded { value: clip, warnings } = load_clip(&path, options)?;
         ctx.warn_all(warnings);

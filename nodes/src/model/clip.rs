@@ -156,6 +156,27 @@ impl Clip {
         self.translations.iter().step_by(self.joint_count()).copied()
     }
 
+    /// The same motion with the whole scene rotated by `world_rotation` about the origin:
+    /// every root joint's rest transform and per-frame transform is pre-multiplied, so
+    /// world positions become `world_rotation * p`. Used for up-axis conversion and, later,
+    /// facing alignment.
+    pub fn rotated(&self, world_rotation: Quat) -> Result<Clip, ClipError> {
+        let r = crate::math::quat_normalize_or_identity(world_rotation);
+        let mut joints = self.skeleton.joints().to_vec();
+        for joint in joints.iter_mut().filter(|j| j.parent.is_none()) {
+            joint.rest_offset = r * joint.rest_offset;
+            joint.rest_rotation = r * joint.rest_rotation;
+        }
+        let skeleton = Skeleton::new(joints).map_err(|_| ClipError::NonFinite { frame: 0, joint: String::new() })?;
+        let roots: Vec<bool> = self.skeleton.joints().iter().map(|j| j.parent.is_none()).collect();
+        let n = self.joint_count();
+        let rotations =
+            self.rotations.iter().enumerate().map(|(i, q)| if roots[i % n] { r * *q } else { *q }).collect();
+        let translations =
+            self.translations.iter().enumerate().map(|(i, t)| if roots[i % n] { r * *t } else { *t }).collect();
+        Clip::new(Arc::new(skeleton), self.fps, rotations, translations, self.import_scale)
+    }
+
     /// Frames `start..end` (clamped to the clip) as a new clip at the same rate.
     pub fn slice(&self, start: usize, end: usize) -> Clip {
         let end = end.min(self.frames);
@@ -209,6 +230,27 @@ mod tests {
         assert_eq!(c.frame_count(), 0);
         assert_eq!(c.duration_secs(), 0.0);
         assert_eq!(c.slice(0, 10).frame_count(), 0);
+    }
+
+    #[test]
+    fn rotating_the_clip_rotates_every_world_position() {
+        let skeleton = Arc::new(
+            Skeleton::new(vec![Joint::new("a", None, Vec3::new(0.0, 0.0, 1.0)), Joint::new("b", Some(0), Vec3::X)])
+                .unwrap(),
+        );
+        let rotations = vec![Quat::from_rotation_y(0.4), Quat::from_rotation_x(0.3), Quat::IDENTITY, Quat::IDENTITY];
+        let translations = vec![Vec3::new(0.0, 0.0, 1.0), Vec3::X, Vec3::new(0.5, 0.2, 1.0), Vec3::X];
+        let clip = Clip::new(skeleton, 30.0, rotations, translations, ImportScale::METRES).unwrap();
+        let r = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+        let rotated = clip.rotated(r).unwrap();
+        let (a, b) = (crate::model::forward_kinematics(&clip), crate::model::forward_kinematics(&rotated));
+        for f in 0..2 {
+            for j in 0..2 {
+                assert!((b.position(f, j) - r * a.position(f, j)).length() < 1e-6);
+            }
+        }
+        // Z up becomes Y up.
+        assert!((b.position(0, 0) - Vec3::Y).length() < 1e-6);
     }
 
     #[test]
