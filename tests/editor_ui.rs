@@ -47,6 +47,17 @@ fn shows_the_demo_graph_with_states() {
 }
 
 #[test]
+fn clicking_a_node_title_opens_its_panel_and_plays_its_clip() {
+    let mut harness = harness(Some(&demo_path()));
+    // Snarl draws nodes in a transformed layer, so click through AccessKit rather than a pointer position.
+    harness.get_by_label("resample").click_accesskit();
+    harness.run_steps(3);
+    assert_eq!(harness.state().selected(), Some("resample"));
+    harness.get_by_role_and_label(Role::SpinButton, "fps");
+    harness.get_by_label("pause");
+}
+
+#[test]
 fn a_param_edit_goes_through_the_reducer_and_undo_restores_it() {
     let mut harness = harness(Some(&demo_path()));
     let before = document::to_string(harness.state().doc());

@@ -417,7 +417,10 @@ impl EditorApp {
     fn panel(&mut self, ui: &mut Ui) {
         let Some(id) = self.selected.clone() else {
             ui.heading("No node selected");
-            ui.label("Click a node to edit its parameters. Right-click the canvas to add nodes.");
+            ui.label(
+                "Click a node's title to edit its parameters. Right-click the canvas to add nodes, \
+                 a node to delete it; double-click the canvas to fit the graph in view.",
+            );
             if !self.doc.description.is_empty() {
                 ui.separator();
                 ui.label(&self.doc.description);
@@ -437,6 +440,9 @@ impl EditorApp {
         if let Some(reason) = out.refused {
             self.message = Some((format!("connection refused: {reason}"), true));
             self.refusal = Some((reason, ui.input(|i| i.time)));
+        }
+        if let Some(id) = out.clicked {
+            self.selected = Some(id);
         }
         // Follow the canvas selection when it changes (the panel may select otherwise).
         if out.selected != self.canvas_selection {

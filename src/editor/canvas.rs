@@ -151,6 +151,7 @@ impl Canvas {
         let mut viewer = Viewer { doc, registry, badges, search: &mut self.search, out: CanvasOutput::default() };
         let mut style = SnarlStyle::new();
         style.collapsible = Some(false);
+        style.centering = Some(true);
         SnarlWidget::new().id(egui::Id::new(CANVAS_ID)).style(style).show(&mut self.snarl, &mut viewer, ui);
         let mut out = viewer.out;
         out.selected = egui_snarl::ui::get_selected_nodes(egui::Id::new(CANVAS_ID), ui.ctx())
@@ -183,6 +184,8 @@ pub(crate) struct CanvasOutput {
     pub(crate) refused: Option<String>,
     /// Ids of the selected nodes, sorted.
     pub(crate) selected: Vec<String>,
+    /// The node whose title was clicked.
+    pub(crate) clicked: Option<String>,
 }
 
 fn schema(doc: &GraphDoc, registry: &Registry, id: &str) -> Option<&'static NodeSchema> {
@@ -230,7 +233,10 @@ impl SnarlViewer<String> for Viewer<'_> {
         let badge = self.badges.get(&id).cloned().unwrap_or(Badge::Idle);
         let (text, color) = badge.label();
         ui.horizontal(|ui| {
-            ui.label(RichText::new(&id).strong());
+            let title = ui.add(egui::Label::new(RichText::new(&id).strong()).sense(egui::Sense::click()));
+            if title.on_hover_text("click to edit its parameters").clicked() {
+                self.out.clicked = Some(id.clone());
+            }
             ui.label(RichText::new(&kind).weak());
             dot(ui, color);
             ui.label(RichText::new(text).color(color)).on_hover_text(badge.message().unwrap_or(text));
