@@ -97,6 +97,49 @@ fn a_bad_connection_is_refused_with_the_reason_shown() {
 }
 
 #[test]
+fn dragging_a_wire_between_different_types_is_refused_by_the_connect_hook() {
+    let mut harness = harness(Some(&demo_path()));
+    let before = harness.state().doc().clone();
+    // Pin positions of the demo's initial view at 1400×860 (see docs/editor.png's layout):
+    // the `mesh` node's output pin, then the `trim` node's `clip` input pin.
+    let (from, to) = (egui::pos2(318.0, 485.0), egui::pos2(402.0, 292.0));
+    harness.drag_at(from);
+    harness.run_steps(1);
+    for t in [0.25, 0.5, 0.75, 1.0] {
+        harness.hover_at(from + (to - from) * t);
+        harness.run_steps(1);
+    }
+    harness.drop_at(to);
+    harness.run_steps(2);
+    let message = harness.state().message().map(|(m, _)| m.to_string()).unwrap_or_default();
+    assert_eq!(message, "connection refused: mesh.mesh gives a mesh, but trim.clip takes a clip");
+    harness.get_by_label_contains("Cannot connect: mesh.mesh gives a mesh");
+    assert_eq!(harness.state().doc(), &before);
+}
+
+#[test]
+fn dragging_a_wire_into_an_occupied_input_replaces_it_in_one_undo_step() {
+    let mut harness = harness(Some(&demo_path()));
+    let before = document::to_string(harness.state().doc());
+    // `clip`'s output pin to `resample`'s input pin, which `trim` feeds.
+    let (from, to) = (egui::pos2(291.0, 292.0), egui::pos2(668.0, 292.0));
+    harness.drag_at(from);
+    harness.run_steps(1);
+    for t in [0.25, 0.5, 0.75, 1.0] {
+        harness.hover_at(from + (to - from) * t);
+        harness.run_steps(1);
+    }
+    harness.drop_at(to);
+    harness.run_steps(2);
+    let into: Vec<String> =
+        harness.state().doc().edges.iter().filter(|e| e.to == "resample.clip").map(|e| e.from.clone()).collect();
+    assert_eq!(into, ["clip.clip"]);
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.run_steps(2);
+    assert_eq!(document::to_string(harness.state().doc()), before);
+}
+
+#[test]
 fn adding_a_node_from_the_catalogue_menu() {
     let mut harness = harness(Some(&demo_path()));
     harness.get_by_label("Add").click();
