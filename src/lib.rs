@@ -3,10 +3,13 @@
 //! - [`document`]: the RON graph file (versioned on-disk structs and migrations).
 //! - [`engine`]: validation into a compiled graph, and the parallel, caching evaluator
 //!   that both `kg` and the editor call.
+//! - [`editor`]: the editor's command reducer and undo history; with the `editor`
+//!   feature, the egui node editor behind `kg edit`.
 //! - [`cli`]: the `kg` command line.
 
 pub mod cli;
 pub mod document;
+pub mod editor;
 pub mod engine;
 
 pub use kinegraph_nodes as nodes;

@@ -121,6 +121,12 @@ enum Command {
         #[arg(long)]
         check: bool,
     },
+    /// Open the node editor on a graph (or an empty one).
+    #[cfg(feature = "editor")]
+    Edit {
+        /// The graph file (.ron).
+        graph: Option<PathBuf>,
+    },
     /// Regression-test saved graphs against their NAME.expect.ron files.
     Test {
         /// Graph files (default: every graph in ./graphs).
@@ -147,6 +153,14 @@ pub fn main() -> ExitCode {
         }
         Command::Fmt { graphs, check } => run::fmt_command(&graphs, check),
         Command::Test { graphs, bless } => regression::test_command(graphs, bless),
+        #[cfg(feature = "editor")]
+        Command::Edit { graph } => match crate::editor::run(graph) {
+            Ok(()) => 0,
+            Err(e) => {
+                eprintln!("error: {e}");
+                EXIT_FAILED
+            }
+        },
     };
     ExitCode::from(code)
 }

@@ -1,0 +1,542 @@
+//! The editor window (`kg edit`): menu bar, canvas, parameter panel, viewport and status
+//! bar around one document, its undo history and the evaluation worker.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use egui::{Key, Modifiers, RichText, Ui};
+use kinegraph_nodes::model::Clip;
+use kinegraph_nodes::node::{Registry, Value};
+
+use super::canvas::{Badge, Canvas};
+use super::commands::{EditError, EditorCommand, History};
+use super::panel::{self, PanelState};
+use super::viewport::Viewport;
+use super::worker::{Worker, WorkerMessage};
+use crate::document::{self, GraphDoc};
+use crate::engine::{NodeStatus, RunReport};
+
+/// Which path prompt is open.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Prompt {
+    Open,
+    SaveAs,
+}
+
+/// The editor: one document, its history, views and the evaluation worker.
+pub struct EditorApp {
+    registry: Registry,
+    doc: GraphDoc,
+    path: Option<PathBuf>,
+    /// `to_string` of the document as last opened or saved: dirty is "differs from this".
+    clean_text: String,
+    dirty: bool,
+    history: History,
+    canvas: Canvas,
+    worker: Worker,
+    badges: BTreeMap<String, Badge>,
+    report: Option<RunReport>,
+    /// Problems that name no node (graph inputs), from the latest validation.
+    graph_problems: Vec<String>,
+    selected: Option<String>,
+    /// The canvas selection last frame.
+    canvas_selection: Vec<String>,
+    panel: PanelState,
+    viewport: Viewport,
+    message: Option<(String, bool)>,
+    refusal: Option<(String, f64)>,
+    prompt: Option<(Prompt, String)>,
+    title: String,
+    frame_ms: f32,
+}
+
+impl EditorApp {
+    /// An editor on `path` (or an empty graph); `ctx` is woken by the worker.
+    pub fn new(ctx: &egui::Context, path: Option<&Path>) -> Self {
+        let wake_ctx = ctx.clone();
+        let worker = Worker::spawn(Registry::builtin(), Arc::new(move || wake_ctx.request_repaint()));
+        let mut app = EditorApp {
+            registry: Registry::builtin(),
+            doc: GraphDoc::new(),
+            path: None,
+            clean_text: document::to_string(&GraphDoc::new()),
+            dirty: false,
+            history: History::new(),
+            canvas: Canvas::default(),
+            worker,
+            badges: BTreeMap::new(),
+            report: None,
+            graph_problems: Vec::new(),
+            selected: None,
+            canvas_selection: Vec::new(),
+            panel: PanelState::default(),
+            viewport: Viewport::default(),
+            message: None,
+            refusal: None,
+            prompt: None,
+            title: String::new(),
+            frame_ms: 0.0,
+        };
+        match path {
+            Some(p) => app.open(p),
+            None => app.document_replaced(),
+        }
+        app
+    }
+
+    /// The document being edited.
+    pub fn doc(&self) -> &GraphDoc {
+        &self.doc
+    }
+
+    /// The file the document is saved to, if any.
+    pub fn path(&self) -> Option<&Path> {
+        self.path.as_deref()
+    }
+
+    /// True when the document differs from the file.
+    pub fn is_dirty(&self) -> bool {
+        self.dirty
+    }
+
+    /// The node whose panel is shown.
+    pub fn selected(&self) -> Option<&str> {
+        self.selected.as_deref()
+    }
+
+    /// Shows node `id`'s panel (as clicking it on the canvas does).
+    pub fn select(&mut self, id: Option<&str>) {
+        self.selected = id.filter(|id| self.doc.nodes.contains_key(*id)).map(str::to_string);
+    }
+
+    /// The state badge text of node `id` (`"ok"`, `"error"`, …).
+    pub fn node_state(&self, id: &str) -> &'static str {
+        self.badges.get(id).map_or("idle", |b| b.label().0)
+    }
+
+    /// The status-bar message, if any, and whether it is an error.
+    pub fn message(&self) -> Option<(&str, bool)> {
+        self.message.as_ref().map(|(m, e)| (m.as_str(), *e))
+    }
+
+    /// Applies an edit through the reducer and history, as every widget does.
+    pub fn edit(&mut self, cmd: EditorCommand) -> Result<bool, EditError> {
+        self.edit_coalescing(cmd, false)
+    }
+
+    fn edit_coalescing(&mut self, cmd: EditorCommand, coalesce: bool) -> Result<bool, EditError> {
+        let result = self.history.apply_coalescing(&mut self.doc, &self.registry, cmd, coalesce);
+        match &result {
+            Ok(true) => self.document_changed(),
+            Ok(false) => {}
+            Err(e) => self.message = Some((e.to_string(), true)),
+        }
+        result
+    }
+
+    /// Undoes the latest edit.
+    pub fn undo(&mut self) {
+        match self.history.undo(&mut self.doc, &self.registry) {
+            Ok(()) => self.document_changed(),
+            Err(e) => self.message = Some((e.to_string(), false)),
+        }
+    }
+
+    /// Redoes the latest undone edit.
+    pub fn redo(&mut self) {
+        match self.history.redo(&mut self.doc, &self.registry) {
+            Ok(()) => self.document_changed(),
+            Err(e) => self.message = Some((e.to_string(), false)),
+        }
+    }
+
+    /// Opens a graph file, replacing the document (and forgetting the history).
+    pub fn open(&mut self, path: &Path) {
+        match document::load_file(path) {
+            Ok(loaded) => {
+                self.doc = loaded.doc;
+                self.path = Some(path.to_path_buf());
+                self.clean_text = document::to_string(&self.doc);
+                self.history.clear();
+                self.message = Some((format!("opened {}", path.display()), false));
+                self.document_replaced();
+            }
+            Err(e) => self.message = Some((e.to_string(), true)),
+        }
+    }
+
+    /// Saves to the current file. Without edits since the last open or save nothing is
+    /// written, so the file keeps every byte.
+    pub fn save(&mut self) {
+        match self.path.clone() {
+            None => self.prompt = Some((Prompt::SaveAs, "graph.ron".into())),
+            Some(_) if !self.dirty => self.message = Some(("no changes to save".into(), false)),
+            Some(path) => self.save_as(&path),
+        }
+    }
+
+    /// Saves to `path` (atomically) and makes it the current file.
+    pub fn save_as(&mut self, path: &Path) {
+        match document::save_file(&self.doc, path) {
+            Ok(()) => {
+                self.path = Some(path.to_path_buf());
+                self.clean_text = document::to_string(&self.doc);
+                self.dirty = false;
+                self.message = Some((format!("saved {}", path.display()), false));
+            }
+            Err(e) => self.message = Some((e.to_string(), true)),
+        }
+    }
+
+    fn document_replaced(&mut self) {
+        self.selected = None;
+        self.badges.clear();
+        self.report = None;
+        self.canvas = Canvas::default();
+        self.document_changed();
+    }
+
+    fn document_changed(&mut self) {
+        self.dirty = document::to_string(&self.doc) != self.clean_text;
+        self.canvas.sync(&self.doc, &self.registry);
+        if self.selected.as_ref().is_some_and(|id| !self.doc.nodes.contains_key(id)) {
+            self.selected = None;
+        }
+        self.badges.retain(|id, _| self.doc.nodes.contains_key(id));
+        let base_dir = self
+            .path
+            .as_deref()
+            .and_then(Path::parent)
+            .map(Path::to_path_buf)
+            .or_else(|| std::env::current_dir().ok())
+            .unwrap_or_default();
+        self.worker.submit(self.doc.clone(), base_dir);
+    }
+
+    /// Takes in what the worker reported since the last frame.
+    pub fn poll_worker(&mut self) {
+        while let Some(message) = self.worker.poll() {
+            self.take_message(message);
+        }
+    }
+
+    /// Blocks until the evaluation of the latest edit is in (tests and screenshots).
+    pub fn wait_for_evaluation(&mut self) {
+        self.poll_worker();
+        if let Some(message) = self.worker.wait() {
+            self.take_message(message);
+        }
+    }
+
+    fn take_message(&mut self, message: WorkerMessage) {
+        match message {
+            WorkerMessage::Done(report) => {
+                self.graph_problems.clear();
+                self.badges.clear();
+                for (id, node) in &report.nodes {
+                    self.badges.insert(id.clone(), badge_of(node.status, node.error.clone()));
+                }
+                self.report = Some(report);
+            }
+            WorkerMessage::Invalid(errors) => {
+                self.report = None;
+                self.badges.clear();
+                self.graph_problems.clear();
+                for d in errors.diagnostics {
+                    match d.node {
+                        Some(node) => {
+                            let text = match d.item {
+                                Some(item) => format!("{item}: {}", d.message),
+                                None => d.message,
+                            };
+                            match self.badges.get_mut(&node) {
+                                Some(Badge::Error(m)) => {
+                                    m.push('\n');
+                                    m.push_str(&text);
+                                }
+                                _ => {
+                                    self.badges.insert(node, Badge::Error(text));
+                                }
+                            }
+                        }
+                        None => self.graph_problems.push(d.message),
+                    }
+                }
+            }
+            WorkerMessage::Started { node } => {
+                self.badges.insert(node, Badge::Running);
+            }
+            WorkerMessage::Finished { node, status } => {
+                self.badges.insert(node, badge_of(status, None));
+            }
+        }
+    }
+
+    fn selected_clip(&self) -> Option<&Arc<Clip>> {
+        let id = self.selected.as_ref()?;
+        self.report.as_ref()?.outputs.get(id)?.iter().flatten().find_map(|v| match v {
+            Value::Clip(c) => Some(c),
+            _ => None,
+        })
+    }
+
+    /// Draws one frame of the editor into `ui` (the whole window).
+    pub fn ui(&mut self, ui: &mut Ui) {
+        let started = Instant::now();
+        self.poll_worker();
+        self.shortcuts(ui);
+        self.update_title(ui.ctx());
+
+        egui::Panel::top("kg_menu").show(ui, |ui| self.menu_bar(ui));
+        egui::Panel::bottom("kg_status").show(ui, |ui| self.status_bar(ui));
+        egui::Panel::right("kg_panel").resizable(true).default_size(340.0).show(ui, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| self.panel(ui));
+        });
+        egui::Panel::bottom("kg_viewport").resizable(true).default_size(240.0).show(ui, |ui| {
+            let title = self.selected.clone().unwrap_or_default();
+            let clip = self.selected_clip().cloned();
+            self.viewport.show(ui, &title, clip.as_ref());
+        });
+        egui::CentralPanel::default().show(ui, |ui| self.canvas(ui));
+        self.prompt_window(ui.ctx());
+        self.refusal_tooltip(ui);
+        self.frame_ms = started.elapsed().as_secs_f32() * 1e3;
+    }
+
+    fn shortcuts(&mut self, ui: &mut Ui) {
+        let typing = ui.ctx().egui_wants_keyboard_input();
+        let (redo, undo, save) = ui.input_mut(|i| {
+            (
+                i.consume_key(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z)
+                    || i.consume_key(Modifiers::COMMAND, Key::Y),
+                i.consume_key(Modifiers::COMMAND, Key::Z),
+                i.consume_key(Modifiers::COMMAND, Key::S),
+            )
+        });
+        if redo && !typing {
+            self.redo();
+        } else if undo && !typing {
+            self.undo();
+        }
+        if save {
+            self.save();
+        }
+        let delete = !typing && ui.input(|i| i.key_pressed(Key::Delete));
+        if delete && let Some(id) = self.selected.clone() {
+            let _ = self.edit(EditorCommand::RemoveNodes { ids: vec![id] });
+        }
+    }
+
+    fn update_title(&mut self, ctx: &egui::Context) {
+        let name = self.path.as_deref().and_then(Path::file_name).map_or("untitled".into(), |n| n.to_string_lossy());
+        let title = format!("{name}{} — kinegraph", if self.dirty { " •" } else { "" });
+        if title != self.title {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
+            self.title = title;
+        }
+    }
+
+    fn menu_bar(&mut self, ui: &mut Ui) {
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                if ui.button("New").clicked() {
+                    self.doc = GraphDoc::new();
+                    self.path = None;
+                    self.clean_text = document::to_string(&self.doc);
+                    self.history.clear();
+                    self.document_replaced();
+                    ui.close();
+                }
+                if ui.button("Open…").clicked() {
+                    let start = self.path.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
+                    self.prompt = Some((Prompt::Open, start));
+                    ui.close();
+                }
+                if ui.button("Save").clicked() {
+                    self.save();
+                    ui.close();
+                }
+                if ui.button("Save as…").clicked() {
+                    let start = self.path.as_ref().map(|p| p.display().to_string()).unwrap_or("graph.ron".into());
+                    self.prompt = Some((Prompt::SaveAs, start));
+                    ui.close();
+                }
+            });
+            ui.menu_button("Edit", |ui| {
+                let undo = self.history.undo_label().map(|l| format!("Undo {l}"));
+                if ui.add_enabled(undo.is_some(), egui::Button::new(undo.as_deref().unwrap_or("Undo"))).clicked() {
+                    self.undo();
+                    ui.close();
+                }
+                let redo = self.history.redo_label().map(|l| format!("Redo {l}"));
+                if ui.add_enabled(redo.is_some(), egui::Button::new(redo.as_deref().unwrap_or("Redo"))).clicked() {
+                    self.redo();
+                    ui.close();
+                }
+            });
+            ui.menu_button("Add", |ui| {
+                ui.add(egui::TextEdit::singleline(&mut self.canvas.search).hint_text("search…"));
+                let search = self.canvas.search.clone();
+                if let Some(kind) = super::canvas::catalogue_menu(ui, &self.registry, &search) {
+                    let id = super::commands::fresh_node_id(&self.doc, kind);
+                    let y = self.doc.layout.values().map(|p| p.1).fold(0.0_f32, f32::max) + 140.0;
+                    let _ = self.edit(EditorCommand::AddNode { id: id.clone(), kind: kind.into(), pos: (0.0, y) });
+                    self.selected = Some(id);
+                    self.canvas.search.clear();
+                    ui.close();
+                }
+            });
+            let name = self.path.as_ref().map_or("untitled".into(), |p| p.display().to_string());
+            ui.label(RichText::new(format!("{name}{}", if self.dirty { " •" } else { "" })).weak());
+        });
+    }
+
+    fn status_bar(&mut self, ui: &mut Ui) {
+        ui.horizontal(|ui| {
+            let state = if self.worker.running() { "evaluating…" } else { "evaluated" };
+            ui.label(format!("{state} (request {})", self.worker.latest_request()));
+            if let Some(r) = &self.report {
+                ui.label(format!("{:.1} ms", r.seconds * 1e3));
+            }
+            ui.separator();
+            ui.label(RichText::new(format!("frame {:.1} ms", self.frame_ms)).weak());
+            for p in &self.graph_problems {
+                ui.separator();
+                ui.colored_label(egui::Color32::from_rgb(235, 80, 70), p);
+            }
+            if let Some((m, is_error)) = &self.message {
+                ui.separator();
+                let color = if *is_error { egui::Color32::from_rgb(235, 80, 70) } else { ui.visuals().text_color() };
+                ui.colored_label(color, m);
+            }
+        });
+    }
+
+    fn panel(&mut self, ui: &mut Ui) {
+        let Some(id) = self.selected.clone() else {
+            ui.heading("No node selected");
+            ui.label(
+                "Click a node's title to edit its parameters. Right-click the canvas to add nodes, \
+                 a node to delete it; double-click the canvas to fit the graph in view.",
+            );
+            if !self.doc.description.is_empty() {
+                ui.separator();
+                ui.label(&self.doc.description);
+            }
+            return;
+        };
+        let badge = self.badges.get(&id).cloned().unwrap_or(Badge::Idle);
+        let report = self.report.as_ref().and_then(|r| r.nodes.get(&id)).cloned();
+        let edits = panel::show(ui, &mut self.panel, &self.doc, &self.registry, &id, &badge, report.as_ref());
+        for e in edits {
+            let _ = self.edit_coalescing(e.command, e.coalesce);
+        }
+    }
+
+    fn canvas(&mut self, ui: &mut Ui) {
+        let out = self.canvas.show(ui, &self.doc, &self.registry, &self.badges);
+        if let Some(reason) = out.refused {
+            self.message = Some((format!("connection refused: {reason}"), true));
+            self.refusal = Some((reason, ui.input(|i| i.time)));
+        }
+        if let Some(id) = out.clicked {
+            self.selected = Some(id);
+        }
+        // Follow the canvas selection when it changes (the panel may select otherwise).
+        if out.selected != self.canvas_selection {
+            if let Some(first) = out.selected.first() {
+                self.selected = Some(first.clone());
+            }
+            self.canvas_selection = out.selected;
+        }
+        for cmd in out.commands {
+            let _ = self.edit(cmd);
+        }
+    }
+
+    fn refusal_tooltip(&mut self, ui: &mut Ui) {
+        let Some((reason, since)) = &self.refusal else { return };
+        let now = ui.input(|i| i.time);
+        if now - since > 4.0 {
+            self.refusal = None;
+            return;
+        }
+        let pos = ui.input(|i| i.pointer.latest_pos()).unwrap_or_default() + egui::vec2(12.0, 12.0);
+        egui::Area::new(egui::Id::new("kg_refusal")).fixed_pos(pos).order(egui::Order::Tooltip).show(ui.ctx(), |ui| {
+            egui::Frame::popup(ui.style()).show(ui, |ui| {
+                ui.colored_label(egui::Color32::from_rgb(235, 80, 70), format!("Cannot connect: {reason}"));
+            });
+        });
+        ui.ctx().request_repaint();
+    }
+
+    fn prompt_window(&mut self, ctx: &egui::Context) {
+        let Some((kind, mut text)) = self.prompt.take() else { return };
+        let title = match kind {
+            Prompt::Open => "Open graph",
+            Prompt::SaveAs => "Save graph as",
+        };
+        let mut open = true;
+        let mut done = None;
+        egui::Window::new(title).collapsible(false).open(&mut open).show(ctx, |ui| {
+            ui.label("Path of the .ron graph file:");
+            let r = ui.add(egui::TextEdit::singleline(&mut text).desired_width(360.0));
+            let enter = r.lost_focus() && ui.input(|i| i.key_pressed(Key::Enter));
+            ui.horizontal(|ui| {
+                if ui.button(if kind == Prompt::Open { "Open" } else { "Save" }).clicked() || enter {
+                    done = Some(PathBuf::from(text.trim()));
+                }
+                if ui.button("Cancel").clicked() {
+                    done = Some(PathBuf::new());
+                }
+            });
+        });
+        match done {
+            Some(p) if p.as_os_str().is_empty() => {}
+            Some(p) => match kind {
+                Prompt::Open => self.open(&p),
+                Prompt::SaveAs => self.save_as(&p),
+            },
+            None if open => self.prompt = Some((kind, text)),
+            None => {}
+        }
+    }
+}
+
+fn badge_of(status: NodeStatus, message: Option<String>) -> Badge {
+    match status {
+        NodeStatus::Ok => Badge::Ok,
+        NodeStatus::Cached => Badge::Cached,
+        NodeStatus::Error => Badge::Error(message.unwrap_or_else(|| "failed".into())),
+        NodeStatus::Blocked => Badge::Blocked(message.unwrap_or_else(|| "blocked upstream".into())),
+        NodeStatus::Cancelled => Badge::Cancelled,
+    }
+}
+
+impl eframe::App for EditorApp {
+    fn ui(&mut self, ui: &mut Ui, _frame: &mut eframe::Frame) {
+        EditorApp::ui(self, ui);
+    }
+}
+
+/// Why the editor could not start.
+#[derive(Debug, thiserror::Error)]
+#[error("the editor could not start: {0}")]
+pub struct StartError(String);
+
+/// Opens the editor window on `graph` (or an empty graph) and returns when it closes.
+pub fn run(graph: Option<PathBuf>) -> Result<(), StartError> {
+    let options = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default().with_inner_size([1400.0, 860.0]).with_title("kinegraph"),
+        renderer: eframe::Renderer::Glow,
+        ..Default::default()
+    };
+    eframe::run_native(
+        "kinegraph",
+        options,
+        Box::new(move |cc| Ok(Box::new(EditorApp::new(&cc.egui_ctx, graph.as_deref())))),
+    )
+    .map_err(|e| StartError(e.to_string()))
+}

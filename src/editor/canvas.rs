@@ -1,0 +1,417 @@
+//! The node canvas: an egui-snarl view rebuilt from the document after every change.
+//!
+//! Snarl keeps its own graph, but it is only a view: the viewer never edits it. Wiring,
+//! unwiring, adding and deleting nodes become [`EditorCommand`]s for the reducer, and
+//! [`Canvas::sync`] then brings the view back in line with the document (node ids are kept
+//! across syncs so snarl's selection survives edits).
+
+use std::collections::BTreeMap;
+
+use egui::{Color32, Pos2, RichText, Ui};
+use egui_snarl::ui::{PinInfo, SnarlStyle, SnarlViewer, SnarlWidget};
+use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
+use kinegraph_nodes::node::{NodeSchema, PortType, Registry};
+
+use super::commands::{EditorCommand, check_connect, fresh_node_id};
+use crate::document::{GraphDoc, split_endpoint};
+
+/// The canvas' egui id (snarl keeps selection under it).
+pub(crate) const CANVAS_ID: &str = "kg_canvas";
+
+/// What the editor shows as a node's state.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum Badge {
+    /// Not evaluated (exports, or nothing ran yet).
+    Idle,
+    /// Evaluating now.
+    Running,
+    /// Evaluated.
+    Ok,
+    /// Reused from the cache.
+    Cached,
+    /// Failed, with why.
+    Error(String),
+    /// Not run because something upstream failed.
+    Blocked(String),
+    /// The run was cancelled by a newer edit.
+    Cancelled,
+}
+
+impl Badge {
+    /// Short text and colour.
+    pub(crate) fn label(&self) -> (&'static str, Color32) {
+        match self {
+            Badge::Idle => ("idle", Color32::GRAY),
+            Badge::Running => ("running", Color32::from_rgb(90, 160, 255)),
+            Badge::Ok => ("ok", Color32::from_rgb(90, 200, 110)),
+            Badge::Cached => ("cached", Color32::from_rgb(60, 150, 90)),
+            Badge::Error(_) => ("error", Color32::from_rgb(235, 80, 70)),
+            Badge::Blocked(_) => ("blocked", Color32::from_rgb(230, 160, 60)),
+            Badge::Cancelled => ("cancelled", Color32::GRAY),
+        }
+    }
+
+    /// The message that goes with an error or a block.
+    pub(crate) fn message(&self) -> Option<&str> {
+        match self {
+            Badge::Error(m) | Badge::Blocked(m) => Some(m),
+            _ => None,
+        }
+    }
+}
+
+/// The colour of a port type (pins and wires).
+pub(crate) fn type_color(ty: PortType) -> Color32 {
+    match ty {
+        PortType::Clip => Color32::from_rgb(80, 170, 255),
+        PortType::Mesh => Color32::from_rgb(240, 150, 60),
+        PortType::Scalar => Color32::from_rgb(120, 210, 120),
+        PortType::File => Color32::from_rgb(200, 120, 220),
+    }
+}
+
+/// A small filled circle (the default fonts have no bullet glyph).
+pub(crate) fn dot(ui: &mut Ui, color: Color32) -> egui::Response {
+    let (rect, response) = ui.allocate_exact_size(egui::vec2(10.0, 10.0), egui::Sense::hover());
+    ui.painter().circle_filled(rect.center(), 4.0, color);
+    response
+}
+
+/// The snarl view of a document.
+#[derive(Default)]
+pub(crate) struct Canvas {
+    snarl: Snarl<String>,
+    ids: BTreeMap<String, NodeId>,
+    /// Where the last sync put each node: a node away from it was dragged.
+    synced: BTreeMap<NodeId, Pos2>,
+    /// Text of the add-node search box.
+    pub(crate) search: String,
+}
+
+impl Canvas {
+    /// Brings the view in line with `doc`: nodes added and removed, positions and wires reset.
+    pub(crate) fn sync(&mut self, doc: &GraphDoc, registry: &Registry) {
+        let gone: Vec<(String, NodeId)> =
+            self.ids.iter().filter(|(id, _)| !doc.nodes.contains_key(*id)).map(|(i, n)| (i.clone(), *n)).collect();
+        for (id, nid) in gone {
+            self.snarl.remove_node(nid);
+            self.ids.remove(&id);
+        }
+        for (row, id) in doc.nodes.keys().enumerate() {
+            let pos = doc.layout.get(id).map(|&(x, y)| Pos2::new(x, y)).unwrap_or(Pos2::new(0.0, row as f32 * 120.0));
+            match self.ids.get(id) {
+                Some(&nid) => {
+                    if let Some(info) = self.snarl.get_node_info_mut(nid) {
+                        info.pos = pos;
+                    }
+                }
+                None => {
+                    let nid = self.snarl.insert_node(pos, id.clone());
+                    self.ids.insert(id.clone(), nid);
+                }
+            }
+        }
+        self.synced = self.snarl.nodes_pos_ids().map(|(nid, pos, _)| (nid, pos)).collect();
+        let wires: Vec<(OutPinId, InPinId)> = self.snarl.wires().collect();
+        for (out, inp) in wires {
+            self.snarl.disconnect(out, inp);
+        }
+        for edge in &doc.edges {
+            if let (Some(out), Some(inp)) =
+                (self.out_pin(doc, registry, &edge.from), self.in_pin(doc, registry, &edge.to))
+            {
+                self.snarl.connect(out, inp);
+            }
+        }
+    }
+
+    fn out_pin(&self, doc: &GraphDoc, registry: &Registry, endpoint: &str) -> Option<OutPinId> {
+        let (node, port) = split_endpoint(endpoint)?;
+        let schema = schema(doc, registry, node)?;
+        let output = schema.outputs.iter().position(|p| p.name == port)?;
+        Some(OutPinId { node: *self.ids.get(node)?, output })
+    }
+
+    fn in_pin(&self, doc: &GraphDoc, registry: &Registry, endpoint: &str) -> Option<InPinId> {
+        let (node, port) = split_endpoint(endpoint)?;
+        let schema = schema(doc, registry, node)?;
+        let input = schema.inputs.iter().position(|p| p.name == port)?;
+        Some(InPinId { node: *self.ids.get(node)?, input })
+    }
+
+    /// Draws the canvas; returns the commands the user asked for and, when a connection
+    /// was refused, why.
+    pub(crate) fn show(
+        &mut self,
+        ui: &mut Ui,
+        doc: &GraphDoc,
+        registry: &Registry,
+        badges: &BTreeMap<String, Badge>,
+    ) -> CanvasOutput {
+        let mut viewer = Viewer { doc, registry, badges, search: &mut self.search, out: CanvasOutput::default() };
+        let mut style = SnarlStyle::new();
+        style.collapsible = Some(false);
+        style.centering = Some(true);
+        SnarlWidget::new().id(egui::Id::new(CANVAS_ID)).style(style).show(&mut self.snarl, &mut viewer, ui);
+        let mut out = viewer.out;
+        out.selected = egui_snarl::ui::get_selected_nodes(egui::Id::new(CANVAS_ID), ui.ctx())
+            .into_iter()
+            .filter_map(|nid| self.snarl.get_node(nid).cloned())
+            .collect();
+        out.selected.sort();
+        // A finished drag becomes one MoveNodes command.
+        if !ui.input(|i| i.pointer.primary_down()) {
+            let moves: Vec<(String, Option<(f32, f32)>)> = self
+                .snarl
+                .nodes_pos_ids()
+                .filter(|(nid, pos, _)| self.synced.get(nid).is_none_or(|s| (*s - *pos).length() > 0.01))
+                .map(|(_, pos, id)| (id.clone(), Some((pos.x.round(), pos.y.round()))))
+                .collect();
+            if !moves.is_empty() {
+                out.commands.push(EditorCommand::MoveNodes { moves });
+            }
+        }
+        out
+    }
+}
+
+/// What the user did on the canvas this frame.
+#[derive(Default)]
+pub(crate) struct CanvasOutput {
+    /// Edits, in order.
+    pub(crate) commands: Vec<EditorCommand>,
+    /// Why a connection was refused.
+    pub(crate) refused: Option<String>,
+    /// Ids of the selected nodes, sorted.
+    pub(crate) selected: Vec<String>,
+    /// The node whose title was clicked.
+    pub(crate) clicked: Option<String>,
+}
+
+fn schema(doc: &GraphDoc, registry: &Registry, id: &str) -> Option<&'static NodeSchema> {
+    doc.nodes.get(id).and_then(|n| registry.get(&n.kind)).map(|n| n.schema())
+}
+
+struct Viewer<'a> {
+    doc: &'a GraphDoc,
+    registry: &'a Registry,
+    badges: &'a BTreeMap<String, Badge>,
+    search: &'a mut String,
+    out: CanvasOutput,
+}
+
+impl Viewer<'_> {
+    fn endpoint_out(&self, pin: &OutPin, snarl: &Snarl<String>) -> Option<String> {
+        let id = snarl.get_node(pin.id.node)?;
+        let port = schema(self.doc, self.registry, id)?.outputs.get(pin.id.output)?;
+        Some(format!("{id}.{}", port.name))
+    }
+
+    fn endpoint_in(&self, pin: &InPin, snarl: &Snarl<String>) -> Option<String> {
+        let id = snarl.get_node(pin.id.node)?;
+        let port = schema(self.doc, self.registry, id)?.inputs.get(pin.id.input)?;
+        Some(format!("{id}.{}", port.name))
+    }
+}
+
+impl SnarlViewer<String> for Viewer<'_> {
+    fn title(&mut self, node: &String) -> String {
+        let kind = self.doc.nodes.get(node).map(|n| n.kind.as_str()).unwrap_or("?");
+        format!("{node} · {kind}")
+    }
+
+    fn show_header(
+        &mut self,
+        node: NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        ui: &mut Ui,
+        snarl: &mut Snarl<String>,
+    ) {
+        let Some(id) = snarl.get_node(node).cloned() else { return };
+        let kind = self.doc.nodes.get(&id).map(|n| n.kind.clone()).unwrap_or_default();
+        let badge = self.badges.get(&id).cloned().unwrap_or(Badge::Idle);
+        let (text, color) = badge.label();
+        ui.horizontal(|ui| {
+            let title = ui.add(egui::Label::new(RichText::new(&id).strong()).sense(egui::Sense::click()));
+            if title.on_hover_text("click to edit its parameters").clicked() {
+                self.out.clicked = Some(id.clone());
+            }
+            ui.label(RichText::new(&kind).weak());
+            dot(ui, color);
+            ui.label(RichText::new(text).color(color)).on_hover_text(badge.message().unwrap_or(text));
+        });
+    }
+
+    fn inputs(&mut self, node: &String) -> usize {
+        schema(self.doc, self.registry, node).map_or(0, |s| s.inputs.len())
+    }
+
+    fn outputs(&mut self, node: &String) -> usize {
+        schema(self.doc, self.registry, node).map_or(0, |s| s.outputs.len())
+    }
+
+    fn show_input(
+        &mut self,
+        pin: &InPin,
+        ui: &mut Ui,
+        snarl: &mut Snarl<String>,
+    ) -> impl egui_snarl::ui::SnarlPin + 'static {
+        let port = snarl
+            .get_node(pin.id.node)
+            .and_then(|id| schema(self.doc, self.registry, id))
+            .and_then(|s| s.inputs.get(pin.id.input));
+        match port {
+            Some(p) => {
+                let name = if p.required { p.name.to_string() } else { format!("{} (optional)", p.name) };
+                ui.label(name).on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
+                PinInfo::circle().with_fill(type_color(p.ty))
+            }
+            None => PinInfo::circle(),
+        }
+    }
+
+    fn show_output(
+        &mut self,
+        pin: &OutPin,
+        ui: &mut Ui,
+        snarl: &mut Snarl<String>,
+    ) -> impl egui_snarl::ui::SnarlPin + 'static {
+        let port = snarl
+            .get_node(pin.id.node)
+            .and_then(|id| schema(self.doc, self.registry, id))
+            .and_then(|s| s.outputs.get(pin.id.output));
+        match port {
+            Some(p) => {
+                ui.label(p.name).on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
+                PinInfo::circle().with_fill(type_color(p.ty))
+            }
+            None => PinInfo::circle(),
+        }
+    }
+
+    fn has_body(&mut self, node: &String) -> bool {
+        self.badges.get(node).and_then(Badge::message).is_some()
+    }
+
+    fn show_body(
+        &mut self,
+        node: NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        ui: &mut Ui,
+        snarl: &mut Snarl<String>,
+    ) {
+        let Some(id) = snarl.get_node(node) else { return };
+        if let Some(badge) = self.badges.get(id)
+            && let Some(message) = badge.message()
+        {
+            ui.set_max_width(220.0);
+            ui.label(RichText::new(message).color(badge.label().1).small());
+        }
+    }
+
+    fn connect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<String>) {
+        let (Some(from), Some(to)) = (self.endpoint_out(from, snarl), self.endpoint_in(to, snarl)) else { return };
+        match check_connect(self.doc, self.registry, &from, &to) {
+            Ok(()) => self.out.commands.push(EditorCommand::Connect { from, to }),
+            Err(e) => self.out.refused = Some(e.to_string()),
+        }
+    }
+
+    fn disconnect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<String>) {
+        if let (Some(from), Some(to)) = (self.endpoint_out(from, snarl), self.endpoint_in(to, snarl)) {
+            self.out.commands.push(EditorCommand::Disconnect { from, to });
+        }
+    }
+
+    fn drop_inputs(&mut self, pin: &InPin, snarl: &mut Snarl<String>) {
+        let Some(to) = self.endpoint_in(pin, snarl) else { return };
+        let cmds: Vec<EditorCommand> = self
+            .doc
+            .edges
+            .iter()
+            .filter(|e| e.to == to)
+            .map(|e| EditorCommand::Disconnect { from: e.from.clone(), to: e.to.clone() })
+            .collect();
+        if !cmds.is_empty() {
+            self.out.commands.push(EditorCommand::Batch(cmds));
+        }
+    }
+
+    fn drop_outputs(&mut self, pin: &OutPin, snarl: &mut Snarl<String>) {
+        let Some(from) = self.endpoint_out(pin, snarl) else { return };
+        let cmds: Vec<EditorCommand> = self
+            .doc
+            .edges
+            .iter()
+            .filter(|e| e.from == from)
+            .map(|e| EditorCommand::Disconnect { from: e.from.clone(), to: e.to.clone() })
+            .collect();
+        if !cmds.is_empty() {
+            self.out.commands.push(EditorCommand::Batch(cmds));
+        }
+    }
+
+    fn has_graph_menu(&mut self, _pos: Pos2, _snarl: &mut Snarl<String>) -> bool {
+        true
+    }
+
+    fn show_graph_menu(&mut self, pos: Pos2, ui: &mut Ui, _snarl: &mut Snarl<String>) {
+        ui.label("Add node");
+        ui.add(egui::TextEdit::singleline(self.search).hint_text("search…").desired_width(180.0)).request_focus();
+        if let Some(kind) = catalogue_menu(ui, self.registry, self.search) {
+            let id = fresh_node_id(self.doc, kind);
+            self.out.commands.push(EditorCommand::AddNode { id, kind: kind.to_string(), pos: (pos.x, pos.y) });
+            self.search.clear();
+            ui.close();
+        }
+    }
+
+    fn has_node_menu(&mut self, _node: &String) -> bool {
+        true
+    }
+
+    fn show_node_menu(
+        &mut self,
+        node: NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        ui: &mut Ui,
+        snarl: &mut Snarl<String>,
+    ) {
+        if ui.button("Delete").clicked() {
+            if let Some(id) = snarl.get_node(node) {
+                self.out.commands.push(EditorCommand::RemoveNodes { ids: vec![id.clone()] });
+            }
+            ui.close();
+        }
+    }
+}
+
+/// The node catalogue grouped by category and filtered by `search` (kind, category or
+/// doc text); returns the kind clicked.
+pub(crate) fn catalogue_menu(ui: &mut Ui, registry: &Registry, search: &str) -> Option<&'static str> {
+    let needle = search.trim().to_lowercase();
+    let mut groups: BTreeMap<&str, Vec<&'static NodeSchema>> = BTreeMap::new();
+    for node in registry.iter() {
+        let s = node.schema();
+        let hit = needle.is_empty()
+            || s.kind.contains(&needle)
+            || s.category.contains(&needle)
+            || s.doc.to_lowercase().contains(&needle);
+        if hit {
+            groups.entry(s.category).or_default().push(s);
+        }
+    }
+    let mut picked = None;
+    for (category, schemas) in groups {
+        ui.label(RichText::new(category).small().weak());
+        for s in schemas {
+            if ui.button(s.kind).on_hover_text(s.doc).clicked() {
+                picked = Some(s.kind);
+            }
+        }
+    }
+    picked
+}

@@ -1,0 +1,24 @@
+//! The node editor.
+//!
+//! - [`commands`]: the pure command reducer over [`GraphDoc`](crate::document::GraphDoc)
+//!   with undo/redo; widgets only ever emit its commands.
+//! - [`worker`]: the evaluation thread that owns the engine; stale results are dropped by
+//!   request id.
+//!
+//! Both compile without egui. With the `editor` feature (default on), the egui app behind
+//! `kg edit` lives here too; nothing outside this module names egui or eframe.
+
+pub mod commands;
+pub mod worker;
+
+#[cfg(feature = "editor")]
+mod app;
+#[cfg(feature = "editor")]
+mod canvas;
+#[cfg(feature = "editor")]
+mod panel;
+#[cfg(feature = "editor")]
+mod viewport;
+
+#[cfg(feature = "editor")]
+pub use app::{EditorApp, StartError, run};

@@ -1,0 +1,197 @@
+//! The parameter panel of the selected node: its doc text, ports, parameters with their
+//! ranges and units, and its state from the latest run. Edits come back as commands.
+
+use egui::{RichText, Ui};
+use kinegraph_nodes::node::{ParamKind, ParamValue, Registry};
+
+use super::canvas::{Badge, dot, type_color};
+use super::commands::EditorCommand;
+use crate::document::GraphDoc;
+use crate::engine::NodeReport;
+
+/// A parameter edit and whether it continues the previous one (a drag in progress), so
+/// a whole drag is one undo step.
+pub(crate) struct PanelEdit {
+    /// The edit.
+    pub(crate) command: EditorCommand,
+    /// Merge with the previous step of the same label.
+    pub(crate) coalesce: bool,
+}
+
+/// Text being typed into path fields, kept until Enter or focus loss.
+#[derive(Default)]
+pub(crate) struct PanelState {
+    /// `(node, param, text)` of the field being edited.
+    editing: Option<(String, String, String)>,
+}
+
+/// Draws the panel for node `id`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn show(
+    ui: &mut Ui,
+    state: &mut PanelState,
+    doc: &GraphDoc,
+    registry: &Registry,
+    id: &str,
+    badge: &Badge,
+    report: Option<&NodeReport>,
+) -> Vec<PanelEdit> {
+    let mut edits = Vec::new();
+    let Some(node) = doc.nodes.get(id) else { return edits };
+    ui.heading(id);
+    let Some(schema) = registry.get(&node.kind).map(|n| n.schema()) else {
+        ui.colored_label(egui::Color32::RED, format!("unknown node kind '{}'", node.kind));
+        return edits;
+    };
+    ui.label(RichText::new(format!("{} · {}", schema.kind, schema.category)).weak());
+    ui.label(schema.doc);
+    let (text, color) = badge.label();
+    ui.horizontal(|ui| {
+        ui.label("State:");
+        ui.label(RichText::new(text).color(color).strong());
+        if let Some(r) = report
+            && r.seconds > 0.0
+        {
+            ui.label(RichText::new(format!("{:.1} ms", r.seconds * 1e3)).weak());
+        }
+    });
+    if let Some(message) = badge.message() {
+        ui.label(RichText::new(message).color(color));
+    }
+    for warning in report.map(|r| r.warnings.as_slice()).unwrap_or_default() {
+        ui.label(RichText::new(format!("warning: {warning}")).color(egui::Color32::from_rgb(230, 190, 60)));
+    }
+    ui.separator();
+    if !schema.params.is_empty() {
+        ui.label(RichText::new("Parameters").strong());
+    }
+    egui::Grid::new("params").num_columns(3).striped(true).show(ui, |ui| {
+        for spec in schema.params {
+            let set = node.params.get(spec.name);
+            let name_label = ui.label(spec.name).on_hover_text(spec.doc);
+            let set_cmd = |value: ParamValue| EditorCommand::SetParam {
+                node: id.to_string(),
+                param: spec.name.to_string(),
+                value,
+            };
+            match spec.kind {
+                ParamKind::Float { default, min, max, unit } => {
+                    let current = set.and_then(ParamValue::as_f64).or(default);
+                    match current {
+                        Some(mut x) => {
+                            let speed = ((max.min(1e6) - min.max(-1e6)) / 500.0).max(1e-3);
+                            let r = ui
+                                .add(
+                                    egui::DragValue::new(&mut x)
+                                        .range(min..=max)
+                                        .speed(speed)
+                                        .suffix(if unit.is_empty() { String::new() } else { format!(" {unit}") }),
+                                )
+                                .labelled_by(name_label.id);
+                            let r = r.on_hover_text(format!("{}\nrange {min} ..= {max} {unit}", spec.doc));
+                            if r.changed() {
+                                edits.push(PanelEdit {
+                                    command: set_cmd(ParamValue::Float(x)),
+                                    coalesce: r.dragged() && !r.drag_started(),
+                                });
+                            }
+                        }
+                        None => {
+                            if ui.button("auto — set").on_hover_text(spec.doc).clicked() {
+                                let x = if min <= 0.0 && max >= 0.0 { 0.0 } else { min };
+                                edits.push(PanelEdit { command: set_cmd(ParamValue::Float(x)), coalesce: false });
+                            }
+                        }
+                    }
+                }
+                ParamKind::Int { default, min, max } => {
+                    match set.and_then(ParamValue::as_f64).map(|x| x as i64).or(default) {
+                        Some(mut i) => {
+                            let r = ui.add(egui::DragValue::new(&mut i).range(min..=max)).labelled_by(name_label.id);
+                            let r = r.on_hover_text(format!("{}\nrange {min} ..= {max}", spec.doc));
+                            if r.changed() {
+                                edits.push(PanelEdit {
+                                    command: set_cmd(ParamValue::Int(i)),
+                                    coalesce: r.dragged() && !r.drag_started(),
+                                });
+                            }
+                        }
+                        None => {
+                            if ui.button("auto — set").on_hover_text(spec.doc).clicked() {
+                                edits
+                                    .push(PanelEdit { command: set_cmd(ParamValue::Int(min.max(0))), coalesce: false });
+                            }
+                        }
+                    }
+                }
+                ParamKind::Choice { choices, default } => {
+                    let current = match set {
+                        Some(ParamValue::Text(s)) => s.as_str(),
+                        _ => default,
+                    };
+                    egui::ComboBox::from_id_salt(("choice", id, spec.name)).selected_text(current).show_ui(ui, |ui| {
+                        for choice in choices {
+                            if ui.selectable_label(*choice == current, *choice).clicked() && *choice != current {
+                                edits.push(PanelEdit {
+                                    command: set_cmd(ParamValue::Text((*choice).to_string())),
+                                    coalesce: false,
+                                });
+                            }
+                        }
+                    });
+                }
+                ParamKind::InputPath { .. } | ParamKind::OutputPath { .. } => {
+                    let stored = match set {
+                        Some(ParamValue::Text(s)) => s.clone(),
+                        _ => spec
+                            .default_value()
+                            .map(|v| v.to_string().trim_matches('"').to_string())
+                            .unwrap_or_default(),
+                    };
+                    let editing = state.editing.as_ref().filter(|(n, p, _)| n == id && p == spec.name);
+                    let mut text = editing.map(|(_, _, t)| t.clone()).unwrap_or_else(|| stored.clone());
+                    let r = ui
+                        .add(egui::TextEdit::singleline(&mut text).desired_width(180.0))
+                        .labelled_by(name_label.id)
+                        .on_hover_text(spec.doc);
+                    if r.changed() || r.has_focus() {
+                        state.editing = Some((id.to_string(), spec.name.to_string(), text.clone()));
+                    }
+                    if r.lost_focus() {
+                        state.editing = None;
+                        if text != stored {
+                            edits.push(PanelEdit { command: set_cmd(ParamValue::Text(text)), coalesce: false });
+                        }
+                    }
+                }
+            }
+            if set.is_some() {
+                if ui.small_button("reset").on_hover_text("reset to the default").clicked() {
+                    edits.push(PanelEdit {
+                        command: EditorCommand::ResetParam { node: id.to_string(), param: spec.name.to_string() },
+                        coalesce: false,
+                    });
+                }
+            } else {
+                ui.label("");
+            }
+            ui.end_row();
+        }
+    });
+    ui.separator();
+    for (title, ports) in [("Inputs", schema.inputs), ("Outputs", schema.outputs)] {
+        if ports.is_empty() {
+            continue;
+        }
+        ui.label(RichText::new(title).strong());
+        for p in ports {
+            ui.horizontal_wrapped(|ui| {
+                dot(ui, type_color(p.ty));
+                ui.label(RichText::new(p.name).color(type_color(p.ty)));
+                ui.label(RichText::new(p.ty.name()).weak());
+                ui.label(p.doc);
+            });
+        }
+    }
+    edits
+}

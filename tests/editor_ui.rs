@@ -1,0 +1,180 @@
+//! Editor interaction tests through egui_kittest: no window, no GPU.
+#![cfg(feature = "editor")]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::{Path, PathBuf};
+
+use egui::accesskit::Role;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use kinegraph::document;
+use kinegraph::editor::EditorApp;
+use kinegraph::editor::commands::{EditError, EditorCommand};
+use kinegraph::nodes::node::ParamValue;
+
+fn demo_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron")
+}
+
+fn harness(path: Option<&Path>) -> Harness<'static, EditorApp> {
+    let mut app = EditorApp::new(&egui::Context::default(), path);
+    app.wait_for_evaluation();
+    let mut harness =
+        Harness::builder().with_size([1400.0, 860.0]).build_ui_state(|ui, app: &mut EditorApp| app.ui(ui), app);
+    // Snarl lays nodes out over a couple of frames; the viewport may keep asking for
+    // repaints while it plays, so step a fixed number of frames instead of `run`.
+    harness.run_steps(4);
+    harness
+}
+
+fn end_secs(app: &EditorApp) -> Option<ParamValue> {
+    app.doc().nodes["trim"].params.get("end_secs").cloned()
+}
+
+#[test]
+fn shows_the_demo_graph_with_states() {
+    let harness = harness(Some(&demo_path()));
+    for kind in ["clip.load", "clip.trim", "clip.resample", "mesh.load", "export.glb", "export.bvh"] {
+        harness.get_by_label(kind);
+    }
+    let app = harness.state();
+    for id in ["clip", "trim", "resample", "mesh"] {
+        assert!(matches!(app.node_state(id), "ok" | "cached"), "{id}: {}", app.node_state(id));
+    }
+    // Exports do not run in the editor.
+    assert_eq!(app.node_state("glb"), "idle");
+    assert!(!app.is_dirty());
+}
+
+#[test]
+fn clicking_a_node_title_opens_its_panel_and_plays_its_clip() {
+    let mut harness = harness(Some(&demo_path()));
+    // Snarl draws nodes in a transformed layer, so click through AccessKit rather than a pointer position.
+    harness.get_by_label("resample").click_accesskit();
+    harness.run_steps(3);
+    assert_eq!(harness.state().selected(), Some("resample"));
+    harness.get_by_role_and_label(Role::SpinButton, "fps");
+    harness.get_by_label("pause");
+}
+
+#[test]
+fn a_param_edit_goes_through_the_reducer_and_undo_restores_it() {
+    let mut harness = harness(Some(&demo_path()));
+    let before = document::to_string(harness.state().doc());
+    harness.state_mut().select(Some("trim"));
+    harness.run_steps(2);
+    harness.get_by_label("Parameters");
+    let field = harness.get_by_role_and_label(Role::SpinButton, "end_secs");
+    field.click();
+    harness.run_steps(2);
+    harness.get_by_role_and_label(Role::SpinButton, "end_secs").type_text("0.5");
+    harness.run_steps(1);
+    harness.key_press(egui::Key::Enter);
+    harness.run_steps(2);
+    assert_eq!(end_secs(harness.state()), Some(ParamValue::Float(0.5)));
+    assert!(harness.state().is_dirty());
+
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.run_steps(2);
+    assert_eq!(document::to_string(harness.state().doc()), before);
+    assert!(!harness.state().is_dirty());
+
+    harness.key_press_modifiers(egui::Modifiers::COMMAND | egui::Modifiers::SHIFT, egui::Key::Z);
+    harness.run_steps(2);
+    assert_eq!(end_secs(harness.state()), Some(ParamValue::Float(0.5)));
+}
+
+#[test]
+fn a_bad_connection_is_refused_with_the_reason_shown() {
+    let mut harness = harness(Some(&demo_path()));
+    let before = harness.state().doc().clone();
+    let result = harness.state_mut().edit(EditorCommand::Connect { from: "mesh.mesh".into(), to: "trim.clip".into() });
+    assert!(matches!(result, Err(EditError::TypeMismatch { .. })), "{result:?}");
+    harness.run_steps(2);
+    harness.get_by_label_contains("mesh.mesh gives a mesh, but trim.clip takes a clip");
+    assert_eq!(harness.state().doc(), &before);
+    assert!(!harness.state().is_dirty());
+}
+
+#[test]
+fn dragging_a_wire_between_different_types_is_refused_by_the_connect_hook() {
+    let mut harness = harness(Some(&demo_path()));
+    let before = harness.state().doc().clone();
+    // Pin positions of the demo's initial view at 1400×860 (see docs/editor.png's layout):
+    // the `mesh` node's output pin, then the `trim` node's `clip` input pin.
+    let (from, to) = (egui::pos2(318.0, 485.0), egui::pos2(402.0, 292.0));
+    harness.drag_at(from);
+    harness.run_steps(1);
+    for t in [0.25, 0.5, 0.75, 1.0] {
+        harness.hover_at(from + (to - from) * t);
+        harness.run_steps(1);
+    }
+    harness.drop_at(to);
+    harness.run_steps(2);
+    let message = harness.state().message().map(|(m, _)| m.to_string()).unwrap_or_default();
+    assert_eq!(message, "connection refused: mesh.mesh gives a mesh, but trim.clip takes a clip");
+    harness.get_by_label_contains("Cannot connect: mesh.mesh gives a mesh");
+    assert_eq!(harness.state().doc(), &before);
+}
+
+#[test]
+fn dragging_a_wire_into_an_occupied_input_replaces_it_in_one_undo_step() {
+    let mut harness = harness(Some(&demo_path()));
+    let before = document::to_string(harness.state().doc());
+    // `clip`'s output pin to `resample`'s input pin, which `trim` feeds.
+    let (from, to) = (egui::pos2(291.0, 292.0), egui::pos2(668.0, 292.0));
+    harness.drag_at(from);
+    harness.run_steps(1);
+    for t in [0.25, 0.5, 0.75, 1.0] {
+        harness.hover_at(from + (to - from) * t);
+        harness.run_steps(1);
+    }
+    harness.drop_at(to);
+    harness.run_steps(2);
+    let into: Vec<String> =
+        harness.state().doc().edges.iter().filter(|e| e.to == "resample.clip").map(|e| e.from.clone()).collect();
+    assert_eq!(into, ["clip.clip"]);
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.run_steps(2);
+    assert_eq!(document::to_string(harness.state().doc()), before);
+}
+
+#[test]
+fn adding_a_node_from_the_catalogue_menu() {
+    let mut harness = harness(Some(&demo_path()));
+    harness.get_by_label("Add").click();
+    harness.run_steps(2);
+    harness.get_by_label("scalar.constant").click();
+    harness.run_steps(2);
+    let app = harness.state();
+    assert_eq!(app.doc().nodes["constant"].kind, "scalar.constant");
+    assert_eq!(app.selected(), Some("constant"));
+    assert!(app.is_dirty());
+}
+
+#[test]
+fn save_and_reload_and_saving_without_edits_changes_no_byte() {
+    let dir = tempfile::tempdir().unwrap();
+    // A valid but not canonically formatted copy of the demo (relative paths still work).
+    let text = std::fs::read_to_string(demo_path()).unwrap().replace("    ", "  ");
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs").join(format!(".editor_test_{}.ron", std::process::id()));
+    std::fs::write(&path, &text).unwrap();
+    let mut harness = harness(Some(&path));
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    harness.run_steps(1);
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), text, "saving without edits rewrote the file");
+    std::fs::remove_file(&path).unwrap();
+
+    let copy = dir.path().join("copy.ron");
+    let app = harness.state_mut();
+    app.edit(EditorCommand::SetParam { node: "resample".into(), param: "fps".into(), value: ParamValue::Int(12) })
+        .unwrap();
+    app.save_as(&copy);
+    assert!(!app.is_dirty());
+    let saved = document::to_string(app.doc());
+    assert_eq!(std::fs::read_to_string(&copy).unwrap(), saved);
+    let reloaded = EditorApp::new(&egui::Context::default(), Some(&copy));
+    assert_eq!(document::to_string(reloaded.doc()), saved);
+    assert!(!reloaded.is_dirty());
+}
