@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 use egui::{Color32, Pos2, RichText, Ui};
 use egui_snarl::ui::{PinInfo, SnarlStyle, SnarlViewer, SnarlWidget};
 use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
-use kinegraph_nodes::node::{NodeSchema, PortType, Registry};
+use kinegraph_nodes::node::{NodeSchema, PortSpec, PortType, Registry};
 
 use super::commands::{EditorCommand, check_connect, fresh_node_id};
 use crate::document::{GraphDoc, split_endpoint};
@@ -261,14 +261,7 @@ impl SnarlViewer<String> for Viewer<'_> {
             .get_node(pin.id.node)
             .and_then(|id| schema(self.doc, self.registry, id))
             .and_then(|s| s.inputs.get(pin.id.input));
-        match port {
-            Some(p) => {
-                let name = if p.required { p.name.to_string() } else { format!("{} (optional)", p.name) };
-                ui.label(name).on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
-                PinInfo::circle().with_fill(type_color(p.ty))
-            }
-            None => PinInfo::circle(),
-        }
+        port_pin(ui, port, |p| if p.required { p.name.to_string() } else { format!("{} (optional)", p.name) })
     }
 
     fn show_output(
@@ -281,13 +274,7 @@ impl SnarlViewer<String> for Viewer<'_> {
             .get_node(pin.id.node)
             .and_then(|id| schema(self.doc, self.registry, id))
             .and_then(|s| s.outputs.get(pin.id.output));
-        match port {
-            Some(p) => {
-                ui.label(p.name).on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
-                PinInfo::circle().with_fill(type_color(p.ty))
-            }
-            None => PinInfo::circle(),
-        }
+        port_pin(ui, port, |p| p.name.to_string())
     }
 
     fn has_body(&mut self, node: &String) -> bool {
@@ -414,4 +401,15 @@ pub(crate) fn catalogue_menu(ui: &mut Ui, registry: &Registry, search: &str) -> 
         }
     }
     picked
+}
+
+/// A port's label (with its type and doc as tooltip) and its pin, coloured by type.
+fn port_pin(ui: &mut Ui, port: Option<&PortSpec>, label: impl Fn(&PortSpec) -> String) -> PinInfo {
+    match port {
+        Some(p) => {
+            ui.label(label(p)).on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
+            PinInfo::circle().with_fill(type_color(p.ty))
+        }
+        None => PinInfo::circle(),
+    }
 }

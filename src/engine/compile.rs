@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::path::PathBuf;
 
-use kinegraph_nodes::node::{Node, ParamKind, ParamValue, Registry, edit_distance};
+use kinegraph_nodes::node::{Node, ParamKind, ParamValue, Registry, nearest_name};
 use petgraph::graph::{DiGraph, NodeIndex};
 
 use crate::document::{GraphDoc, SourceMap, split_endpoint};
@@ -106,13 +106,13 @@ impl Checker<'_> {
     }
 }
 
+/// `" (did you mean 'x'?)"` for the nearest candidate, or nothing.
+fn did_you_mean(name: Option<&str>) -> String {
+    name.map(|c| format!(" (did you mean '{c}'?)")).unwrap_or_default()
+}
+
 fn nearest<'a>(name: &str, candidates: impl Iterator<Item = &'a str>) -> String {
-    candidates
-        .map(|c| (edit_distance(c, name), c))
-        .filter(|(d, c)| *d <= c.len() / 2 + 1)
-        .min()
-        .map(|(_, c)| format!(" (did you mean '{c}'?)"))
-        .unwrap_or_default()
+    did_you_mean(nearest_name(name, candidates))
 }
 
 /// Validates `doc` against `registry`. `path` and `source` only serve the messages.
@@ -131,8 +131,7 @@ pub fn compile<'r>(
             check.node(id, "node ids must be non-empty and contain no spaces".into());
         }
         let Some(node) = registry.get(&node_doc.kind) else {
-            let hint =
-                registry.nearest_kind(&node_doc.kind).map(|k| format!(" (did you mean '{k}'?)")).unwrap_or_default();
+            let hint = did_you_mean(registry.nearest_kind(&node_doc.kind));
             check.node(id, format!("unknown node kind '{}'{hint}; `kg nodes` lists them", node_doc.kind));
             continue;
         };

@@ -7,6 +7,9 @@ use glam::{Quat, Vec3};
 use super::skeleton::Skeleton;
 use super::units::ImportScale;
 
+/// Translations further than this (metres) from the rest offset count as animated.
+pub const ANIMATED_TRANSLATION_M: f32 = 1e-7;
+
 /// Why clip data is inconsistent.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ClipError {
@@ -26,6 +29,9 @@ pub enum ClipError {
         /// Joint count.
         joints: usize,
     },
+    /// The skeleton the clip would need is invalid.
+    #[error(transparent)]
+    Skeleton(#[from] super::SkeletonError),
     /// A rotation is NaN, infinite or zero, or a translation is not finite or beyond
     /// ±[`super::MAX_COORDINATE_M`].
     #[error(
@@ -167,7 +173,7 @@ impl Clip {
             joint.rest_offset = r * joint.rest_offset;
             joint.rest_rotation = r * joint.rest_rotation;
         }
-        let skeleton = Skeleton::new(joints).map_err(|_| ClipError::NonFinite { frame: 0, joint: String::new() })?;
+        let skeleton = Skeleton::new(joints)?;
         let roots: Vec<bool> = self.skeleton.joints().iter().map(|j| j.parent.is_none()).collect();
         let n = self.joint_count();
         let rotations =
@@ -175,6 +181,15 @@ impl Clip {
         let translations =
             self.translations.iter().enumerate().map(|(i, t)| if roots[i % n] { r * *t } else { *t }).collect();
         Clip::new(Arc::new(skeleton), self.fps, rotations, translations, self.import_scale)
+    }
+
+    /// Whether joint `joint`'s translation leaves its rest offset by more than
+    /// [`ANIMATED_TRANSLATION_M`] on some frame: exporters give such joints position
+    /// channels.
+    pub fn translation_is_animated(&self, joint: usize) -> bool {
+        let rest = self.skeleton.joints()[joint].rest_offset;
+        (0..self.frames)
+            .any(|f| (self.frame_translations(f)[joint] - rest).abs().max_element() > ANIMATED_TRANSLATION_M)
     }
 
     /// Frames `start..end` (clamped to the clip) as a new clip at the same rate.

@@ -157,6 +157,12 @@ impl Skeleton {
         self.joints.is_empty()
     }
 
+    /// The same skeleton with every rest offset multiplied by `factor` (a unit change).
+    pub fn scaled(&self, factor: f32) -> Result<Skeleton, SkeletonError> {
+        let joints = self.joints.iter().map(|j| Joint { rest_offset: j.rest_offset * factor, ..j.clone() }).collect();
+        Skeleton::new(joints)
+    }
+
     /// Index of the joint called `name`.
     pub fn index_of(&self, name: &str) -> Option<usize> {
         self.by_name.get(name).copied()

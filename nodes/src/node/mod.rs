@@ -137,12 +137,19 @@ impl Registry {
 
     /// The registered kind closest to `kind` by edit distance, for "did you mean" hints.
     pub fn nearest_kind(&self, kind: &str) -> Option<&'static str> {
-        self.nodes
-            .keys()
-            .copied()
-            .min_by_key(|k| edit_distance(k, kind))
-            .filter(|k| edit_distance(k, kind) <= k.len() / 2 + 1)
+        nearest_name(kind, self.nodes.keys().copied())
     }
+}
+
+/// The candidate closest to `name` by edit distance, if it is close enough to be a typo
+/// (at most about half its length away): the "did you mean" of every validation message.
+pub fn nearest_name<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    candidates
+        .into_iter()
+        .map(|c| (edit_distance(c, name), c))
+        .filter(|(d, c)| *d <= c.len() / 2 + 1)
+        .min()
+        .map(|(_, c)| c)
 }
 
 /// Levenshtein distance between two short names.

@@ -115,7 +115,7 @@ impl Parser<'_> {
 
     fn parse(mut self, bytes: &[u8], options: BvhReadOptions) -> Result<Loaded<(Clip, BvhStats)>, FormatError> {
         let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
-        let start = find_subslice(bytes, b"HIERARCHY")
+        let start = memchr::memmem::find(bytes, b"HIERARCHY")
             .ok_or_else(|| FormatError::file(self.path, Kind::Syntax, "no HIERARCHY keyword: not a BVH file"))?;
         let skipped_lines = bytes[..start].iter().filter(|&&b| b == b'\n').count();
         if bytes[..start].iter().any(|b| !b.is_ascii_whitespace()) {
@@ -138,7 +138,8 @@ impl Parser<'_> {
         }
         let (joints, (claimed_frames, frame_time, frames_line)) = header?;
         let mut lines = tokens.lines;
-        let rest_extent = rest_extent(&joints);
+        let file_skeleton = self.build_skeleton(&joints)?;
+        let rest_extent = f64::from(file_skeleton.rest_extent().max_element());
         let (unit, metres_per_unit, detected) = match options.metres_per_unit {
             Some(m) if m.is_finite() && m > 0.0 => (None, m, false),
             Some(m) => {
@@ -153,7 +154,9 @@ impl Parser<'_> {
                 (Some(unit), unit.metres(), true)
             }
         };
-        let skeleton = self.build_skeleton(&joints, metres_per_unit as f32)?;
+        let skeleton = file_skeleton
+            .scaled(metres_per_unit as f32)
+            .map_err(|e| self.err(joints[0].line, Kind::Value, format!("{e} after scaling to metres")))?;
         let (rotations, translations) =
             self.parse_frames(&mut lines, &joints, &skeleton, claimed_frames, frames_line, metres_per_unit as f32)?;
         let scale = ImportScale { unit, metres_per_unit, detected };
@@ -360,13 +363,14 @@ impl Parser<'_> {
         Ok((frames, frame_time.unwrap_or(1.0), frames_line))
     }
 
-    fn build_skeleton(&self, joints: &[RawJoint], scale: f32) -> Result<Skeleton, FormatError> {
+    /// The skeleton in file units.
+    fn build_skeleton(&self, joints: &[RawJoint]) -> Result<Skeleton, FormatError> {
         let mut out: Vec<Joint> = joints
             .iter()
             .map(|r| Joint {
                 name: r.name.clone(),
                 parent: r.parent,
-                rest_offset: r.offset * scale,
+                rest_offset: r.offset,
                 rest_rotation: Quat::IDENTITY,
                 limits: None,
                 channels: r.channels.clone(),
@@ -600,22 +604,6 @@ fn parse_channel(name: &str) -> Option<Channel> {
         "rotation" => Some(Channel::Rotation(axis)),
         _ => None,
     }
-}
-
-/// Largest extent of the offset-only skeleton, file units.
-fn rest_extent(joints: &[RawJoint]) -> f64 {
-    let mut positions: Vec<Vec3> = Vec::with_capacity(joints.len());
-    for j in joints {
-        let p = j.parent.map(|p| positions[p]).unwrap_or(Vec3::ZERO) + j.offset;
-        positions.push(p);
-    }
-    let (lo, hi) =
-        positions.iter().fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-    f64::from((hi - lo).max_element())
-}
-
-fn find_subslice(haystack: &[u8], needle: &[u8]) -> Option<usize> {
-    haystack.windows(needle.len()).position(|w| w == needle)
 }
 
 #[cfg(test)]

@@ -15,16 +15,19 @@ use crate::formats::error::{FormatError, Loaded};
 use crate::math::euler::{Axis, decompose1, decompose3};
 use crate::model::{Channel, Clip};
 
-/// Translations that differ from the rest offset by more than this (metres) count as
-/// animated when choosing a default channel layout.
-const ANIMATED_TRANSLATION_M: f32 = 1e-6;
-
 /// Serialises `clip` as BVH text, with warnings for anything the layout cannot carry.
 pub fn write_bvh(clip: &Clip) -> Loaded<String> {
     let skeleton = clip.skeleton();
     let unit = clip.import_scale.metres_per_unit as f32;
     let to_file = 1.0 / unit;
-    let layouts: Vec<Vec<Channel>> = (0..skeleton.len()).map(|j| channel_layout(clip, j)).collect();
+    let animated: Vec<bool> = (0..skeleton.len()).map(|j| clip.translation_is_animated(j)).collect();
+    let layouts: Vec<Vec<Channel>> = (0..skeleton.len()).map(|j| channel_layout(clip, j, animated[j])).collect();
+    // Parents come first, so one pass gives every joint's nesting depth.
+    let mut depths: Vec<usize> = Vec::with_capacity(skeleton.len());
+    for joint in skeleton.joints() {
+        let depth = joint.parent.map_or(0, |p| depths[p] + 1);
+        depths.push(depth);
+    }
     let mut warnings = Vec::new();
     for (j, joint) in skeleton.joints().iter().enumerate() {
         if joint.rest_rotation != Quat::IDENTITY && !joint.end_site {
@@ -34,7 +37,7 @@ pub fn write_bvh(clip: &Clip) -> Loaded<String> {
             ));
         }
         let has_position = layouts[j].iter().any(|c| matches!(c, Channel::Position(_)));
-        if !has_position && translation_is_animated(clip, j) {
+        if !has_position && animated[j] {
             warnings.push(format!(
                 "joint '{}' has animated translation but no position channels: it is dropped",
                 joint.name
@@ -45,7 +48,7 @@ pub fn write_bvh(clip: &Clip) -> Loaded<String> {
     let mut out = String::with_capacity(64 * skeleton.len() + clip.frame_count() * skeleton.len() * 30);
     out.push_str("HIERARCHY\n");
     for (j, joint) in skeleton.joints().iter().enumerate() {
-        let depth = depth(clip, j);
+        let depth = depths[j];
         let pad = "\t".repeat(depth);
         let o = joint.rest_offset * to_file;
         if joint.end_site {
@@ -62,7 +65,7 @@ pub fn write_bvh(clip: &Clip) -> Loaded<String> {
             out.push('\n');
         }
         // Close this block and every ancestor block that ends here.
-        let next_depth = if j + 1 < skeleton.len() { self::depth(clip, j + 1) } else { 0 };
+        let next_depth = depths.get(j + 1).copied().unwrap_or(0);
         for d in (next_depth..=depth).rev() {
             let _ = writeln!(out, "{}}}", "\t".repeat(d));
         }
@@ -107,28 +110,13 @@ pub fn write_bvh_file(clip: &Clip, path: &Path) -> Result<Vec<String>, FormatErr
     Ok(warnings)
 }
 
-fn depth(clip: &Clip, mut j: usize) -> usize {
-    let joints = clip.skeleton().joints();
-    let mut d = 0;
-    while let Some(p) = joints[j].parent {
-        d += 1;
-        j = p;
-    }
-    d
-}
-
-fn translation_is_animated(clip: &Clip, j: usize) -> bool {
-    let rest = clip.skeleton().joints()[j].rest_offset;
-    (0..clip.frame_count()).any(|f| (clip.frame_translations(f)[j] - rest).abs().max_element() > ANIMATED_TRANSLATION_M)
-}
-
-fn channel_layout(clip: &Clip, j: usize) -> Vec<Channel> {
+fn channel_layout(clip: &Clip, j: usize, animated: bool) -> Vec<Channel> {
     let joint = &clip.skeleton().joints()[j];
     if !joint.channels.is_empty() || joint.end_site {
         return joint.channels.clone();
     }
     let rotation = [Axis::Z, Axis::Y, Axis::X].map(Channel::Rotation);
-    if joint.parent.is_none() || translation_is_animated(clip, j) {
+    if joint.parent.is_none() || animated {
         let mut layout = [Axis::X, Axis::Y, Axis::Z].map(Channel::Position).to_vec();
         layout.extend(rotation);
         layout

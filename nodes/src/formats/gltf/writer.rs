@@ -28,10 +28,6 @@ use crate::model::{Clip, Mesh};
 
 use super::builder::{Bounds, GlbBuilder};
 
-/// Translations further than this (metres) from the rest offset on some frame get a
-/// translation channel.
-const ANIMATED_TRANSLATION_M: f32 = 1e-7;
-
 /// The stand-in file name in errors from [`write_glb`], which has no file.
 const IN_MEMORY: &str = "<glb>";
 
@@ -113,7 +109,7 @@ pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, Fo
                 extras: Default::default(),
             });
         };
-        for (j, joint) in joints.iter().enumerate() {
+        for j in 0..joints.len() {
             let mut rotations = Vec::with_capacity(frames * 4);
             let mut previous: Option<glam::Quat> = None;
             for f in 0..frames {
@@ -128,10 +124,7 @@ pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, Fo
                 rotations.extend_from_slice(&q.to_array());
             }
             add_channel(&mut b, j, Property::Rotation, rotations, Type::Vec4);
-            let animated = (0..frames).any(|f| {
-                (clip.translations()[f * jc + j] - joint.rest_offset).abs().max_element() > ANIMATED_TRANSLATION_M
-            });
-            if animated {
+            if clip.translation_is_animated(j) {
                 let translations: Vec<f32> =
                     (0..frames).flat_map(|f| clip.translations()[f * jc + j].to_array()).collect();
                 add_channel(&mut b, j, Property::Translation, translations, Type::Vec3);
