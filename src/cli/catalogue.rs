@@ -18,7 +18,9 @@ fn param_range(p: &ParamSpec) -> String {
             format!("whole number {min}..={max}, default {d}")
         }
         ParamKind::Choice { choices, default } => format!("one of {}, default {default}", choices.join(" | ")),
-        ParamKind::InputPath { extensions } => format!("input file (.{}), required", extensions.join(", .")),
+        ParamKind::InputPath { extensions, required } => {
+            format!("input file (.{}), {}", extensions.join(", ."), if required { "required" } else { "optional" })
+        },
         ParamKind::OutputPath { extension, default } => format!("output file (.{extension}), default {default}"),
     }
 }

@@ -53,6 +53,9 @@ pub enum Facts {
         /// Hex SHA-256 of the content.
         sha256: String,
     },
+    /// Structured data (curves summaries, phases, contacts, reports): whole numbers and
+    /// text compared exactly, reals within tolerance.
+    Data(serde_json::Value),
 }
 
 /// A graph's stored expectations.
@@ -60,6 +63,11 @@ pub enum Facts {
 pub struct Expectation {
     /// Relative tolerance for real numbers (absolute below magnitude 1).
     pub tolerance: f64,
+    /// Files or folders outside the repository the graph reads (relative to the graph's
+    /// folder, e.g. the shared motion corpus). When one is missing the graph is skipped
+    /// with a message, or fails when the `CI` environment variable is set.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub requires: Vec<String>,
     /// Facts per `node.port`.
     pub outputs: BTreeMap<String, Facts>,
 }
@@ -93,6 +101,23 @@ pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
             }
         }
         Value::Scalar(x) => Facts::Scalar(*x),
+        Value::Curves(curves) => {
+            let channels: serde_json::Map<String, serde_json::Value> = curves
+                .channels()
+                .iter()
+                .map(|c| {
+                    let (lo, hi) = c.values.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                        (lo.min(*v), hi.max(*v))
+                    });
+                    let mean = c.values.iter().sum::<f64>() / c.values.len().max(1) as f64;
+                    (c.name.clone(), serde_json::json!({ "min": lo, "max": hi, "mean": mean }))
+                })
+                .collect();
+            Facts::Data(serde_json::json!({ "frames": curves.frame_count(), "fps": curves.fps(), "channels": channels }))
+        }
+        Value::Phases(phases) => Facts::Data(serde_json::to_value(phases.as_ref()).unwrap_or_default()),
+        Value::Contacts(contacts) => Facts::Data(serde_json::to_value(contacts.as_ref()).unwrap_or_default()),
+        Value::Report(report) => Facts::Data(serde_json::Value::Object(report.as_ref().clone())),
         Value::File(relative) => {
             let bytes = std::fs::read(out_dir.join(relative.as_path())).unwrap_or_default();
             Facts::File { bytes: bytes.len() as u64, sha256: format!("{:x}", sha2::Sha256::digest(&bytes)) }
@@ -176,6 +201,7 @@ pub fn compare(expected: &Expectation, actual: &BTreeMap<String, Facts>) -> Vec<
                 field("bytes", bytes == b2, bytes.to_string(), b2.to_string());
                 field("sha256", sha256 == s2, sha256.clone(), s2.clone());
             }
+            (Facts::Data(want), Facts::Data(got)) => compare_data(key, want, got, tol, &mut problems),
             (want, got) => problems.push(format!("{key}: expected {want:?}, got {got:?}")),
         }
     }
@@ -183,6 +209,35 @@ pub fn compare(expected: &Expectation, actual: &BTreeMap<String, Facts>) -> Vec<
         problems.push(format!("{key}: new output not in the expectation (run kg test --bless to accept)"));
     }
     problems
+}
+
+/// Walks two JSON trees side by side, one problem line per differing leaf.
+fn compare_data(path: &str, want: &serde_json::Value, got: &serde_json::Value, tol: f64, problems: &mut Vec<String>) {
+    use serde_json::Value as J;
+    match (want, got) {
+        (J::Object(a), J::Object(b)) => {
+            for key in a.keys().chain(b.keys().filter(|k| !a.contains_key(*k))) {
+                match (a.get(key), b.get(key)) {
+                    (Some(x), Some(y)) => compare_data(&format!("{path}.{key}"), x, y, tol, problems),
+                    (Some(_), None) => problems.push(format!("{path}.{key}: expected, missing from the run")),
+                    (None, _) => problems.push(format!("{path}.{key}: new in the run, not expected")),
+                }
+            }
+        }
+        (J::Array(a), J::Array(b)) if a.len() == b.len() => {
+            for (i, (x, y)) in a.iter().zip(b).enumerate() {
+                compare_data(&format!("{path}[{i}]"), x, y, tol, problems);
+            }
+        }
+        (J::Number(a), J::Number(b)) if a.is_f64() || b.is_f64() => {
+            let (x, y) = (a.as_f64().unwrap_or(f64::NAN), b.as_f64().unwrap_or(f64::NAN));
+            if !close(x, y, tol) {
+                problems.push(format!("{path}: expected {x}, got {y}"));
+            }
+        }
+        (a, b) if a == b => {}
+        (a, b) => problems.push(format!("{path}: expected {a}, got {b}")),
+    }
 }
 
 /// `graphs/NAME.ron` → `graphs/NAME.expect.ron`.
@@ -206,8 +261,52 @@ pub fn graphs_in(dir: &Path) -> Vec<PathBuf> {
     graphs
 }
 
-/// Runs one graph and compares (or blesses); returns the problems found.
-pub fn test_graph(engine: &Engine, graph: &Path, bless: bool) -> Vec<String> {
+/// How one regression graph fared.
+#[derive(Clone, Debug, PartialEq)]
+pub enum GraphTest {
+    /// Ran and matched (or was blessed).
+    Passed,
+    /// Not run: data it requires is absent (outside CI).
+    Skipped(String),
+    /// Ran and differed, or could not run; one line per problem.
+    Failed(Vec<String>),
+}
+
+/// The expectation next to `graph`, if there is one (or why it cannot be read).
+fn read_expectation(graph: &Path) -> Option<Result<Expectation, String>> {
+    let path = expectation_path(graph);
+    std::fs::read_to_string(&path)
+        .ok()
+        .map(|t| ron::from_str::<Expectation>(&t).map_err(|e| format!("{}:{e}", path.display())))
+}
+
+/// Runs one graph and compares (or blesses).
+pub fn test_graph(engine: &Engine, graph: &Path, bless: bool) -> GraphTest {
+    let existing = read_expectation(graph);
+    if let Some(Ok(expected)) = &existing {
+        let base = graph.parent().unwrap_or(Path::new("."));
+        let missing: Vec<&String> = expected.requires.iter().filter(|r| !base.join(r).exists()).collect();
+        if !missing.is_empty() {
+            let what = format!("required data not found: {}", missing.iter().map(|m| m.as_str()).collect::<Vec<_>>().join(", "));
+            return if std::env::var_os("CI").is_some() {
+                GraphTest::Failed(vec![format!("{what} (CI is set, so this fails)")])
+            } else {
+                GraphTest::Skipped(what)
+            };
+        }
+    }
+    match run_and_compare(engine, graph, bless, existing) {
+        problems if problems.is_empty() => GraphTest::Passed,
+        problems => GraphTest::Failed(problems),
+    }
+}
+
+fn run_and_compare(
+    engine: &Engine,
+    graph: &Path,
+    bless: bool,
+    existing: Option<Result<Expectation, String>>,
+) -> Vec<String> {
     let loaded = match load_graph(graph, &[], engine.registry()) {
         Ok(l) => l,
         Err(e) => return vec![e],
@@ -231,15 +330,12 @@ pub fn test_graph(engine: &Engine, graph: &Path, bless: bool) -> Vec<String> {
     let kinds = loaded.doc.nodes.iter().map(|(id, n)| (id.clone(), n.kind.clone())).collect();
     let actual = run_facts(&report, engine, &kinds, out_dir.path());
     let path = expectation_path(graph);
-    let existing = std::fs::read_to_string(&path)
-        .ok()
-        .map(|t| ron::from_str::<Expectation>(&t).map_err(|e| format!("{}:{e}", path.display())));
     if bless {
-        let tolerance = match existing {
-            Some(Ok(e)) => e.tolerance,
-            _ => 1e-5,
+        let (tolerance, requires) = match existing {
+            Some(Ok(e)) => (e.tolerance, e.requires),
+            _ => (1e-5, Vec::new()),
         };
-        let expectation = Expectation { tolerance, outputs: actual };
+        let expectation = Expectation { tolerance, requires, outputs: actual };
         let config = ron::ser::PrettyConfig::new().indentor("    ");
         let text = ron::ser::to_string_pretty(&expectation, config).map(|t| t + "\n").unwrap_or_default();
         if let Err(e) = kinegraph_nodes::formats::atomic::write_atomic(&path, text.as_bytes()) {
@@ -257,21 +353,27 @@ pub fn test_graph(engine: &Engine, graph: &Path, bless: bool) -> Vec<String> {
 pub(super) fn test_command(graphs: Vec<PathBuf>, bless: bool) -> u8 {
     let graphs = if graphs.is_empty() { graphs_in(Path::new("graphs")) } else { graphs };
     let engine = Engine::new(Registry::builtin());
-    let (mut passed, mut failed) = (0, 0);
+    let (mut passed, mut failed, mut skipped) = (0, 0, 0);
     for graph in &graphs {
-        let problems = test_graph(&engine, graph, bless);
-        if problems.is_empty() {
-            passed += 1;
-            eprintln!("{} {}", if bless { "blessed" } else { "ok     " }, graph.display());
-        } else {
-            failed += 1;
-            eprintln!("FAILED  {}", graph.display());
-            for p in problems {
-                eprintln!("        {p}");
+        match test_graph(&engine, graph, bless) {
+            GraphTest::Passed => {
+                passed += 1;
+                eprintln!("{} {}", if bless { "blessed" } else { "ok     " }, graph.display());
+            }
+            GraphTest::Skipped(why) => {
+                skipped += 1;
+                eprintln!("skipped {}: {why}", graph.display());
+            }
+            GraphTest::Failed(problems) => {
+                failed += 1;
+                eprintln!("FAILED  {}", graph.display());
+                for p in problems {
+                    eprintln!("        {p}");
+                }
             }
         }
     }
-    println!("kg test: {passed} passed, {failed} failed");
+    println!("kg test: {passed} passed, {failed} failed, {skipped} skipped");
     if failed > 0 { EXIT_FAILED } else { 0 }
 }
 
@@ -289,7 +391,7 @@ mod tests {
             root_travel_m: 2.0,
             mean_joint_height_m: 1.0,
         };
-        let expected = Expectation { tolerance: 1e-3, outputs: [("a.clip".to_string(), clip(10, 30.0))].into() };
+        let expected = Expectation { tolerance: 1e-3, requires: Vec::new(), outputs: [("a.clip".to_string(), clip(10, 30.0))].into() };
         let same = [("a.clip".to_string(), clip(10, 30.01))].into();
         assert!(compare(&expected, &same).is_empty());
         let off = [("a.clip".to_string(), clip(11, 30.1))].into();

@@ -179,6 +179,7 @@ pub fn json_report(graph: &Path, report: &RunReport, exit_code: u8) -> serde_jso
         "seconds": report.seconds,
         "nodes": report.nodes,
         "files_written": report.files_written,
+        "reports": report.reports(),
     })
 }
 

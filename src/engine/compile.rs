@@ -157,7 +157,7 @@ pub fn compile<'r>(
                     Some(v) => {
                         params.insert(spec.name.to_string(), v);
                     }
-                    None if matches!(spec.kind, ParamKind::InputPath { .. }) => {
+                    None if matches!(spec.kind, ParamKind::InputPath { required: true, .. }) => {
                         check.param(id, spec.name, "is required: give the file to read".into());
                     }
                     None => {}

@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use kinegraph_nodes::node::Value;
+use kinegraph_nodes::node::{Report, Value};
 use serde::Serialize;
 
 /// How a node's evaluation ended.
@@ -56,6 +56,19 @@ impl RunReport {
     /// True when every needed node succeeded (ran or cached).
     pub fn succeeded(&self) -> bool {
         self.nodes.values().all(|n| matches!(n.status, NodeStatus::Ok | NodeStatus::Cached))
+    }
+
+    /// Each node's structured report (its first report output), by node id.
+    pub fn reports(&self) -> BTreeMap<&str, &Report> {
+        self.outputs
+            .iter()
+            .filter_map(|(id, outputs)| {
+                outputs.iter().flatten().find_map(|v| match v {
+                    Value::Report(r) => Some((id.as_str(), r.as_ref())),
+                    _ => None,
+                })
+            })
+            .collect()
     }
 
     /// How many nodes ended with `status`.

@@ -3,8 +3,10 @@
 
 pub mod clip_edit;
 pub mod clip_io;
+pub mod contacts;
 pub mod mannequin;
 pub mod mesh_io;
+pub mod momentum;
 pub mod scalar;
 
 use crate::node::Registry;
@@ -16,4 +18,6 @@ pub fn register(registry: &mut Registry) {
     clip_edit::register(registry);
     scalar::register(registry);
     mannequin::register(registry);
+    contacts::register(registry);
+    momentum::register(registry);
 }

@@ -1,7 +1,9 @@
 //! The motion data model: skeletons, clips, meshes, skins, forward kinematics and units.
 
 pub mod clip;
+pub mod curves;
 pub mod fk;
+pub mod intervals;
 pub mod mesh;
 pub mod skeleton;
 pub mod units;
@@ -17,7 +19,9 @@ pub const MAX_COORDINATE_M: f32 = 1e6;
 pub fn coordinate_in_range(v: glam::Vec3) -> bool {
     v.is_finite() && v.abs().max_element() <= MAX_COORDINATE_M
 }
+pub use curves::{CurveChannel, Curves, CurvesError};
 pub use fk::{ClipPoses, Transform, forward_kinematics};
+pub use intervals::{Contacts, FootContacts, FrameRange, Phases};
 pub use mesh::{Mesh, Skin};
 pub use skeleton::{Channel, Joint, JointLimits, Skeleton, SkeletonError};
 pub use units::{ImportScale, LengthUnit};

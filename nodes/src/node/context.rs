@@ -147,6 +147,11 @@ impl<'a> NodeContext<'a> {
         Ok(self.services.base_dir.join(self.text(p.0.name)?))
     }
 
+    /// An optional input file, resolved against the graph's folder; `None` when unset.
+    pub fn optional_input_path(&self, p: &InputPathParam) -> Result<Option<PathBuf>, NodeError> {
+        if self.param(p.0.name).is_none() { Ok(None) } else { self.input_path(p).map(Some) }
+    }
+
     /// Writes `bytes` atomically to the output file named by `p`, inside the run's output
     /// folder, and returns the path relative to that folder.
     pub fn write_output(&mut self, p: &OutputPathParam, bytes: &[u8]) -> Result<PathBuf, NodeError> {

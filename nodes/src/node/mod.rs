@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 pub use context::{NodeContext, NodeOutcome, RunServices};
 pub use param::{ChoiceParam, FloatParam, InputPathParam, IntParam, OutputPathParam, ParamKind, ParamSpec, ParamValue};
 pub use port::{Input, Output, PortSpec};
-pub use value::{PortType, PortValue, Value};
+pub use value::{PortType, PortValue, Report, Value};
 
 use crate::formats::FormatError;
 

@@ -74,6 +74,8 @@ pub enum ParamKind {
     InputPath {
         /// Accepted extensions, lowercase without the dot.
         extensions: &'static [&'static str],
+        /// Whether the node refuses to run without it.
+        required: bool,
     },
     /// A file to write, relative to the run's output folder and never leaving it.
     OutputPath {
@@ -133,7 +135,7 @@ impl ParamSpec {
                     Err(format!("'{s}' is not one of {}", choices.join(", ")))
                 }
             }
-            (ParamKind::InputPath { extensions }, ParamValue::Text(s)) => {
+            (ParamKind::InputPath { extensions, .. }, ParamValue::Text(s)) => {
                 if extensions.contains(&crate::formats::extension(std::path::Path::new(s)).as_str()) {
                     Ok(value.clone())
                 } else {
@@ -228,7 +230,11 @@ impl ChoiceParam {
 impl InputPathParam {
     /// Declares an input file parameter (required: no default).
     pub const fn new(name: &'static str, doc: &'static str, extensions: &'static [&'static str]) -> Self {
-        InputPathParam(ParamSpec { name, doc, kind: ParamKind::InputPath { extensions } })
+        InputPathParam(ParamSpec { name, doc, kind: ParamKind::InputPath { extensions, required: true } })
+    }
+    /// Declares an input file parameter that may stay unset.
+    pub const fn optional(name: &'static str, doc: &'static str, extensions: &'static [&'static str]) -> Self {
+        InputPathParam(ParamSpec { name, doc, kind: ParamKind::InputPath { extensions, required: false } })
     }
 }
 

@@ -2,7 +2,11 @@
 
 use std::sync::Arc;
 
-use crate::model::{Clip, Mesh};
+use crate::model::{Clip, Contacts, Curves, Mesh, Phases};
+
+/// A node's structured account of what it decided (chosen parameters, measured errors):
+/// shown by `kg run --json` and the editor, compared by `kg test`.
+pub type Report = serde_json::Map<String, serde_json::Value>;
 
 /// The type of a port. Closed: an edge is valid only between ports of the same type.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
@@ -16,6 +20,14 @@ pub enum PortType {
     Scalar,
     /// A path of a file a node wrote (inside the run's output directory).
     File,
+    /// Sampled curves (angular momentum, centre of mass, …).
+    Curves,
+    /// Motion phases of a clip.
+    Phases,
+    /// Foot contacts of a clip.
+    Contacts,
+    /// A node's structured report.
+    Report,
 }
 
 impl PortType {
@@ -26,6 +38,10 @@ impl PortType {
             PortType::Mesh => "mesh",
             PortType::Scalar => "scalar",
             PortType::File => "file",
+            PortType::Curves => "curves",
+            PortType::Phases => "phases",
+            PortType::Contacts => "contacts",
+            PortType::Report => "report",
         }
     }
 }
@@ -41,6 +57,14 @@ pub enum Value {
     Scalar(f64),
     /// See [`PortType::File`]: the path as written, relative to the output directory.
     File(Arc<std::path::PathBuf>),
+    /// See [`PortType::Curves`].
+    Curves(Arc<Curves>),
+    /// See [`PortType::Phases`].
+    Phases(Arc<Phases>),
+    /// See [`PortType::Contacts`].
+    Contacts(Arc<Contacts>),
+    /// See [`PortType::Report`].
+    Report(Arc<Report>),
 }
 
 impl Value {
@@ -51,6 +75,10 @@ impl Value {
             Value::Mesh(_) => PortType::Mesh,
             Value::Scalar(_) => PortType::Scalar,
             Value::File(_) => PortType::File,
+            Value::Curves(_) => PortType::Curves,
+            Value::Phases(_) => PortType::Phases,
+            Value::Contacts(_) => PortType::Contacts,
+            Value::Report(_) => PortType::Report,
         }
     }
 }
@@ -65,54 +93,29 @@ pub trait PortValue: Sized {
     fn into_value(self) -> Value;
 }
 
-impl PortValue for Arc<Clip> {
-    const TYPE: PortType = PortType::Clip;
-    fn from_value(value: &Value) -> Option<Self> {
-        match value {
-            Value::Clip(c) => Some(c.clone()),
-            _ => None,
+/// Implements [`PortValue`] for the payload of one `Value` variant.
+macro_rules! port_value {
+    ($payload:ty, $variant:ident) => {
+        impl PortValue for $payload {
+            const TYPE: PortType = PortType::$variant;
+            fn from_value(value: &Value) -> Option<Self> {
+                match value {
+                    Value::$variant(v) => Some(v.clone()),
+                    _ => None,
+                }
+            }
+            fn into_value(self) -> Value {
+                Value::$variant(self)
+            }
         }
-    }
-    fn into_value(self) -> Value {
-        Value::Clip(self)
-    }
+    };
 }
 
-impl PortValue for Arc<Mesh> {
-    const TYPE: PortType = PortType::Mesh;
-    fn from_value(value: &Value) -> Option<Self> {
-        match value {
-            Value::Mesh(m) => Some(m.clone()),
-            _ => None,
-        }
-    }
-    fn into_value(self) -> Value {
-        Value::Mesh(self)
-    }
-}
-
-impl PortValue for f64 {
-    const TYPE: PortType = PortType::Scalar;
-    fn from_value(value: &Value) -> Option<Self> {
-        match value {
-            Value::Scalar(v) => Some(*v),
-            _ => None,
-        }
-    }
-    fn into_value(self) -> Value {
-        Value::Scalar(self)
-    }
-}
-
-impl PortValue for Arc<std::path::PathBuf> {
-    const TYPE: PortType = PortType::File;
-    fn from_value(value: &Value) -> Option<Self> {
-        match value {
-            Value::File(p) => Some(p.clone()),
-            _ => None,
-        }
-    }
-    fn into_value(self) -> Value {
-        Value::File(self)
-    }
-}
+port_value!(Arc<Clip>, Clip);
+port_value!(Arc<Mesh>, Mesh);
+port_value!(f64, Scalar);
+port_value!(Arc<std::path::PathBuf>, File);
+port_value!(Arc<Curves>, Curves);
+port_value!(Arc<Phases>, Phases);
+port_value!(Arc<Contacts>, Contacts);
+port_value!(Arc<Report>, Report);

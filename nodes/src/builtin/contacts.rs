@@ -1,0 +1,212 @@
+//! Foot contacts: when each foot rests on the ground, and when both do (double support).
+//!
+//! A foot is in contact while its ankle or its toe tip is near the lowest height that point
+//! reaches in the clip and moves slowly. Thresholds have hysteresis (stricter to enter than
+//! to stay), so a foot that rests does not flicker in and out of contact on capture noise.
+//! The ground is taken per point as its lowest height in the clip: flat ground, any rig.
+
+use std::sync::Arc;
+
+use glam::DVec3;
+
+use crate::builtin::momentum::angular::central_difference;
+use crate::builtin::momentum::body::{Landmarks, find_landmarks, limb_tip};
+use crate::model::{Clip, ClipPoses, Contacts, FootContacts, FrameRange, forward_kinematics, intervals::intersect_all};
+use crate::node::{FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Registry};
+
+/// Thresholds of contact detection (metres above the point's lowest height, m/s).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactThresholds {
+    /// A point enters contact below this height…
+    pub enter_height_m: f64,
+    /// …and moving slower than this.
+    pub enter_speed_mps: f64,
+    /// It leaves contact above this height…
+    pub leave_height_m: f64,
+    /// …or moving faster than this.
+    pub leave_speed_mps: f64,
+    /// Contacts shorter than this are dropped (seconds).
+    pub min_duration_secs: f64,
+}
+
+impl Default for ContactThresholds {
+    fn default() -> Self {
+        ContactThresholds {
+            enter_height_m: 0.05,
+            enter_speed_mps: 0.5,
+            leave_height_m: 0.08,
+            leave_speed_mps: 0.9,
+            min_duration_secs: 0.05,
+        }
+    }
+}
+
+/// Contact intervals of one point's track (world positions per frame).
+fn point_contacts(track: &[DVec3], fps: f64, t: &ContactThresholds) -> Vec<FrameRange> {
+    let ground = track.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+    let min_frames = (t.min_duration_secs * fps).ceil() as usize;
+    let (mut out, mut start) = (Vec::new(), None);
+    for f in 0..track.len() {
+        let speed = central_difference(track, f, fps).length();
+        let height = track[f].y - ground;
+        match start {
+            None if height < t.enter_height_m && speed < t.enter_speed_mps => start = Some(f),
+            Some(s) if height > t.leave_height_m || speed > t.leave_speed_mps => {
+                out.push(FrameRange::new(s, f));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(s) = start {
+        out.push(FrameRange::new(s, track.len()));
+    }
+    out.retain(|r| r.len() >= min_frames.max(1));
+    out
+}
+
+/// Union of two sorted, disjoint interval lists.
+fn union(a: &[FrameRange], b: &[FrameRange]) -> Vec<FrameRange> {
+    let mut all: Vec<FrameRange> = a.iter().chain(b).copied().collect();
+    all.sort();
+    let mut out: Vec<FrameRange> = Vec::new();
+    for r in all {
+        match out.last_mut() {
+            Some(last) if r.start <= last.end => last.end = last.end.max(r.end),
+            _ => out.push(r),
+        }
+    }
+    out
+}
+
+/// Contacts of both feet of `clip` from precomputed world `poses`.
+pub fn detect_contacts(
+    clip: &Clip,
+    poses: &ClipPoses,
+    landmarks: &Landmarks,
+    thresholds: &ContactThresholds,
+) -> Contacts {
+    let skeleton = clip.skeleton();
+    let track = |j: usize| (0..poses.frame_count()).map(|f| poses.position(f, j).as_dvec3()).collect::<Vec<DVec3>>();
+    let feet: Vec<FootContacts> = landmarks
+        .feet()
+        .iter()
+        .map(|&ankle| {
+            let toe = limb_tip(skeleton, ankle);
+            let ankle_contacts = point_contacts(&track(ankle), clip.fps(), thresholds);
+            let intervals = if toe == ankle {
+                ankle_contacts
+            } else {
+                union(&ankle_contacts, &point_contacts(&track(toe), clip.fps(), thresholds))
+            };
+            FootContacts { foot: skeleton.joints()[ankle].name.clone(), intervals }
+        })
+        .collect();
+    let double_support = match feet.as_slice() {
+        [left, right] => intersect_all(&left.intervals, &right.intervals),
+        _ => Vec::new(),
+    };
+    Contacts { fps: clip.fps(), frame_count: clip.frame_count(), feet, double_support }
+}
+
+/// Registers the contact node.
+pub fn register(registry: &mut Registry) {
+    registry.add(Box::new(DetectContacts));
+}
+
+const CLIP: Input<Arc<Clip>> = Input::required("clip", "The clip whose feet to watch.");
+const CONTACTS: Output<Arc<Contacts>> =
+    Output::new("contacts", "Frames where each foot is on the ground, and where both are.");
+const ENTER_HEIGHT: FloatParam = FloatParam::new(
+    "enter_height_m",
+    "A foot touches down when its ankle or toe comes this close to its lowest height in the clip.",
+    0.05,
+    0.0,
+    1.0,
+    "m",
+);
+const LEAVE_HEIGHT: FloatParam =
+    FloatParam::new("leave_height_m", "It lifts off when both rise above this height.", 0.08, 0.0, 1.0, "m");
+const ENTER_SPEED: FloatParam =
+    FloatParam::new("enter_speed_mps", "…and touches down only while slower than this.", 0.5, 0.0, 20.0, "m/s");
+const LEAVE_SPEED: FloatParam =
+    FloatParam::new("leave_speed_mps", "It lifts off when faster than this.", 0.9, 0.0, 20.0, "m/s");
+const MIN_DURATION: FloatParam =
+    FloatParam::new("min_duration_secs", "Shorter contacts are ignored.", 0.05, 0.0, 10.0, "s");
+
+/// Reads the threshold params of a contacts node (shared by nodes that detect contacts).
+pub fn thresholds_from(ctx: &NodeContext<'_>) -> Result<ContactThresholds, NodeError> {
+    let t = ContactThresholds {
+        enter_height_m: ctx.float(&ENTER_HEIGHT)?,
+        enter_speed_mps: ctx.float(&ENTER_SPEED)?,
+        leave_height_m: ctx.float(&LEAVE_HEIGHT)?,
+        leave_speed_mps: ctx.float(&LEAVE_SPEED)?,
+        min_duration_secs: ctx.float(&MIN_DURATION)?,
+    };
+    if t.leave_height_m < t.enter_height_m {
+        return Err(NodeError::param("leave_height_m", "must not be below enter_height_m"));
+    }
+    if t.leave_speed_mps < t.enter_speed_mps {
+        return Err(NodeError::param("leave_speed_mps", "must not be below enter_speed_mps"));
+    }
+    Ok(t)
+}
+
+/// `motion.contacts`.
+pub struct DetectContacts;
+
+static DETECT_CONTACTS: NodeSchema = NodeSchema {
+    kind: "motion.contacts",
+    category: "motion",
+    doc: "Finds when each foot is planted (low and slow, with hysteresis) and the double-support frames.",
+    inputs: &[CLIP.spec()],
+    outputs: &[CONTACTS.spec()],
+    params: &[ENTER_HEIGHT.0, LEAVE_HEIGHT.0, ENTER_SPEED.0, LEAVE_SPEED.0, MIN_DURATION.0],
+    writes_files: false,
+};
+
+impl Node for DetectContacts {
+    fn schema(&self) -> &'static NodeSchema {
+        &DETECT_CONTACTS
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let clip = ctx.input(&CLIP)?;
+        let thresholds = thresholds_from(ctx)?;
+        let landmarks = find_landmarks(clip.skeleton()).map_err(|missing| {
+            NodeError::input("clip", format!("the feet could not be found by joint name (missing: {})", missing.join(", ")))
+        })?;
+        let contacts = detect_contacts(&clip, &forward_kinematics(&clip), &landmarks, &thresholds);
+        ctx.set_output(&CONTACTS, Arc::new(contacts));
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hysteresis_keeps_a_noisy_rest_in_one_contact() {
+        // Rest on the ground with ±1 cm noise, lift off to 30 cm, come back down.
+        let fps = 100.0;
+        let mut track = Vec::new();
+        for f in 0..300 {
+            let noise = if f % 2 == 0 { 0.01 } else { 0.0 };
+            let lift = if (100..200).contains(&f) { 0.3 * ((f - 100) as f32 / 100.0 * std::f32::consts::PI).sin() } else { 0.0 };
+            track.push(DVec3::new(0.0, f64::from(noise + lift), 0.0));
+        }
+        let t = ContactThresholds { enter_speed_mps: 2.0, leave_speed_mps: 3.0, ..Default::default() };
+        let got = point_contacts(&track, fps, &t);
+        assert_eq!(got.len(), 2, "{got:?}");
+        assert_eq!(got[0].start, 0);
+        assert!((100..125).contains(&got[0].end), "{got:?}");
+        assert!((175..200).contains(&got[1].start) && got[1].end == 300, "{got:?}");
+    }
+
+    #[test]
+    fn union_merges_overlaps() {
+        let a = [FrameRange::new(0, 5), FrameRange::new(10, 12)];
+        let b = [FrameRange::new(4, 8), FrameRange::new(20, 21)];
+        assert_eq!(union(&a, &b), vec![FrameRange::new(0, 8), FrameRange::new(10, 12), FrameRange::new(20, 21)]);
+    }
+}

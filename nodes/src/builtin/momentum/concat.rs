@@ -1,0 +1,550 @@
+//! Angular-momentum-guided concatenation (Shum, Komura & Yadav 2009).
+//!
+//! Steps, with the paper's equations:
+//! 1. Turn the second clip about the vertical so its mean main-phase momentum agrees
+//!    (forward rule) or opposes (reverse rule) the first's (eq. 2).
+//! 2. Blendable periods per rule: forward — the second half of the first clip's main phase
+//!    and the first half of the second's; reverse — either the second half of the first's
+//!    main phase with the second half of the second's preparatory phase, or the first half
+//!    of the first's posterior phase with the first half of the second's main phase (both
+//!    are tried when both exist; the cheaper wins). Frames outside double support are
+//!    dropped (see [`Support`]).
+//! 3. For every offset T (the second clip starts T frames after the first):
+//!    f_T = argmin_f ‖L1(f) − L2(f−T)‖² (eq. 5), and
+//!    F = F_dm + F_inertia + F_time (eqs. 3, 4, 6, 7); keep the T of least F and refuse
+//!    when F, relative to the clips' squared peak momenta, is above a threshold.
+//! 4. Grow the blend window from f_T both ways while ‖L1 − L2‖² stays under a threshold
+//!    and both clips stay inside their blendable periods; move the second clip so the
+//!    centres of the feet coincide at the window's start; refuse if the torsos then face
+//!    more than a limit apart.
+//! 5. Blend linearly (eq. 8; slerp for rotations), then rescale time over the window by s
+//!    (eq. 9), read here as the mean of the end magnitudes over the window's mean |L| —
+//!    the norm of the sum the paper prints vanishes under the reverse rule.
+
+use std::sync::Arc;
+
+use glam::{DVec3, Quat, Vec3};
+use serde_json::json;
+
+use super::align::{Rule, angle_between, feet_centre, place, torso_facing, yaw_rotation};
+use super::analysis::{Analysis, AnalysisOptions, analyse};
+use crate::builtin::clip_edit::resample;
+use crate::math::slerp_short;
+use crate::model::{Clip, ClipError, FrameRange};
+use crate::node::Report;
+
+/// Which frames of the blendable periods may be blended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Support {
+    /// Double support where the periods have some; all frames where they have none (an
+    /// airborne flip), with a note in the report.
+    Auto,
+    /// Only double-support frames (the paper's rule); refuses when there are none.
+    Double,
+    /// Every frame.
+    Any,
+}
+
+impl Support {
+    /// Choice names as persisted.
+    pub const NAMES: &'static [&'static str] = &["auto", "double", "any"];
+
+    /// Parses a persisted choice name.
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "auto" => Some(Support::Auto),
+            "double" => Some(Support::Double),
+            "any" => Some(Support::Any),
+            _ => None,
+        }
+    }
+}
+
+/// Settings of the concatenation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConcatParams {
+    /// Forward or reverse rule.
+    pub rule: Rule,
+    /// Double-support truncation.
+    pub support: Support,
+    /// Weights of F_dm, F_inertia and F_time (the paper: all 1).
+    pub weights: [f64; 3],
+    /// Refuse when F / (½(peak|L1|² + peak|L2|²)) exceeds this.
+    pub max_relative_cost: f64,
+    /// The window grows while ‖L1 − L2‖² / (½(peak|L1|² + peak|L2|²)) stays below this.
+    pub window_threshold: f64,
+    /// The window is at least this long where the blendable periods allow, seconds.
+    pub min_blend_secs: f64,
+    /// Refuse when the torsos face more than this apart after alignment, radians.
+    pub max_facing_rad: f64,
+    /// Bounds on the time scale s of eq. 9 (1..1 turns scaling off).
+    pub time_scale_range: (f64, f64),
+}
+
+impl Default for ConcatParams {
+    fn default() -> Self {
+        ConcatParams {
+            rule: Rule::Forward,
+            support: Support::Auto,
+            weights: [1.0, 1.0, 1.0],
+            max_relative_cost: 1.0,
+            window_threshold: 0.25,
+            min_blend_secs: 0.1,
+            max_facing_rad: std::f64::consts::FRAC_PI_4,
+            time_scale_range: (0.5, 2.0),
+        }
+    }
+}
+
+/// Why two clips were not concatenated.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ConcatError {
+    /// Blending needs one skeleton.
+    #[error("the clips use different skeletons ({0}); retarget one onto the other first")]
+    DifferentSkeletons(String),
+    /// No blendable period under the rule.
+    #[error("no blendable period under the {rule} rule: {why}")]
+    NoBlendablePeriod {
+        /// `"forward"` or `"reverse"`.
+        rule: &'static str,
+        /// What is missing.
+        why: String,
+    },
+    /// The best timing still costs too much.
+    #[error(
+        "the motions are too different to blend: best relative cost {relative_cost:.3} exceeds {threshold} \
+         (F_dm {f_dm:.3}, F_inertia {f_inertia:.3}, F_time {f_time:.3}); raise max_relative_cost or try the other rule"
+    )]
+    TooDifferent {
+        /// F over the squared peak momenta.
+        relative_cost: f64,
+        /// The limit.
+        threshold: f64,
+        /// Momentum difference term.
+        f_dm: f64,
+        /// Inertia term.
+        f_inertia: f64,
+        /// Timing term.
+        f_time: f64,
+    },
+    /// The torsos face too differently.
+    #[error(
+        "after alignment the torsos face {angle_deg:.1}° apart at the blend centre, more than {max_deg:.1}°: \
+         these motions do not chain in this order"
+    )]
+    Facing {
+        /// Angle found, degrees.
+        angle_deg: f64,
+        /// Limit, degrees.
+        max_deg: f64,
+    },
+    /// Building a clip failed.
+    #[error(transparent)]
+    Clip(#[from] ClipError),
+}
+
+/// One way to pair the clips' blendable periods.
+#[derive(Clone, Debug, PartialEq)]
+struct Case {
+    name: &'static str,
+    first: FrameRange,
+    second: FrameRange,
+}
+
+fn cases(rule: Rule, a: &Analysis, b: &Analysis) -> Result<Vec<Case>, ConcatError> {
+    let (pa, pb) = (&a.phases, &b.phases);
+    let out = match rule {
+        Rule::Forward => vec![Case { name: "main → main", first: pa.main.second_half(), second: pb.main.first_half() }],
+        Rule::Reverse => {
+            let mut v = Vec::new();
+            if let Some(prep) = pb.preparatory {
+                v.push(Case { name: "main → preparatory", first: pa.main.second_half(), second: prep.second_half() });
+            }
+            if let Some(post) = pa.posterior {
+                v.push(Case { name: "posterior → main", first: post.first_half(), second: pb.main.first_half() });
+            }
+            v
+        }
+    };
+    let out: Vec<Case> = out.into_iter().filter(|c| !c.first.is_empty() && !c.second.is_empty()).collect();
+    if out.is_empty() {
+        let why = match rule {
+            Rule::Forward => "a main phase is too short".to_string(),
+            Rule::Reverse => "the second clip has no preparatory phase and the first no posterior phase".to_string(),
+        };
+        return Err(ConcatError::NoBlendablePeriod { rule: rule.name(), why });
+    }
+    Ok(out)
+}
+
+/// The best timing found for one case.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Timing {
+    /// Offset of the second clip, frames (its frame g plays at the first clip's g + T).
+    pub offset: isize,
+    /// Blend centre f_T, in the first clip's frames.
+    pub centre: usize,
+    /// F_dm, F_inertia, F_time (weighted).
+    pub terms: [f64; 3],
+}
+
+impl Timing {
+    /// F.
+    pub fn cost(&self) -> f64 {
+        self.terms.iter().sum()
+    }
+}
+
+/// Which frames each clip may blend at: the blendable period, truncated by support.
+struct Allowed {
+    first: Vec<bool>,
+    second: Vec<bool>,
+    first_range: FrameRange,
+    second_range: FrameRange,
+    support_used: &'static str,
+}
+
+fn allowed(case: &Case, a: &Analysis, b: &Analysis, support: Support, min_frames: usize) -> Option<Allowed> {
+    let mask = |an: &Analysis, r: FrameRange, double: bool| {
+        (0..an.clip.frame_count()).map(|f| r.contains(f) && (!double || an.in_double_support(f))).collect::<Vec<_>>()
+    };
+    let make = |double: bool, label| Allowed {
+        first: mask(a, case.first, double),
+        second: mask(b, case.second, double),
+        first_range: case.first,
+        second_range: case.second,
+        support_used: label,
+    };
+    let enough = |m: &Allowed| {
+        m.first.iter().filter(|x| **x).count() >= min_frames.min(case.first.len())
+            && m.second.iter().filter(|x| **x).count() >= min_frames.min(case.second.len())
+    };
+    match support {
+        Support::Any => Some(make(false, "any")),
+        Support::Double => Some(make(true, "double")).filter(|m| enough(m) && m.first.contains(&true)),
+        Support::Auto => {
+            let d = make(true, "double");
+            if enough(&d) && d.first.contains(&true) && d.second.contains(&true) {
+                Some(d)
+            } else {
+                Some(make(false, "any (the blendable periods have no double support)"))
+            }
+        }
+    }
+}
+
+/// The optimal-timing search (eqs. 3–7) over precomputed, already aligned curves:
+/// `l1`, `l2` angular momenta, `arms1`, `arms2` moment arms (frame-major, `segments`
+/// per frame), `masses` per segment. Brute force over every offset, as in the paper:
+/// O(|B1|·|B2|) momentum differences plus one inertia term per offset.
+#[allow(clippy::too_many_arguments)]
+pub fn optimal_timing(
+    l1: &[DVec3],
+    l2: &[DVec3],
+    arms1: &[Vec3],
+    arms2: &[Vec3],
+    masses: &[f64],
+    allowed1: &[bool],
+    allowed2: &[bool],
+    first_start: usize,
+    weights: [f64; 3],
+) -> Option<Timing> {
+    let segments = masses.len();
+    let (n1, n2) = (l1.len() as isize, l2.len() as isize);
+    let first_frames: Vec<usize> = (0..l1.len()).filter(|&f| allowed1[f]).collect();
+    let second_frames: Vec<usize> = (0..l2.len()).filter(|&g| allowed2[g]).collect();
+    let (&f_lo, &f_hi) = (first_frames.first()?, first_frames.last()?);
+    let (&g_lo, &g_hi) = (second_frames.first()?, second_frames.last()?);
+    let l_start = l1[first_start.min(l1.len() - 1)];
+    let mut best: Option<Timing> = None;
+    for offset in (f_lo as isize - g_hi as isize)..=(f_hi as isize - g_lo as isize) {
+        let mut centre: Option<(usize, f64)> = None;
+        for &f in &first_frames {
+            let g = f as isize - offset;
+            if g < 0 || g >= n2 || !allowed2[g as usize] {
+                continue;
+            }
+            let d = (l1[f] - l2[g as usize]).length_squared();
+            if centre.is_none_or(|(_, best_d)| d < best_d) {
+                centre = Some((f, d));
+            }
+        }
+        let Some((f, f_dm)) = centre else { continue };
+        debug_assert!((f as isize) < n1);
+        let g = (f as isize - offset) as usize;
+        let (r1, r2) = (&arms1[f * segments..(f + 1) * segments], &arms2[g * segments..(g + 1) * segments]);
+        let f_inertia: f64 = (0..segments)
+            .map(|j| {
+                let dot = f64::from(r1[j].dot(r2[j] - r1[j]));
+                masses[j] * dot * dot
+            })
+            .sum();
+        let f_time = (l1[f] - l_start).length_squared();
+        let t = Timing { offset, centre: f, terms: [weights[0] * f_dm, weights[1] * f_inertia, weights[2] * f_time] };
+        if best.as_ref().is_none_or(|b| t.cost() < b.cost()) {
+            best = Some(t);
+        }
+    }
+    best
+}
+
+/// Concatenation result: the clip and the report of every decision.
+#[derive(Clone, Debug)]
+pub struct Concatenated {
+    /// The joined clip, at the first clip's frame rate.
+    pub clip: Clip,
+    /// What was decided and measured.
+    pub report: Report,
+}
+
+/// Blends `first` frames `f0..=ff` with `second` frames `f0−T..=ff−T` (α falling linearly
+/// from 1 to 0 over the window, eq. 8) and splices: `first[..f0]`, the blend,
+/// `second[ff−T+1..]`. `second` must already be placed and on the same skeleton and rate.
+pub fn splice(first: &Clip, second: &Clip, f0: usize, ff: usize, offset: isize) -> Result<Clip, ClipError> {
+    let joints = first.joint_count();
+    let tail_start = (ff as isize - offset + 1).max(0) as usize;
+    let frames = f0 + (ff - f0 + 1) + second.frame_count().saturating_sub(tail_start);
+    let mut rotations: Vec<Quat> = Vec::with_capacity(frames * joints);
+    let mut translations: Vec<Vec3> = Vec::with_capacity(frames * joints);
+    for f in 0..f0 {
+        rotations.extend_from_slice(first.frame_rotations(f));
+        translations.extend_from_slice(first.frame_translations(f));
+    }
+    let last_second = second.frame_count().saturating_sub(1);
+    for f in f0..=ff {
+        let alpha = if ff > f0 { 1.0 - (f - f0) as f32 / (ff - f0) as f32 } else { 0.0 };
+        let g = ((f as isize - offset).max(0) as usize).min(last_second);
+        let (ra, rb) = (first.frame_rotations(f), second.frame_rotations(g));
+        let (ta, tb) = (first.frame_translations(f), second.frame_translations(g));
+        rotations.extend(ra.iter().zip(rb).map(|(a, b)| slerp_short(*b, *a, alpha)));
+        translations.extend(ta.iter().zip(tb).map(|(a, b)| b.lerp(*a, alpha)));
+    }
+    for g in tail_start..second.frame_count() {
+        rotations.extend_from_slice(second.frame_rotations(g));
+        translations.extend_from_slice(second.frame_translations(g));
+    }
+    Clip::new(first.skeleton().clone(), first.fps(), rotations, translations, first.import_scale)
+}
+
+/// Replaces frames `f0..=ff` of `clip` by the same stretch resampled to `new_len + 1`
+/// frames (slerp between neighbouring frames): the time scaling of eq. 9.
+pub fn rescale_window(clip: &Clip, f0: usize, ff: usize, new_len: usize) -> Result<Clip, ClipError> {
+    if ff <= f0 {
+        return Ok(clip.clone());
+    }
+    let window = clip.slice(f0, ff + 1);
+    // Sampling the window's duration at new_len intervals gives new_len + 1 frames, played
+    // back at the clip's own rate.
+    let stretched = resample(&window, new_len as f64 * clip.fps() / (ff - f0) as f64)?;
+    let joints = clip.joint_count();
+    let mut rotations = clip.rotations()[..f0 * joints].to_vec();
+    let mut translations = clip.translations()[..f0 * joints].to_vec();
+    rotations.extend_from_slice(stretched.rotations());
+    translations.extend_from_slice(stretched.translations());
+    rotations.extend_from_slice(&clip.rotations()[(ff + 1) * joints..]);
+    translations.extend_from_slice(&clip.translations()[(ff + 1) * joints..]);
+    Clip::new(clip.skeleton().clone(), clip.fps(), rotations, translations, clip.import_scale)
+}
+
+/// Checks that two clips share a skeleton (names and hierarchy).
+pub fn same_skeleton(a: &Clip, b: &Clip) -> Result<(), ConcatError> {
+    let (ja, jb) = (a.skeleton().joints(), b.skeleton().joints());
+    if ja.len() != jb.len() {
+        return Err(ConcatError::DifferentSkeletons(format!("{} joints vs {}", ja.len(), jb.len())));
+    }
+    match ja.iter().zip(jb).find(|(x, y)| x.name != y.name || x.parent != y.parent) {
+        Some((x, y)) => Err(ConcatError::DifferentSkeletons(format!("joint '{}' vs '{}'", x.name, y.name))),
+        None => Ok(()),
+    }
+}
+
+/// Horizontal sliding of planted feet over `frames` of `analysis`: for each ankle, the
+/// horizontal distance travelled while it is within `height_m` of its lowest height,
+/// metres (summed over both feet).
+pub fn foot_skate_m(analysis: &Analysis, frames: FrameRange, height_m: f64) -> f64 {
+    let poses = &analysis.poses;
+    analysis
+        .landmarks
+        .feet()
+        .iter()
+        .map(|&ankle| {
+            let ground = (0..poses.frame_count()).map(|f| poses.position(f, ankle).y).fold(f32::INFINITY, f32::min);
+            (frames.start.max(1)..frames.end.min(poses.frame_count()))
+                .filter(|&f| f64::from(poses.position(f, ankle).y - ground) < height_m)
+                .map(|f| {
+                    let d = poses.position(f, ankle) - poses.position(f - 1, ankle);
+                    f64::from(Vec3::new(d.x, 0.0, d.z).length())
+                })
+                .sum::<f64>()
+        })
+        .sum()
+}
+
+/// Peak of the smoothed |L| inside `frames`.
+fn peak_in(analysis: &Analysis, frames: FrameRange) -> f64 {
+    (frames.start..frames.end.min(analysis.smoothed.len())).map(|f| analysis.smoothed[f].length()).fold(0.0, f64::max)
+}
+
+/// Concatenates two analysed clips (same skeleton, same frame rate) by the method above.
+pub fn concatenate(
+    a: &Analysis,
+    b: &Analysis,
+    params: &ConcatParams,
+    options: &AnalysisOptions,
+) -> Result<Concatenated, ConcatError> {
+    same_skeleton(&a.clip, &b.clip)?;
+    let fps = a.clip.fps();
+    // 1. Alignment about the vertical axis.
+    let yaw = super::align::alignment_yaw(a.main_phase_mean(), b.main_phase_mean(), params.rule);
+    let turn = yaw_rotation(yaw).as_dquat();
+    let l2: Vec<DVec3> = b.smoothed.iter().map(|l| turn * *l).collect();
+    let turn_f = yaw_rotation(yaw);
+    let arms2: Vec<Vec3> = b.track.arms_m.iter().map(|r| turn_f * *r).collect();
+    // 2–3. Blendable periods and the optimal timing per case.
+    let scale = 0.5 * (a.smoothed_peak().powi(2) + b.smoothed_peak().powi(2)).max(f64::MIN_POSITIVE);
+    let min_frames = ((params.min_blend_secs * fps).round() as usize).max(2);
+    let mut best: Option<(Case, Allowed, Timing)> = None;
+    for case in cases(params.rule, a, b)? {
+        let Some(mask) = allowed(&case, a, b, params.support, min_frames) else { continue };
+        let timing = optimal_timing(
+            &a.smoothed,
+            &l2,
+            &a.track.arms_m,
+            &arms2,
+            &a.track.masses_kg,
+            &mask.first,
+            &mask.second,
+            case.first.start,
+            params.weights,
+        );
+        if let Some(t) = timing
+            && best.as_ref().is_none_or(|(_, _, b)| t.cost() < b.cost())
+        {
+            best = Some((case, mask, t));
+        }
+    }
+    let Some((case, mask, timing)) = best else {
+        return Err(ConcatError::NoBlendablePeriod {
+            rule: params.rule.name(),
+            why: "no overlap of the blendable periods in double support; set support to \"any\" to blend anyway"
+                .into(),
+        });
+    };
+    let relative_cost = timing.cost() / scale;
+    if relative_cost > params.max_relative_cost {
+        return Err(ConcatError::TooDifferent {
+            relative_cost,
+            threshold: params.max_relative_cost,
+            f_dm: timing.terms[0],
+            f_inertia: timing.terms[1],
+            f_time: timing.terms[2],
+        });
+    }
+    // 4. The blend window, grown from f_T.
+    let t = timing.offset;
+    let ok = |f: isize| {
+        let g = f - t;
+        f >= 0
+            && (f as usize) < mask.first.len()
+            && g >= 0
+            && (g as usize) < mask.second.len()
+            && mask.first[f as usize]
+            && mask.second[g as usize]
+    };
+    let diff = |f: isize| (a.smoothed[f as usize] - l2[(f - t) as usize]).length_squared() / scale;
+    let (mut f0, mut ff) = (timing.centre as isize, timing.centre as isize);
+    while ok(f0 - 1) && diff(f0 - 1) <= params.window_threshold {
+        f0 -= 1;
+    }
+    while ok(ff + 1) && diff(ff + 1) <= params.window_threshold {
+        ff += 1;
+    }
+    let grown_by_threshold = (ff - f0) as usize;
+    while ((ff - f0) as usize) < min_frames && (ok(f0 - 1) || ok(ff + 1)) {
+        let back = if ok(f0 - 1) { diff(f0 - 1) } else { f64::INFINITY };
+        let forth = if ok(ff + 1) { diff(ff + 1) } else { f64::INFINITY };
+        if back <= forth { f0 -= 1 } else { ff += 1 }
+    }
+    let (f0, ff) = (f0 as usize, ff as usize);
+    let g0 = (f0 as isize - t) as usize;
+    // Facing check at the blend centre, then the sliding that puts the feet together.
+    let centre = timing.centre;
+    let facing_angle = match (
+        torso_facing(&a.poses, centre, &a.landmarks),
+        torso_facing(&b.poses, (centre as isize - t) as usize, &b.landmarks).map(|v| turn_f * v),
+    ) {
+        (Some(x), Some(y)) => angle_between(x, y),
+        _ => 0.0,
+    };
+    if facing_angle > params.max_facing_rad {
+        return Err(ConcatError::Facing {
+            angle_deg: facing_angle.to_degrees(),
+            max_deg: params.max_facing_rad.to_degrees(),
+        });
+    }
+    let offset_m = feet_centre(&a.poses, f0, &a.landmarks) - turn_f * feet_centre(&b.poses, g0, &b.landmarks);
+    let placed = place(&b.clip, yaw, offset_m)?;
+    // 5. Blend, then rescale time over the window (eq. 9).
+    let blended = Arc::new(splice(&a.clip, &placed, f0, ff, t)?);
+    let blended_analysis = a.reanalysed(blended.clone(), options);
+    let mags: Vec<f64> = (f0..=ff).map(|f| blended_analysis.smoothed[f].length()).collect();
+    let mean_window = mags.iter().sum::<f64>() / mags.len() as f64;
+    let ends = 0.5 * (mags[0] + mags[mags.len() - 1]);
+    let s_raw = if mean_window > 1e-9 { ends / mean_window } else { 1.0 };
+    let (lo, hi) = params.time_scale_range;
+    let s = s_raw.clamp(lo.min(hi), hi.max(lo));
+    let new_len = (((ff - f0) as f64 / s).round() as usize).max(1);
+    let out = if ff > f0 && new_len != ff - f0 { rescale_window(&blended, f0, ff, new_len)? } else { (*blended).clone() };
+    // Measurements on the result.
+    let out = Arc::new(out);
+    let result = a.reanalysed(out.clone(), options);
+    let window_out = FrameRange::new(f0, f0 + new_len + 1);
+    let skate = foot_skate_m(&result, window_out, options.contacts.enter_height_m);
+    let secs = |frames: f64| frames / fps;
+    let report = json!({
+        "method": "angular momentum (Shum et al. 2009)",
+        "rule": params.rule.name(),
+        "case": case.name,
+        "support": mask.support_used,
+        "yaw_deg": yaw.to_degrees(),
+        "blendable_first": [mask.first_range.start, mask.first_range.end],
+        "blendable_second": [mask.second_range.start, mask.second_range.end],
+        "offset_frames": t,
+        "offset_secs": secs(t as f64),
+        "blend_centre_frame": centre,
+        "blend_centre_secs": secs(centre as f64),
+        "cost": timing.cost(),
+        "relative_cost": relative_cost,
+        "f_dm": timing.terms[0],
+        "f_inertia": timing.terms[1],
+        "f_time": timing.terms[2],
+        "window_frames": [f0, ff],
+        "window_secs": [secs(f0 as f64), secs(ff as f64)],
+        "window_grown_by_threshold_frames": grown_by_threshold,
+        "facing_deg": facing_angle.to_degrees(),
+        "feet_offset_m": [offset_m.x, offset_m.z],
+        "time_scale_raw": s_raw,
+        "time_scale": s,
+        "window_after_scaling_frames": [window_out.start, window_out.end - 1],
+        "duration_first_secs": a.clip.duration_secs(),
+        "duration_second_secs": b.clip.duration_secs(),
+        "duration_secs": out.duration_secs(),
+        "peak_momentum_first": a.smoothed_peak(),
+        "peak_momentum_second": b.smoothed_peak(),
+        "peak_momentum_in_blend": peak_in(&result, window_out),
+        "foot_skate_in_blend_m": skate,
+    });
+    Ok(Concatenated { clip: Arc::unwrap_or_clone(out), report: super::into_report(report) })
+}
+
+/// Convenience for tests and benches: analyse both clips with `options` and concatenate.
+pub fn concatenate_clips(
+    first: Arc<Clip>,
+    second: Arc<Clip>,
+    params: &ConcatParams,
+    options: &AnalysisOptions,
+) -> Result<Concatenated, String> {
+    let a = analyse(first, options, None, None).map_err(|e| e.to_string())?;
+    let b = analyse(second, options, None, None).map_err(|e| e.to_string())?;
+    concatenate(&a, &b, params, options).map_err(|e| e.to_string())
+}
