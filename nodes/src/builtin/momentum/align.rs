@@ -76,6 +76,13 @@ pub fn torso_facing(poses: &ClipPoses, frame: usize, landmarks: &Landmarks) -> O
     Vec3::new(across.x, 0.0, across.z).cross(Vec3::Y).try_normalize()
 }
 
+/// Whether the torso (mid-hip to neck) points within 60° of straight up at `frame`.
+pub fn torso_upright(poses: &ClipPoses, frame: usize, landmarks: &Landmarks) -> bool {
+    let [lh, rh] = landmarks.hips();
+    let mid_hip = (poses.position(frame, lh) + poses.position(frame, rh)) * 0.5;
+    (poses.position(frame, landmarks.neck) - mid_hip).try_normalize().is_some_and(|up| up.y > 0.5)
+}
+
 /// The point between the two ankles at `frame`, on the ground plane (y = 0).
 pub fn feet_centre(poses: &ClipPoses, frame: usize, landmarks: &Landmarks) -> Vec3 {
     let [l, r] = landmarks.feet();

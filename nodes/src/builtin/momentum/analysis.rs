@@ -9,7 +9,7 @@ use super::angular::{MomentumTrack, momentum_of_poses, smooth};
 use super::body::{BodyError, BodyModel, Landmarks, MassOverride, MassTable, body_model, find_landmarks};
 use super::phases::{PhaseOptions, segment_phases};
 use crate::builtin::contacts::{ContactThresholds, detect_contacts};
-use crate::model::{Clip, ClipPoses, Contacts, Phases, forward_kinematics};
+use crate::model::{Clip, ClipPoses, Contacts, FrameRange, Phases, forward_kinematics};
 
 /// How to analyse a clip.
 #[derive(Clone, Debug, PartialEq)]
@@ -122,11 +122,11 @@ impl Analysis {
         self.smoothed.iter().map(|l| l.length()).fold(0.0, f64::max)
     }
 
-    /// Mean smoothed L over the main phase (the whole clip when it is empty).
-    pub fn main_phase_mean(&self) -> DVec3 {
-        let r = self.phases.main;
-        let frames = if r.is_empty() { &self.smoothed[..] } else { &self.smoothed[r.start..r.end.min(self.smoothed.len())] };
-        frames.iter().sum::<DVec3>() / frames.len().max(1) as f64
+    /// Mean smoothed L over `frames` (the whole clip when they are empty).
+    pub fn mean_momentum(&self, frames: FrameRange) -> DVec3 {
+        let end = frames.end.min(self.smoothed.len());
+        let samples = if frames.start >= end { &self.smoothed[..] } else { &self.smoothed[frames.start..end] };
+        samples.iter().sum::<DVec3>() / samples.len().max(1) as f64
     }
 
     /// Whether `frame` lies in double support.

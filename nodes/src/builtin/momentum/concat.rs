@@ -26,11 +26,11 @@ use std::sync::Arc;
 use glam::{DVec3, Quat, Vec3};
 use serde_json::json;
 
-use super::align::{Rule, angle_between, feet_centre, place, torso_facing, yaw_rotation};
+use super::align::{Rule, angle_between, feet_centre, place, torso_facing, torso_upright, yaw_rotation};
 use super::analysis::{Analysis, AnalysisOptions, analyse};
 use crate::builtin::clip_edit::resample;
 use crate::math::slerp_short;
-use crate::model::{Clip, ClipError, FrameRange};
+use crate::model::{Clip, ClipError, FrameRange, Phases};
 use crate::node::Report;
 
 /// Which frames of the blendable periods may be blended.
@@ -129,7 +129,7 @@ pub enum ConcatError {
     },
     /// The torsos face too differently.
     #[error(
-        "after alignment the torsos face {angle_deg:.1}° apart at the blend centre, more than {max_deg:.1}°: \
+        "after alignment the torsos face {angle_deg:.1}° apart where the blend starts, more than {max_deg:.1}°: \
          these motions do not chain in this order"
     )]
     Facing {
@@ -151,17 +151,28 @@ struct Case {
     second: FrameRange,
 }
 
+/// The latter half of the main phase: from its peak frame t_m on (the halves meet at the
+/// peak, so a clip concatenated with itself under the forward rule joins at its peak).
+fn main_after_peak(p: &Phases) -> FrameRange {
+    FrameRange::new(p.main_frame.max(p.main.start), p.main.end)
+}
+
+/// The initial half of the main phase: up to and including its peak frame t_m.
+fn main_before_peak(p: &Phases) -> FrameRange {
+    FrameRange::new(p.main.start, (p.main_frame + 1).min(p.main.end))
+}
+
 fn cases(rule: Rule, a: &Analysis, b: &Analysis) -> Result<Vec<Case>, ConcatError> {
     let (pa, pb) = (&a.phases, &b.phases);
     let out = match rule {
-        Rule::Forward => vec![Case { name: "main → main", first: pa.main.second_half(), second: pb.main.first_half() }],
+        Rule::Forward => vec![Case { name: "main → main", first: main_after_peak(pa), second: main_before_peak(pb) }],
         Rule::Reverse => {
             let mut v = Vec::new();
             if let Some(prep) = pb.preparatory {
-                v.push(Case { name: "main → preparatory", first: pa.main.second_half(), second: prep.second_half() });
+                v.push(Case { name: "main → preparatory", first: main_after_peak(pa), second: prep.second_half() });
             }
             if let Some(post) = pa.posterior {
-                v.push(Case { name: "posterior → main", first: post.first_half(), second: pb.main.first_half() });
+                v.push(Case { name: "posterior → main", first: post.first_half(), second: main_before_peak(pb) });
             }
             v
         }
@@ -377,12 +388,35 @@ pub fn foot_skate_m(analysis: &Analysis, frames: FrameRange, height_m: f64) -> f
                 })
                 .sum::<f64>()
         })
-        .sum()
+        .sum::<f64>()
+        + 0.0 // an empty sum is −0.0
 }
 
 /// Peak of the smoothed |L| inside `frames`.
 fn peak_in(analysis: &Analysis, frames: FrameRange) -> f64 {
     (frames.start..frames.end.min(analysis.smoothed.len())).map(|f| analysis.smoothed[f].length()).fold(0.0, f64::max)
+}
+
+/// The yaw that aligns `b` to `a` (eq. 2) and what it was read from; the mean momenta are
+/// taken over `ranges` (the main phases: whole-clip means cancel out for motions with
+/// strong preparatory or posterior phases). When the mean
+/// momenta are nearly vertical (a punch twists the torso about the vertical axis), turning
+/// barely changes their dot product and eq. 2 leaves the yaw to noise; the torso facings at
+/// the main-phase peaks decide it instead.
+pub fn alignment(a: &Analysis, b: &Analysis, ranges: (FrameRange, FrameRange), rule: Rule) -> (f64, &'static str) {
+    let (la, lb) = (a.mean_momentum(ranges.0), b.mean_momentum(ranges.1));
+    let horizontal = |l: DVec3| (l.x * l.x + l.z * l.z).sqrt();
+    if horizontal(la) * horizontal(lb) >= 0.2 * la.length() * lb.length() {
+        return (super::align::alignment_yaw(la, lb, rule), "momentum");
+    }
+    let facing = |an: &Analysis| torso_facing(&an.poses, an.phases.main_frame, &an.landmarks);
+    match (facing(a), facing(b)) {
+        (Some(fa), Some(fb)) => {
+            let yaw = f64::from(fb.z * fa.x - fb.x * fa.z).atan2(f64::from(fb.dot(fa)));
+            (yaw, "facing (the mean momenta are nearly vertical)")
+        }
+        _ => (super::align::alignment_yaw(la, lb, rule), "momentum"),
+    }
 }
 
 /// Concatenates two analysed clips (same skeleton, same frame rate) by the method above.
@@ -394,18 +428,17 @@ pub fn concatenate(
 ) -> Result<Concatenated, ConcatError> {
     same_skeleton(&a.clip, &b.clip)?;
     let fps = a.clip.fps();
-    // 1. Alignment about the vertical axis.
-    let yaw = super::align::alignment_yaw(a.main_phase_mean(), b.main_phase_mean(), params.rule);
-    let turn = yaw_rotation(yaw).as_dquat();
-    let l2: Vec<DVec3> = b.smoothed.iter().map(|l| turn * *l).collect();
-    let turn_f = yaw_rotation(yaw);
-    let arms2: Vec<Vec3> = b.track.arms_m.iter().map(|r| turn_f * *r).collect();
-    // 2–3. Blendable periods and the optimal timing per case.
+    // 1–3. Alignment about the vertical axis, then the optimal timing per pairing of
+    // blendable periods.
     let scale = 0.5 * (a.smoothed_peak().powi(2) + b.smoothed_peak().powi(2)).max(f64::MIN_POSITIVE);
     let min_frames = ((params.min_blend_secs * fps).round() as usize).max(2);
-    let mut best: Option<(Case, Allowed, Timing)> = None;
+    let mut best: Option<(Case, Allowed, Timing, (f64, &'static str), Vec<DVec3>)> = None;
     for case in cases(params.rule, a, b)? {
         let Some(mask) = allowed(&case, a, b, params.support, min_frames) else { continue };
+        let (yaw, yaw_from) = alignment(a, b, (a.phases.main, b.phases.main), params.rule);
+        let turn = yaw_rotation(yaw);
+        let l2: Vec<DVec3> = b.smoothed.iter().map(|l| turn.as_dquat() * *l).collect();
+        let arms2: Vec<Vec3> = b.track.arms_m.iter().map(|r| turn * *r).collect();
         let timing = optimal_timing(
             &a.smoothed,
             &l2,
@@ -418,12 +451,12 @@ pub fn concatenate(
             params.weights,
         );
         if let Some(t) = timing
-            && best.as_ref().is_none_or(|(_, _, b)| t.cost() < b.cost())
+            && best.as_ref().is_none_or(|(_, _, b, _, _)| t.cost() < b.cost())
         {
-            best = Some((case, mask, t));
+            best = Some((case, mask, t, (yaw, yaw_from), l2));
         }
     }
-    let Some((case, mask, timing)) = best else {
+    let Some((case, mask, timing, (yaw, yaw_from), l2)) = best else {
         return Err(ConcatError::NoBlendablePeriod {
             rule: params.rule.name(),
             why: "no overlap of the blendable periods in double support; set support to \"any\" to blend anyway"
@@ -467,16 +500,20 @@ pub fn concatenate(
     }
     let (f0, ff) = (f0 as usize, ff as usize);
     let g0 = (f0 as isize - t) as usize;
-    // Facing check at the blend centre, then the sliding that puts the feet together.
+    // Facing check where the blend starts, then the sliding that puts the feet together.
     let centre = timing.centre;
+    let turn_f = yaw_rotation(yaw);
+    // Facing is the heading of an upright torso; a body upside down in a cartwheel has
+    // none worth comparing, so the check is skipped there.
+    let upright = torso_upright(&a.poses, f0, &a.landmarks) && torso_upright(&b.poses, g0, &b.landmarks);
     let facing_angle = match (
-        torso_facing(&a.poses, centre, &a.landmarks),
-        torso_facing(&b.poses, (centre as isize - t) as usize, &b.landmarks).map(|v| turn_f * v),
+        torso_facing(&a.poses, f0, &a.landmarks),
+        torso_facing(&b.poses, g0, &b.landmarks).map(|v| turn_f * v),
     ) {
         (Some(x), Some(y)) => angle_between(x, y),
         _ => 0.0,
     };
-    if facing_angle > params.max_facing_rad {
+    if upright && facing_angle > params.max_facing_rad {
         return Err(ConcatError::Facing {
             angle_deg: facing_angle.to_degrees(),
             max_deg: params.max_facing_rad.to_degrees(),
@@ -507,6 +544,7 @@ pub fn concatenate(
         "case": case.name,
         "support": mask.support_used,
         "yaw_deg": yaw.to_degrees(),
+        "yaw_from": yaw_from,
         "blendable_first": [mask.first_range.start, mask.first_range.end],
         "blendable_second": [mask.second_range.start, mask.second_range.end],
         "offset_frames": t,
@@ -522,6 +560,7 @@ pub fn concatenate(
         "window_secs": [secs(f0 as f64), secs(ff as f64)],
         "window_grown_by_threshold_frames": grown_by_threshold,
         "facing_deg": facing_angle.to_degrees(),
+        "facing_checked": upright,
         "feet_offset_m": [offset_m.x, offset_m.z],
         "time_scale_raw": s_raw,
         "time_scale": s,

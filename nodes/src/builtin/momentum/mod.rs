@@ -14,7 +14,7 @@ use std::sync::Arc;
 
 use serde_json::json;
 
-use self::align::{Rule, alignment_yaw, angle_between, feet_centre, place, torso_facing, yaw_rotation};
+use self::align::{Rule, angle_between, feet_centre, place, torso_facing, yaw_rotation};
 use self::analysis::{Analysis, AnalysisOptions, analyse};
 use self::baseline::{BaselineParams, concatenate_baseline};
 use self::body::{MassOverride, MassTable};
@@ -304,7 +304,7 @@ impl Node for Align {
         let rule = rule_of(ctx)?;
         let a = analysed(first, "first", &options, None, None)?;
         let b = analysed(second, "second", &options, None, None)?;
-        let yaw = alignment_yaw(a.main_phase_mean(), b.main_phase_mean(), rule);
+        let (yaw, yaw_from) = concat::alignment(&a, &b, (a.phases.main, b.phases.main), rule);
         let turn = yaw_rotation(yaw);
         // Where the blend would start: the end of the first main phase, and the start of
         // the second's main phase (forward) or of its preparatory phase's second half.
@@ -331,6 +331,7 @@ impl Node for Align {
             report_of(json!({
                 "rule": rule.name(),
                 "yaw_deg": yaw.to_degrees(),
+                "yaw_from": yaw_from,
                 "feet_offset_m": [offset.x, offset.z],
                 "facing_deg": facing,
                 "first_frame": f,

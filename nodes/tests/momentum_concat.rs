@@ -1,0 +1,108 @@
+//! The angular-momentum concatenation on real CMU clips: its properties, its refusals and
+//! the body model's plausibility. Needs `../shared/data` (skips without it outside CI).
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::Path;
+use std::sync::Arc;
+
+use kinegraph_nodes::builtin::clip_edit::trim;
+use kinegraph_nodes::builtin::momentum::align::Rule;
+use kinegraph_nodes::builtin::momentum::analysis::{AnalysisOptions, analyse};
+use kinegraph_nodes::builtin::momentum::baseline::{BaselineParams, concatenate_baseline};
+use kinegraph_nodes::builtin::momentum::concat::{ConcatError, ConcatParams, Support, concatenate};
+use kinegraph_nodes::corpus::shared_data;
+use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
+use kinegraph_nodes::model::Clip;
+
+fn clip(data: &Path, name: &str, from_secs: f64, to_secs: f64) -> Arc<Clip> {
+    let (clip, _) = read_bvh_file(&data.join("bvh").join(name), BvhReadOptions::default()).unwrap().value;
+    Arc::new(trim(&clip, from_secs, Some(to_secs)).unwrap())
+}
+
+fn number(report: &kinegraph_nodes::node::Report, key: &str) -> f64 {
+    report[key].as_f64().unwrap_or_else(|| panic!("{key} missing from {report:?}"))
+}
+
+#[test]
+fn a_clip_concatenated_with_itself_joins_at_its_momentum_peak() {
+    let Some(data) = shared_data() else { return };
+    // CMU 90_02 without its leading T-pose frame: one cartwheel.
+    let c = clip(&data, "cmu/90_02.bvh", 0.01, 6.5);
+    let options = AnalysisOptions::default();
+    let a = analyse(c.clone(), &options, None, None).unwrap();
+    let params = ConcatParams { support: Support::Any, ..ConcatParams::default() };
+    let joined = concatenate(&a, &a, &params, &options).unwrap();
+    let r = &joined.report;
+    // The halves of the main phase meet at t_m, where the two copies' momenta agree: the
+    // join lands within 0.1 s of the peak, with a near-zero offset and cost.
+    let near = (0.1 * c.fps()) as f64;
+    eprintln!("self-concatenation of 90_02: {r:?}");
+    assert!((number(r, "blend_centre_frame") - a.phases.main_frame as f64).abs() <= near, "{r:?}");
+    assert!(number(r, "offset_frames").abs() <= near, "{r:?}");
+    assert!(number(r, "relative_cost") < 1e-3, "{r:?}");
+    assert!(number(r, "yaw_deg").abs() < 1e-6);
+}
+
+#[test]
+fn mirrored_cartwheels_are_refused_for_facing_under_the_forward_rule() {
+    let Some(data) = shared_data() else { return };
+    // 144_01 goes there and back: the second cartwheel turns the other way.
+    let options = AnalysisOptions::default();
+    let a = analyse(clip(&data, "cmu/144_01.bvh", 1.3, 4.3), &options, None, None).unwrap();
+    let b = analyse(clip(&data, "cmu/144_01.bvh", 4.4, 7.2), &options, None, None).unwrap();
+    let err = concatenate(&a, &b, &ConcatParams::default(), &options).unwrap_err();
+    assert!(matches!(err, ConcatError::Facing { angle_deg, .. } if angle_deg > 45.0), "{err}");
+    assert!(err.to_string().contains("do not chain"));
+}
+
+#[test]
+fn a_one_two_punch_is_shorter_than_the_motion_graphs_join_and_costs_are_reported() {
+    let Some(data) = shared_data() else { return };
+    let options = AnalysisOptions::default();
+    let a = analyse(clip(&data, "cmu/79_08.bvh", 2.2, 3.1), &options, None, None).unwrap();
+    let b = analyse(clip(&data, "cmu/79_08.bvh", 3.6, 4.6), &options, None, None).unwrap();
+    let params = ConcatParams { rule: Rule::Reverse, ..ConcatParams::default() };
+    let joined = concatenate(&a, &b, &params, &options).unwrap();
+    let baseline = concatenate_baseline(&a, &b, &BaselineParams::default(), &options).unwrap();
+    let r = &joined.report;
+    let cost = number(r, "f_dm") + number(r, "f_inertia") + number(r, "f_time");
+    assert!((cost - number(r, "cost")).abs() < 1e-9);
+    assert!(number(r, "duration_secs") < number(&baseline.report, "duration_secs"));
+    // The window lies inside both blendable periods and the time scale inside its bounds.
+    let s = number(r, "time_scale");
+    assert!((0.5..=2.0).contains(&s));
+    // Refused as too different under an impossible cost limit, with the terms in the text.
+    let strict = ConcatParams { max_relative_cost: 1e-9, ..params };
+    let err = concatenate(&a, &b, &strict, &options).unwrap_err();
+    assert!(matches!(err, ConcatError::TooDifferent { .. }) && err.to_string().contains("F_dm"), "{err}");
+}
+
+#[test]
+fn clips_on_different_skeletons_are_refused_by_name() {
+    let Some(data) = shared_data() else { return };
+    let options = AnalysisOptions::default();
+    let a = analyse(clip(&data, "cmu/02_02.bvh", 0.01, 2.0), &options, None, None).unwrap();
+    let b = analyse(clip(&data, "cmu_daz/02_02.bvh", 0.01, 2.0), &options, None, None).unwrap();
+    let err = concatenate(&a, &b, &ConcatParams::default(), &options).unwrap_err();
+    assert!(matches!(err, ConcatError::DifferentSkeletons(_)), "{err}");
+}
+
+#[test]
+fn body_model_puts_the_standing_centre_of_mass_at_a_human_height() {
+    let Some(data) = shared_data() else { return };
+    // Biomechanics puts the standing centre of mass at 53–58 % of body height; compare it
+    // with the highest joint of the same frame (the head's end site, which on some rigs
+    // sits at eye level, hence the wider band).
+    for name in ["cmu/02_01.bvh", "cmu_daz/05_01.bvh"] {
+        let c = clip(&data, name, 0.01, 1.0);
+        let a = analyse(c.clone(), &AnalysisOptions::default(), None, None).unwrap();
+        assert!(a.model.method.starts_with("de_leva"), "{name}: {}", a.model.method);
+        let top = (0..c.joint_count()).map(|j| a.poses.position(0, j).y).fold(f32::MIN, f32::max);
+        let ground = (0..c.joint_count()).map(|j| a.poses.position(0, j).y).fold(f32::MAX, f32::min);
+        let share = (a.track.com_m[0].y - f64::from(ground)) / f64::from(top - ground);
+        assert!((0.50..=0.65).contains(&share), "{name}: centre of mass at {share:.3} of the height");
+        // Standing still-ish: momentum small next to a cartwheel's tens of kg·m²/s.
+        assert!(a.smoothed[10].length() < 5.0, "{name}: {}", a.smoothed[10].length());
+    }
+}
