@@ -36,7 +36,7 @@ fn a_clip_concatenated_with_itself_joins_at_its_momentum_peak() {
     let r = &joined.report;
     // The halves of the main phase meet at t_m, where the two copies' momenta agree: the
     // join lands within 0.1 s of the peak, with a near-zero offset and cost.
-    let near = (0.1 * c.fps()) as f64;
+    let near = 0.1 * c.fps();
     eprintln!("self-concatenation of 90_02: {r:?}");
     assert!((number(r, "blend_centre_frame") - a.phases.main_frame as f64).abs() <= near, "{r:?}");
     assert!(number(r, "offset_frames").abs() <= near, "{r:?}");

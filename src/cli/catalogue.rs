@@ -20,7 +20,7 @@ fn param_range(p: &ParamSpec) -> String {
         ParamKind::Choice { choices, default } => format!("one of {}, default {default}", choices.join(" | ")),
         ParamKind::InputPath { extensions, required } => {
             format!("input file (.{}), {}", extensions.join(", ."), if required { "required" } else { "optional" })
-        },
+        }
         ParamKind::OutputPath { extension, default } => format!("output file (.{extension}), default {default}"),
     }
 }

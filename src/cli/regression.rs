@@ -106,14 +106,17 @@ pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
                 .channels()
                 .iter()
                 .map(|c| {
-                    let (lo, hi) = c.values.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-                        (lo.min(*v), hi.max(*v))
-                    });
+                    let (lo, hi) = c
+                        .values
+                        .iter()
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
                     let mean = c.values.iter().sum::<f64>() / c.values.len().max(1) as f64;
                     (c.name.clone(), serde_json::json!({ "min": lo, "max": hi, "mean": mean }))
                 })
                 .collect();
-            Facts::Data(serde_json::json!({ "frames": curves.frame_count(), "fps": curves.fps(), "channels": channels }))
+            Facts::Data(
+                serde_json::json!({ "frames": curves.frame_count(), "fps": curves.fps(), "channels": channels }),
+            )
         }
         Value::Phases(phases) => Facts::Data(serde_json::to_value(phases.as_ref()).unwrap_or_default()),
         Value::Contacts(contacts) => Facts::Data(serde_json::to_value(contacts.as_ref()).unwrap_or_default()),
@@ -287,7 +290,10 @@ pub fn test_graph(engine: &Engine, graph: &Path, bless: bool) -> GraphTest {
         let base = graph.parent().unwrap_or(Path::new("."));
         let missing: Vec<&String> = expected.requires.iter().filter(|r| !base.join(r).exists()).collect();
         if !missing.is_empty() {
-            let what = format!("required data not found: {}", missing.iter().map(|m| m.as_str()).collect::<Vec<_>>().join(", "));
+            let what = format!(
+                "required data not found: {}",
+                missing.iter().map(|m| m.as_str()).collect::<Vec<_>>().join(", ")
+            );
             return if std::env::var_os("CI").is_some() {
                 GraphTest::Failed(vec![format!("{what} (CI is set, so this fails)")])
             } else {
@@ -391,7 +397,11 @@ mod tests {
             root_travel_m: 2.0,
             mean_joint_height_m: 1.0,
         };
-        let expected = Expectation { tolerance: 1e-3, requires: Vec::new(), outputs: [("a.clip".to_string(), clip(10, 30.0))].into() };
+        let expected = Expectation {
+            tolerance: 1e-3,
+            requires: Vec::new(),
+            outputs: [("a.clip".to_string(), clip(10, 30.0))].into(),
+        };
         let same = [("a.clip".to_string(), clip(10, 30.01))].into();
         assert!(compare(&expected, &same).is_empty());
         let off = [("a.clip".to_string(), clip(11, 30.1))].into();

@@ -173,7 +173,10 @@ impl Node for DetectContacts {
         let clip = ctx.input(&CLIP)?;
         let thresholds = thresholds_from(ctx)?;
         let landmarks = find_landmarks(clip.skeleton()).map_err(|missing| {
-            NodeError::input("clip", format!("the feet could not be found by joint name (missing: {})", missing.join(", ")))
+            NodeError::input(
+                "clip",
+                format!("the feet could not be found by joint name (missing: {})", missing.join(", ")),
+            )
         })?;
         let contacts = detect_contacts(&clip, &forward_kinematics(&clip), &landmarks, &thresholds);
         ctx.set_output(&CONTACTS, Arc::new(contacts));
@@ -192,7 +195,11 @@ mod tests {
         let mut track = Vec::new();
         for f in 0..300 {
             let noise = if f % 2 == 0 { 0.01 } else { 0.0 };
-            let lift = if (100..200).contains(&f) { 0.3 * ((f - 100) as f32 / 100.0 * std::f32::consts::PI).sin() } else { 0.0 };
+            let lift = if (100..200).contains(&f) {
+                0.3 * ((f - 100) as f32 / 100.0 * std::f32::consts::PI).sin()
+            } else {
+                0.0
+            };
             track.push(DVec3::new(0.0, f64::from(noise + lift), 0.0));
         }
         let t = ContactThresholds { enter_speed_mps: 2.0, leave_speed_mps: 3.0, ..Default::default() };

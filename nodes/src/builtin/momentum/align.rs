@@ -124,7 +124,7 @@ mod tests {
             (DVec3::new(-0.4, 1.0, 0.9), DVec3::new(0.7, 0.5, -0.1)),
         ];
         for (l1, l2) in cases {
-            let score = |t: f64| l1.dot((yaw_rotation(t).as_dquat() * l2).into());
+            let score = |t: f64| l1.dot(yaw_rotation(t).as_dquat() * l2);
             let scan: Vec<f64> = (0..36000).map(|i| i as f64 / 36000.0 * std::f64::consts::TAU).collect();
             let best = scan.iter().copied().max_by(|a, b| score(*a).total_cmp(&score(*b))).unwrap();
             let worst = scan.iter().copied().min_by(|a, b| score(*a).total_cmp(&score(*b))).unwrap();

@@ -166,8 +166,9 @@ mod tests {
                 [q, Quat::IDENTITY, Quat::IDENTITY]
             })
             .collect();
-        let translations: Vec<Vec3> =
-            (0..frames).flat_map(|_| [Vec3::new(3.0, 1.0, 0.0), Vec3::new(0.5, 0.0, 0.0), Vec3::new(-0.5, 0.0, 0.0)]).collect();
+        let translations: Vec<Vec3> = (0..frames)
+            .flat_map(|_| [Vec3::new(3.0, 1.0, 0.0), Vec3::new(0.5, 0.0, 0.0), Vec3::new(-0.5, 0.0, 0.0)])
+            .collect();
         let clip = Clip::new(skeleton.clone(), fps, rotations, translations, ImportScale::METRES).unwrap();
         // Each end carries 10 kg at the joint itself (com_fraction 1 from the centre).
         let o: MassOverride = ron::from_str(

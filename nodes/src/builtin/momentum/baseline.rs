@@ -11,7 +11,7 @@ use serde_json::json;
 
 use super::align::{place, torso_facing};
 use super::analysis::{Analysis, AnalysisOptions};
-use super::concat::{Concatenated, ConcatError, foot_skate_m, same_skeleton, splice};
+use super::concat::{ConcatError, Concatenated, foot_skate_m, same_skeleton, splice};
 use crate::model::{ClipPoses, FrameRange};
 
 /// Settings of the baseline join.

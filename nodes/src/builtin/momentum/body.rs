@@ -277,7 +277,12 @@ pub fn find_landmarks(skeleton: &Skeleton) -> Result<Landmarks, Vec<String>> {
         for chain in [&slots[0..3], &slots[3..6]] {
             for pair in chain.windows(2) {
                 if missing.is_empty() && !is_ancestor(skeleton, pair[0], pair[1]) {
-                    missing.push(format!("{} chain order ({} above {})", ["left", "right"][side], joints[pair[0]].name, joints[pair[1]].name));
+                    missing.push(format!(
+                        "{} chain order ({} above {})",
+                        ["left", "right"][side],
+                        joints[pair[0]].name,
+                        joints[pair[1]].name
+                    ));
                 }
             }
         }
@@ -341,7 +346,9 @@ const DE_LEVA_LIMBS: [(&str, [f64; 2], [f64; 2]); 6] = [
 const DE_LEVA_HEAD: ([f64; 2], [f64; 2]) = ([6.94, 6.68], [59.76, 58.94]);
 /// Trunk thirds from the neck down: (segment, mass %, start and end as shares of the
 /// neck–hip length, centre of mass % from the segment's top), male then female.
-const DE_LEVA_TRUNK: [[(&str, f64, f64, f64, f64); 3]; 2] = [
+/// (segment, mass %, start share, end share, centre of mass % from the top).
+type TrunkRow = (&'static str, f64, f64, f64, f64);
+const DE_LEVA_TRUNK: [[TrunkRow; 3]; 2] = [
     [
         ("upper_trunk", 15.96, 0.0, 0.3209, 50.66),
         ("middle_trunk", 16.33, 0.3209, 0.7261, 45.02),
@@ -585,9 +592,10 @@ mod tests {
         let model = body_model(&skeleton, 80.0, MassTable::DeLevaMale, Some(&o)).unwrap();
         assert_eq!(model.method, "override");
         assert!((model.segments[0].mass_kg - 20.0).abs() < 1e-9);
-        let bad: MassOverride =
-            ron::from_str(r#"(segments: [(name: "x", mass_fraction: 1.0, from: "LeftUpLg", to: "Neck", com_fraction: 0.5)])"#)
-                .unwrap();
+        let bad: MassOverride = ron::from_str(
+            r#"(segments: [(name: "x", mass_fraction: 1.0, from: "LeftUpLg", to: "Neck", com_fraction: 0.5)])"#,
+        )
+        .unwrap();
         let err = body_model(&skeleton, 80.0, MassTable::DeLevaMale, Some(&bad)).unwrap_err();
         assert!(err.to_string().contains("did you mean 'LeftUpLeg'"), "{err}");
     }

@@ -428,17 +428,17 @@ pub fn concatenate(
 ) -> Result<Concatenated, ConcatError> {
     same_skeleton(&a.clip, &b.clip)?;
     let fps = a.clip.fps();
-    // 1–3. Alignment about the vertical axis, then the optimal timing per pairing of
-    // blendable periods.
+    // 1. Alignment about the vertical axis (the main phases' mean momenta).
+    let (yaw, yaw_from) = alignment(a, b, (a.phases.main, b.phases.main), params.rule);
+    let turn_f = yaw_rotation(yaw);
+    let l2: Vec<DVec3> = b.smoothed.iter().map(|l| turn_f.as_dquat() * *l).collect();
+    let arms2: Vec<Vec3> = b.track.arms_m.iter().map(|r| turn_f * *r).collect();
+    // 2–3. Blendable periods and the optimal timing per pairing of them.
     let scale = 0.5 * (a.smoothed_peak().powi(2) + b.smoothed_peak().powi(2)).max(f64::MIN_POSITIVE);
     let min_frames = ((params.min_blend_secs * fps).round() as usize).max(2);
-    let mut best: Option<(Case, Allowed, Timing, (f64, &'static str), Vec<DVec3>)> = None;
+    let mut best: Option<(Case, Allowed, Timing)> = None;
     for case in cases(params.rule, a, b)? {
         let Some(mask) = allowed(&case, a, b, params.support, min_frames) else { continue };
-        let (yaw, yaw_from) = alignment(a, b, (a.phases.main, b.phases.main), params.rule);
-        let turn = yaw_rotation(yaw);
-        let l2: Vec<DVec3> = b.smoothed.iter().map(|l| turn.as_dquat() * *l).collect();
-        let arms2: Vec<Vec3> = b.track.arms_m.iter().map(|r| turn * *r).collect();
         let timing = optimal_timing(
             &a.smoothed,
             &l2,
@@ -451,16 +451,15 @@ pub fn concatenate(
             params.weights,
         );
         if let Some(t) = timing
-            && best.as_ref().is_none_or(|(_, _, b, _, _)| t.cost() < b.cost())
+            && best.as_ref().is_none_or(|(_, _, b)| t.cost() < b.cost())
         {
-            best = Some((case, mask, t, (yaw, yaw_from), l2));
+            best = Some((case, mask, t));
         }
     }
-    let Some((case, mask, timing, (yaw, yaw_from), l2)) = best else {
+    let Some((case, mask, timing)) = best else {
         return Err(ConcatError::NoBlendablePeriod {
             rule: params.rule.name(),
-            why: "no overlap of the blendable periods in double support; set support to \"any\" to blend anyway"
-                .into(),
+            why: "no overlap of the blendable periods in double support; set support to \"any\" to blend anyway".into(),
         });
     };
     let relative_cost = timing.cost() / scale;
@@ -502,7 +501,6 @@ pub fn concatenate(
     let g0 = (f0 as isize - t) as usize;
     // Facing check where the blend starts, then the sliding that puts the feet together.
     let centre = timing.centre;
-    let turn_f = yaw_rotation(yaw);
     // Facing is the heading of an upright torso; a body upside down in a cartwheel has
     // none worth comparing, so the check is skipped there.
     let upright = torso_upright(&a.poses, f0, &a.landmarks) && torso_upright(&b.poses, g0, &b.landmarks);
@@ -531,7 +529,8 @@ pub fn concatenate(
     let (lo, hi) = params.time_scale_range;
     let s = s_raw.clamp(lo.min(hi), hi.max(lo));
     let new_len = (((ff - f0) as f64 / s).round() as usize).max(1);
-    let out = if ff > f0 && new_len != ff - f0 { rescale_window(&blended, f0, ff, new_len)? } else { (*blended).clone() };
+    let out =
+        if ff > f0 && new_len != ff - f0 { rescale_window(&blended, f0, ff, new_len)? } else { (*blended).clone() };
     // Measurements on the result.
     let out = Arc::new(out);
     let result = a.reanalysed(out.clone(), options);

@@ -150,8 +150,9 @@ impl Node for AngularMomentum {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
         let options = analysis_options(ctx)?;
-        let table = body::body_model(clip.skeleton(), options.total_mass_kg, options.table, options.mass_override.as_ref())
-            .map_err(|e| NodeError::Failed(e.to_string()))?;
+        let table =
+            body::body_model(clip.skeleton(), options.total_mass_kg, options.table, options.mass_override.as_ref())
+                .map_err(|e| NodeError::Failed(e.to_string()))?;
         if table.method.starts_with("bone_length (") {
             ctx.warn(format!("mass model: {}", table.method));
         }
@@ -229,9 +230,8 @@ impl Node for SegmentPhases {
         }
         let analysis = analysed(clip.clone(), "clip", &options, None, None)?;
         let phases = segment_phases(&analysis.smoothed, clip.fps(), phase_options);
-        let secs = |r: Option<crate::model::FrameRange>| {
-            r.map(|r| [r.start as f64 / clip.fps(), r.end as f64 / clip.fps()])
-        };
+        let secs =
+            |r: Option<crate::model::FrameRange>| r.map(|r| [r.start as f64 / clip.fps(), r.end as f64 / clip.fps()]);
         ctx.set_output(
             &REPORT,
             report_of(json!({
@@ -447,14 +447,21 @@ impl Node for Concat {
         let resampled = (second_in.fps() - first.fps()).abs() > 1e-9;
         let second = at_rate_of(ctx, &first, second_in)?;
         let options = analysis_options(ctx)?;
-        let (phases_second, contacts_second) = (ctx.optional_input(&PHASES_SECOND)?, ctx.optional_input(&CONTACTS_SECOND)?);
+        let (phases_second, contacts_second) =
+            (ctx.optional_input(&PHASES_SECOND)?, ctx.optional_input(&CONTACTS_SECOND)?);
         if resampled && (phases_second.is_some() || contacts_second.is_some()) {
             return Err(NodeError::input(
                 "phases_second",
                 "phases and contacts of the second clip must be computed at the first clip's frame rate: resample it before",
             ));
         }
-        let a = analysed(first, "first", &options, ctx.optional_input(&PHASES_FIRST)?, ctx.optional_input(&CONTACTS_FIRST)?)?;
+        let a = analysed(
+            first,
+            "first",
+            &options,
+            ctx.optional_input(&PHASES_FIRST)?,
+            ctx.optional_input(&CONTACTS_FIRST)?,
+        )?;
         let b = analysed(second, "second", &options, phases_second, contacts_second)?;
         let support = Support::from_name(ctx.choice(&SUPPORT)?)
             .ok_or_else(|| NodeError::param("support", "is not auto, double or any"))?;

@@ -28,8 +28,10 @@ pub fn segment_phases(momentum: &[DVec3], fps: f64, options: PhaseOptions) -> Ph
         .unwrap_or_else(|| (0..n).max_by(|&a, &b| momentum[a].length().total_cmp(&momentum[b].length())).unwrap_or(0));
     let reference = momentum.get(tm).copied().unwrap_or_default();
     let opposes = |f: usize| momentum[f].dot(reference) < 0.0;
-    let main_start =
-        options.main_start.map(|f| f.min(tm)).unwrap_or_else(|| (0..tm).rev().find(|&f| opposes(f)).map_or(0, |f| f + 1));
+    let main_start = options
+        .main_start
+        .map(|f| f.min(tm))
+        .unwrap_or_else(|| (0..tm).rev().find(|&f| opposes(f)).map_or(0, |f| f + 1));
     let main_end = options
         .main_end
         .map(|f| f.clamp(tm + 1, n.max(tm + 1)))
@@ -40,8 +42,7 @@ pub fn segment_phases(momentum: &[DVec3], fps: f64, options: PhaseOptions) -> Ph
     } else {
         (0..main_start).rev().find(|&f| !opposes(f)).map_or(0, |f| f + 1)
     };
-    let posterior_end =
-        if options.main_end.is_some() { n } else { (main_end..n).find(|&f| !opposes(f)).unwrap_or(n) };
+    let posterior_end = if options.main_end.is_some() { n } else { (main_end..n).find(|&f| !opposes(f)).unwrap_or(n) };
     let preparatory = Some(FrameRange::new(preparatory_start, main_start)).filter(|r| !r.is_empty());
     let posterior = Some(FrameRange::new(main_end, posterior_end)).filter(|r| !r.is_empty());
     Phases { fps, frame_count: n, main_frame: tm, preparatory, main: FrameRange::new(main_start, main_end), posterior }
@@ -74,7 +75,8 @@ mod tests {
         let flip = profile(&[-1.0, 2.0, 5.0, 4.0]);
         let p = segment_phases(&flip, 30.0, PhaseOptions::default());
         assert_eq!((p.preparatory, p.posterior), (Some(FrameRange::new(0, 1)), None));
-        let forced = segment_phases(&flip, 30.0, PhaseOptions { main_start: Some(2), main_end: Some(3), ..Default::default() });
+        let forced =
+            segment_phases(&flip, 30.0, PhaseOptions { main_start: Some(2), main_end: Some(3), ..Default::default() });
         assert_eq!(forced.preparatory, Some(FrameRange::new(0, 2)));
         assert_eq!(forced.main, FrameRange::new(2, 3));
         assert_eq!(forced.posterior, Some(FrameRange::new(3, 4)));
