@@ -10,7 +10,7 @@ use std::sync::Arc;
 use criterion::{Criterion, criterion_group, criterion_main};
 use kinegraph_nodes::builtin::clip_edit::trim;
 use kinegraph_nodes::builtin::momentum::analysis::{Analysis, AnalysisOptions, analyse};
-use kinegraph_nodes::builtin::momentum::concat::optimal_timing;
+use kinegraph_nodes::builtin::momentum::concat::{TimingSearch, TimingSide};
 use kinegraph_nodes::corpus::{files_with_extension, shared_data};
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
 
@@ -26,17 +26,15 @@ fn search(a: &Analysis, b: &Analysis) -> f64 {
         (0..a.smoothed.len()).map(|f| f >= a.phases.main_frame && a.phases.main.contains(f)).collect();
     let before: Vec<bool> =
         (0..b.smoothed.len()).map(|g| g <= b.phases.main_frame && b.phases.main.contains(g)).collect();
-    optimal_timing(
-        &a.smoothed,
-        &b.smoothed,
-        &a.track.arms_m,
-        &b.track.arms_m,
-        &a.track.masses_kg,
-        &after,
-        &before,
-        a.phases.main_frame,
-        [1.0; 3],
-    )
+    TimingSearch {
+        first: TimingSide { momentum: &a.smoothed, arms_m: &a.track.arms_m, allowed: &after },
+        second: TimingSide { momentum: &b.smoothed, arms_m: &b.track.arms_m, allowed: &before },
+        masses_kg: &a.track.masses_kg,
+        first_start: a.phases.main_frame,
+        weights: [1.0; 3],
+        min_offset: isize::MIN,
+    }
+    .run()
     .map_or(f64::NAN, |t| t.cost())
 }
 

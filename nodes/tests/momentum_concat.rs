@@ -10,7 +10,7 @@ use kinegraph_nodes::builtin::clip_edit::trim;
 use kinegraph_nodes::builtin::momentum::align::Rule;
 use kinegraph_nodes::builtin::momentum::analysis::{AnalysisOptions, analyse};
 use kinegraph_nodes::builtin::momentum::baseline::{BaselineParams, concatenate_baseline};
-use kinegraph_nodes::builtin::momentum::concat::{ConcatError, ConcatParams, Support, concatenate};
+use kinegraph_nodes::builtin::momentum::concat::{ConcatError, ConcatParams, Concatenated, Support, concatenate};
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
 use kinegraph_nodes::model::Clip;
@@ -18,6 +18,14 @@ use kinegraph_nodes::model::Clip;
 fn clip(data: &Path, name: &str, from_secs: f64, to_secs: f64) -> Arc<Clip> {
     let (clip, _) = read_bvh_file(&data.join("bvh").join(name), BvhReadOptions::default()).unwrap().value;
     Arc::new(trim(&clip, from_secs, Some(to_secs)).unwrap())
+}
+
+/// The error of a refused concatenation (a success prints its report, not its clip).
+fn refusal(result: Result<Concatenated, ConcatError>) -> ConcatError {
+    match result {
+        Ok(joined) => panic!("expected a refusal, got {:?}", joined.report),
+        Err(e) => e,
+    }
 }
 
 fn number(report: &kinegraph_nodes::node::Report, key: &str) -> f64 {
@@ -51,7 +59,7 @@ fn mirrored_cartwheels_are_refused_for_facing_under_the_forward_rule() {
     let options = AnalysisOptions::default();
     let a = analyse(clip(&data, "cmu/144_01.bvh", 1.3, 4.3), &options, None, None).unwrap();
     let b = analyse(clip(&data, "cmu/144_01.bvh", 4.4, 7.2), &options, None, None).unwrap();
-    let err = concatenate(&a, &b, &ConcatParams::default(), &options).unwrap_err();
+    let err = refusal(concatenate(&a, &b, &ConcatParams::default(), &options));
     assert!(matches!(err, ConcatError::Facing { angle_deg, .. } if angle_deg > 45.0), "{err}");
     assert!(err.to_string().contains("do not chain"));
 }
@@ -74,7 +82,7 @@ fn a_one_two_punch_is_shorter_than_the_motion_graphs_join_and_costs_are_reported
     assert!((0.5..=2.0).contains(&s));
     // Refused as too different under an impossible cost limit, with the terms in the text.
     let strict = ConcatParams { max_relative_cost: 1e-9, ..params };
-    let err = concatenate(&a, &b, &strict, &options).unwrap_err();
+    let err = refusal(concatenate(&a, &b, &strict, &options));
     assert!(matches!(err, ConcatError::TooDifferent { .. }) && err.to_string().contains("F_dm"), "{err}");
 }
 
@@ -84,7 +92,7 @@ fn clips_on_different_skeletons_are_refused_by_name() {
     let options = AnalysisOptions::default();
     let a = analyse(clip(&data, "cmu/02_02.bvh", 0.01, 2.0), &options, None, None).unwrap();
     let b = analyse(clip(&data, "cmu_daz/02_02.bvh", 0.01, 2.0), &options, None, None).unwrap();
-    let err = concatenate(&a, &b, &ConcatParams::default(), &options).unwrap_err();
+    let err = refusal(concatenate(&a, &b, &ConcatParams::default(), &options));
     assert!(matches!(err, ConcatError::DifferentSkeletons(_)), "{err}");
 }
 
@@ -105,4 +113,32 @@ fn body_model_puts_the_standing_centre_of_mass_at_a_human_height() {
         // Standing still-ish: momentum small next to a cartwheel's tens of kg·m²/s.
         assert!(a.smoothed[10].length() < 5.0, "{name}: {}", a.smoothed[10].length());
     }
+}
+
+#[test]
+fn a_double_cartwheel_keeps_both_cartwheels_without_a_momentum_spike() {
+    let Some(data) = shared_data() else { return };
+    let options = AnalysisOptions::default();
+    let c = clip(&data, "cmu/90_02.bvh", 1.5, 6.0);
+    let a = analyse(c.clone(), &options, None, None).unwrap();
+    // A cartwheel ends turned half round: the orientation limit must allow that.
+    let params = ConcatParams {
+        support: Support::Any,
+        min_peak_gap_secs: 0.8,
+        max_facing_rad: 150f64.to_radians(),
+        ..ConcatParams::default()
+    };
+    let joined = concatenate(&a, &a, &params, &options).unwrap();
+    let r = &joined.report;
+    eprintln!("double cartwheel: {r:?}");
+    // Both peaks survive: the result is longer than one cartwheel by about the gap.
+    assert!(number(r, "offset_secs") >= 0.8 - 1.0 / c.fps());
+    assert!(number(r, "duration_secs") > c.duration_secs() + 0.5);
+    // No spike: the smoothed |L| inside the blend stays under the clips' own peaks.
+    assert!(
+        number(r, "peak_momentum_in_blend") <= number(r, "peak_momentum_first").max(number(r, "peak_momentum_second"))
+    );
+    // The joined clip is finite everywhere.
+    assert!(joined.clip.rotations().iter().all(|q| q.is_finite()));
+    assert!(joined.clip.translations().iter().all(|t| t.is_finite()));
 }

@@ -283,23 +283,28 @@ fn read_expectation(graph: &Path) -> Option<Result<Expectation, String>> {
         .map(|t| ron::from_str::<Expectation>(&t).map_err(|e| format!("{}:{e}", path.display())))
 }
 
+/// When data the expectation requires is absent: a skip, or under CI a failure.
+fn missing_data(graph: &Path, expected: &Expectation, ci: bool) -> Option<GraphTest> {
+    let base = graph.parent().unwrap_or(Path::new("."));
+    let missing: Vec<&str> = expected.requires.iter().filter(|r| !base.join(r).exists()).map(String::as_str).collect();
+    if missing.is_empty() {
+        return None;
+    }
+    let what = format!("required data not found: {}", missing.join(", "));
+    Some(if ci {
+        GraphTest::Failed(vec![format!("{what} (CI is set, so this fails)")])
+    } else {
+        GraphTest::Skipped(what)
+    })
+}
+
 /// Runs one graph and compares (or blesses).
 pub fn test_graph(engine: &Engine, graph: &Path, bless: bool) -> GraphTest {
     let existing = read_expectation(graph);
-    if let Some(Ok(expected)) = &existing {
-        let base = graph.parent().unwrap_or(Path::new("."));
-        let missing: Vec<&String> = expected.requires.iter().filter(|r| !base.join(r).exists()).collect();
-        if !missing.is_empty() {
-            let what = format!(
-                "required data not found: {}",
-                missing.iter().map(|m| m.as_str()).collect::<Vec<_>>().join(", ")
-            );
-            return if std::env::var_os("CI").is_some() {
-                GraphTest::Failed(vec![format!("{what} (CI is set, so this fails)")])
-            } else {
-                GraphTest::Skipped(what)
-            };
-        }
+    if let Some(Ok(expected)) = &existing
+        && let Some(outcome) = missing_data(graph, expected, std::env::var_os("CI").is_some())
+    {
+        return outcome;
     }
     match run_and_compare(engine, graph, bless, existing) {
         problems if problems.is_empty() => GraphTest::Passed,
@@ -386,6 +391,38 @@ pub(super) fn test_command(graphs: Vec<PathBuf>, bless: bool) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn missing_required_data_skips_locally_and_fails_under_ci() {
+        let dir = tempfile::tempdir().unwrap();
+        let graph = dir.path().join("g.ron");
+        std::fs::create_dir(dir.path().join("here")).unwrap();
+        let expected = |requires: &[&str]| Expectation {
+            tolerance: 1e-5,
+            requires: requires.iter().map(|r| r.to_string()).collect(),
+            outputs: BTreeMap::new(),
+        };
+        assert_eq!(missing_data(&graph, &expected(&["here"]), true), None);
+        let gone = expected(&["here", "../nowhere/data"]);
+        assert_eq!(
+            missing_data(&graph, &gone, false),
+            Some(GraphTest::Skipped("required data not found: ../nowhere/data".into()))
+        );
+        assert!(matches!(missing_data(&graph, &gone, true), Some(GraphTest::Failed(p)) if p[0].contains("CI is set")));
+    }
+
+    #[test]
+    fn structured_data_compares_numbers_within_tolerance_and_the_rest_exactly() {
+        let want = serde_json::json!({"a": 1.0, "n": 3, "s": "x", "v": [1.0, 2.0]});
+        let mut problems = Vec::new();
+        let close_enough = serde_json::json!({"a": 1.000_000_1, "n": 3, "s": "x", "v": [1.0, 2.0]});
+        compare_data("k", &want, &close_enough, 1e-5, &mut problems);
+        assert!(problems.is_empty(), "{problems:?}");
+        let off = serde_json::json!({"a": 1.1, "n": 4, "s": "y", "v": [1.0], "extra": 0});
+        compare_data("k", &want, &off, 1e-5, &mut problems);
+        assert_eq!(problems.len(), 5, "{problems:?}");
+        assert!(problems.iter().any(|p| p == "k.n: expected 3, got 4"));
+    }
 
     #[test]
     fn comparison_uses_the_tolerance_for_reals_and_exactness_for_counts() {

@@ -76,11 +76,25 @@ pub fn torso_facing(poses: &ClipPoses, frame: usize, landmarks: &Landmarks) -> O
     Vec3::new(across.x, 0.0, across.z).cross(Vec3::Y).try_normalize()
 }
 
-/// Whether the torso (mid-hip to neck) points within 60° of straight up at `frame`.
+/// Whether the torso (mid-hip to neck) is within 60° of upright at `frame`, so that its
+/// facing on the ground means something.
 pub fn torso_upright(poses: &ClipPoses, frame: usize, landmarks: &Landmarks) -> bool {
     let [lh, rh] = landmarks.hips();
     let mid_hip = (poses.position(frame, lh) + poses.position(frame, rh)) * 0.5;
     (poses.position(frame, landmarks.neck) - mid_hip).try_normalize().is_some_and(|up| up.y > 0.5)
+}
+
+/// Orientation of the torso at `frame`: x from the right to the left hip and shoulder, y
+/// from the middle of the hips to the neck (made perpendicular), z = x × y (forward).
+/// `None` when degenerate.
+pub fn torso_orientation(poses: &ClipPoses, frame: usize, landmarks: &Landmarks) -> Option<Quat> {
+    let [lh, rh] = landmarks.hips();
+    let [ls, rs] = landmarks.shoulders();
+    let p = |j| poses.position(frame, j);
+    let left = ((p(lh) - p(rh)) + (p(ls) - p(rs))).try_normalize()?;
+    let up = (p(landmarks.neck) - (p(lh) + p(rh)) * 0.5).reject_from_normalized(left).try_normalize()?;
+    let forward = left.cross(up);
+    Some(crate::math::quat_normalize_or_identity(Quat::from_mat3(&glam::Mat3::from_cols(left, up, forward))))
 }
 
 /// The point between the two ankles at `frame`, on the ground plane (y = 0).

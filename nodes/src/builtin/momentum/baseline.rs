@@ -26,7 +26,7 @@ pub struct BaselineParams {
 
 impl Default for BaselineParams {
     fn default() -> Self {
-        BaselineParams { search_share: 0.5, crossfade_secs: 0.25 }
+        BaselineParams { search_share: 0.25, crossfade_secs: 0.25 }
     }
 }
 

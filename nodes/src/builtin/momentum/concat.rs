@@ -26,7 +26,9 @@ use std::sync::Arc;
 use glam::{DVec3, Quat, Vec3};
 use serde_json::json;
 
-use super::align::{Rule, angle_between, feet_centre, place, torso_facing, torso_upright, yaw_rotation};
+use super::align::{
+    Rule, angle_between, feet_centre, place, torso_facing, torso_orientation, torso_upright, yaw_rotation,
+};
 use super::analysis::{Analysis, AnalysisOptions, analyse};
 use crate::builtin::clip_edit::resample;
 use crate::math::slerp_short;
@@ -73,12 +75,17 @@ pub struct ConcatParams {
     pub max_relative_cost: f64,
     /// The window grows while ‖L1 − L2‖² / (½(peak|L1|² + peak|L2|²)) stays below this.
     pub window_threshold: f64,
-    /// The window is at least this long where the blendable periods allow, seconds.
+    /// The window is at least this long where both clips have frames, seconds.
     pub min_blend_secs: f64,
-    /// Refuse when the torsos face more than this apart after alignment, radians.
+    /// Refuse when, where the blend starts and after alignment, the torsos face further
+    /// apart than this (or, for a body far from upright, are turned further apart), radians.
     pub max_facing_rad: f64,
     /// Bounds on the time scale s of eq. 9 (1..1 turns scaling off).
     pub time_scale_range: (f64, f64),
+    /// The second clip's main-phase peak plays at least this long after the first's,
+    /// seconds. The paper's cost favours the earliest blend, which for two similar motions
+    /// overlaps their main phases into one; a gap keeps both (a double flip stays double).
+    pub min_peak_gap_secs: f64,
 }
 
 impl Default for ConcatParams {
@@ -89,9 +96,10 @@ impl Default for ConcatParams {
             weights: [1.0, 1.0, 1.0],
             max_relative_cost: 1.0,
             window_threshold: 0.25,
-            min_blend_secs: 0.1,
+            min_blend_secs: 0.25,
             max_facing_rad: std::f64::consts::FRAC_PI_4,
             time_scale_range: (0.5, 2.0),
+            min_peak_gap_secs: 0.0,
         }
     }
 }
@@ -129,7 +137,7 @@ pub enum ConcatError {
     },
     /// The torsos face too differently.
     #[error(
-        "after alignment the torsos face {angle_deg:.1}° apart where the blend starts, more than {max_deg:.1}°: \
+        "after alignment the torsos are turned {angle_deg:.1}° apart where the blend starts, more than {max_deg:.1}°: \
          these motions do not chain in this order"
     )]
     Facing {
@@ -244,59 +252,86 @@ fn allowed(case: &Case, a: &Analysis, b: &Analysis, support: Support, min_frames
     }
 }
 
-/// The optimal-timing search (eqs. 3–7) over precomputed, already aligned curves:
-/// `l1`, `l2` angular momenta, `arms1`, `arms2` moment arms (frame-major, `segments`
-/// per frame), `masses` per segment. Brute force over every offset, as in the paper:
-/// O(|B1|·|B2|) momentum differences plus one inertia term per offset.
-#[allow(clippy::too_many_arguments)]
-pub fn optimal_timing(
-    l1: &[DVec3],
-    l2: &[DVec3],
-    arms1: &[Vec3],
-    arms2: &[Vec3],
-    masses: &[f64],
-    allowed1: &[bool],
-    allowed2: &[bool],
-    first_start: usize,
-    weights: [f64; 3],
-) -> Option<Timing> {
-    let segments = masses.len();
-    let (n1, n2) = (l1.len() as isize, l2.len() as isize);
-    let first_frames: Vec<usize> = (0..l1.len()).filter(|&f| allowed1[f]).collect();
-    let second_frames: Vec<usize> = (0..l2.len()).filter(|&g| allowed2[g]).collect();
-    let (&f_lo, &f_hi) = (first_frames.first()?, first_frames.last()?);
-    let (&g_lo, &g_hi) = (second_frames.first()?, second_frames.last()?);
-    let l_start = l1[first_start.min(l1.len() - 1)];
-    let mut best: Option<Timing> = None;
-    for offset in (f_lo as isize - g_hi as isize)..=(f_hi as isize - g_lo as isize) {
-        let mut centre: Option<(usize, f64)> = None;
-        for &f in &first_frames {
-            let g = f as isize - offset;
-            if g < 0 || g >= n2 || !allowed2[g as usize] {
-                continue;
+/// One side of the timing search: a clip's (already aligned) curves and where it may blend.
+#[derive(Clone, Copy, Debug)]
+pub struct TimingSide<'a> {
+    /// Smoothed angular momentum per frame, kg·m²/s.
+    pub momentum: &'a [DVec3],
+    /// Moment arms, frame-major, one per segment (metres).
+    pub arms_m: &'a [Vec3],
+    /// Whether each frame lies in the (truncated) blendable period.
+    pub allowed: &'a [bool],
+}
+
+/// The optimal-timing search (eqs. 3–7): every offset T, its blend centre f_T and cost F.
+#[derive(Clone, Copy, Debug)]
+pub struct TimingSearch<'a> {
+    /// The first clip.
+    pub first: TimingSide<'a>,
+    /// The second clip.
+    pub second: TimingSide<'a>,
+    /// Segment masses (kg), the same segments as the arms.
+    pub masses_kg: &'a [f64],
+    /// f_start of eq. 7: the first frame of the first clip's blendable period.
+    pub first_start: usize,
+    /// Weights of F_dm, F_inertia, F_time.
+    pub weights: [f64; 3],
+    /// Smallest offset considered, frames (the paper: none).
+    pub min_offset: isize,
+}
+
+impl TimingSearch<'_> {
+    /// The offset of least F. Brute force over every offset, as in the paper:
+    /// O(|B1|·|B2|) momentum differences plus one inertia term per offset.
+    pub fn run(&self) -> Option<Timing> {
+        let (l1, l2) = (self.first.momentum, self.second.momentum);
+        let segments = self.masses_kg.len();
+        let first_frames: Vec<usize> = (0..l1.len()).filter(|&f| self.first.allowed[f]).collect();
+        let second_frames: Vec<usize> = (0..l2.len()).filter(|&g| self.second.allowed[g]).collect();
+        let (&f_lo, &f_hi) = (first_frames.first()?, first_frames.last()?);
+        let (&g_lo, &g_hi) = (second_frames.first()?, second_frames.last()?);
+        let l_start = l1[self.first_start.min(l1.len() - 1)];
+        let lowest = (f_lo as isize - g_hi as isize).max(self.min_offset);
+        let mut best: Option<Timing> = None;
+        for offset in lowest..=(f_hi as isize - g_lo as isize) {
+            let mut centre: Option<(usize, f64)> = None;
+            for &f in &first_frames {
+                let g = f as isize - offset;
+                if g < 0 || g as usize >= l2.len() || !self.second.allowed[g as usize] {
+                    continue;
+                }
+                let d = (l1[f] - l2[g as usize]).length_squared();
+                if centre.is_none_or(|(_, best_d)| d < best_d) {
+                    centre = Some((f, d));
+                }
             }
-            let d = (l1[f] - l2[g as usize]).length_squared();
-            if centre.is_none_or(|(_, best_d)| d < best_d) {
-                centre = Some((f, d));
+            let Some((f, f_dm)) = centre else { continue };
+            let g = (f as isize - offset) as usize;
+            let r1 = &self.first.arms_m[f * segments..(f + 1) * segments];
+            let r2 = &self.second.arms_m[g * segments..(g + 1) * segments];
+            let f_inertia: f64 = (0..segments)
+                .map(|j| {
+                    let dot = f64::from(r1[j].dot(r2[j] - r1[j]));
+                    self.masses_kg[j] * dot * dot
+                })
+                .sum();
+            let f_time = (l1[f] - l_start).length_squared();
+            let w = self.weights;
+            let t = Timing { offset, centre: f, terms: [w[0] * f_dm, w[1] * f_inertia, w[2] * f_time] };
+            if best.as_ref().is_none_or(|b| t.cost() < b.cost()) {
+                best = Some(t);
             }
         }
-        let Some((f, f_dm)) = centre else { continue };
-        debug_assert!((f as isize) < n1);
-        let g = (f as isize - offset) as usize;
-        let (r1, r2) = (&arms1[f * segments..(f + 1) * segments], &arms2[g * segments..(g + 1) * segments]);
-        let f_inertia: f64 = (0..segments)
-            .map(|j| {
-                let dot = f64::from(r1[j].dot(r2[j] - r1[j]));
-                masses[j] * dot * dot
-            })
-            .sum();
-        let f_time = (l1[f] - l_start).length_squared();
-        let t = Timing { offset, centre: f, terms: [weights[0] * f_dm, weights[1] * f_inertia, weights[2] * f_time] };
-        if best.as_ref().is_none_or(|b| t.cost() < b.cost()) {
-            best = Some(t);
-        }
+        best
     }
-    best
+}
+
+/// The smallest offset T considered: the second motion never starts before the first, and
+/// its main-phase peak (at frame `peak2 + T` of the result) plays at least
+/// `min_peak_gap_secs` after the first's.
+fn min_offset(params: &ConcatParams, a: &Analysis, b: &Analysis) -> isize {
+    let gap = (params.min_peak_gap_secs * a.clip.fps()).round() as isize;
+    (a.phases.main_frame as isize - b.phases.main_frame as isize + gap).max(0)
 }
 
 /// Concatenation result: the clip and the report of every decision.
@@ -439,17 +474,15 @@ pub fn concatenate(
     let mut best: Option<(Case, Allowed, Timing)> = None;
     for case in cases(params.rule, a, b)? {
         let Some(mask) = allowed(&case, a, b, params.support, min_frames) else { continue };
-        let timing = optimal_timing(
-            &a.smoothed,
-            &l2,
-            &a.track.arms_m,
-            &arms2,
-            &a.track.masses_kg,
-            &mask.first,
-            &mask.second,
-            case.first.start,
-            params.weights,
-        );
+        let timing = TimingSearch {
+            first: TimingSide { momentum: &a.smoothed, arms_m: &a.track.arms_m, allowed: &mask.first },
+            second: TimingSide { momentum: &l2, arms_m: &arms2, allowed: &mask.second },
+            masses_kg: &a.track.masses_kg,
+            first_start: case.first.start,
+            weights: params.weights,
+            min_offset: min_offset(params, a, b),
+        }
+        .run();
         if let Some(t) = timing
             && best.as_ref().is_none_or(|(_, _, b)| t.cost() < b.cost())
         {
@@ -457,10 +490,14 @@ pub fn concatenate(
         }
     }
     let Some((case, mask, timing)) = best else {
-        return Err(ConcatError::NoBlendablePeriod {
-            rule: params.rule.name(),
-            why: "no overlap of the blendable periods in double support; set support to \"any\" to blend anyway".into(),
-        });
+        let mut why = "the blendable periods never overlap".to_string();
+        if params.support != Support::Any {
+            why += " in double support (set support to \"any\" to blend in the air)";
+        }
+        if params.min_peak_gap_secs > 0.0 {
+            why += &format!(" with the peaks {} s apart (lower min_peak_gap_secs)", params.min_peak_gap_secs);
+        }
+        return Err(ConcatError::NoBlendablePeriod { rule: params.rule.name(), why });
     };
     let relative_cost = timing.cost() / scale;
     if relative_cost > params.max_relative_cost {
@@ -492,26 +529,35 @@ pub fn concatenate(
         ff += 1;
     }
     let grown_by_threshold = (ff - f0) as usize;
-    while ((ff - f0) as usize) < min_frames && (ok(f0 - 1) || ok(ff + 1)) {
-        let back = if ok(f0 - 1) { diff(f0 - 1) } else { f64::INFINITY };
-        let forth = if ok(ff + 1) { diff(ff + 1) } else { f64::INFINITY };
+    // A window of a few frames is a pop, not a blend: below the minimum length it grows on
+    // beyond the blendable periods (anywhere both clips have frames), towards the side
+    // whose momenta agree better.
+    let inside = |f: isize| f >= 0 && (f as usize) < mask.first.len() && f - t >= 0 && ((f - t) as usize) < l2.len();
+    while ((ff - f0) as usize) < min_frames && (inside(f0 - 1) || inside(ff + 1)) {
+        let back = if inside(f0 - 1) { diff(f0 - 1) } else { f64::INFINITY };
+        let forth = if inside(ff + 1) { diff(ff + 1) } else { f64::INFINITY };
         if back <= forth { f0 -= 1 } else { ff += 1 }
     }
     let (f0, ff) = (f0 as usize, ff as usize);
     let g0 = (f0 as isize - t) as usize;
     // Facing check where the blend starts, then the sliding that puts the feet together.
     let centre = timing.centre;
-    // Facing is the heading of an upright torso; a body upside down in a cartwheel has
-    // none worth comparing, so the check is skipped there.
+    // The paper compares torso facings projected on the ground. A body far from upright (on
+    // its hands in a cartwheel) has no such facing, so there the whole torso orientations
+    // are compared instead.
     let upright = torso_upright(&a.poses, f0, &a.landmarks) && torso_upright(&b.poses, g0, &b.landmarks);
-    let facing_angle = match (
-        torso_facing(&a.poses, f0, &a.landmarks),
-        torso_facing(&b.poses, g0, &b.landmarks).map(|v| turn_f * v),
-    ) {
-        (Some(x), Some(y)) => angle_between(x, y),
-        _ => 0.0,
+    let facing_angle = if upright {
+        match (torso_facing(&a.poses, f0, &a.landmarks), torso_facing(&b.poses, g0, &b.landmarks)) {
+            (Some(x), Some(y)) => angle_between(x, turn_f * y),
+            _ => 0.0,
+        }
+    } else {
+        match (torso_orientation(&a.poses, f0, &a.landmarks), torso_orientation(&b.poses, g0, &b.landmarks)) {
+            (Some(x), Some(y)) => f64::from(x.angle_between(turn_f * y)),
+            _ => 0.0,
+        }
     };
-    if upright && facing_angle > params.max_facing_rad {
+    if facing_angle > params.max_facing_rad {
         return Err(ConcatError::Facing {
             angle_deg: facing_angle.to_degrees(),
             max_deg: params.max_facing_rad.to_degrees(),
@@ -559,7 +605,7 @@ pub fn concatenate(
         "window_secs": [secs(f0 as f64), secs(ff as f64)],
         "window_grown_by_threshold_frames": grown_by_threshold,
         "facing_deg": facing_angle.to_degrees(),
-        "facing_checked": upright,
+        "facing_compared": if upright { "ground facing" } else { "torso orientation (not upright)" },
         "feet_offset_m": [offset_m.x, offset_m.z],
         "time_scale_raw": s_raw,
         "time_scale": s,
@@ -585,4 +631,105 @@ pub fn concatenate_clips(
     let a = analyse(first, options, None, None).map_err(|e| e.to_string())?;
     let b = analyse(second, options, None, None).map_err(|e| e.to_string())?;
     concatenate(&a, &b, params, options).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{ImportScale, Joint, Skeleton};
+
+    /// A triangle of momentum about Z peaking at frame 10 (height 10, slope 1).
+    fn triangle() -> Vec<DVec3> {
+        (0..21).map(|f| DVec3::new(0.0, 0.0, 10.0 - (f as f64 - 10.0).abs())).collect()
+    }
+
+    fn search<'a>(
+        l: &'a [DVec3],
+        arms: &'a [Vec3],
+        after: &'a [bool],
+        before: &'a [bool],
+        min_offset: isize,
+    ) -> TimingSearch<'a> {
+        TimingSearch {
+            first: TimingSide { momentum: l, arms_m: arms, allowed: after },
+            second: TimingSide { momentum: l, arms_m: arms, allowed: before },
+            masses_kg: &[1.0],
+            first_start: 10,
+            weights: [1.0; 3],
+            min_offset,
+        }
+    }
+
+    #[test]
+    fn timing_of_a_motion_with_itself_is_solved_by_hand() {
+        let l = triangle();
+        let arms = vec![Vec3::ZERO; l.len()];
+        let after: Vec<bool> = (0..21).map(|f| f >= 10).collect();
+        let before: Vec<bool> = (0..21).map(|g| g <= 10).collect();
+        // Peak on peak: no momentum difference, no delay after f_start.
+        let t = search(&l, &arms, &after, &before, isize::MIN).run().unwrap();
+        assert_eq!((t.offset, t.centre, t.cost()), (0, 10, 0.0));
+        // Keeping the peaks 8 frames apart: the flanks meet at equal height at f = 14,
+        // g = 6 (L = 6 on both) and F_time = (10 − 6)² = 16; odd offsets cost 1 more at
+        // best (L 6 against 5), larger ones more F_time.
+        let t = search(&l, &arms, &after, &before, 8).run().unwrap();
+        assert_eq!((t.offset, t.centre), (8, 14));
+        assert!((t.terms[0] - 0.0).abs() < 1e-12 && (t.terms[2] - 16.0).abs() < 1e-12, "{t:?}");
+    }
+
+    #[test]
+    fn inertia_term_follows_eq_6() {
+        // One 1 kg segment: r1 = (1, 0, 0) and r2 = (2, 0, 0) at every frame, so
+        // r1 · (r2 − r1) = 1 and F_inertia = 1 at any centre.
+        let l = triangle();
+        let (arms1, arms2) = (vec![Vec3::X; 21], vec![Vec3::X * 2.0; 21]);
+        let all = vec![true; 21];
+        let s = TimingSearch {
+            first: TimingSide { momentum: &l, arms_m: &arms1, allowed: &all },
+            second: TimingSide { momentum: &l, arms_m: &arms2, allowed: &all },
+            masses_kg: &[1.0],
+            first_start: 10,
+            weights: [1.0; 3],
+            min_offset: isize::MIN,
+        };
+        let t = s.run().unwrap();
+        assert!((t.terms[1] - 1.0).abs() < 1e-12, "{t:?}");
+    }
+
+    /// One joint turned `angle` radians about Y at every frame.
+    fn constant(angle: f32, frames: usize) -> Clip {
+        let skeleton = Arc::new(Skeleton::new(vec![Joint::new("root", None, Vec3::ZERO)]).unwrap());
+        let rotations = vec![Quat::from_rotation_y(angle); frames];
+        let translations = (0..frames).map(|_| Vec3::new(angle, 0.0, 0.0)).collect();
+        Clip::new(skeleton, 30.0, rotations, translations, ImportScale::METRES).unwrap()
+    }
+
+    #[test]
+    fn splice_blends_linearly_from_the_first_to_the_second() {
+        let (first, second) = (constant(0.0, 10), constant(1.0, 10));
+        // Blend first[4..=8] with second[2..=6] (T = 2), then second[7..].
+        let out = splice(&first, &second, 4, 8, 2).unwrap();
+        assert_eq!(out.frame_count(), 4 + 5 + 3);
+        let yaw = |f: usize| out.frame_rotations(f)[0].to_scaled_axis().y;
+        assert!(yaw(3).abs() < 1e-6 && (yaw(4) - 0.0).abs() < 1e-6);
+        assert!((yaw(6) - 0.5).abs() < 1e-5, "{}", yaw(6));
+        assert!((yaw(8) - 1.0).abs() < 1e-5 && (yaw(11) - 1.0).abs() < 1e-5);
+        assert!((out.frame_translations(7)[0].x - 0.75).abs() < 1e-6);
+    }
+
+    #[test]
+    fn rescaling_a_window_stretches_it_and_keeps_the_rest() {
+        let mut rotations = Vec::new();
+        for f in 0..11 {
+            rotations.push(Quat::from_rotation_y(f as f32 * 0.1));
+        }
+        let skeleton = Arc::new(Skeleton::new(vec![Joint::new("root", None, Vec3::ZERO)]).unwrap());
+        let clip = Clip::new(skeleton, 10.0, rotations, vec![Vec3::ZERO; 11], ImportScale::METRES).unwrap();
+        // Frames 2..=6 (4 intervals) become 8 intervals: twice as slow.
+        let out = rescale_window(&clip, 2, 6, 8).unwrap();
+        assert_eq!(out.frame_count(), 11 + 4);
+        let yaw = |f: usize| out.frame_rotations(f)[0].to_scaled_axis().y;
+        assert!((yaw(3) - 0.25).abs() < 1e-5, "{}", yaw(3));
+        assert!((yaw(10) - 0.6).abs() < 1e-5 && (yaw(11) - 0.7).abs() < 1e-5);
+    }
 }

@@ -374,8 +374,8 @@ const WINDOW_THRESHOLD: FloatParam = FloatParam::new(
 );
 const MIN_BLEND: FloatParam = FloatParam::new(
     "min_blend_secs",
-    "The blend lasts at least this long where the blendable periods allow.",
-    0.1,
+    "The blend lasts at least this long (growing past the blendable periods if it must).",
+    0.25,
     0.0,
     10.0,
     "s",
@@ -390,6 +390,15 @@ const MIN_SCALE: FloatParam = FloatParam::new(
 );
 const MAX_SCALE: FloatParam =
     FloatParam::new("max_time_scale", "Upper bound of the time scale s; 1 and 1 turn scaling off.", 2.0, 1.0, 20.0, "");
+const MIN_GAP: FloatParam = FloatParam::new(
+    "min_peak_gap_secs",
+    "The second motion's peak plays at least this long after the first's. 0 is the paper's method, which \
+     overlaps two similar motions into one; about one main phase keeps a double flip double.",
+    0.0,
+    0.0,
+    60.0,
+    "s",
+);
 const W_DM: FloatParam = FloatParam::new("weight_momentum", "Weight of F_dm (eq. 4).", 1.0, 0.0, 1e6, "");
 const W_INERTIA: FloatParam = FloatParam::new("weight_inertia", "Weight of F_inertia (eq. 6).", 1.0, 0.0, 1e6, "");
 const W_TIME: FloatParam = FloatParam::new("weight_time", "Weight of F_time (eq. 7).", 1.0, 0.0, 1e6, "");
@@ -421,6 +430,7 @@ static CONCAT: NodeSchema = NodeSchema {
         MAX_FACING.0,
         MIN_SCALE.0,
         MAX_SCALE.0,
+        MIN_GAP.0,
         W_DM.0,
         W_INERTIA.0,
         W_TIME.0,
@@ -474,6 +484,7 @@ impl Node for Concat {
             min_blend_secs: ctx.float(&MIN_BLEND)?,
             max_facing_rad: ctx.float(&MAX_FACING)?.to_radians(),
             time_scale_range: (ctx.float(&MIN_SCALE)?, ctx.float(&MAX_SCALE)?),
+            min_peak_gap_secs: ctx.float(&MIN_GAP)?,
         };
         ctx.check_cancelled()?;
         let joined = concatenate(&a, &b, &params, &options).map_err(|e| NodeError::Failed(e.to_string()))?;
@@ -485,7 +496,7 @@ impl Node for Concat {
 const SEARCH_SHARE: FloatParam = FloatParam::new(
     "search_share",
     "The cut is searched in this last share of the first motion and this first share of the second.",
-    0.5,
+    0.25,
     0.01,
     1.0,
     "",
