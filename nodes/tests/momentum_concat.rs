@@ -142,3 +142,29 @@ fn a_double_cartwheel_keeps_both_cartwheels_without_a_momentum_spike() {
     assert!(joined.clip.rotations().iter().all(|q| q.is_finite()));
     assert!(joined.clip.translations().iter().all(|t| t.is_finite()));
 }
+
+#[test]
+fn walking_has_alternating_stance_phases_and_double_support() {
+    let Some(data) = shared_data() else { return };
+    for name in ["cmu/02_01.bvh", "cmu/07_01.bvh", "cmu_daz/05_01.bvh"] {
+        let c = clip(&data, name, 0.01, 30.0);
+        let a = analyse(c.clone(), &AnalysisOptions::default(), None, None).unwrap();
+        let frames = c.frame_count() as f64;
+        for foot in &a.contacts.feet {
+            // Stance takes about 60 % of a walking gait cycle (40 % swing); the thresholds cut
+            // a little off heel strike and toe-off.
+            let stance: usize = foot.intervals.iter().map(|r| r.len()).sum();
+            let share = stance as f64 / frames;
+            eprintln!("{name} {}: stance share {share:.2}", foot.foot);
+            assert!((0.4..=0.8).contains(&share), "{name} {}: stance share {share:.2}", foot.foot);
+            assert!(foot.intervals.len() >= 2, "{name} {}: {:?}", foot.foot, foot.intervals);
+        }
+        // Double support: both feet down, a minority of the cycle but present every step.
+        let double: usize = a.contacts.double_support.iter().map(|r| r.len()).sum();
+        let share = double as f64 / frames;
+        assert!(!a.contacts.double_support.is_empty() && share < 0.5, "{name}: double support {share:.2}");
+        for r in &a.contacts.double_support {
+            assert!(a.contacts.feet.iter().all(|f| f.intervals.iter().any(|i| i.start <= r.start && r.end <= i.end)));
+        }
+    }
+}

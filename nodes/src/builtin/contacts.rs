@@ -1,9 +1,9 @@
 //! Foot contacts: when each foot rests on the ground, and when both do (double support).
 //!
-//! A foot is in contact while its ankle or its toe tip is near the lowest height that point
-//! reaches in the clip and moves slowly. Thresholds have hysteresis (stricter to enter than
+//! A foot is in contact while its ankle or its toe tip is near the height that point rests
+//! at in the clip and moves slowly. Thresholds have hysteresis (stricter to enter than
 //! to stay), so a foot that rests does not flicker in and out of contact on capture noise.
-//! The ground is taken per point as its lowest height in the clip: flat ground, any rig.
+//! The rest height is taken per point from the clip itself: flat ground, any rig.
 
 use std::sync::Arc;
 
@@ -14,7 +14,7 @@ use crate::builtin::momentum::body::{Landmarks, find_landmarks, limb_tip};
 use crate::model::{Clip, ClipPoses, Contacts, FootContacts, FrameRange, forward_kinematics, intervals::intersect_all};
 use crate::node::{FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Registry};
 
-/// Thresholds of contact detection (metres above the point's lowest height, m/s).
+/// Thresholds of contact detection (metres above the point's rest height, m/s).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ContactThresholds {
     /// A point enters contact below this height…
@@ -41,9 +41,17 @@ impl Default for ContactThresholds {
     }
 }
 
+/// The height a point rests at: the 10th percentile of its heights over the clip, so that
+/// a few frames of capture noise or a foot poking through the floor do not set it.
+pub fn ground_height(track: &[DVec3]) -> f64 {
+    let mut heights: Vec<f64> = track.iter().map(|p| p.y).collect();
+    heights.sort_by(f64::total_cmp);
+    heights.get(heights.len() / 10).copied().unwrap_or(0.0)
+}
+
 /// Contact intervals of one point's track (world positions per frame).
 fn point_contacts(track: &[DVec3], fps: f64, t: &ContactThresholds) -> Vec<FrameRange> {
-    let ground = track.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+    let ground = ground_height(track);
     let min_frames = (t.min_duration_secs * fps).ceil() as usize;
     let (mut out, mut start) = (Vec::new(), None);
     for f in 0..track.len() {
@@ -119,7 +127,7 @@ const CONTACTS: Output<Arc<Contacts>> =
     Output::new("contacts", "Frames where each foot is on the ground, and where both are.");
 const ENTER_HEIGHT: FloatParam = FloatParam::new(
     "enter_height_m",
-    "A foot touches down when its ankle or toe comes this close to its lowest height in the clip.",
+    "A foot touches down when its ankle or toe comes this close to the height it rests at in the clip.",
     0.05,
     0.0,
     1.0,

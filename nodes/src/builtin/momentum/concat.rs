@@ -31,6 +31,7 @@ use super::align::{
 };
 use super::analysis::{Analysis, AnalysisOptions, analyse};
 use crate::builtin::clip_edit::resample;
+use crate::builtin::contacts::ground_height;
 use crate::math::slerp_short;
 use crate::model::{Clip, ClipError, FrameRange, Phases};
 use crate::node::Report;
@@ -405,26 +406,22 @@ pub fn same_skeleton(a: &Clip, b: &Clip) -> Result<(), ConcatError> {
 }
 
 /// Horizontal sliding of planted feet over `frames` of `analysis`: for each ankle, the
-/// horizontal distance travelled while it is within `height_m` of its lowest height,
-/// metres (summed over both feet).
+/// horizontal distance travelled while it is within `height_m` of its rest height, metres
+/// (summed over both feet).
 pub fn foot_skate_m(analysis: &Analysis, frames: FrameRange, height_m: f64) -> f64 {
     let poses = &analysis.poses;
-    analysis
-        .landmarks
-        .feet()
-        .iter()
-        .map(|&ankle| {
-            let ground = (0..poses.frame_count()).map(|f| poses.position(f, ankle).y).fold(f32::INFINITY, f32::min);
-            (frames.start.max(1)..frames.end.min(poses.frame_count()))
-                .filter(|&f| f64::from(poses.position(f, ankle).y - ground) < height_m)
-                .map(|f| {
-                    let d = poses.position(f, ankle) - poses.position(f - 1, ankle);
-                    f64::from(Vec3::new(d.x, 0.0, d.z).length())
-                })
-                .sum::<f64>()
-        })
-        .sum::<f64>()
-        + 0.0 // an empty sum is −0.0
+    let mut total = 0.0;
+    for ankle in analysis.landmarks.feet() {
+        let track: Vec<DVec3> = (0..poses.frame_count()).map(|f| poses.position(f, ankle).as_dvec3()).collect();
+        let ground = ground_height(&track);
+        for f in frames.start.max(1)..frames.end.min(track.len()) {
+            if track[f].y - ground < height_m {
+                let d = track[f] - track[f - 1];
+                total += DVec3::new(d.x, 0.0, d.z).length();
+            }
+        }
+    }
+    total
 }
 
 /// Peak of the smoothed |L| inside `frames`.
