@@ -178,3 +178,23 @@ fn save_and_reload_and_saving_without_edits_changes_no_byte() {
     assert_eq!(document::to_string(reloaded.doc()), saved);
     assert!(!reloaded.is_dirty());
 }
+
+#[test]
+fn a_concat_report_and_momentum_curves_are_readable_in_the_panel() {
+    // The example graph reads the shared corpus; without it there is nothing to show.
+    if kinegraph::nodes::corpus::shared_data().is_none() {
+        return;
+    }
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/one_two_punch.ron");
+    let mut harness = harness(Some(&path));
+    harness.state_mut().select(Some("concat"));
+    harness.run_steps(3);
+    harness.get_by_label("Report (report)");
+    harness.get_by_label("offset_secs");
+    harness.get_by_label("posterior → main");
+    harness.state_mut().select(Some("momentum"));
+    harness.run_steps(3);
+    harness.get_by_label("Curves (curves)");
+    harness.get_by_role_and_label(Role::CheckBox, "L.x (kg·m²/s)");
+    harness.get_by_role_and_label(Role::CheckBox, "com.y (m)");
+}

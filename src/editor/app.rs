@@ -13,6 +13,7 @@ use kinegraph_nodes::node::{Registry, Value};
 use super::canvas::{Badge, Canvas};
 use super::commands::{EditError, EditorCommand, History};
 use super::panel::{self, PanelState};
+use super::results::{self, ResultsState};
 use super::viewport::Viewport;
 use super::worker::{Worker, WorkerMessage};
 use crate::document::{self, GraphDoc};
@@ -44,6 +45,7 @@ pub struct EditorApp {
     /// The canvas selection last frame.
     canvas_selection: Vec<String>,
     panel: PanelState,
+    results: ResultsState,
     viewport: Viewport,
     message: Option<(String, bool)>,
     refusal: Option<(String, f64)>,
@@ -72,6 +74,7 @@ impl EditorApp {
             selected: None,
             canvas_selection: Vec::new(),
             panel: PanelState::default(),
+            results: ResultsState::default(),
             viewport: Viewport::default(),
             message: None,
             refusal: None,
@@ -432,6 +435,12 @@ impl EditorApp {
         let edits = panel::show(ui, &mut self.panel, &self.doc, &self.registry, &id, &badge, report.as_ref());
         for e in edits {
             let _ = self.edit_coalescing(e.command, e.coalesce);
+        }
+        let outputs = self.report.as_ref().and_then(|r| r.outputs.get(&id));
+        let schema = self.doc.nodes.get(&id).and_then(|n| self.registry.get(&n.kind)).map(|n| n.schema());
+        if let (Some(outputs), Some(schema)) = (outputs, schema) {
+            ui.separator();
+            results::show(ui, &mut self.results, &id, schema.outputs, outputs);
         }
     }
 

@@ -18,6 +18,8 @@ mod canvas;
 #[cfg(feature = "editor")]
 mod panel;
 #[cfg(feature = "editor")]
+mod results;
+#[cfg(feature = "editor")]
 mod viewport;
 
 #[cfg(feature = "editor")]

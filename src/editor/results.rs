@@ -1,0 +1,153 @@
+//! What the selected node produced besides clips, at the bottom of the panel: its report
+//! as a readable tree, its curves as a plot, its phases and foot contacts as time ranges.
+
+use std::collections::BTreeSet;
+
+use egui::{CollapsingHeader, RichText, Ui};
+use egui_plot::{Legend, Line, Plot};
+use kinegraph_nodes::model::{Contacts, Curves, FrameRange, Phases};
+use kinegraph_nodes::node::{PortSpec, Value};
+use serde_json::Value as Json;
+
+/// Which curve channels the user turned on, per node and port.
+#[derive(Default)]
+pub(crate) struct ResultsState {
+    /// `node.port.channel` of every channel switched on.
+    shown: BTreeSet<String>,
+    /// `node.port` whose default channels were already switched on once.
+    initialised: BTreeSet<String>,
+}
+
+/// Draws the results of node `id`: one section per non-clip output.
+pub(crate) fn show(ui: &mut Ui, state: &mut ResultsState, id: &str, ports: &[PortSpec], outputs: &[Option<Value>]) {
+    for (port, value) in ports.iter().zip(outputs) {
+        let key = format!("{id}.{}", port.name);
+        match value {
+            Some(Value::Report(report)) => {
+                CollapsingHeader::new(format!("Report ({})", port.name)).id_salt(&key).default_open(true).show(
+                    ui,
+                    |ui| {
+                        for (name, v) in report.iter() {
+                            json_row(ui, &format!("{key}.{name}"), name, v);
+                        }
+                    },
+                );
+            }
+            Some(Value::Curves(curves)) => {
+                CollapsingHeader::new(format!("Curves ({})", port.name))
+                    .id_salt(&key)
+                    .default_open(true)
+                    .show(ui, |ui| curves_plot(ui, state, &key, curves));
+            }
+            Some(Value::Phases(phases)) => {
+                CollapsingHeader::new(format!("Phases ({})", port.name))
+                    .id_salt(&key)
+                    .default_open(true)
+                    .show(ui, |ui| phases_text(ui, phases));
+            }
+            Some(Value::Contacts(contacts)) => {
+                CollapsingHeader::new(format!("Contacts ({})", port.name))
+                    .id_salt(&key)
+                    .default_open(true)
+                    .show(ui, |ui| contacts_text(ui, contacts));
+            }
+            _ => {}
+        }
+    }
+}
+
+/// One key of a report: scalars on one line, objects and arrays of objects nested.
+fn json_row(ui: &mut Ui, salt: &str, name: &str, value: &Json) {
+    match value {
+        Json::Object(map) => {
+            CollapsingHeader::new(name).id_salt(salt).show(ui, |ui| {
+                for (k, v) in map {
+                    json_row(ui, &format!("{salt}.{k}"), k, v);
+                }
+            });
+        }
+        Json::Array(items) if items.iter().any(|i| i.is_object() || i.is_array()) => {
+            CollapsingHeader::new(format!("{name} ({})", items.len())).id_salt(salt).show(ui, |ui| {
+                for (i, v) in items.iter().enumerate() {
+                    json_row(ui, &format!("{salt}[{i}]"), &i.to_string(), v);
+                }
+            });
+        }
+        other => {
+            ui.horizontal_wrapped(|ui| {
+                ui.label(RichText::new(name).weak());
+                ui.label(scalar_text(other));
+            });
+        }
+    }
+}
+
+/// A report scalar (or flat array) for reading: reals to four significant digits.
+fn scalar_text(value: &Json) -> String {
+    match value {
+        Json::Number(n) if n.is_f64() => n.as_f64().map(|x| format!("{x:.4}")).unwrap_or_default(),
+        Json::Array(items) => format!("[{}]", items.iter().map(scalar_text).collect::<Vec<_>>().join(", ")),
+        Json::String(s) => s.clone(),
+        other => other.to_string(),
+    }
+}
+
+/// Checkboxes per channel and one plot against time (seconds). The first channel's unit
+/// is shown by default, so the first view has one scale.
+fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves) {
+    let channels = curves.channels();
+    if state.initialised.insert(key.to_string()) {
+        let unit = channels.first().map(|c| c.unit.clone()).unwrap_or_default();
+        for c in channels.iter().filter(|c| c.unit == unit) {
+            state.shown.insert(format!("{key}.{}", c.name));
+        }
+    }
+    ui.horizontal_wrapped(|ui| {
+        for c in channels {
+            let id = format!("{key}.{}", c.name);
+            let mut on = state.shown.contains(&id);
+            if ui.checkbox(&mut on, format!("{} ({})", c.name, c.unit)).changed() {
+                if on {
+                    state.shown.insert(id);
+                } else {
+                    state.shown.remove(&id);
+                }
+            }
+        }
+    });
+    let fps = curves.fps();
+    Plot::new(format!("{key}.plot")).height(180.0).legend(Legend::default()).x_axis_label("s").show(ui, |plot| {
+        for c in channels.iter().filter(|c| state.shown.contains(&format!("{key}.{}", c.name))) {
+            let points: Vec<[f64; 2]> = c.values.iter().enumerate().map(|(i, v)| [i as f64 / fps, *v]).collect();
+            plot.line(Line::new(c.name.clone(), points));
+        }
+    });
+}
+
+fn seconds(range: FrameRange, fps: f64) -> String {
+    format!("{:.3} – {:.3} s", range.start as f64 / fps, range.end as f64 / fps)
+}
+
+fn phases_text(ui: &mut Ui, phases: &Phases) {
+    let fps = phases.fps;
+    ui.label(format!("main-phase peak at {:.3} s", phases.main_frame as f64 / fps));
+    for (name, range) in [("preparatory", phases.preparatory), ("main", Some(phases.main)), ("posterior", phases.posterior)] {
+        ui.label(match range {
+            Some(r) => format!("{name}: {}", seconds(r, fps)),
+            None => format!("{name}: none"),
+        });
+    }
+}
+
+fn contacts_text(ui: &mut Ui, contacts: &Contacts) {
+    let fps = contacts.fps;
+    let total = |rs: &[FrameRange]| rs.iter().map(|r| r.len()).sum::<usize>() as f64 / fps;
+    for foot in &contacts.feet {
+        ui.label(format!("{}: {} contacts, {:.2} s planted", foot.foot, foot.intervals.len(), total(&foot.intervals)));
+    }
+    ui.label(format!(
+        "double support: {} spans, {:.2} s",
+        contacts.double_support.len(),
+        total(&contacts.double_support)
+    ));
+}
