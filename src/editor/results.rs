@@ -131,7 +131,9 @@ fn seconds(range: FrameRange, fps: f64) -> String {
 fn phases_text(ui: &mut Ui, phases: &Phases) {
     let fps = phases.fps;
     ui.label(format!("main-phase peak at {:.3} s", phases.main_frame as f64 / fps));
-    for (name, range) in [("preparatory", phases.preparatory), ("main", Some(phases.main)), ("posterior", phases.posterior)] {
+    for (name, range) in
+        [("preparatory", phases.preparatory), ("main", Some(phases.main)), ("posterior", phases.posterior)]
+    {
         ui.label(match range {
             Some(r) => format!("{name}: {}", seconds(r, fps)),
             None => format!("{name}: none"),
