@@ -191,7 +191,7 @@ fn a_concat_report_and_momentum_curves_are_readable_in_the_panel() {
     harness.run_steps(3);
     harness.get_by_label("Report (report)");
     harness.get_by_label("offset_secs");
-    harness.get_by_label("posterior → main");
+    harness.get_by_label("posterior -> main");
     harness.state_mut().select(Some("momentum"));
     harness.run_steps(3);
     harness.get_by_label("Curves (curves)");

@@ -174,14 +174,14 @@ fn main_before_peak(p: &Phases) -> FrameRange {
 fn cases(rule: Rule, a: &Analysis, b: &Analysis) -> Result<Vec<Case>, ConcatError> {
     let (pa, pb) = (&a.phases, &b.phases);
     let out = match rule {
-        Rule::Forward => vec![Case { name: "main → main", first: main_after_peak(pa), second: main_before_peak(pb) }],
+        Rule::Forward => vec![Case { name: "main -> main", first: main_after_peak(pa), second: main_before_peak(pb) }],
         Rule::Reverse => {
             let mut v = Vec::new();
             if let Some(prep) = pb.preparatory {
-                v.push(Case { name: "main → preparatory", first: main_after_peak(pa), second: prep.second_half() });
+                v.push(Case { name: "main -> preparatory", first: main_after_peak(pa), second: prep.second_half() });
             }
             if let Some(post) = pa.posterior {
-                v.push(Case { name: "posterior → main", first: post.first_half(), second: main_before_peak(pb) });
+                v.push(Case { name: "posterior -> main", first: post.first_half(), second: main_before_peak(pb) });
             }
             v
         }
