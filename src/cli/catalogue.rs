@@ -18,6 +18,7 @@ fn param_range(p: &ParamSpec) -> String {
             format!("whole number {min}..={max}, default {d}")
         }
         ParamKind::Choice { choices, default } => format!("one of {}, default {default}", choices.join(" | ")),
+        ParamKind::Text { default } => format!("text, default {default:?}"),
         ParamKind::InputPath { extensions } => format!("input file (.{}), required", extensions.join(", .")),
         ParamKind::OutputPath { extension, default } => format!("output file (.{extension}), default {default}"),
     }

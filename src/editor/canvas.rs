@@ -67,6 +67,8 @@ pub(crate) fn type_color(ty: PortType) -> Color32 {
         PortType::Mesh => Color32::from_rgb(240, 150, 60),
         PortType::Scalar => Color32::from_rgb(120, 210, 120),
         PortType::File => Color32::from_rgb(200, 120, 220),
+        PortType::MeshSequence => Color32::from_rgb(240, 200, 60),
+        PortType::BarNet => Color32::from_rgb(160, 160, 160),
     }
 }
 

@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use crate::model::{Clip, Mesh};
+use crate::model::{BarNet, Clip, Mesh, MeshSequence};
 
 /// The type of a port. Closed: an edge is valid only between ports of the same type.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
@@ -16,6 +16,10 @@ pub enum PortType {
     Scalar,
     /// A path of a file a node wrote (inside the run's output directory).
     File,
+    /// A mesh deformed per frame of a clip (baked skinning or bar-net output).
+    MeshSequence,
+    /// A bar-net coupled to a control mesh.
+    BarNet,
 }
 
 impl PortType {
@@ -26,6 +30,8 @@ impl PortType {
             PortType::Mesh => "mesh",
             PortType::Scalar => "scalar",
             PortType::File => "file",
+            PortType::MeshSequence => "mesh_sequence",
+            PortType::BarNet => "bar_net",
         }
     }
 }
@@ -41,6 +47,10 @@ pub enum Value {
     Scalar(f64),
     /// See [`PortType::File`]: the path as written, relative to the output directory.
     File(Arc<std::path::PathBuf>),
+    /// See [`PortType::MeshSequence`].
+    MeshSequence(Arc<MeshSequence>),
+    /// See [`PortType::BarNet`].
+    BarNet(Arc<BarNet>),
 }
 
 impl Value {
@@ -51,6 +61,8 @@ impl Value {
             Value::Mesh(_) => PortType::Mesh,
             Value::Scalar(_) => PortType::Scalar,
             Value::File(_) => PortType::File,
+            Value::MeshSequence(_) => PortType::MeshSequence,
+            Value::BarNet(_) => PortType::BarNet,
         }
     }
 }
@@ -114,5 +126,31 @@ impl PortValue for Arc<std::path::PathBuf> {
     }
     fn into_value(self) -> Value {
         Value::File(self)
+    }
+}
+
+impl PortValue for Arc<MeshSequence> {
+    const TYPE: PortType = PortType::MeshSequence;
+    fn from_value(value: &Value) -> Option<Self> {
+        match value {
+            Value::MeshSequence(s) => Some(s.clone()),
+            _ => None,
+        }
+    }
+    fn into_value(self) -> Value {
+        Value::MeshSequence(self)
+    }
+}
+
+impl PortValue for Arc<BarNet> {
+    const TYPE: PortType = PortType::BarNet;
+    fn from_value(value: &Value) -> Option<Self> {
+        match value {
+            Value::BarNet(n) => Some(n.clone()),
+            _ => None,
+        }
+    }
+    fn into_value(self) -> Value {
+        Value::BarNet(self)
     }
 }
