@@ -1,8 +1,10 @@
 //! The motion data model: skeletons, clips, meshes, skins, forward kinematics and units.
 
+pub mod barnet;
 pub mod clip;
 pub mod fk;
 pub mod mesh;
+pub mod mesh_sequence;
 pub mod skeleton;
 pub mod units;
 
@@ -18,6 +20,8 @@ pub fn coordinate_in_range(v: glam::Vec3) -> bool {
     v.is_finite() && v.abs().max_element() <= MAX_COORDINATE_M
 }
 pub use fk::{ClipPoses, Transform, forward_kinematics};
+pub use barnet::{BarNet, BarNetError};
 pub use mesh::{Mesh, Skin};
+pub use mesh_sequence::{MeshSequence, MeshSequenceError};
 pub use skeleton::{Channel, Joint, JointLimits, Skeleton, SkeletonError};
 pub use units::{ImportScale, LengthUnit};
