@@ -1,11 +1,15 @@
 //! The built-in nodes, one file per family; each file holds the pure kernels and the thin
 //! node adapters over them.
 
+pub mod arm;
+pub mod barnet;
 pub mod clip_edit;
 pub mod clip_io;
 pub mod mannequin;
 pub mod mesh_io;
+pub mod pose_space;
 pub mod scalar;
+pub mod skin;
 
 use crate::node::Registry;
 
@@ -16,4 +20,8 @@ pub fn register(registry: &mut Registry) {
     clip_edit::register(registry);
     scalar::register(registry);
     mannequin::register(registry);
+    arm::register(registry);
+    skin::register(registry);
+    pose_space::register(registry);
+    barnet::register(registry);
 }

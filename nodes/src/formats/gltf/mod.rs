@@ -23,10 +23,12 @@
 mod accessor;
 mod builder;
 mod document;
+mod morph;
 mod reader;
 mod writer;
 
 pub use reader::{GltfAsset, GltfClip, GltfReadOptions, infer_sample_fps, read_gltf, read_gltf_file};
+pub use morph::write_sequence_glb;
 pub use writer::{write_glb, write_glb_file};
 
 use crate::formats::error::{FormatError, FormatErrorKind, Location};
