@@ -38,7 +38,9 @@ fn bench(c: &mut Criterion) {
     let q2: Vec<f64> = net.force_density.iter().map(|q| q * 1.5).collect();
     group.bench_function("refactor_numeric_only", |b| b.iter(|| solver.refactor(black_box(&q2)).unwrap()));
     let loads: Vec<Vec3> = (0..10_000).map(|i| Vec3::new(0.0, 0.0, 0.01 * ((i % 13) as f32 - 6.0))).collect();
-    group.bench_function("resolve_new_loads", |b| b.iter(|| solver.solve(black_box(&loads), &net.control.positions).unwrap()));
+    group.bench_function("resolve_new_loads", |b| {
+        b.iter(|| solver.solve(black_box(&loads), &net.control.positions).unwrap())
+    });
     group.finish();
 }
 

@@ -24,7 +24,14 @@ fn arm() -> Arc<Mesh> {
 
 /// The straightforward reference: per vertex and influence, a full 4×4 matrix times the
 /// point and the normal, summed; one thread.
-fn lbs_plain(positions: &[Vec3], normals: &[Vec3], skin: &Skin, matrices: &[Mat4], out_p: &mut [Vec3], out_n: &mut [Vec3]) {
+fn lbs_plain(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    skin: &Skin,
+    matrices: &[Mat4],
+    out_p: &mut [Vec3],
+    out_n: &mut [Vec3],
+) {
     for v in 0..positions.len() {
         let mut p = Vec3::ZERO;
         let mut n = Vec3::ZERO;
@@ -71,7 +78,13 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("wpsd");
     group.sample_size(20);
     for (name, params) in [
-        ("psd_frame", PoseSpaceParams { distance: kinegraph_nodes::builtin::pose_space::PoseDistance::Uniform, ..PoseSpaceParams::default() }),
+        (
+            "psd_frame",
+            PoseSpaceParams {
+                distance: kinegraph_nodes::builtin::pose_space::PoseDistance::Uniform,
+                ..PoseSpaceParams::default()
+            },
+        ),
         ("wpsd_frame", PoseSpaceParams::default()),
     ] {
         let model = PoseSpaceModel::train(&mesh, &samples, params).unwrap();

@@ -117,10 +117,11 @@ pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
         Value::Scalar(x) => Facts::Scalar(*x),
         Value::MeshSequence(seq) => {
             let all = seq.positions_m();
-            let (lo, hi) = all.iter().fold(
-                (glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)),
-                |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-            );
+            let (lo, hi) = all
+                .iter()
+                .fold((glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| {
+                    (lo.min(*p), hi.max(*p))
+                });
             let extent = if all.is_empty() { glam::Vec3::ZERO } else { hi - lo };
             let rest = &seq.rest.positions;
             let moved: f64 = (0..seq.frame_count())

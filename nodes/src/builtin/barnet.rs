@@ -61,7 +61,12 @@ pub struct FdmSolver {
 
 /// The (CᵀQC) matrix of the free nodes, as full symmetric triplets in a fixed order (so
 /// the sparsity pattern is the same for any force densities).
-fn assemble(free_index: &[u32], bars: &[[u32; 2]], q: &[f64], n_free: usize) -> Result<SparseColMat<usize, f64>, SolveError> {
+fn assemble(
+    free_index: &[u32],
+    bars: &[[u32; 2]],
+    q: &[f64],
+    n_free: usize,
+) -> Result<SparseColMat<usize, f64>, SolveError> {
     let mut triplets = Vec::with_capacity(n_free + 2 * bars.len());
     let mut diagonal = vec![0.0f64; n_free];
     for (&[a, b], &q) in bars.iter().zip(q) {
@@ -93,10 +98,18 @@ impl FdmSolver {
             }
         }
         let matrix = assemble(&free_index, &net.bars, &net.force_density, free_nodes.len())?;
-        let symbolic = SymbolicLlt::try_new(matrix.symbolic(), Side::Lower).map_err(|e| SolveError::Factor(format!("{e:?}")))?;
+        let symbolic =
+            SymbolicLlt::try_new(matrix.symbolic(), Side::Lower).map_err(|e| SolveError::Factor(format!("{e:?}")))?;
         let llt = Llt::try_new_with_symbolic(symbolic.clone(), matrix.as_ref(), Side::Lower)
             .map_err(|e| SolveError::Factor(format!("{e:?}")))?;
-        Ok(FdmSolver { free_index, free_nodes, bars: net.bars.clone(), symbolic, llt, force_density: net.force_density.clone() })
+        Ok(FdmSolver {
+            free_index,
+            free_nodes,
+            bars: net.bars.clone(),
+            symbolic,
+            llt,
+            force_density: net.force_density.clone(),
+        })
     }
 
     /// New force densities on the same bars: only the numeric factorisation is redone.
@@ -188,7 +201,8 @@ impl Selection {
         match kind {
             "joint" if rest.len() == 1 => Ok(Selection::Joint(rest[0].to_string())),
             "box" => {
-                let v: Vec<f32> = rest.iter().map(|w| w.parse::<f32>()).collect::<Result<_, _>>().map_err(|e| format!("box: {e}"))?;
+                let v: Vec<f32> =
+                    rest.iter().map(|w| w.parse::<f32>()).collect::<Result<_, _>>().map_err(|e| format!("box: {e}"))?;
                 if v.len() != 6 || v.iter().any(|x| !x.is_finite()) {
                     return Err("box needs six finite numbers: min x y z, then max x y z (metres)".into());
                 }
@@ -448,7 +462,12 @@ pub fn wrap(fine: &Arc<Mesh>, control: &MeshSequence) -> Result<MeshSequence, St
             let [pa, pb, pc] = tri(deformed, b.triangle);
             let frame = triangle_frame(pa, pb, pc).unwrap_or([Vec3::X, Vec3::Y, Vec3::Z]);
             let o = b.local_offset;
-            pa * b.barycentric.x + pb * b.barycentric.y + pc * b.barycentric.z + frame[0] * o.x + frame[1] * o.y + frame[2] * o.z
+            pa * b.barycentric.x
+                + pb * b.barycentric.y
+                + pc * b.barycentric.z
+                + frame[0] * o.x
+                + frame[1] * o.y
+                + frame[2] * o.z
         }));
         normals.extend(Mesh::compute_normals(&positions[start..], &fine.triangles));
     }
@@ -459,7 +478,8 @@ pub fn wrap(fine: &Arc<Mesh>, control: &MeshSequence) -> Result<MeshSequence, St
 
 const CONTROL_IN: Input<Arc<Mesh>> =
     Input::required("mesh", "The control mesh (low resolution, skinned when it will follow a skeleton).");
-const NET_OUT: Output<Arc<BarNet>> = Output::new("net", "The bar-net: the mesh's edges as bars, with free and fixed nodes.");
+const NET_OUT: Output<Arc<BarNet>> =
+    Output::new("net", "The bar-net: the mesh's edges as bars, with free and fixed nodes.");
 const FREE: TextParam = TextParam::new(
     "free",
     "Which vertices move freely (the muscle): 'joint NAME' (vertices mostly bound to that joint), 'box x0 y0 z0 x1 y1 z1' (metres) or 'indices 0 3 5-9'. All others stay fixed to the skin.",
@@ -509,11 +529,15 @@ impl Node for Build {
     }
 }
 
-const NET_IN: Input<Arc<BarNet>> = Input::required("net", "The bar-net (its control mesh must be skinned to the clip's skeleton).");
+const NET_IN: Input<Arc<BarNet>> =
+    Input::required("net", "The bar-net (its control mesh must be skinned to the clip's skeleton).");
 const CLIP_IN: Input<Arc<Clip>> = Input::required("clip", "The motion that drives the control mesh.");
 const SEQ_OUT: Output<Arc<MeshSequence>> = Output::new("sequence", "The control mesh per frame, with the net's bulge.");
-const DRIVER: TextParam =
-    TextParam::new("driver", "Joint whose bend drives the bulge (e.g. the forearm joint for a biceps); empty for none.", "");
+const DRIVER: TextParam = TextParam::new(
+    "driver",
+    "Joint whose bend drives the bulge (e.g. the forearm joint for a biceps); empty for none.",
+    "",
+);
 const RAMP_START: FloatParam =
     FloatParam::new("bulge_start", "Bend of the driver joint where the bulge starts, radians.", 0.2, 0.0, 3.2, "rad");
 const RAMP_FULL: FloatParam =
@@ -635,14 +659,23 @@ mod tests {
     }
 
     fn loads(count: usize, seed: f32) -> Vec<Vec3> {
-        (0..count).map(|i| Vec3::new((i as f32 * 0.7 + seed).sin(), (i as f32 * 1.3 + seed).cos(), (i as f32 * 0.3 * seed).sin())).collect()
+        (0..count)
+            .map(|i| {
+                Vec3::new((i as f32 * 0.7 + seed).sin(), (i as f32 * 1.3 + seed).cos(), (i as f32 * 0.3 * seed).sin())
+            })
+            .collect()
     }
 
     #[test]
     fn one_free_node_between_four_fixed_ones_matches_the_hand_solution() {
         // Σ q_j (x − x_j) = p  ⇒  x = (p + Σ q_j x_j) / Σ q_j = ((1,2,3) + (−1,−1,0)) / 10.
         let positions = vec![Vec3::ZERO, Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y];
-        let n = net(positions.clone(), vec![[0, 1], [0, 2], [0, 3], [0, 4]], vec![1.0, 2.0, 3.0, 4.0], vec![true, false, false, false, false]);
+        let n = net(
+            positions.clone(),
+            vec![[0, 1], [0, 2], [0, 3], [0, 4]],
+            vec![1.0, 2.0, 3.0, 4.0],
+            vec![true, false, false, false, false],
+        );
         let solver = FdmSolver::new(&n).unwrap();
         let x = solver.solve(&[Vec3::new(1.0, 2.0, 3.0)], &positions).unwrap();
         assert!((x[0] - Vec3::new(0.0, 0.1, 0.3)).length() < 1e-6, "{:?}", x[0]);
@@ -706,8 +739,14 @@ mod tests {
         // Node 2 is free but no bar reaches it from a fixed node.
         let floating = BarNet::new(mesh.clone(), vec![[0, 1]], vec![1.0], vec![false, true, true]);
         assert!(matches!(floating, Err(BarNetError::Floating { count: 1, example: 2 })));
-        assert!(matches!(BarNet::new(mesh.clone(), vec![[0, 3]], vec![1.0], vec![false, true, false]), Err(BarNetError::BadBar { .. })));
-        assert!(matches!(BarNet::new(mesh.clone(), vec![[0, 1]], vec![-1.0], vec![false, true, false]), Err(BarNetError::BadForceDensity { .. })));
+        assert!(matches!(
+            BarNet::new(mesh.clone(), vec![[0, 3]], vec![1.0], vec![false, true, false]),
+            Err(BarNetError::BadBar { .. })
+        ));
+        assert!(matches!(
+            BarNet::new(mesh.clone(), vec![[0, 1]], vec![-1.0], vec![false, true, false]),
+            Err(BarNetError::BadForceDensity { .. })
+        ));
         assert!(matches!(BarNet::new(mesh, vec![[0, 1]], vec![1.0], vec![false; 3]), Err(BarNetError::NoFreeNode)));
     }
 
@@ -727,7 +766,9 @@ mod tests {
     /// The bound arm, its biceps net and the flex clip.
     pub(crate) fn arm_net() -> (Arc<Mesh>, BarNet) {
         let clip = arm_flex_clip(8, 24.0).unwrap();
-        let mesh = Arc::new(bind(&arm_mesh(24, 12), clip.skeleton(), BindMode::Automatic, AutoWeightParams::default()).unwrap());
+        let mesh = Arc::new(
+            bind(&arm_mesh(24, 12), clip.skeleton(), BindMode::Automatic, AutoWeightParams::default()).unwrap(),
+        );
         let biceps = Selection::Box(Vec3::new(0.11, 1.34, 0.012), Vec3::new(0.31, 1.46, 0.1));
         let net = build(mesh.clone(), &biceps, 1.0, 1.0).unwrap();
         (mesh, net)
@@ -743,7 +784,8 @@ mod tests {
         let mut rotations = vec![glam::Quat::IDENTITY; skeleton.len()];
         rotations[0] = glam::Quat::from_rotation_y(0.9) * glam::Quat::from_rotation_x(0.4);
         let rigid = Arc::new(Clip::new(skeleton, 24.0, rotations, offsets, crate::model::ImportScale::METRES).unwrap());
-        let loads = LoadParams { driver: Some(2), ramp_start_rad: 0.2, ramp_full_rad: 2.0, bulge_n: 0.05, pressure_n: 0.0 };
+        let loads =
+            LoadParams { driver: Some(2), ramp_start_rad: 0.2, ramp_full_rad: 2.0, bulge_n: 0.05, pressure_n: 0.0 };
         let by_net = deform_net(&net, &rigid, &loads).unwrap();
         let by_lbs = deform_lbs(&mesh, &rigid).unwrap();
         for (a, b) in by_net.frame_positions(0).iter().zip(by_lbs.frame_positions(0)) {
@@ -756,7 +798,8 @@ mod tests {
         let mut outward = 0.0f32;
         for (v, free) in net.free.iter().enumerate() {
             if *free {
-                outward = outward.max((by_net.frame_positions(0)[v] - by_lbs.frame_positions(0)[v]).dot(by_lbs.frame_normals(0)[v]));
+                outward = outward
+                    .max((by_net.frame_positions(0)[v] - by_lbs.frame_positions(0)[v]).dot(by_lbs.frame_normals(0)[v]));
             }
         }
         assert!(outward > 0.005, "biceps bulge {outward} m");

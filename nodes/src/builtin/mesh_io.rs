@@ -7,7 +7,8 @@ use crate::formats::gltf::write_sequence_glb;
 use crate::formats::{FormatError, FormatErrorKind, Loaded};
 use crate::model::{Mesh, MeshSequence};
 use crate::node::{
-    FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam, Registry,
+    FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
+    Registry,
 };
 
 /// Registers the mesh nodes.
@@ -67,7 +68,8 @@ impl Node for LoadMesh {
 }
 
 const SEQUENCE_IN: Input<Arc<MeshSequence>> = Input::required("sequence", "The deformed mesh per frame.");
-const FILE_OUT: Output<Arc<std::path::PathBuf>> = Output::new("file", "The written file, relative to the output folder.");
+const FILE_OUT: Output<Arc<std::path::PathBuf>> =
+    Output::new("file", "The written file, relative to the output folder.");
 const GLB_FILE: OutputPathParam =
     OutputPathParam::new("file", "Where to write, relative to the run's output folder.", "glb", "sequence.glb");
 

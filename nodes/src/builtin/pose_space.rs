@@ -17,7 +17,9 @@ use rayon::prelude::*;
 use super::skin::{SkinError, blend_matrices, check_skin, clip_skinning_matrices, deform_lbs, rest_normals, top_four};
 use crate::math::nnls::nnls;
 use crate::model::{Clip, Mesh, MeshSequence, Skeleton, Skin};
-use crate::node::{ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry};
+use crate::node::{
+    ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry,
+};
 
 /// Registers `skin.deform` and `skin.fit_weights`.
 pub fn register(registry: &mut Registry) {
@@ -129,7 +131,8 @@ fn rbf_inverse(d: &DMatrix<f64>, width_scale: f64) -> (f32, Option<Vec<f32>>) {
     }
     let sigma = mean * width_scale.max(1e-6);
     let inv = 1.0 / (2.0 * sigma * sigma);
-    let phi = DMatrix::from_fn(k, k, |i, j| (-d[(i, j)] * d[(i, j)] * inv).exp() + if i == j { RBF_RIDGE } else { 0.0 });
+    let phi =
+        DMatrix::from_fn(k, k, |i, j| (-d[(i, j)] * d[(i, j)] * inv).exp() + if i == j { RBF_RIDGE } else { 0.0 });
     let lambda = phi.clone().cholesky().map(|c| c.inverse()).or_else(|| phi.try_inverse());
     match lambda {
         Some(l) => (inv as f32, Some((0..k * k).map(|e| l[(e / k, e % k)] as f32).collect())),
@@ -184,7 +187,10 @@ impl PoseSpaceModel {
             DMatrix::from_fn(k, k, |a, b| {
                 relevance
                     .iter()
-                    .map(|&(j, r)| f64::from(r) * f64::from((sample_poses[a][j as usize] - sample_poses[b][j as usize]).length_squared()))
+                    .map(|&(j, r)| {
+                        f64::from(r)
+                            * f64::from((sample_poses[a][j as usize] - sample_poses[b][j as usize]).length_squared())
+                    })
                     .sum::<f64>()
                     .sqrt()
             })
@@ -281,7 +287,12 @@ impl PoseSpaceModel {
 }
 
 /// The sparse joint weighting of one vertex's pose distance.
-fn vertex_relevance(skeleton: &Skeleton, joints: &[u16; 4], weights: &[f32; 4], distance: PoseDistance) -> Vec<(u16, f32)> {
+fn vertex_relevance(
+    skeleton: &Skeleton,
+    joints: &[u16; 4],
+    weights: &[f32; 4],
+    distance: PoseDistance,
+) -> Vec<(u16, f32)> {
     let mut out: Vec<(u16, f32)> = Vec::with_capacity(8);
     let mut add = |j: u16, w: f32| match out.iter_mut().find(|e| e.0 == j) {
         Some(e) => e.1 += w,
@@ -374,9 +385,14 @@ pub fn deform(
         let pose = pose_vector(clip.skeleton(), clip.frame_rotations(f));
         let out = &mut positions[f * n..(f + 1) * n];
         model.deform_frame(mesh, skin, &pose, &matrices[f * joints..(f + 1) * joints], out);
-        normals.extend(if mesh.triangles.is_empty() { rest_normals(mesh) } else { Mesh::compute_normals(out, &mesh.triangles) });
+        normals.extend(if mesh.triangles.is_empty() {
+            rest_normals(mesh)
+        } else {
+            Mesh::compute_normals(out, &mesh.triangles)
+        });
     }
-    MeshSequence::new(mesh.clone(), clip.clone(), positions, normals).map_err(|e| PoseSpaceError::Samples(e.to_string()))
+    MeshSequence::new(mesh.clone(), clip.clone(), positions, normals)
+        .map_err(|e| PoseSpaceError::Samples(e.to_string()))
 }
 
 /// Fitted joint weights and how well they explain the samples.
@@ -404,7 +420,10 @@ pub fn fit_weights(
 ) -> Result<FittedWeights, PoseSpaceError> {
     let n = rest_positions.len();
     if samples.vertex_count() != n {
-        return Err(PoseSpaceError::Samples(format!("the samples have {} vertices, the mesh {n}", samples.vertex_count())));
+        return Err(PoseSpaceError::Samples(format!(
+            "the samples have {} vertices, the mesh {n}",
+            samples.vertex_count()
+        )));
     }
     let k = samples.frame_count();
     let joints = samples.clip.joint_count();
@@ -516,7 +535,11 @@ impl Node for Deform {
         let clip = ctx.input(&CLIP_IN)?;
         let samples = ctx.optional_input(&SAMPLES_IN)?;
         let params = PoseSpaceParams {
-            distance: if ctx.choice(&DISTANCE)? == "joint" { PoseDistance::JointWeight } else { PoseDistance::JointAndChildren },
+            distance: if ctx.choice(&DISTANCE)? == "joint" {
+                PoseDistance::JointWeight
+            } else {
+                PoseDistance::JointAndChildren
+            },
             width_scale: ctx.float(&WIDTH)?,
             principal_poses: ctx.int(&PRINCIPAL)? as usize,
         };
@@ -542,11 +565,16 @@ impl Node for Deform {
 
 const FIT_MESH_IN: Input<Arc<Mesh>> =
     Input::required("mesh", "The skinned mesh in its rest pose (its bind supplies the skeleton and bind pose).");
-const FIT_SAMPLES_IN: Input<Arc<MeshSequence>> =
-    Input::required("samples", "Example shapes at sample poses (each frame a pose); use poses that differ in every joint.");
-const FIT_MESH_OUT: Output<Arc<Mesh>> = Output::new("mesh", "The mesh with fitted weights (4 principal joints per vertex).");
-const RMS_OUT: Output<f64> =
-    Output::new("rms_error_m", "Root-mean-square distance (m) between the samples and skinning with the fitted weights.");
+const FIT_SAMPLES_IN: Input<Arc<MeshSequence>> = Input::required(
+    "samples",
+    "Example shapes at sample poses (each frame a pose); use poses that differ in every joint.",
+);
+const FIT_MESH_OUT: Output<Arc<Mesh>> =
+    Output::new("mesh", "The mesh with fitted weights (4 principal joints per vertex).");
+const RMS_OUT: Output<f64> = Output::new(
+    "rms_error_m",
+    "Root-mean-square distance (m) between the samples and skinning with the fitted weights.",
+);
 
 /// `skin.fit_weights`.
 pub struct FitWeights;
@@ -568,7 +596,10 @@ impl Node for FitWeights {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let mesh = ctx.input(&FIT_MESH_IN)?;
         let samples = ctx.input(&FIT_SAMPLES_IN)?;
-        let skin = mesh.skin.as_ref().ok_or_else(|| NodeError::input(FIT_MESH_IN.name(), SkinError::NotSkinned.to_string()))?;
+        let skin = mesh
+            .skin
+            .as_ref()
+            .ok_or_else(|| NodeError::input(FIT_MESH_IN.name(), SkinError::NotSkinned.to_string()))?;
         check_skin(skin, samples.clip.skeleton(), mesh.positions.len())
             .map_err(|e| NodeError::input(FIT_SAMPLES_IN.name(), e.to_string()))?;
         let fitted = fit_weights(&mesh.positions, &skin.inverse_bind_matrices, &samples)
@@ -593,10 +624,13 @@ mod tests {
     /// The bound arm, bar-net ground truth at the sample poses and along the flex clip.
     fn arm_truth() -> (Arc<Mesh>, MeshSequence, MeshSequence) {
         let flex = Arc::new(arm_flex_clip(40, 24.0).unwrap());
-        let mesh = Arc::new(bind(&arm_mesh(24, 12), flex.skeleton(), BindMode::Automatic, AutoWeightParams::default()).unwrap());
+        let mesh = Arc::new(
+            bind(&arm_mesh(24, 12), flex.skeleton(), BindMode::Automatic, AutoWeightParams::default()).unwrap(),
+        );
         let biceps = Selection::Box(Vec3::new(0.11, 1.34, 0.012), Vec3::new(0.31, 1.46, 0.1));
         let net = build(mesh.clone(), &biceps, 1.0, 1.0).unwrap();
-        let loads = LoadParams { driver: Some(2), ramp_start_rad: 0.2, ramp_full_rad: 2.0, bulge_n: 0.05, pressure_n: 0.0 };
+        let loads =
+            LoadParams { driver: Some(2), ramp_start_rad: 0.2, ramp_full_rad: 2.0, bulge_n: 0.05, pressure_n: 0.0 };
         let samples = deform_net(&net, &Arc::new(arm_clip(&SAMPLE_POSES, 24.0).unwrap()), &loads).unwrap();
         let truth = deform_net(&net, &flex, &loads).unwrap();
         (mesh, samples, truth)
@@ -607,7 +641,8 @@ mod tests {
     }
 
     fn rms_error(a: &MeshSequence, b: &MeshSequence) -> f64 {
-        let sum: f64 = a.positions_m().iter().zip(b.positions_m()).map(|(p, q)| f64::from((*p - *q).length_squared())).sum();
+        let sum: f64 =
+            a.positions_m().iter().zip(b.positions_m()).map(|(p, q)| f64::from((*p - *q).length_squared())).sum();
         (sum / a.positions_m().len() as f64).sqrt()
     }
 
@@ -644,8 +679,13 @@ mod tests {
     #[test]
     fn pose_space_refuses_mismatched_samples() {
         let (mesh, samples, _) = arm_truth();
-        let small = Arc::new(bind(&arm_mesh(4, 4), samples.clip.skeleton(), BindMode::Automatic, AutoWeightParams::default()).unwrap());
-        assert!(matches!(deform(&small, &samples.clip, Some(&samples), method(PoseDistance::Uniform)), Err(PoseSpaceError::Samples(_))));
+        let small = Arc::new(
+            bind(&arm_mesh(4, 4), samples.clip.skeleton(), BindMode::Automatic, AutoWeightParams::default()).unwrap(),
+        );
+        assert!(matches!(
+            deform(&small, &samples.clip, Some(&samples), method(PoseDistance::Uniform)),
+            Err(PoseSpaceError::Samples(_))
+        ));
         assert!(deform(&mesh, &samples.clip, None, method(PoseDistance::Uniform)).is_err());
     }
 
@@ -653,21 +693,33 @@ mod tests {
     /// the fit must find the weights again.
     #[test]
     fn nnls_recovers_known_weights_from_synthetic_samples() {
-        let poses: Vec<(f32, f32, f32)> = (0..10).map(|i| {
-            let t = i as f32;
-            ((0.7 * t).sin() * 0.8, 1.2 + (1.3 * t).cos(), (0.4 * t + 1.0).sin())
-        }).collect();
+        let poses: Vec<(f32, f32, f32)> = (0..10)
+            .map(|i| {
+                let t = i as f32;
+                ((0.7 * t).sin() * 0.8, 1.2 + (1.3 * t).cos(), (0.4 * t + 1.0).sin())
+            })
+            .collect();
         let clip = Arc::new(arm_clip(&poses, 24.0).unwrap());
         let skeleton = clip.skeleton().clone();
         let rest = crate::model::fk::rest_world(&skeleton);
         let inverse_bind: Vec<Mat4> = rest.iter().map(|t| t.to_mat4().inverse()).collect();
-        let rest_positions: Vec<Vec3> = (0..30).map(|i| Vec3::new(0.06 + 0.02 * i as f32, 1.4 + 0.03 * ((i % 3) as f32 - 1.0), 0.04 * ((i % 2) as f32 * 2.0 - 1.0))).collect();
-        let known: Vec<[f32; 5]> = (0..30).map(|i| {
-            let a = (i as f32 / 29.0).clamp(0.0, 1.0);
-            let raw = [0.0, (1.0 - a) * (1.0 - a), 2.0 * a * (1.0 - a), a * a, 0.0];
-            let sum: f32 = raw.iter().sum();
-            raw.map(|w| w / sum)
-        }).collect();
+        let rest_positions: Vec<Vec3> = (0..30)
+            .map(|i| {
+                Vec3::new(
+                    0.06 + 0.02 * i as f32,
+                    1.4 + 0.03 * ((i % 3) as f32 - 1.0),
+                    0.04 * ((i % 2) as f32 * 2.0 - 1.0),
+                )
+            })
+            .collect();
+        let known: Vec<[f32; 5]> = (0..30)
+            .map(|i| {
+                let a = (i as f32 / 29.0).clamp(0.0, 1.0);
+                let raw = [0.0, (1.0 - a) * (1.0 - a), 2.0 * a * (1.0 - a), a * a, 0.0];
+                let sum: f32 = raw.iter().sum();
+                raw.map(|w| w / sum)
+            })
+            .collect();
         let poses_fk = crate::model::forward_kinematics(&clip);
         let mut positions = Vec::new();
         for f in 0..clip.frame_count() {
@@ -704,6 +756,10 @@ mod tests {
         rotations[0] = Quat::from_rotation_y(2.0);
         let p = pose_vector(clip.skeleton(), &rotations);
         assert_eq!(p[0], Vec3::ZERO);
-        assert!((p[1].length() - 0.3).abs() < 1e-5 && (p[2].length() - 1.1).abs() < 1e-5 && (p[3].length() - 0.2).abs() < 1e-5);
+        assert!(
+            (p[1].length() - 0.3).abs() < 1e-5
+                && (p[2].length() - 1.1).abs() < 1e-5
+                && (p[3].length() - 0.2).abs() < 1e-5
+        );
     }
 }

@@ -8,7 +8,9 @@ use rayon::prelude::*;
 
 use crate::model::fk::{Transform, pose_world, rest_world};
 use crate::model::{Clip, Mesh, MeshSequence, Skeleton, Skin};
-use crate::node::{ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry};
+use crate::node::{
+    ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry,
+};
 
 /// Registers `skin.bind` (`skin.deform` is registered by [`super::pose_space`]).
 pub fn register(registry: &mut Registry) {
@@ -29,7 +31,9 @@ pub enum SkinError {
     #[error("the mesh is not skinned: bind it to a skeleton first (skin.bind)")]
     NotSkinned,
     /// The skin's skeleton and the clip's differ.
-    #[error("the mesh is skinned to a different skeleton than the clip's ({skin} joints vs {clip}; first difference: {detail})")]
+    #[error(
+        "the mesh is skinned to a different skeleton than the clip's ({skin} joints vs {clip}; first difference: {detail})"
+    )]
     SkeletonMismatch {
         /// Joints of the skin's skeleton.
         skin: usize,
@@ -50,7 +54,8 @@ pub enum SkinError {
 /// and that its arrays match `vertices`.
 pub fn check_skin(skin: &Skin, skeleton: &Skeleton, vertices: usize) -> Result<(), SkinError> {
     let (a, b) = (skin.skeleton.joints(), skeleton.joints());
-    if let Some((i, (ja, jb))) = a.iter().zip(b).enumerate().find(|(_, (ja, jb))| ja.name != jb.name || ja.parent != jb.parent)
+    if let Some((i, (ja, jb))) =
+        a.iter().zip(b).enumerate().find(|(_, (ja, jb))| ja.name != jb.name || ja.parent != jb.parent)
     {
         return Err(SkinError::SkeletonMismatch {
             skin: a.len(),
@@ -80,11 +85,7 @@ pub fn check_skin(skin: &Skin, skeleton: &Skeleton, vertices: usize) -> Result<(
 /// Per joint, the matrix taking bind-pose mesh points to their posed world position:
 /// `world_from_joint(pose) · inverse_bind`.
 pub fn skinning_matrices(world_from_joint: &[Transform], inverse_bind: &[Mat4]) -> Vec<Affine3A> {
-    world_from_joint
-        .iter()
-        .zip(inverse_bind)
-        .map(|(t, ibm)| Affine3A::from_mat4(t.to_mat4() * *ibm))
-        .collect()
+    world_from_joint.iter().zip(inverse_bind).map(|(t, ibm)| Affine3A::from_mat4(t.to_mat4() * *ibm)).collect()
 }
 
 /// Skinning matrices of every frame of `clip`, frame-major.
@@ -374,7 +375,8 @@ impl Node for Bind {
         if mesh.positions.is_empty() {
             return Err(NodeError::input(MESH_IN.name(), "has no vertices"));
         }
-        let bound = bind(&mesh, clip.skeleton(), mode, params).map_err(|e| NodeError::input(MESH_IN.name(), e.to_string()))?;
+        let bound =
+            bind(&mesh, clip.skeleton(), mode, params).map_err(|e| NodeError::input(MESH_IN.name(), e.to_string()))?;
         ctx.set_output(&MESH_OUT, Arc::new(bound));
         Ok(())
     }
@@ -413,7 +415,9 @@ mod tests {
             assert!(ws.iter().all(|w| (0.0..=1.0).contains(w)));
             assert!(js.iter().all(|&j| (j as usize) < skeleton.len()));
         }
-        let weight_of = |v: usize, j: u16| joints[v].iter().zip(&weights[v]).filter(|(k, _)| **k == j).map(|(_, w)| *w).sum::<f32>();
+        let weight_of = |v: usize, j: u16| {
+            joints[v].iter().zip(&weights[v]).filter(|(k, _)| **k == j).map(|(_, w)| *w).sum::<f32>()
+        };
         // Far along bone a, nearly all a; far along bone b, nearly all b; at the joint, shared.
         assert!(weight_of(2, 0) > 0.9, "{:?}", weights[2]);
         assert!(weight_of(18, 1) > 0.6, "{:?}", weights[18]);
@@ -438,7 +442,10 @@ mod tests {
             assert!((*p - *q).length() < 1e-5);
         }
         let other = Arc::new(Skeleton::new(vec![Joint::new("x", None, Vec3::ZERO)]).unwrap());
-        assert!(matches!(bind(&bound, &other, BindMode::Keep, AutoWeightParams::default()), Err(SkinError::SkeletonMismatch { .. })));
+        assert!(matches!(
+            bind(&bound, &other, BindMode::Keep, AutoWeightParams::default()),
+            Err(SkinError::SkeletonMismatch { .. })
+        ));
         assert!(matches!(deform_lbs(&Arc::new(mesh), &clip), Err(SkinError::NotSkinned)));
     }
 

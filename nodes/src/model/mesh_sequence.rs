@@ -11,7 +11,9 @@ use super::mesh::Mesh;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MeshSequenceError {
     /// The buffers do not hold `frames × vertices` entries.
-    #[error("a mesh sequence needs {expected} positions and normals ({frames} frames × {vertices} vertices), got {got}")]
+    #[error(
+        "a mesh sequence needs {expected} positions and normals ({frames} frames × {vertices} vertices), got {got}"
+    )]
     BadLength {
         /// Entries needed.
         expected: usize,

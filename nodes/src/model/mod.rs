@@ -19,8 +19,8 @@ pub const MAX_COORDINATE_M: f32 = 1e6;
 pub fn coordinate_in_range(v: glam::Vec3) -> bool {
     v.is_finite() && v.abs().max_element() <= MAX_COORDINATE_M
 }
-pub use fk::{ClipPoses, Transform, forward_kinematics};
 pub use barnet::{BarNet, BarNetError};
+pub use fk::{ClipPoses, Transform, forward_kinematics};
 pub use mesh::{Mesh, Skin};
 pub use mesh_sequence::{MeshSequence, MeshSequenceError};
 pub use skeleton::{Channel, Joint, JointLimits, Skeleton, SkeletonError};

@@ -108,9 +108,7 @@ impl ParamSpec {
         match self.kind {
             ParamKind::Float { default, .. } => default.map(ParamValue::Float),
             ParamKind::Int { default, .. } => default.map(ParamValue::Int),
-            ParamKind::Choice { default, .. }
-            | ParamKind::OutputPath { default, .. }
-            | ParamKind::Text { default } => {
+            ParamKind::Choice { default, .. } | ParamKind::OutputPath { default, .. } | ParamKind::Text { default } => {
                 Some(ParamValue::Text(default.to_string()))
             }
             ParamKind::InputPath { .. } => None,

@@ -58,7 +58,10 @@ pub fn write_sequence_glb(sequence: &MeshSequence) -> Result<Loaded<Vec<u8>>, Fo
     );
     if let Some(uvs) = rest.uvs.as_ref().filter(|u| u.len() == n && u.iter().all(|x| x.is_finite())) {
         let uv: Vec<f32> = uvs.iter().flat_map(|u| u.to_array()).collect();
-        attributes.insert(Valid(Semantic::TexCoords(0)), b.accessor_f32(&uv, Type::Vec2, Some(Target::ArrayBuffer), Bounds::Omit));
+        attributes.insert(
+            Valid(Semantic::TexCoords(0)),
+            b.accessor_f32(&uv, Type::Vec2, Some(Target::ArrayBuffer), Bounds::Omit),
+        );
     }
     let mut targets = Vec::with_capacity(frames);
     for f in 0..frames {
