@@ -4,32 +4,13 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use std::hint::black_box;
-use std::sync::Arc;
-
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::Vec3;
-use kinegraph_nodes::builtin::barnet::FdmSolver;
-use kinegraph_nodes::model::{BarNet, Mesh};
-
-fn grid(n: usize) -> BarNet {
-    let positions = (0..n * n).map(|i| Vec3::new((i % n) as f32 * 0.01, (i / n) as f32 * 0.01, 0.0)).collect();
-    let mut bars = Vec::new();
-    for i in 0..n * n {
-        if i % n + 1 < n {
-            bars.push([i as u32, i as u32 + 1]);
-        }
-        if i / n + 1 < n {
-            bars.push([i as u32, (i + n) as u32]);
-        }
-    }
-    let q = (0..bars.len()).map(|b| 1.0 + (b % 7) as f64 * 0.1).collect();
-    let free = (0..n * n).map(|i| i % n != 0 && i / n != 0 && i % n != n - 1 && i / n != n - 1).collect();
-    BarNet::new(Arc::new(Mesh { positions, ..Mesh::default() }), bars, q, free).unwrap()
-}
+use kinegraph_nodes::builtin::barnet::{FdmSolver, square_grid_net};
+use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
-    let net = grid(102);
+    let net = square_grid_net(102, 0.01).unwrap();
     assert_eq!(net.free_count(), 10_000);
     let mut group = c.benchmark_group("barnet_10k_free");
     group.sample_size(20);

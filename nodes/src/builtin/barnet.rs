@@ -18,7 +18,9 @@ use faer::sparse::{SparseColMat, Triplet};
 use glam::{Vec3, Vec3A};
 
 use super::pose_space::pose_vector;
-use super::skin::{SkinError, blend_matrices, check_skin, clip_skinning_matrices, lbs_frame, rest_normals};
+use super::skin::{
+    SkinError, blend_matrices, check_skin, clip_skinning_matrices, joint_named, lbs_frame, rest_normals,
+};
 use crate::model::{BarNet, BarNetError, Clip, Mesh, MeshSequence};
 use crate::node::{FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Registry, TextParam};
 
@@ -181,6 +183,26 @@ impl FdmSolver {
     }
 }
 
+/// A square `side × side` net in the XY plane, `spacing_m` apart, border fixed, force
+/// densities cycling through 1, 1.5, … 3 N/m: the net the tests and benchmarks share.
+pub fn square_grid_net(side: usize, spacing_m: f32) -> Result<BarNet, BarNetError> {
+    let positions =
+        (0..side * side).map(|i| Vec3::new((i % side) as f32, (i / side) as f32, 0.0) * spacing_m).collect();
+    let mut bars = Vec::new();
+    for i in 0..side * side {
+        if i % side + 1 < side {
+            bars.push([i as u32, i as u32 + 1]);
+        }
+        if i / side + 1 < side {
+            bars.push([i as u32, (i + side) as u32]);
+        }
+    }
+    let q = (0..bars.len()).map(|b| 1.0 + (b % 5) as f64 * 0.5).collect();
+    let border = |i: usize| i.is_multiple_of(side) || i / side == 0 || i % side == side - 1 || i / side == side - 1;
+    let free = (0..side * side).map(|i| !border(i)).collect();
+    BarNet::new(Arc::new(Mesh { positions, ..Mesh::default() }), bars, q, free)
+}
+
 /// Which nodes of the control mesh are free.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Selection {
@@ -235,10 +257,7 @@ impl Selection {
         match self {
             Selection::Joint(name) => {
                 let skin = mesh.skin.as_ref().ok_or("selecting by joint needs a skinned control mesh")?;
-                let j = skin.skeleton.index_of(name).ok_or_else(|| {
-                    let hint = crate::node::nearest_name(name, skin.skeleton.joints().iter().map(|j| j.name.as_str()));
-                    format!("no joint '{name}'{}", hint.map(|h| format!(" (did you mean '{h}'?)")).unwrap_or_default())
-                })?;
+                let j = joint_named(&skin.skeleton, name)?;
                 Ok((0..n)
                     .map(|v| {
                         let (js, ws) = (&skin.joints[v], &skin.weights[v]);
@@ -571,14 +590,7 @@ impl Node for DeformNet {
         let driver = if name.is_empty() {
             None
         } else {
-            let skeleton = clip.skeleton();
-            Some(skeleton.index_of(&name).ok_or_else(|| {
-                let hint = crate::node::nearest_name(&name, skeleton.joints().iter().map(|j| j.name.as_str()));
-                NodeError::param(
-                    DRIVER.0.name,
-                    format!("no joint '{name}'{}", hint.map(|h| format!(" (did you mean '{h}'?)")).unwrap_or_default()),
-                )
-            })?)
+            Some(joint_named(clip.skeleton(), &name).map_err(|m| NodeError::param(DRIVER.0.name, m))?)
         };
         let loads = LoadParams {
             driver,
@@ -641,21 +653,8 @@ mod tests {
         BarNet::new(Arc::new(mesh), bars, q, free).unwrap()
     }
 
-    /// An `n × n` grid in the XY plane with its border fixed; force densities vary.
     fn grid(n: usize) -> BarNet {
-        let positions = (0..n * n).map(|i| Vec3::new((i % n) as f32, (i / n) as f32, 0.0)).collect();
-        let mut bars = Vec::new();
-        for i in 0..n * n {
-            if i % n + 1 < n {
-                bars.push([i as u32, i as u32 + 1]);
-            }
-            if i / n + 1 < n {
-                bars.push([i as u32, (i + n) as u32]);
-            }
-        }
-        let q = (0..bars.len()).map(|b| 1.0 + (b % 5) as f64 * 0.5).collect();
-        let free = (0..n * n).map(|i| i % n != 0 && i / n != 0 && i % n != n - 1 && i / n != n - 1).collect();
-        net(positions, bars, q, free)
+        square_grid_net(n, 1.0).unwrap()
     }
 
     fn loads(count: usize, seed: f32) -> Vec<Vec3> {

@@ -218,16 +218,15 @@ impl PoseSpaceModel {
         self.components
     }
 
-    /// RBF weights r_k at a pose for one vertex's RBF data, into `out`.
-    fn weights(&self, rbf: &VertexRbf, terms: &[Vec<f32>], out: &mut [f32]) {
+    /// RBF weights r_k at a pose for one vertex's RBF data, into `out`; `phi` is scratch
+    /// space of the same length (one per thread, so the hot loop never allocates).
+    fn weights(&self, rbf: &VertexRbf, terms: &[Vec<f32>], phi: &mut [f32], out: &mut [f32]) {
         let k = self.samples;
         let Some(lambda) = &rbf.lambda else {
             // No sample differs under this vertex's distance: their average is the best guess.
             out.iter_mut().for_each(|r| *r = 1.0 / k as f32);
             return;
         };
-        let mut phi = [0f32; 64];
-        let phi = if k <= 64 { &mut phi[..k] } else { return out.iter_mut().for_each(|r| *r = 0.0) };
         for (i, p) in phi.iter_mut().enumerate() {
             let gamma_sq: f32 = rbf.relevance.iter().map(|&(j, w)| w * terms[i][j as usize]).sum();
             *p = (-gamma_sq * rbf.inv_two_sigma_sq).exp();
@@ -251,19 +250,20 @@ impl PoseSpaceModel {
         let terms: Vec<Vec<f32>> = self.sample_poses.iter().map(|s| joint_terms(pose, s)).collect();
         let shared = (self.rbf.len() == 1).then(|| {
             let mut r = vec![0f32; k];
-            self.weights(&self.rbf[0], &terms, &mut r);
+            self.weights(&self.rbf[0], &terms, &mut vec![0f32; k], &mut r);
             r
         });
         let n = mesh.positions.len();
         positions_m.par_chunks_mut(VERTEX_CHUNK).enumerate().for_each(|(chunk, out)| {
             let mut r = vec![0f32; k];
+            let mut phi = vec![0f32; k];
             let mut c = vec![0f32; self.components];
             for (i, p) in out.iter_mut().enumerate() {
                 let v = chunk * VERTEX_CHUNK + i;
                 let r = match &shared {
                     Some(shared) => shared.as_slice(),
                     None => {
-                        self.weights(&self.rbf[v], &terms, &mut r);
+                        self.weights(&self.rbf[v], &terms, &mut phi, &mut r);
                         r.as_slice()
                     }
                 };
@@ -443,7 +443,9 @@ pub fn fit_weights(
     // End sites move exactly with their parent: as extra columns they would only split
     // the parent's weight between two identical candidates.
     let candidates: Vec<usize> = (0..joints).filter(|&j| !samples.clip.skeleton().joints()[j].end_site).collect();
-    let rows: Vec<Result<(([u16; 4], [f32; 4]), f64), PoseSpaceError>> = (0..n)
+    // Per vertex: its four joints and weights, and its squared error summed over samples.
+    type FittedRow = (([u16; 4], [f32; 4]), f64);
+    let rows: Vec<Result<FittedRow, PoseSpaceError>> = (0..n)
         .into_par_iter()
         .map(|v| {
             let a = DMatrix::from_fn(3 * k, candidates.len(), |row, c| {
@@ -738,13 +740,13 @@ mod tests {
         let samples = MeshSequence::new(rest_mesh, clip, positions, normals).unwrap();
         let fitted = fit_weights(&rest_positions, &inverse_bind, &samples).unwrap();
         assert!(fitted.rms_error_m < 1e-5, "{}", fitted.rms_error_m);
-        for v in 0..rest_positions.len() {
+        for (v, expected) in known.iter().enumerate() {
             let mut dense = [0f32; 5];
             for (j, w) in fitted.joints[v].iter().zip(&fitted.weights[v]) {
                 dense[*j as usize] += w;
             }
-            for j in 0..5 {
-                assert!((dense[j] - known[v][j]).abs() < 2e-3, "vertex {v} joint {j}: {} vs {}", dense[j], known[v][j]);
+            for (j, (got, want)) in dense.iter().zip(expected).enumerate() {
+                assert!((got - want).abs() < 2e-3, "vertex {v} joint {j}: {got} vs {want}");
             }
         }
     }

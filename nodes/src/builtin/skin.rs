@@ -82,6 +82,14 @@ pub fn check_skin(skin: &Skin, skeleton: &Skeleton, vertices: usize) -> Result<(
     Ok(())
 }
 
+/// The index of the joint called `name`, or a message naming the nearest joint.
+pub fn joint_named(skeleton: &Skeleton, name: &str) -> Result<usize, String> {
+    skeleton.index_of(name).ok_or_else(|| {
+        let hint = crate::node::nearest_name(name, skeleton.joints().iter().map(|j| j.name.as_str()));
+        format!("no joint '{name}'{}", hint.map(|h| format!(" (did you mean '{h}'?)")).unwrap_or_default())
+    })
+}
+
 /// Per joint, the matrix taking bind-pose mesh points to their posed world position:
 /// `world_from_joint(pose) · inverse_bind`.
 pub fn skinning_matrices(world_from_joint: &[Transform], inverse_bind: &[Mat4]) -> Vec<Affine3A> {
@@ -179,6 +187,9 @@ pub fn deform_lbs(mesh: &Arc<Mesh>, clip: &Arc<Clip>) -> Result<MeshSequence, Sk
         .map_err(|e| SkinError::Inconsistent(e.to_string()))
 }
 
+/// Per-vertex joint indices and matching weights: the rows of a [`Skin`].
+pub type Influences = (Vec<[u16; 4]>, Vec<[f32; 4]>);
+
 /// Settings of [`auto_weights`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AutoWeightParams {
@@ -230,11 +241,7 @@ pub fn top_four(dense: &[f32], fallback: u16) -> ([u16; 4], [f32; 4]) {
 /// its bones, averaged with the mesh neighbours `smoothing_iterations` times, then reduced
 /// to the four largest and normalised. Assumes the mesh is modelled in the skeleton's rest
 /// pose, in the same space.
-pub fn auto_weights(
-    mesh: &Mesh,
-    skeleton: &Skeleton,
-    params: AutoWeightParams,
-) -> Result<(Vec<[u16; 4]>, Vec<[f32; 4]>), SkinError> {
+pub fn auto_weights(mesh: &Mesh, skeleton: &Skeleton, params: AutoWeightParams) -> Result<Influences, SkinError> {
     let rest = skeleton.rest_positions();
     let owners: Vec<usize> = (0..skeleton.len()).filter(|&j| !skeleton.joints()[j].end_site).collect();
     if owners.is_empty() {

@@ -18,7 +18,7 @@ use gltf_json as json;
 use json::accessor::Type;
 use json::animation::{Interpolation, Property};
 use json::buffer::Target;
-use json::mesh::{Mode, MorphTarget, Semantic};
+use json::mesh::{MorphTarget, Semantic};
 use json::validation::Checked::Valid;
 
 use super::builder::{Bounds, GlbBuilder};
@@ -73,23 +73,7 @@ pub fn write_sequence_glb(sequence: &MeshSequence) -> Result<Loaded<Vec<u8>>, Fo
             tangents: None,
         });
     }
-    let indices: Vec<u32> = rest.triangles.iter().flatten().copied().collect();
-    let indices = b.accessor_u32(&indices, Some(Target::ElementArrayBuffer));
-    let mesh = b.root.push(json::Mesh {
-        extensions: Default::default(),
-        extras: Default::default(),
-        name: Some(rest.name.clone()),
-        primitives: vec![json::mesh::Primitive {
-            attributes,
-            extensions: Default::default(),
-            extras: Default::default(),
-            indices: Some(indices),
-            material: None,
-            mode: Valid(Mode::Triangles),
-            targets: Some(targets),
-        }],
-        weights: Some(vec![0.0; frames]),
-    });
+    let mesh = b.triangle_mesh(&rest.name, attributes, &rest.triangles, n, Some(targets), Some(vec![0.0; frames]));
     let node = b.root.push(json::Node { name: Some(rest.name.clone()), mesh: Some(mesh), ..Default::default() });
 
     let fps = sequence.clip.fps();
@@ -129,4 +113,45 @@ pub fn write_sequence_glb(sequence: &MeshSequence) -> Result<Loaded<Vec<u8>>, Fo
     b.root.scene = Some(scene);
     let bytes = b.finish().map_err(|m| err(Kind::Unsupported, m))?;
     Ok(Loaded { value: bytes, warnings })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used)]
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::model::{Clip, Joint, Mesh, Skeleton};
+
+    #[test]
+    fn frames_become_morph_targets_played_by_a_weights_animation() {
+        let skeleton = Arc::new(Skeleton::new(vec![Joint::new("root", None, Vec3::ZERO)]).unwrap());
+        let clip = Arc::new(Clip::rest_pose(skeleton, 10.0, 3).unwrap());
+        let positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        let rest = Arc::new(Mesh {
+            name: "tri".into(),
+            normals: vec![Vec3::Z; 3],
+            positions: positions.clone(),
+            triangles: vec![[0, 1, 2]],
+            ..Mesh::default()
+        });
+        let frames: Vec<Vec3> = (0..3).flat_map(|f| positions.iter().map(move |p| *p + Vec3::Z * f as f32)).collect();
+        let seq = MeshSequence::new(rest, clip, frames, vec![Vec3::Z; 9]).unwrap();
+        let bytes = write_sequence_glb(&seq).unwrap().value;
+        let (document, buffers, _) = gltf::import_slice(&bytes).unwrap();
+        let primitive = document.meshes().next().unwrap().primitives().next().unwrap();
+        assert_eq!(primitive.morph_targets().count(), 3);
+        // Target 2 moves every vertex by +2 in z (frame 2 minus frame 0).
+        let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+        let target = reader.read_morph_targets().nth(2).unwrap();
+        assert!(target.0.unwrap().all(|d| d == [0.0, 0.0, 2.0]));
+        let animation = document.animations().next().unwrap();
+        let channel = animation.channels().next().unwrap();
+        assert_eq!(channel.target().property(), gltf::animation::Property::MorphTargetWeights);
+        let times: Vec<f32> = match channel.reader(|b| Some(&buffers[b.index()])).read_inputs() {
+            Some(t) => t.collect(),
+            None => Vec::new(),
+        };
+        assert_eq!(times, vec![0.0, 0.1, 0.2]);
+    }
 }
