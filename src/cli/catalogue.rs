@@ -21,6 +21,7 @@ fn param_range(p: &ParamSpec) -> String {
         ParamKind::InputPath { extensions, required } => {
             format!("input file (.{}), {}", extensions.join(", ."), if required { "required" } else { "optional" })
         }
+        ParamKind::Text { default } => format!("text, default {default:?}"),
         ParamKind::OutputPath { extension, default } => format!("output file (.{extension}), default {default}"),
     }
 }

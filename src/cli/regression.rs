@@ -46,6 +46,28 @@ pub enum Facts {
     },
     /// A number.
     Scalar(f64),
+    /// A deformed mesh per frame.
+    MeshSequence {
+        /// Frame count (exact).
+        frames: usize,
+        /// Vertices per frame (exact).
+        vertices: usize,
+        /// Bounding-box size over all frames, metres.
+        extent_m: [f64; 3],
+        /// Mean distance of a vertex from its rest position over all frames, metres.
+        mean_displacement_m: f64,
+    },
+    /// A bar-net.
+    BarNet {
+        /// Node count (exact).
+        nodes: usize,
+        /// Free node count (exact).
+        free: usize,
+        /// Bar count (exact).
+        bars: usize,
+        /// Sum of the bars' force densities, N/m.
+        total_force_density: f64,
+    },
     /// A written file: size and SHA-256 (exact).
     File {
         /// Size in bytes.
@@ -121,6 +143,31 @@ pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
         Value::Phases(phases) => Facts::Data(serde_json::to_value(phases.as_ref()).unwrap_or_default()),
         Value::Contacts(contacts) => Facts::Data(serde_json::to_value(contacts.as_ref()).unwrap_or_default()),
         Value::Report(report) => Facts::Data(serde_json::Value::Object(report.as_ref().clone())),
+        Value::MeshSequence(seq) => {
+            let all = seq.positions_m();
+            let (lo, hi) = all
+                .iter()
+                .fold((glam::Vec3::splat(f32::INFINITY), glam::Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| {
+                    (lo.min(*p), hi.max(*p))
+                });
+            let extent = if all.is_empty() { glam::Vec3::ZERO } else { hi - lo };
+            let rest = &seq.rest.positions;
+            let moved: f64 = (0..seq.frame_count())
+                .flat_map(|f| seq.frame_positions(f).iter().zip(rest).map(|(p, r)| f64::from((*p - *r).length())))
+                .sum();
+            Facts::MeshSequence {
+                frames: seq.frame_count(),
+                vertices: seq.vertex_count(),
+                extent_m: [extent.x, extent.y, extent.z].map(f64::from),
+                mean_displacement_m: moved / all.len().max(1) as f64,
+            }
+        }
+        Value::BarNet(net) => Facts::BarNet {
+            nodes: net.node_count(),
+            free: net.free_count(),
+            bars: net.bars.len(),
+            total_force_density: net.force_density.iter().sum(),
+        },
         Value::File(relative) => {
             let bytes = std::fs::read(out_dir.join(relative.as_path())).unwrap_or_default();
             Facts::File { bytes: bytes.len() as u64, sha256: format!("{:x}", sha2::Sha256::digest(&bytes)) }
@@ -200,6 +247,31 @@ pub fn compare(expected: &Expectation, actual: &BTreeMap<String, Facts>) -> Vec<
                 field("extent_m", ok, format!("{extent_m:?}"), format!("{e2:?}"));
             }
             (Facts::Scalar(a), Facts::Scalar(b)) => field("value", close(*a, *b, tol), a.to_string(), b.to_string()),
+            (
+                Facts::MeshSequence { frames, vertices, extent_m, mean_displacement_m },
+                Facts::MeshSequence { frames: f2, vertices: v2, extent_m: e2, mean_displacement_m: m2 },
+            ) => {
+                field("frames", frames == f2, frames.to_string(), f2.to_string());
+                field("vertices", vertices == v2, vertices.to_string(), v2.to_string());
+                let ok = extent_m.iter().zip(e2).all(|(a, b)| close(*a, *b, tol));
+                field("extent_m", ok, format!("{extent_m:?}"), format!("{e2:?}"));
+                field(
+                    "mean_displacement_m",
+                    close(*mean_displacement_m, *m2, tol),
+                    mean_displacement_m.to_string(),
+                    m2.to_string(),
+                );
+            }
+            (
+                Facts::BarNet { nodes, free, bars, total_force_density },
+                Facts::BarNet { nodes: n2, free: f2, bars: b2, total_force_density: q2 },
+            ) => {
+                field("nodes", nodes == n2, nodes.to_string(), n2.to_string());
+                field("free", free == f2, free.to_string(), f2.to_string());
+                field("bars", bars == b2, bars.to_string(), b2.to_string());
+                let ok = close(*total_force_density, *q2, tol);
+                field("total_force_density", ok, total_force_density.to_string(), q2.to_string());
+            }
             (Facts::File { bytes, sha256 }, Facts::File { bytes: b2, sha256: s2 }) => {
                 field("bytes", bytes == b2, bytes.to_string(), b2.to_string());
                 field("sha256", sha256 == s2, sha256.clone(), s2.clone());

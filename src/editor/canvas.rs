@@ -67,10 +67,12 @@ pub(crate) fn type_color(ty: PortType) -> Color32 {
         PortType::Mesh => Color32::from_rgb(240, 150, 60),
         PortType::Scalar => Color32::from_rgb(120, 210, 120),
         PortType::File => Color32::from_rgb(200, 120, 220),
-        PortType::Curves => Color32::from_rgb(240, 220, 90),
+        PortType::Curves => Color32::from_rgb(250, 240, 110),
         PortType::Phases => Color32::from_rgb(230, 110, 110),
         PortType::Contacts => Color32::from_rgb(110, 200, 200),
-        PortType::Report => Color32::from_rgb(170, 170, 170),
+        PortType::Report => Color32::from_rgb(215, 215, 215),
+        PortType::MeshSequence => Color32::from_rgb(240, 200, 60),
+        PortType::BarNet => Color32::from_rgb(160, 160, 160),
     }
 }
 

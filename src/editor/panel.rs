@@ -140,7 +140,7 @@ pub(crate) fn show(
                         }
                     });
                 }
-                ParamKind::InputPath { .. } | ParamKind::OutputPath { .. } => {
+                ParamKind::InputPath { .. } | ParamKind::OutputPath { .. } | ParamKind::Text { .. } => {
                     let stored = match set {
                         Some(ParamValue::Text(s)) => s.clone(),
                         _ => spec

@@ -1,15 +1,20 @@
-//! Loading meshes.
+//! Loading meshes and writing baked mesh sequences.
 
 use std::sync::Arc;
 
 use super::clip_io::load_meshes;
+use crate::formats::gltf::write_sequence_glb;
 use crate::formats::{FormatError, FormatErrorKind, Loaded};
-use crate::model::Mesh;
-use crate::node::{FloatParam, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry};
+use crate::model::{Mesh, MeshSequence};
+use crate::node::{
+    FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
+    Registry,
+};
 
 /// Registers the mesh nodes.
 pub fn register(registry: &mut Registry) {
     registry.add(Box::new(LoadMesh));
+    registry.add(Box::new(ExportSequence));
 }
 
 const PATH: InputPathParam = InputPathParam::new(
@@ -58,6 +63,39 @@ impl Node for LoadMesh {
             )
         })?;
         ctx.set_output(&MESH_OUT, Arc::new(mesh));
+        Ok(())
+    }
+}
+
+const SEQUENCE_IN: Input<Arc<MeshSequence>> = Input::required("sequence", "The deformed mesh per frame.");
+const FILE_OUT: Output<Arc<std::path::PathBuf>> =
+    Output::new("file", "The written file, relative to the output folder.");
+const GLB_FILE: OutputPathParam =
+    OutputPathParam::new("file", "Where to write, relative to the run's output folder.", "glb", "sequence.glb");
+
+/// `export.mesh_sequence`: writes a baked mesh sequence as GLB morph-target animation.
+pub struct ExportSequence;
+
+static EXPORT_SEQUENCE: NodeSchema = NodeSchema {
+    kind: "export.mesh_sequence",
+    category: "io",
+    doc: "Writes a baked mesh animation (PSD, WPSD, bar-net) as binary glTF: every frame a morph target, played by a weights animation. For plain skinning, export.glb writes the lighter skinned mesh + skeleton animation instead.",
+    inputs: &[SEQUENCE_IN.spec()],
+    outputs: &[FILE_OUT.spec()],
+    params: &[GLB_FILE.0],
+    writes_files: true,
+};
+
+impl Node for ExportSequence {
+    fn schema(&self) -> &'static NodeSchema {
+        &EXPORT_SEQUENCE
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let sequence = ctx.input(&SEQUENCE_IN)?;
+        let written = write_sequence_glb(&sequence)?;
+        ctx.warn_all(written.warnings);
+        let relative = ctx.write_output(&GLB_FILE, &written.value)?;
+        ctx.set_output(&FILE_OUT, Arc::new(relative));
         Ok(())
     }
 }

@@ -1,13 +1,17 @@
 //! The built-in nodes, one file per family; each file holds the pure kernels and the thin
 //! node adapters over them.
 
+pub mod arm;
+pub mod barnet;
 pub mod clip_edit;
 pub mod clip_io;
 pub mod contacts;
 pub mod mannequin;
 pub mod mesh_io;
 pub mod momentum;
+pub mod pose_space;
 pub mod scalar;
+pub mod skin;
 
 use crate::node::Registry;
 
@@ -20,4 +24,8 @@ pub fn register(registry: &mut Registry) {
     mannequin::register(registry);
     contacts::register(registry);
     momentum::register(registry);
+    arm::register(registry);
+    skin::register(registry);
+    pose_space::register(registry);
+    barnet::register(registry);
 }

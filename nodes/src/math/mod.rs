@@ -18,6 +18,7 @@
 //! - **Frames**: frame `i` of a clip sits at time `i / fps` seconds; frame rates are `f64`.
 
 pub mod euler;
+pub mod nnls;
 
 use glam::Quat;
 

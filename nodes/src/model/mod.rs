@@ -1,10 +1,12 @@
 //! The motion data model: skeletons, clips, meshes, skins, forward kinematics and units.
 
+pub mod barnet;
 pub mod clip;
 pub mod curves;
 pub mod fk;
 pub mod intervals;
 pub mod mesh;
+pub mod mesh_sequence;
 pub mod skeleton;
 pub mod units;
 
@@ -20,8 +22,10 @@ pub fn coordinate_in_range(v: glam::Vec3) -> bool {
     v.is_finite() && v.abs().max_element() <= MAX_COORDINATE_M
 }
 pub use curves::{CurveChannel, Curves, CurvesError};
+pub use barnet::{BarNet, BarNetError};
 pub use fk::{ClipPoses, Transform, forward_kinematics};
 pub use intervals::{Contacts, FootContacts, FrameRange, Phases};
 pub use mesh::{Mesh, Skin};
+pub use mesh_sequence::{MeshSequence, MeshSequenceError};
 pub use skeleton::{Channel, Joint, JointLimits, Skeleton, SkeletonError};
 pub use units::{ImportScale, LengthUnit};

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::param::{ChoiceParam, FloatParam, InputPathParam, IntParam, OutputPathParam, ParamValue};
+use super::param::{ChoiceParam, FloatParam, InputPathParam, IntParam, OutputPathParam, ParamValue, TextParam};
 use super::port::{Input, Output};
 use super::value::{PortValue, Value};
 use super::{NodeError, NodeSchema};
@@ -139,6 +139,11 @@ impl<'a> NodeContext<'a> {
 
     /// A choice parameter.
     pub fn choice(&self, p: &ChoiceParam) -> Result<&str, NodeError> {
+        self.text(p.0.name)
+    }
+
+    /// A free-text parameter.
+    pub fn text_param(&self, p: &TextParam) -> Result<&str, NodeError> {
         self.text(p.0.name)
     }
 

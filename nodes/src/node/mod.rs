@@ -9,7 +9,9 @@ mod value;
 use std::collections::BTreeMap;
 
 pub use context::{NodeContext, NodeOutcome, RunServices};
-pub use param::{ChoiceParam, FloatParam, InputPathParam, IntParam, OutputPathParam, ParamKind, ParamSpec, ParamValue};
+pub use param::{
+    ChoiceParam, FloatParam, InputPathParam, IntParam, OutputPathParam, ParamKind, ParamSpec, ParamValue, TextParam,
+};
 pub use port::{Input, Output, PortSpec};
 pub use value::{PortType, PortValue, Report, Value};
 

@@ -70,6 +70,12 @@ pub enum ParamKind {
         /// Value when the graph does not set it.
         default: &'static str,
     },
+    /// Free text (a joint name, a selection): the node parses it and names this
+    /// parameter in its error when it cannot.
+    Text {
+        /// Value when the graph does not set it.
+        default: &'static str,
+    },
     /// A file to read; relative paths resolve against the graph file's folder.
     InputPath {
         /// Accepted extensions, lowercase without the dot.
@@ -104,7 +110,7 @@ impl ParamSpec {
         match self.kind {
             ParamKind::Float { default, .. } => default.map(ParamValue::Float),
             ParamKind::Int { default, .. } => default.map(ParamValue::Int),
-            ParamKind::Choice { default, .. } | ParamKind::OutputPath { default, .. } => {
+            ParamKind::Choice { default, .. } | ParamKind::OutputPath { default, .. } | ParamKind::Text { default } => {
                 Some(ParamValue::Text(default.to_string()))
             }
             ParamKind::InputPath { .. } => None,
@@ -135,6 +141,7 @@ impl ParamSpec {
                     Err(format!("'{s}' is not one of {}", choices.join(", ")))
                 }
             }
+            (ParamKind::Text { .. }, ParamValue::Text(_)) => Ok(value.clone()),
             (ParamKind::InputPath { extensions, .. }, ParamValue::Text(s)) => {
                 if extensions.contains(&crate::formats::extension(std::path::Path::new(s)).as_str()) {
                     Ok(value.clone())
@@ -155,6 +162,7 @@ fn kind_name(kind: ParamKind) -> &'static str {
         ParamKind::Float { .. } => "a number",
         ParamKind::Int { .. } => "a whole number",
         ParamKind::Choice { .. } => "a choice (text)",
+        ParamKind::Text { .. } => "text",
         ParamKind::InputPath { .. } | ParamKind::OutputPath { .. } => "a path (text)",
     }
 }
@@ -181,6 +189,8 @@ pub struct FloatParam(pub ParamSpec);
 pub struct IntParam(pub ParamSpec);
 /// A typed choice parameter declaration.
 pub struct ChoiceParam(pub ParamSpec);
+/// A typed free-text parameter declaration.
+pub struct TextParam(pub ParamSpec);
 /// A typed input-file parameter declaration.
 pub struct InputPathParam(pub ParamSpec);
 /// A typed output-file parameter declaration.
@@ -224,6 +234,13 @@ impl ChoiceParam {
         default: &'static str,
     ) -> Self {
         ChoiceParam(ParamSpec { name, doc, kind: ParamKind::Choice { choices, default } })
+    }
+}
+
+impl TextParam {
+    /// Declares a text parameter with a default.
+    pub const fn new(name: &'static str, doc: &'static str, default: &'static str) -> Self {
+        TextParam(ParamSpec { name, doc, kind: ParamKind::Text { default } })
     }
 }
 

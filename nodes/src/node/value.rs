@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use crate::model::{Clip, Contacts, Curves, Mesh, Phases};
+use crate::model::{BarNet, Clip, Contacts, Curves, Mesh, MeshSequence, Phases};
 
 /// A node's structured account of what it decided (chosen parameters, measured errors):
 /// shown by `kg run --json` and the editor, compared by `kg test`.
@@ -28,6 +28,10 @@ pub enum PortType {
     Contacts,
     /// A node's structured report.
     Report,
+    /// A mesh deformed per frame of a clip (baked skinning or bar-net output).
+    MeshSequence,
+    /// A bar-net coupled to a control mesh.
+    BarNet,
 }
 
 impl PortType {
@@ -42,6 +46,8 @@ impl PortType {
             PortType::Phases => "phases",
             PortType::Contacts => "contacts",
             PortType::Report => "report",
+            PortType::MeshSequence => "mesh_sequence",
+            PortType::BarNet => "bar_net",
         }
     }
 }
@@ -65,6 +71,10 @@ pub enum Value {
     Contacts(Arc<Contacts>),
     /// See [`PortType::Report`].
     Report(Arc<Report>),
+    /// See [`PortType::MeshSequence`].
+    MeshSequence(Arc<MeshSequence>),
+    /// See [`PortType::BarNet`].
+    BarNet(Arc<BarNet>),
 }
 
 impl Value {
@@ -79,6 +89,8 @@ impl Value {
             Value::Phases(_) => PortType::Phases,
             Value::Contacts(_) => PortType::Contacts,
             Value::Report(_) => PortType::Report,
+            Value::MeshSequence(_) => PortType::MeshSequence,
+            Value::BarNet(_) => PortType::BarNet,
         }
     }
 }
@@ -119,3 +131,5 @@ port_value!(Arc<Curves>, Curves);
 port_value!(Arc<Phases>, Phases);
 port_value!(Arc<Contacts>, Contacts);
 port_value!(Arc<Report>, Report);
+port_value!(Arc<MeshSequence>, MeshSequence);
+port_value!(Arc<BarNet>, BarNet);

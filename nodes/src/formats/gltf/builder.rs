@@ -133,6 +133,45 @@ impl GlbBuilder {
         self.push_accessor(&bytes, values.len(), ComponentType::U32, Type::Scalar, target, None)
     }
 
+    /// A one-primitive triangle mesh from `attributes` and `triangles` (indices as `u16`
+    /// when `vertices` fit, else `u32`), with optional morph `targets` and their default
+    /// `weights`.
+    pub fn triangle_mesh(
+        &mut self,
+        name: &str,
+        attributes: std::collections::BTreeMap<
+            json::validation::Checked<json::mesh::Semantic>,
+            json::Index<json::Accessor>,
+        >,
+        triangles: &[[u32; 3]],
+        vertices: usize,
+        targets: Option<Vec<json::mesh::MorphTarget>>,
+        weights: Option<Vec<f32>>,
+    ) -> json::Index<json::Mesh> {
+        let flat: Vec<u32> = triangles.iter().flatten().copied().collect();
+        let indices = if vertices <= u16::MAX as usize {
+            let small: Vec<u16> = flat.iter().map(|&i| i as u16).collect();
+            self.accessor_u16(&small, Type::Scalar, Some(Target::ElementArrayBuffer))
+        } else {
+            self.accessor_u32(&flat, Some(Target::ElementArrayBuffer))
+        };
+        self.root.push(json::Mesh {
+            extensions: Default::default(),
+            extras: Default::default(),
+            name: Some(name.to_string()),
+            primitives: vec![json::mesh::Primitive {
+                attributes,
+                extensions: Default::default(),
+                extras: Default::default(),
+                indices: Some(indices),
+                material: None,
+                mode: Valid(json::mesh::Mode::Triangles),
+                targets,
+            }],
+            weights,
+        })
+    }
+
     /// Serialises the document and binary chunk as GLB bytes.
     pub fn finish(mut self) -> Result<Vec<u8>, String> {
         while !self.bin.len().is_multiple_of(4) {

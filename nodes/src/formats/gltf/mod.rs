@@ -23,9 +23,11 @@
 mod accessor;
 mod builder;
 mod document;
+mod morph;
 mod reader;
 mod writer;
 
+pub use morph::write_sequence_glb;
 pub use reader::{GltfAsset, GltfClip, GltfReadOptions, infer_sample_fps, read_gltf, read_gltf_file};
 pub use writer::{write_glb, write_glb_file};
 

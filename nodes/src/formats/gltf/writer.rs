@@ -17,7 +17,7 @@ use gltf_json as json;
 use json::accessor::Type;
 use json::animation::{Interpolation, Property};
 use json::buffer::Target;
-use json::mesh::{Mode, Semantic};
+use json::mesh::Semantic;
 use json::validation::Checked::Valid;
 
 use crate::formats::atomic::write_atomic;
@@ -320,28 +320,7 @@ fn write_mesh(
         }));
     }
 
-    let flat: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
-    let indices = if n <= u16::MAX as usize {
-        let small: Vec<u16> = flat.iter().map(|&i| i as u16).collect();
-        b.accessor_u16(&small, Type::Scalar, Some(Target::ElementArrayBuffer))
-    } else {
-        b.accessor_u32(&flat, Some(Target::ElementArrayBuffer))
-    };
-    let gmesh = b.root.push(json::Mesh {
-        extensions: Default::default(),
-        extras: Default::default(),
-        name: Some(mesh.name.clone()),
-        primitives: vec![json::mesh::Primitive {
-            attributes,
-            extensions: Default::default(),
-            extras: Default::default(),
-            indices: Some(indices),
-            material: None,
-            mode: Valid(Mode::Triangles),
-            targets: None,
-        }],
-        weights: None,
-    });
+    let gmesh = b.triangle_mesh(&mesh.name, attributes, &mesh.triangles, n, None, None);
     let node = b.root.push(json::Node {
         name: Some(mesh.name.clone()),
         mesh: Some(gmesh),
