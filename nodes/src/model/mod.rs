@@ -21,8 +21,8 @@ pub const MAX_COORDINATE_M: f32 = 1e6;
 pub fn coordinate_in_range(v: glam::Vec3) -> bool {
     v.is_finite() && v.abs().max_element() <= MAX_COORDINATE_M
 }
-pub use curves::{CurveChannel, Curves, CurvesError};
 pub use barnet::{BarNet, BarNetError};
+pub use curves::{CurveChannel, Curves, CurvesError};
 pub use fk::{ClipPoses, Transform, forward_kinematics};
 pub use intervals::{Contacts, FootContacts, FrameRange, Phases};
 pub use mesh::{Mesh, Skin};
