@@ -1,0 +1,55 @@
+//! `kg merge`: the per-task reports of a plan's run, collected into one summary.
+
+use std::path::Path;
+
+use super::{EXIT_FAILED, EXIT_INVALID};
+use crate::farm::{Plan, merge};
+
+/// Merges the reports under `out` for the plan at `plan_path`, saves the summary (default
+/// `OUT/summary.json`) and prints it (as JSON with `json`). Exit 0 when every task is done,
+/// 1 when any failed or has not run, 2 for a bad plan.
+pub(super) fn merge_command(plan_path: &Path, out: &Path, summary_path: Option<&Path>, json: bool) -> u8 {
+    let plan = match Plan::read(plan_path) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("{e}");
+            return EXIT_INVALID;
+        }
+    };
+    let summary = merge(&plan, out);
+    let mut text = serde_json::to_string_pretty(&summary).unwrap_or_default();
+    text.push('\n');
+    let target = summary_path.map(Path::to_path_buf).unwrap_or_else(|| out.join("summary.json"));
+    if let Err(e) =
+        std::fs::create_dir_all(target.parent().unwrap_or(Path::new("."))).map_err(|e| e.to_string()).and_then(|()| {
+            kinegraph_nodes::formats::atomic::write_atomic(&target, text.as_bytes()).map_err(|e| e.to_string())
+        })
+    {
+        eprintln!("{}: cannot save the summary: {e}", target.display());
+        return EXIT_FAILED;
+    }
+    if json {
+        print!("{text}");
+    } else {
+        eprintln!("{:<8} {:>8}  {:<5} task", "status", "seconds", "index");
+        for t in &summary.per_task {
+            eprintln!(
+                "{:<8} {:>8.3}  {:<5} {} {}",
+                t.status,
+                t.seconds,
+                t.index,
+                t.id,
+                t.error.as_deref().unwrap_or("")
+            );
+        }
+        let counts: Vec<String> = summary.counts.iter().map(|(k, v)| format!("{v} {k}")).collect();
+        eprintln!(
+            "{} tasks: {}; {:.2} s in all; summary in {}",
+            summary.tasks,
+            counts.join(", "),
+            summary.total_seconds,
+            target.display()
+        );
+    }
+    if summary.all_done() { 0 } else { EXIT_FAILED }
+}
