@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::EXIT_INVALID;
+use super::{EXIT_INVALID, save_file};
 use crate::farm::plan::normalised_absolute;
 use crate::farm::{EmitOptions, Plan, Target, emit};
 
@@ -106,9 +106,9 @@ pub(super) fn emit_command(args: &EmitArgs) -> u8 {
             print!("{text}");
             0
         }
-        Some(path) => match kinegraph_nodes::formats::atomic::write_atomic(path, text.as_bytes()) {
+        Some(path) => match save_file(path, text.as_bytes()) {
             Ok(()) => {
-                eprintln!("{}: {} tasks for {:?}", path.display(), plan.tasks.len(), args.target);
+                eprintln!("{}: {} tasks for {}", path.display(), plan.tasks.len(), args.target.name());
                 0
             }
             Err(e) => {

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use super::{EXIT_FAILED, EXIT_INVALID};
+use super::{EXIT_FAILED, EXIT_INVALID, save_file};
 use crate::farm::{Plan, merge};
 
 /// Merges the reports under `out` for the plan at `plan_path`, saves the summary (default
@@ -20,12 +20,8 @@ pub(super) fn merge_command(plan_path: &Path, out: &Path, summary_path: Option<&
     let mut text = serde_json::to_string_pretty(&summary).unwrap_or_default();
     text.push('\n');
     let target = summary_path.map(Path::to_path_buf).unwrap_or_else(|| out.join("summary.json"));
-    if let Err(e) =
-        std::fs::create_dir_all(target.parent().unwrap_or(Path::new("."))).map_err(|e| e.to_string()).and_then(|()| {
-            kinegraph_nodes::formats::atomic::write_atomic(&target, text.as_bytes()).map_err(|e| e.to_string())
-        })
-    {
-        eprintln!("{}: cannot save the summary: {e}", target.display());
+    if let Err(e) = save_file(&target, text.as_bytes()) {
+        eprintln!("cannot save the summary: {e}");
         return EXIT_FAILED;
     }
     if json {

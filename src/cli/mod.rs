@@ -25,6 +25,14 @@ pub const EXIT_FAILED: u8 = 1;
 /// Exit code: the graph or the command line is invalid.
 pub const EXIT_INVALID: u8 = 2;
 
+/// Writes `bytes` to `path` atomically, creating its folder; the error names the file.
+fn save_file(path: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create the folder: {e}", dir.display()))?;
+    }
+    kinegraph_nodes::formats::atomic::write_atomic(path, bytes).map_err(|e| e.to_string())
+}
+
 /// kinegraph's headless runner.
 #[derive(Parser, Debug)]
 #[command(

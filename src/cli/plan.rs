@@ -5,9 +5,9 @@ use std::path::{Path, PathBuf};
 
 use kinegraph_nodes::node::Registry;
 
-use super::EXIT_INVALID;
 use super::batch::{expand_glob, run_folder_names};
 use super::run::{Setting, apply_settings, load_graph, names_input_file};
+use super::{EXIT_INVALID, save_file};
 use crate::document::LoadedGraph;
 use crate::engine::compile;
 use crate::farm::plan::{PLAN_FORMAT, PLAN_VERSION, plan_dir, relative_to, sha256_file};
@@ -123,13 +123,7 @@ pub(super) fn plan_command(graph: &Path, inputs: &[Setting], settings: &[Setting
             return EXIT_INVALID;
         }
     };
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty())
-        && let Err(e) = std::fs::create_dir_all(dir)
-    {
-        eprintln!("{}: cannot create the folder: {e}", dir.display());
-        return EXIT_INVALID;
-    }
-    if let Err(e) = plan.write(out) {
+    if let Err(e) = save_file(out, plan.to_json().as_bytes()) {
         eprintln!("{e}");
         return EXIT_INVALID;
     }

@@ -32,7 +32,7 @@ fn invalid(message: impl std::fmt::Display) -> u8 {
 fn check_inputs(task: &Task, base: &Path, plan_path: &Path) -> Result<BTreeMap<String, String>, String> {
     let mut hashes = BTreeMap::new();
     for (name, file) in &task.inputs {
-        let path = base.join(&file.path);
+        let path = normalised_absolute(&base.join(&file.path));
         let actual = sha256_file(&path)
             .map_err(|e| format!("{}: task {} ({}): input '{name}': {e}", plan_path.display(), task.index, task.id))?;
         if !file.sha256.is_empty() && actual != file.sha256 {
@@ -103,7 +103,7 @@ pub(super) fn task_command(
         Err(e) => return invalid(e),
     };
     let base = plan_dir(plan_path);
-    let graph_path = base.join(&plan.graph.path);
+    let graph_path = normalised_absolute(&base.join(&plan.graph.path));
     if let Some(given) = graph
         && normalised_absolute(given) != normalised_absolute(&graph_path)
     {
@@ -156,7 +156,7 @@ pub(super) fn task_command(
         task.set.iter().map(|(name, value)| Setting { name: name.clone(), value: value.clone() }).collect();
     settings.extend(task.inputs.iter().map(|(name, file)| Setting {
         name: name.clone(),
-        value: base.join(&file.path).to_string_lossy().into_owned(),
+        value: normalised_absolute(&base.join(&file.path)).to_string_lossy().into_owned(),
     }));
     let engine = Engine::new(Registry::builtin());
     let label = PathBuf::from(&task.id);

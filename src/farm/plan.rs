@@ -110,12 +110,6 @@ impl Plan {
         text
     }
 
-    /// Writes the plan atomically.
-    pub fn write(&self, path: &Path) -> Result<(), PlanError> {
-        kinegraph_nodes::formats::atomic::write_atomic(path, self.to_json().as_bytes())
-            .map_err(|e| PlanError::Io { path: path.to_path_buf(), message: e.message })
-    }
-
     /// Reads and checks a plan file.
     pub fn read(path: &Path) -> Result<Plan, PlanError> {
         let io = |e: std::io::Error| PlanError::Io { path: path.to_path_buf(), message: e.to_string() };
