@@ -13,34 +13,40 @@ use crate::engine::compile;
 use crate::farm::plan::{PLAN_FORMAT, PLAN_VERSION, plan_dir, relative_to, sha256_file};
 use crate::farm::{HashedFile, Plan, Task};
 
-/// One value a binding can take: the file and the name it gives the task.
-struct Choice {
-    file: PathBuf,
-    label: String,
+/// One task's input files: (graph input or `node.param`, file) per `--input`, with the
+/// labels that make its id.
+#[derive(Clone, Default)]
+struct Binding {
+    labels: Vec<String>,
+    files: Vec<(String, PathBuf)>,
+}
+
+impl Binding {
+    fn id(&self) -> String {
+        self.labels.join("+")
+    }
 }
 
 /// The tasks' input bindings: the cartesian product of the `--input` globs' files, in
-/// order (the first `--input` varies slowest), each with its id.
-fn bindings(inputs: &[Setting]) -> Result<Vec<(String, Vec<(String, PathBuf)>)>, String> {
-    let mut product: Vec<(Vec<String>, Vec<(String, PathBuf)>)> = vec![(Vec::new(), Vec::new())];
+/// order (the first `--input` varies slowest).
+fn bindings(inputs: &[Setting]) -> Result<Vec<Binding>, String> {
+    let mut product = vec![Binding::default()];
     for input in inputs {
         let files = expand_glob(input)?;
-        let choices: Vec<Choice> =
-            run_folder_names(&files).into_iter().zip(files).map(|(label, file)| Choice { file, label }).collect();
+        let labels = run_folder_names(&files);
         product = product
             .into_iter()
-            .flat_map(|(labels, bound)| {
-                choices.iter().map(move |c| {
-                    let mut labels = labels.clone();
-                    labels.push(c.label.clone());
-                    let mut bound = bound.clone();
-                    bound.push((input.name.clone(), c.file.clone()));
-                    (labels, bound)
+            .flat_map(|partial| {
+                labels.iter().zip(&files).map(move |(label, file)| {
+                    let mut next = partial.clone();
+                    next.labels.push(label.clone());
+                    next.files.push((input.name.clone(), file.clone()));
+                    next
                 })
             })
             .collect();
     }
-    Ok(product.into_iter().map(|(labels, bound)| (labels.join("+"), bound)).collect())
+    Ok(product)
 }
 
 /// A file for the plan and its hash: an absolute path as given, a relative one (typed
@@ -74,17 +80,20 @@ pub fn make_plan(
     }
     let graph_name = graph.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "graph".into());
     let mut tasks = Vec::new();
-    for (index, (label, bound)) in bindings(inputs)?.into_iter().enumerate() {
-        let id = if label.is_empty() { graph_name.clone() } else { label };
+    for (index, binding) in bindings(inputs)?.into_iter().enumerate() {
+        let id = if binding.labels.is_empty() { graph_name.clone() } else { binding.id() };
         let mut task_inputs = file_settings.clone();
-        for (name, file) in &bound {
+        for (name, file) in &binding.files {
             task_inputs.insert(name.clone(), hashed(file, &base)?);
         }
         let all: Vec<Setting> = settings
             .iter()
             .cloned()
             .chain(
-                bound.iter().map(|(name, file)| Setting { name: name.clone(), value: file.to_string_lossy().into() }),
+                binding
+                    .files
+                    .iter()
+                    .map(|(name, file)| Setting { name: name.clone(), value: file.to_string_lossy().into() }),
             )
             .collect();
         let outputs = expected_outputs(&loaded, &all, registry)?.into_iter().map(|f| format!("{id}/{f}")).collect();
