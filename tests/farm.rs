@@ -11,6 +11,7 @@ use std::time::{Duration, SystemTime};
 use kinegraph::farm::{self, EmitOptions, Plan, Target};
 
 const GRAPH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/farm/to_glb.ron");
+const DOWNSTREAM_GRAPH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/farm/to_bvh.ron");
 const CLIP: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/mannequin_walk.bvh");
 
 fn kg(dir: &Path, args: &[&str]) -> Output {
@@ -167,6 +168,50 @@ fn an_input_or_graph_changed_since_planning_is_refused_with_exit_2() {
     let refused = work.run_task(1);
     assert_eq!(refused.status.code(), Some(2));
     assert!(stderr(&refused).contains("to_glb.ron changed since planning"), "{}", stderr(&refused));
+}
+
+#[test]
+fn a_plan_fed_by_another_plans_outputs_depends_on_its_tasks() {
+    let work = Work::new();
+    std::fs::copy(DOWNSTREAM_GRAPH, work.path().join("to_bvh.ron")).unwrap();
+    let planned = work.kg(&[
+        "plan",
+        "to_bvh.ron",
+        "--input",
+        "clip=@plans/plan.json",
+        "--upstream-out",
+        "out",
+        "--out",
+        "plans/down.json",
+    ]);
+    assert_eq!(planned.status.code(), Some(0), "{}", stderr(&planned));
+    let down = Plan::read(&work.path().join("plans/down.json")).unwrap();
+    assert_eq!(down.after, ["plan.json"]);
+    let ids: Vec<&str> = down.tasks.iter().map(|t| t.id.as_str()).collect();
+    assert_eq!(ids, ["a-clip", "b-clip", "broken-clip"]);
+    let a = &down.tasks[0];
+    assert_eq!(a.inputs["clip"].path, "../out/a/clip.glb");
+    assert_eq!(a.inputs["clip"].sha256, "", "not made yet, so no hash");
+    assert_eq!(a.depends_on, [farm::Dependency { plan: "plan.json".into(), task: "a".into(), index: 0 }]);
+    assert_eq!(a.outputs, ["a-clip/clip.bvh"]);
+
+    let run_down =
+        |index: &str| work.kg(&["run", "--plan", "plans/down.json", "--task-index", index, "--out", "out-down"]);
+    // Before its upstream task ran, the input is missing: invalid, with the reason.
+    let early = run_down("0");
+    assert_eq!(early.status.code(), Some(2));
+    assert!(stderr(&early).contains("made by task 0 (a) of plan.json: has it finished?"), "{}", stderr(&early));
+    assert_eq!(work.run_task(0).status.code(), Some(0));
+    let late = run_down("0");
+    assert_eq!(late.status.code(), Some(0), "{}", stderr(&late));
+    assert!(work.path().join("out-down/a-clip/clip.bvh").is_file());
+    // The report records the hash the input had when it was read.
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(work.path().join("out-down/reports/a-clip.json")).unwrap()).unwrap();
+    let glb_hash = farm::plan::sha256_file(&work.path().join("out/a/clip.glb")).unwrap();
+    assert_eq!(report["inputs"]["clip"], glb_hash);
+    let emitted = work.kg(&["emit", "slurm", "plans/down.json"]);
+    assert!(String::from_utf8_lossy(&emitted.stdout).contains("--dependency=afterok:UPSTREAM_JOB_ID"));
 }
 
 #[test]

@@ -81,9 +81,13 @@ enum Command {
         /// The graph file.
         graph: PathBuf,
         /// NAME=GLOB: a graph input (or node.param) bound to each matching file; several
-        /// --input give every combination.
+        /// --input give every combination. NAME=@PLAN binds each output of an upstream
+        /// plan's tasks instead, and each task depends on the task making its file.
         #[arg(long, value_name = "NAME=GLOB")]
         input: Vec<Setting>,
+        /// The output root the upstream plan's tasks write into (for NAME=@PLAN).
+        #[arg(long, default_value = "out")]
+        upstream_out: PathBuf,
         /// Overrides applied to every task (input files among them are hashed).
         #[arg(long = "set", value_name = "NAME=VALUE")]
         set: Vec<Setting>,
@@ -200,7 +204,9 @@ pub fn main() -> ExitCode {
                 EXIT_INVALID
             }
         },
-        Command::Plan { graph, input, set, out } => plan::plan_command(&graph, &input, &set, &out),
+        Command::Plan { graph, input, upstream_out, set, out } => {
+            plan::plan_command(&graph, &input, &set, &upstream_out, &out)
+        }
         Command::Emit(args) => emit::emit_command(&args),
         Command::Merge { plan, out, summary, json } => merge::merge_command(&plan, &out, summary.as_deref(), json),
         Command::Check { graphs, json } => run::check_command(&graphs, json),

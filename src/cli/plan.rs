@@ -11,14 +11,21 @@ use super::{EXIT_INVALID, save_file};
 use crate::document::LoadedGraph;
 use crate::engine::compile;
 use crate::farm::plan::{PLAN_FORMAT, PLAN_VERSION, plan_dir, relative_to, sha256_file};
-use crate::farm::{HashedFile, Plan, Task};
+use crate::farm::{Dependency, HashedFile, Plan, Task};
 
-/// One task's input files: (graph input or `node.param`, file) per `--input`, with the
-/// labels that make its id.
+/// A file bound to a graph input, and the upstream task that makes it, if any.
+#[derive(Clone)]
+struct BoundFile {
+    name: String,
+    path: PathBuf,
+    from: Option<Dependency>,
+}
+
+/// One task's input files, one per `--input`, with the labels that make its id.
 #[derive(Clone, Default)]
 struct Binding {
     labels: Vec<String>,
-    files: Vec<(String, PathBuf)>,
+    files: Vec<BoundFile>,
 }
 
 impl Binding {
@@ -27,20 +34,43 @@ impl Binding {
     }
 }
 
-/// The tasks' input bindings: the cartesian product of the `--input` globs' files, in
-/// order (the first `--input` varies slowest).
-fn bindings(inputs: &[Setting]) -> Result<Vec<Binding>, String> {
+/// The files one `--input` takes: the glob's matches, or with `NAME=@PLAN` every output
+/// of that upstream plan's tasks, found under `upstream_out` (its run's output root).
+fn candidates(input: &Setting, upstream_out: &Path, base: &Path) -> Result<Vec<(PathBuf, Option<Dependency>)>, String> {
+    let Some(upstream) = input.value.strip_prefix('@') else {
+        return Ok(expand_glob(input)?.into_iter().map(|f| (f, None)).collect());
+    };
+    let plan = Plan::read(Path::new(upstream)).map_err(|e| format!("--input {}={}: {e}", input.name, input.value))?;
+    let plan_path = relative_to(Path::new(upstream), base);
+    let files: Vec<(PathBuf, Option<Dependency>)> = plan
+        .tasks
+        .iter()
+        .flat_map(|task| {
+            let from = Dependency { plan: plan_path.clone(), task: task.id.clone(), index: task.index };
+            task.outputs.iter().map(move |o| (upstream_out.join(o), Some(from.clone())))
+        })
+        .collect();
+    if files.is_empty() {
+        return Err(format!("--input {}={}: the upstream plan makes no files", input.name, input.value));
+    }
+    Ok(files)
+}
+
+/// The tasks' input bindings: the cartesian product of the `--input` files, in order (the
+/// first `--input` varies slowest).
+fn bindings(inputs: &[Setting], upstream_out: &Path, base: &Path) -> Result<Vec<Binding>, String> {
     let mut product = vec![Binding::default()];
     for input in inputs {
-        let files = expand_glob(input)?;
-        let labels = run_folder_names(&files);
+        let files = candidates(input, upstream_out, base)?;
+        let paths: Vec<PathBuf> = files.iter().map(|(p, _)| p.clone()).collect();
+        let labels = run_folder_names(&paths);
         product = product
             .into_iter()
             .flat_map(|partial| {
-                labels.iter().zip(&files).map(move |(label, file)| {
+                labels.iter().zip(&files).map(move |(label, (path, from))| {
                     let mut next = partial.clone();
                     next.labels.push(label.clone());
-                    next.files.push((input.name.clone(), file.clone()));
+                    next.files.push(BoundFile { name: input.name.clone(), path: path.clone(), from: from.clone() });
                     next
                 })
             })
@@ -49,18 +79,24 @@ fn bindings(inputs: &[Setting]) -> Result<Vec<Binding>, String> {
     Ok(product)
 }
 
-/// A file for the plan and its hash: an absolute path as given, a relative one (typed
-/// relative to the current folder) made relative to the plan's folder.
-fn hashed(file: &Path, base: &Path) -> Result<HashedFile, String> {
-    let path = if file.is_absolute() { file.to_string_lossy().into_owned() } else { relative_to(file, base) };
-    Ok(HashedFile { path, sha256: sha256_file(file).map_err(|e| e.to_string())? })
+/// A file for the plan: an absolute path as given, a relative one (typed relative to the
+/// current folder) made relative to the plan's folder.
+fn plan_path_of(file: &Path, base: &Path) -> String {
+    if file.is_absolute() { file.to_string_lossy().into_owned() } else { relative_to(file, base) }
 }
 
-/// Builds the plan of `graph` over the `--input` bindings, for a plan file at `plan_path`.
+/// A file for the plan and its hash.
+fn hashed(file: &Path, base: &Path) -> Result<HashedFile, String> {
+    Ok(HashedFile { path: plan_path_of(file, base), sha256: sha256_file(file).map_err(|e| e.to_string())? })
+}
+
+/// Builds the plan of `graph` over the `--input` bindings, for a plan file at `plan_path`;
+/// `upstream_out` is where the tasks of an upstream plan (`--input NAME=@PLAN`) write.
 pub fn make_plan(
     graph: &Path,
     inputs: &[Setting],
     settings: &[Setting],
+    upstream_out: &Path,
     plan_path: &Path,
     registry: &Registry,
 ) -> Result<Plan, String> {
@@ -80,32 +116,37 @@ pub fn make_plan(
     }
     let graph_name = graph.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "graph".into());
     let mut tasks = Vec::new();
-    for (index, binding) in bindings(inputs)?.into_iter().enumerate() {
+    for (index, binding) in bindings(inputs, upstream_out, &base)?.into_iter().enumerate() {
         let id = if binding.labels.is_empty() { graph_name.clone() } else { binding.id() };
         let mut task_inputs = file_settings.clone();
-        for (name, file) in &binding.files {
-            task_inputs.insert(name.clone(), hashed(file, &base)?);
+        let mut depends_on = Vec::new();
+        for file in &binding.files {
+            let entry = match &file.from {
+                // Not made yet: no hash; the task waits for the one that makes it.
+                Some(from) => {
+                    depends_on.push(from.clone());
+                    HashedFile { path: plan_path_of(&file.path, &base), sha256: String::new() }
+                }
+                None => hashed(&file.path, &base)?,
+            };
+            task_inputs.insert(file.name.clone(), entry);
         }
+        depends_on.sort();
+        depends_on.dedup();
         let all: Vec<Setting> = settings
             .iter()
             .cloned()
             .chain(
-                binding
-                    .files
-                    .iter()
-                    .map(|(name, file)| Setting { name: name.clone(), value: file.to_string_lossy().into() }),
+                binding.files.iter().map(|f| Setting { name: f.name.clone(), value: f.path.to_string_lossy().into() }),
             )
             .collect();
         let outputs = expected_outputs(&loaded, &all, registry)?.into_iter().map(|f| format!("{id}/{f}")).collect();
-        tasks.push(Task { index, id, inputs: task_inputs, set: set.clone(), outputs, depends_on: Vec::new() });
+        tasks.push(Task { index, id, inputs: task_inputs, set: set.clone(), outputs, depends_on });
     }
-    Ok(Plan {
-        format: PLAN_FORMAT.into(),
-        version: PLAN_VERSION,
-        graph: hashed(graph, &base)?,
-        after: Vec::new(),
-        tasks,
-    })
+    let mut after: Vec<String> = tasks.iter().flat_map(|t| t.depends_on.iter().map(|d| d.plan.clone())).collect();
+    after.sort();
+    after.dedup();
+    Ok(Plan { format: PLAN_FORMAT.into(), version: PLAN_VERSION, graph: hashed(graph, &base)?, after, tasks })
 }
 
 /// The files a run of the graph with `settings` writes, relative to its output folder,
@@ -120,9 +161,15 @@ fn expected_outputs(loaded: &LoadedGraph, settings: &[Setting], registry: &Regis
     Ok(files)
 }
 
-pub(super) fn plan_command(graph: &Path, inputs: &[Setting], settings: &[Setting], out: &Path) -> u8 {
+pub(super) fn plan_command(
+    graph: &Path,
+    inputs: &[Setting],
+    settings: &[Setting],
+    upstream_out: &Path,
+    out: &Path,
+) -> u8 {
     let registry = Registry::builtin();
-    let plan = match make_plan(graph, inputs, settings, out, &registry) {
+    let plan = match make_plan(graph, inputs, settings, upstream_out, out, &registry) {
         Ok(plan) => plan,
         Err(e) => {
             eprint!("{e}");

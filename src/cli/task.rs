@@ -33,8 +33,16 @@ fn check_inputs(task: &Task, base: &Path, plan_path: &Path) -> Result<BTreeMap<S
     let mut hashes = BTreeMap::new();
     for (name, file) in &task.inputs {
         let path = normalised_absolute(&base.join(&file.path));
-        let actual = sha256_file(&path)
-            .map_err(|e| format!("{}: task {} ({}): input '{name}': {e}", plan_path.display(), task.index, task.id))?;
+        let actual = sha256_file(&path).map_err(|e| {
+            let upstream: Vec<String> =
+                task.depends_on.iter().map(|d| format!("task {} ({}) of {}", d.index, d.task, d.plan)).collect();
+            let hint = if file.sha256.is_empty() && !upstream.is_empty() {
+                format!(" (made by {}: has it finished?)", upstream.join(", "))
+            } else {
+                String::new()
+            };
+            format!("{}: task {} ({}): input '{name}': {e}{hint}", plan_path.display(), task.index, task.id)
+        })?;
         if !file.sha256.is_empty() && actual != file.sha256 {
             return Err(format!(
                 "{}: task {} ({}): input '{name}' ({}) changed since planning: sha256 {actual}, the plan says {}; re-run `kg plan`",
