@@ -85,6 +85,33 @@ fn planning_twice_gives_identical_bytes_with_hashes_outputs_and_relative_paths()
 }
 
 #[test]
+fn without_input_globs_a_plan_has_one_task_and_set_files_are_hashed() {
+    let work = Work::new();
+    let out = work.kg(&[
+        "plan",
+        "to_glb.ron",
+        "--set",
+        "clip=clips/b.bvh",
+        "--set",
+        "glb.file=walk.glb",
+        "--out",
+        "one.json",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let plan = Plan::read(&work.path().join("one.json")).unwrap();
+    assert_eq!(plan.tasks.len(), 1);
+    let task = &plan.tasks[0];
+    assert_eq!(task.id, "to_glb");
+    assert_eq!(task.inputs["clip"].path, "clips/b.bvh");
+    assert_eq!(task.inputs["clip"].sha256, farm::plan::sha256_file(Path::new(CLIP)).unwrap());
+    assert_eq!(task.set["glb.file"], "walk.glb");
+    assert_eq!(task.outputs, ["to_glb/walk.glb"]);
+    let ran = work.kg(&["run", "to_glb.ron", "--plan", "one.json", "--task-index", "0", "--out", "o"]);
+    assert_eq!(ran.status.code(), Some(0), "{}", stderr(&ran));
+    assert!(work.path().join("o/to_glb/walk.glb").is_file());
+}
+
+#[test]
 fn a_retry_of_a_finished_task_does_no_work_and_says_so() {
     let work = Work::new();
     let first = work.run_task(0);
@@ -220,6 +247,11 @@ fn bad_task_indices_plans_and_globs_are_refused_with_exit_2() {
     let out = work.run_task(3);
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("--task-index 3 is out of range: the plan has 3 tasks"), "{}", stderr(&out));
+    let out = work.kg(&["run", "clips/a.bvh", "--plan", "plans/plan.json", "--task-index", "0"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("plans/plan.json: the plan is of graph"), "{}", stderr(&out));
+    let out = work.kg(&["run", "--plan", "plans/plan.json", "--task-index", "0", "--set", "clip=x.bvh"]);
+    assert_eq!(out.status.code(), Some(2), "a plan fixes every parameter: {}", stderr(&out));
     let out = work.kg(&["run", "--plan", "to_glb.ron", "--task-index", "0"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("to_glb.ron: not JSON"), "{}", stderr(&out));
