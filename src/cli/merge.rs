@@ -29,14 +29,8 @@ pub(super) fn merge_command(plan_path: &Path, out: &Path, summary_path: Option<&
     } else {
         eprintln!("{:<8} {:>8}  {:<5} task", "status", "seconds", "index");
         for t in &summary.per_task {
-            eprintln!(
-                "{:<8} {:>8.3}  {:<5} {} {}",
-                t.status,
-                t.seconds,
-                t.index,
-                t.id,
-                t.error.as_deref().unwrap_or("")
-            );
+            let error = t.error.as_deref().map(|e| format!(" {e}")).unwrap_or_default();
+            eprintln!("{:<8} {:>8.3}  {:<5} {}{error}", t.status, t.seconds, t.index, t.id);
         }
         let counts: Vec<String> = summary.counts.iter().map(|(k, v)| format!("{v} {k}")).collect();
         eprintln!(
