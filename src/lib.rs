@@ -5,11 +5,13 @@
 //!   that both `kg` and the editor call.
 //! - [`editor`]: the editor's command reducer and undo history; with the `editor`
 //!   feature, the egui node editor behind `kg edit`.
+//! - [`farm`]: plans, per-task reports and farm submission files (`kg plan`, `kg emit`).
 //! - [`cli`]: the `kg` command line.
 
 pub mod cli;
 pub mod document;
 pub mod editor;
 pub mod engine;
+pub mod farm;
 
 pub use kinegraph_nodes as nodes;

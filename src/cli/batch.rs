@@ -34,6 +34,54 @@ pub struct BatchRun {
     pub error: Option<String>,
 }
 
+/// The files a `NAME=GLOB` binding matches, sorted; an error naming the glob when it is
+/// malformed or matches no file.
+pub fn expand_glob(input: &Setting) -> Result<Vec<PathBuf>, String> {
+    let mut inputs: Vec<PathBuf> = match glob::glob(&input.value) {
+        Ok(paths) => paths.filter_map(Result::ok).filter(|p| p.is_file()).collect(),
+        Err(e) => return Err(format!("--input {}: bad glob: {e}", input.value)),
+    };
+    inputs.sort();
+    if inputs.is_empty() {
+        return Err(format!("--input {}: no files match", input.value));
+    }
+    Ok(inputs)
+}
+
+/// One run of `graph` with `settings` into `out_dir`, as `kg batch` and `kg run --plan`
+/// do it: never panics, always gives a [`BatchRun`] (`input` only labels it).
+pub fn run_once(
+    engine: &Engine,
+    graph: &Path,
+    settings: &[Setting],
+    input: &Path,
+    out_dir: &Path,
+    threads: Option<usize>,
+) -> BatchRun {
+    let t = Instant::now();
+    let result = load_graph(graph, settings, engine.registry()).map_err(|e| (EXIT_INVALID, e)).and_then(|loaded| {
+        execute(engine, &loaded, Some(out_dir), threads, None, false).map_err(|c| (c, "invalid graph".to_string()))
+    });
+    let (exit_code, nodes, files_written, error) = match result {
+        Ok(report) => {
+            let error = report.nodes.iter().find_map(|(id, n)| {
+                n.error.as_ref().filter(|_| n.status == NodeStatus::Error).map(|e| format!("{id}: {e}"))
+            });
+            (if report.succeeded() { 0 } else { EXIT_FAILED }, report.nodes, report.files_written, error)
+        }
+        Err((code, error)) => (code, BTreeMap::new(), Vec::new(), Some(error)),
+    };
+    BatchRun {
+        input: input.to_path_buf(),
+        out_dir: absolute(out_dir),
+        exit_code,
+        seconds: t.elapsed().as_secs_f64(),
+        nodes,
+        files_written,
+        error,
+    }
+}
+
 /// Output subfolder names: the file stem, disambiguated by parent folders when two inputs
 /// share a stem (e.g. `cmu/02_02.bvh` and `cmu_daz/02_02.bvh`).
 pub fn run_folder_names(inputs: &[PathBuf]) -> Vec<String> {
@@ -81,56 +129,24 @@ pub(super) fn batch_command(
         eprintln!("{e}");
         return EXIT_INVALID;
     }
-    let inputs: Vec<PathBuf> = match glob::glob(&input.value) {
-        Ok(paths) => paths.filter_map(Result::ok).filter(|p| p.is_file()).collect(),
+    let inputs = match expand_glob(input) {
+        Ok(inputs) => inputs,
         Err(e) => {
-            eprintln!("--input {}: bad glob: {e}", input.value);
+            eprintln!("{e}");
             return EXIT_INVALID;
         }
     };
-    if inputs.is_empty() {
-        eprintln!("--input {}: no files match", input.value);
-        return EXIT_INVALID;
-    }
     let names = run_folder_names(&inputs);
     let bar = (!json && std::io::stderr().is_terminal()).then(|| indicatif::ProgressBar::new(inputs.len() as u64));
     let started = Instant::now();
     let run_one = |(path, name): (&PathBuf, &String)| -> BatchRun {
-        let t = Instant::now();
-        let out_dir = out.join(name);
         let mut all = settings.to_vec();
         all.push(Setting { name: input.name.clone(), value: path.to_string_lossy().into_owned() });
-        let result = load_graph(graph, &all, engine.registry()).map_err(|e| (EXIT_INVALID, e)).and_then(|loaded| {
-            execute(&engine, &loaded, Some(&out_dir), None, None, false).map_err(|c| (c, "invalid graph".to_string()))
-        });
+        let run = run_once(&engine, graph, &all, path, &out.join(name), None);
         if let Some(bar) = &bar {
             bar.inc(1);
         }
-        match result {
-            Ok(report) => {
-                let error = report.nodes.iter().find_map(|(id, n)| {
-                    n.error.as_ref().filter(|_| n.status == NodeStatus::Error).map(|e| format!("{id}: {e}"))
-                });
-                BatchRun {
-                    input: path.clone(),
-                    out_dir: absolute(&out_dir),
-                    exit_code: if report.succeeded() { 0 } else { EXIT_FAILED },
-                    seconds: t.elapsed().as_secs_f64(),
-                    nodes: report.nodes,
-                    files_written: report.files_written,
-                    error,
-                }
-            }
-            Err((code, error)) => BatchRun {
-                input: path.clone(),
-                out_dir: absolute(&out_dir),
-                exit_code: code,
-                seconds: t.elapsed().as_secs_f64(),
-                nodes: BTreeMap::new(),
-                files_written: Vec::new(),
-                error: Some(error),
-            },
-        }
+        run
     };
     let pool = rayon::ThreadPoolBuilder::new().num_threads(jobs.unwrap_or(0)).build();
     let runs: Vec<BatchRun> = match pool {

@@ -5,9 +5,13 @@
 
 mod batch;
 mod catalogue;
+mod emit;
 mod inspect;
+mod merge;
+mod plan;
 mod regression;
 mod run;
+mod task;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -20,6 +24,14 @@ pub use run::{Setting, apply_settings, convert_graph, load_graph};
 pub const EXIT_FAILED: u8 = 1;
 /// Exit code: the graph or the command line is invalid.
 pub const EXIT_INVALID: u8 = 2;
+
+/// Writes `bytes` to `path` atomically, creating its folder; the error names the file.
+fn save_file(path: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create the folder: {e}", dir.display()))?;
+    }
+    kinegraph_nodes::formats::atomic::write_atomic(path, bytes).map_err(|e| e.to_string())
+}
 
 /// kinegraph's headless runner.
 #[derive(Parser, Debug)]
@@ -37,12 +49,20 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Run a graph: evaluate what its sinks need and write its exports into --out.
+    /// With --plan and --task-index: run one task of a plan (`kg plan`), idempotently.
     Run {
-        /// The graph file (.ron).
-        graph: PathBuf,
+        /// The graph file (.ron); optional with --plan (then it must be the plan's graph).
+        #[arg(required_unless_present = "plan")]
+        graph: Option<PathBuf>,
         /// Override a graph input or a node parameter: NAME=VALUE or node.param=VALUE.
-        #[arg(long = "set", value_name = "NAME=VALUE")]
+        #[arg(long = "set", value_name = "NAME=VALUE", conflicts_with = "plan")]
         set: Vec<Setting>,
+        /// A plan file from `kg plan`: run the task --task-index of it.
+        #[arg(long, requires = "task_index")]
+        plan: Option<PathBuf>,
+        /// The task to run (0-based; the farm's array index).
+        #[arg(long, requires = "plan")]
+        task_index: Option<usize>,
         /// Output folder for exports.
         #[arg(long, default_value = "out")]
         out: PathBuf,
@@ -53,8 +73,43 @@ enum Command {
         #[arg(long)]
         threads: Option<usize>,
         /// Evaluate only these nodes (and what they need); default: every sink.
-        #[arg(long = "target", value_name = "NODE")]
+        #[arg(long = "target", value_name = "NODE", conflicts_with = "plan")]
         targets: Vec<String>,
+    },
+    /// Plan a farm run: one task per input binding, with content hashes, as a plan file.
+    Plan {
+        /// The graph file.
+        graph: PathBuf,
+        /// NAME=GLOB: a graph input (or node.param) bound to each matching file; several
+        /// --input give every combination. NAME=@PLAN binds each output of an upstream
+        /// plan's tasks instead, and each task depends on the task making its file.
+        #[arg(long, value_name = "NAME=GLOB")]
+        input: Vec<Setting>,
+        /// The output root the upstream plan's tasks write into (for NAME=@PLAN).
+        #[arg(long, default_value = "out")]
+        upstream_out: PathBuf,
+        /// Overrides applied to every task (input files among them are hashed).
+        #[arg(long = "set", value_name = "NAME=VALUE")]
+        set: Vec<Setting>,
+        /// The plan file to write.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Write the submission file for a farm engine from a plan (never submits).
+    Emit(emit::EmitArgs),
+    /// Collect the task reports of a plan's run into one summary.
+    Merge {
+        /// The plan file.
+        plan: PathBuf,
+        /// The output root the tasks ran into.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Where to save the summary (default: OUT/summary.json).
+        #[arg(long)]
+        summary: Option<PathBuf>,
+        /// Print the summary JSON on stdout instead of the table.
+        #[arg(long)]
+        json: bool,
     },
     /// Validate graphs without running them; report every problem.
     Check {
@@ -141,9 +196,19 @@ enum Command {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let code = match cli.command {
-        Command::Run { graph, set, out, json, threads, targets } => {
-            run::run_command(&graph, &set, &out, json, threads, targets)
+        Command::Run { graph, set, plan, task_index, out, json, threads, targets } => match (plan, task_index, graph) {
+            (Some(plan), Some(index), graph) => task::task_command(&plan, index, graph.as_deref(), &out, threads, json),
+            (_, _, Some(graph)) => run::run_command(&graph, &set, &out, json, threads, targets),
+            _ => {
+                eprintln!("kg run: give a GRAPH, or --plan and --task-index");
+                EXIT_INVALID
+            }
+        },
+        Command::Plan { graph, input, upstream_out, set, out } => {
+            plan::plan_command(&graph, &input, &set, &upstream_out, &out)
         }
+        Command::Emit(args) => emit::emit_command(&args),
+        Command::Merge { plan, out, summary, json } => merge::merge_command(&plan, &out, summary.as_deref(), json),
         Command::Check { graphs, json } => run::check_command(&graphs, json),
         Command::Nodes { json, markdown } => catalogue::nodes_command(json, markdown),
         Command::Inspect { file, json } => inspect::inspect_command(&file, json),

@@ -36,13 +36,7 @@ impl FromStr for Setting {
 /// taken relative to the current directory (where the user typed them), not the graph's.
 pub fn apply_settings(doc: &mut GraphDoc, settings: &[Setting], registry: &Registry) -> Result<(), String> {
     for setting in settings {
-        let (node, param) = doc.resolve_setting(&setting.name)?;
-        let kind = doc.nodes.get(&node).map(|n| n.kind.clone()).unwrap_or_default();
-        let is_input_file = registry
-            .get(&kind)
-            .and_then(|n| n.schema().param(&param))
-            .is_some_and(|p| matches!(p.kind, ParamKind::InputPath { .. }));
-        let value = if is_input_file {
+        let value = if names_input_file(doc, &setting.name, registry)? {
             ParamValue::Text(absolute(Path::new(&setting.value)).to_string_lossy().into_owned())
         } else {
             document::parse_param_value(&setting.value)
@@ -50,6 +44,16 @@ pub fn apply_settings(doc: &mut GraphDoc, settings: &[Setting], registry: &Regis
         doc.set_param(&setting.name, value)?;
     }
     Ok(())
+}
+
+/// True when the `--set` name (graph input or `node.param`) is an input-file parameter.
+pub fn names_input_file(doc: &GraphDoc, name: &str, registry: &Registry) -> Result<bool, String> {
+    let (node, param) = doc.resolve_setting(name)?;
+    let kind = doc.nodes.get(&node).map(|n| n.kind.as_str()).unwrap_or_default();
+    Ok(registry
+        .get(kind)
+        .and_then(|n| n.schema().param(&param))
+        .is_some_and(|p| matches!(p.kind, ParamKind::InputPath { .. })))
 }
 
 /// `path` made absolute against the current directory.

@@ -84,6 +84,40 @@ impl CompiledGraph<'_> {
     pub fn index_of(&self, id: &str) -> Option<usize> {
         self.nodes.binary_search_by(|n| n.id.as_str().cmp(id)).ok()
     }
+
+    /// Every file the graph's export nodes write, in node order.
+    pub fn output_files(&self) -> Vec<OutputFile<'_>> {
+        output_files(&self.nodes)
+    }
+}
+
+/// A file an export node writes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OutputFile<'a> {
+    /// The node.
+    pub node: &'a str,
+    /// Its output-path parameter.
+    pub param: &'static str,
+    /// The parameter's text, as written in the graph.
+    pub text: &'a str,
+    /// The file relative to the run's output folder, `.` components removed.
+    pub file: std::path::PathBuf,
+}
+
+fn output_files<'a>(nodes: &'a [CompiledNode<'_>]) -> Vec<OutputFile<'a>> {
+    let mut out = Vec::new();
+    for node in nodes {
+        for spec in node.node.schema().params.iter().filter(|p| matches!(p.kind, ParamKind::OutputPath { .. })) {
+            if let Some(ParamValue::Text(text)) = node.params.get(spec.name) {
+                let file = std::path::Path::new(text)
+                    .components()
+                    .filter(|c| !matches!(c, std::path::Component::CurDir))
+                    .collect();
+                out.push(OutputFile { node: &node.id, param: spec.name, text, file });
+            }
+        }
+    }
+    out
 }
 
 struct Checker<'a> {
@@ -260,18 +294,14 @@ pub fn compile<'r>(
 
     // Two exports writing one file would race and one result would silently vanish.
     let mut writers: BTreeMap<String, &str> = BTreeMap::new();
-    for node in &nodes {
-        for spec in node.node.schema().params.iter().filter(|p| matches!(p.kind, ParamKind::OutputPath { .. })) {
-            if let Some(ParamValue::Text(file)) = node.params.get(spec.name) {
-                let normalised: std::path::PathBuf = std::path::Path::new(file)
-                    .components()
-                    .filter(|c| !matches!(c, std::path::Component::CurDir))
-                    .collect();
-                let key = normalised.to_string_lossy().to_lowercase();
-                if let Some(first) = writers.insert(key, &node.id) {
-                    check.param(&node.id, spec.name, format!("writes '{file}', which node '{first}' also writes"));
-                }
-            }
+    for output in output_files(&nodes) {
+        let key = output.file.to_string_lossy().to_lowercase();
+        if let Some(first) = writers.insert(key, output.node) {
+            check.param(
+                output.node,
+                output.param,
+                format!("writes '{}', which node '{first}' also writes", output.text),
+            );
         }
     }
 

@@ -5,6 +5,6 @@ mod compile;
 mod evaluate;
 mod report;
 
-pub use compile::{CompiledGraph, CompiledNode, Diagnostic, GraphErrors, compile};
+pub use compile::{CompiledGraph, CompiledNode, Diagnostic, GraphErrors, OutputFile, compile};
 pub use evaluate::{Engine, RunEvent, RunOptions};
 pub use report::{NodeReport, NodeStatus, RunReport};

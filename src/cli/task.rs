@@ -1,0 +1,220 @@
+//! `kg run --plan PLAN --task-index I`: one task of a plan, through the same evaluator as
+//! `kg run`, idempotently.
+//!
+//! The task runs into a hidden staging folder beside its output folder; only a successful
+//! run is moved into place, so a failed or interrupted attempt never leaves partial
+//! outputs. The task's report (`reports/<id>.json`, written atomically last) records the
+//! output hashes; a retry that finds it with every output present and matching does
+//! nothing.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use kinegraph_nodes::node::Registry;
+
+use super::batch::{BatchRun, run_once};
+use super::run::Setting;
+use super::{EXIT_FAILED, EXIT_INVALID};
+use crate::engine::Engine;
+use crate::farm::plan::{normalised_absolute, plan_dir, sha256_file};
+use crate::farm::report::serde_name;
+use crate::farm::{HashedFile, Plan, Task, TaskReport, TaskStatus};
+
+/// Prints `message` and gives the exit code for an invalid plan, task or input.
+fn invalid(message: impl std::fmt::Display) -> u8 {
+    eprintln!("{message}");
+    EXIT_INVALID
+}
+
+/// The task's input hashes as they are on disk now; an error when a file is missing or
+/// differs from the hash the plan recorded.
+fn check_inputs(task: &Task, base: &Path, plan_path: &Path) -> Result<BTreeMap<String, String>, String> {
+    let mut hashes = BTreeMap::new();
+    for (name, file) in &task.inputs {
+        let path = normalised_absolute(&base.join(&file.path));
+        let actual = sha256_file(&path).map_err(|e| {
+            let upstream: Vec<String> =
+                task.depends_on.iter().map(|d| format!("task {} ({}) of {}", d.index, d.task, d.plan)).collect();
+            let hint = if file.sha256.is_empty() && !upstream.is_empty() {
+                format!(" (made by {}: has it finished?)", upstream.join(", "))
+            } else {
+                String::new()
+            };
+            format!("{}: task {} ({}): input '{name}': {e}{hint}", plan_path.display(), task.index, task.id)
+        })?;
+        if !file.sha256.is_empty() && actual != file.sha256 {
+            return Err(format!(
+                "{}: task {} ({}): input '{name}' ({}) changed since planning: sha256 {actual}, the plan says {}; re-run `kg plan`",
+                plan_path.display(),
+                task.index,
+                task.id,
+                path.display(),
+                file.sha256
+            ));
+        }
+        hashes.insert(name.clone(), actual);
+    }
+    Ok(hashes)
+}
+
+/// Removes staging folders that earlier attempts of the task left behind (killed runs).
+fn remove_stale_staging(out: &Path, task: &Task) {
+    let prefix = format!(".{}.partial-", task.id);
+    if let Ok(entries) = std::fs::read_dir(out) {
+        for entry in entries.flatten() {
+            if entry.file_name().to_string_lossy().starts_with(&prefix) {
+                let _ = std::fs::remove_dir_all(entry.path());
+            }
+        }
+    }
+}
+
+/// Moves a successful attempt's outputs into place and hashes them; an error (and the
+/// staging folder removed) when an expected output is missing or the move fails.
+fn publish(task: &Task, staging: &Path, out: &Path) -> Result<Vec<HashedFile>, String> {
+    let prefix = format!("{}/", task.id);
+    for output in &task.outputs {
+        let in_staging = staging.join(output.strip_prefix(&prefix).unwrap_or(output));
+        if !in_staging.is_file() {
+            return Err(format!("expected output '{output}' was not written"));
+        }
+    }
+    let final_dir = out.join(task.out_dir());
+    if final_dir.exists() {
+        std::fs::remove_dir_all(&final_dir).map_err(|e| format!("{}: cannot replace: {e}", final_dir.display()))?;
+    }
+    std::fs::rename(staging, &final_dir)
+        .map_err(|e| format!("{}: cannot move outputs into place: {e}", final_dir.display()))?;
+    task.outputs
+        .iter()
+        .map(|o| Ok(HashedFile { path: o.clone(), sha256: sha256_file(&out.join(o)).map_err(|e| e.to_string())? }))
+        .collect()
+}
+
+/// Runs task `index` of the plan at `plan_path` into the output root `out`.
+pub(super) fn task_command(
+    plan_path: &Path,
+    index: usize,
+    graph: Option<&Path>,
+    out: &Path,
+    threads: Option<usize>,
+    json: bool,
+) -> u8 {
+    let started = Instant::now();
+    let plan = match Plan::read(plan_path) {
+        Ok(p) => p,
+        Err(e) => return invalid(e),
+    };
+    let task = match plan.task(index, plan_path) {
+        Ok(t) => t,
+        Err(e) => return invalid(e),
+    };
+    let base = plan_dir(plan_path);
+    let graph_path = normalised_absolute(&base.join(&plan.graph.path));
+    if let Some(given) = graph
+        && normalised_absolute(given) != normalised_absolute(&graph_path)
+    {
+        return invalid(format!(
+            "{}: the plan is of graph {}, not {}",
+            plan_path.display(),
+            graph_path.display(),
+            given.display()
+        ));
+    }
+    match sha256_file(&graph_path) {
+        Ok(h) if h == plan.graph.sha256 => {}
+        Ok(_) => {
+            return invalid(format!(
+                "{}: graph {} changed since planning; re-run `kg plan`",
+                plan_path.display(),
+                graph_path.display()
+            ));
+        }
+        Err(e) => return invalid(format!("{}: {e}", plan_path.display())),
+    }
+    let input_hashes = match check_inputs(task, &base, plan_path) {
+        Ok(h) => h,
+        Err(e) => return invalid(e),
+    };
+    let report_path = TaskReport::path(out, task);
+    let previous = TaskReport::read(&report_path);
+    if let Some(previous) = previous.filter(|r| r.is_up_to_date(task, &plan.graph.sha256, &input_hashes, out)) {
+        let report = TaskReport {
+            status: TaskStatus::Skipped,
+            seconds: started.elapsed().as_secs_f64(),
+            nodes: BTreeMap::new(),
+            error: None,
+            ..previous
+        };
+        eprintln!(
+            "task {index} ({}): already done, {} outputs present with matching hashes; nothing to do",
+            task.id,
+            report.outputs.len()
+        );
+        return finish(&report, &report_path, json);
+    }
+
+    if let Err(e) = std::fs::create_dir_all(out) {
+        return invalid(format!("{}: cannot create the output folder: {e}", out.display()));
+    }
+    remove_stale_staging(out, task);
+    let staging = out.join(format!(".{}.partial-{}", task.id, std::process::id()));
+    let mut settings: Vec<Setting> =
+        task.set.iter().map(|(name, value)| Setting { name: name.clone(), value: value.clone() }).collect();
+    settings.extend(task.inputs.iter().map(|(name, file)| Setting {
+        name: name.clone(),
+        value: normalised_absolute(&base.join(&file.path)).to_string_lossy().into_owned(),
+    }));
+    let engine = Engine::new(Registry::builtin());
+    let label = PathBuf::from(&task.id);
+    let mut run: BatchRun = run_once(&engine, &graph_path, &settings, &label, &staging, threads);
+    let outputs = if run.exit_code == 0 {
+        publish(task, &staging, out).unwrap_or_else(|e| {
+            run.exit_code = EXIT_FAILED;
+            run.error = Some(e);
+            Vec::new()
+        })
+    } else {
+        Vec::new()
+    };
+    if run.exit_code != 0 {
+        // Nothing of a failed attempt, nor an older result it would contradict, survives.
+        let _ = std::fs::remove_dir_all(&staging);
+        let _ = std::fs::remove_dir_all(out.join(task.out_dir()));
+    }
+    let report = TaskReport {
+        index,
+        id: task.id.clone(),
+        status: match run.exit_code {
+            0 => TaskStatus::Ok,
+            EXIT_FAILED => TaskStatus::Failed,
+            _ => TaskStatus::Invalid,
+        },
+        exit_code: run.exit_code,
+        seconds: started.elapsed().as_secs_f64(),
+        graph_sha256: plan.graph.sha256.clone(),
+        inputs: input_hashes,
+        outputs,
+        nodes: run.nodes.iter().map(|(id, n)| (id.clone(), serde_name(n.status))).collect(),
+        error: run.error.clone(),
+    };
+    match &report.error {
+        Some(e) => eprintln!("task {index} ({}): FAILED: {e}", task.id),
+        None => eprintln!("task {index} ({}): ok, {} outputs, {:.3} s", task.id, report.outputs.len(), report.seconds),
+    }
+    finish(&report, &report_path, json)
+}
+
+/// Writes the task report (the idempotency marker), prints it with `--json`, and gives the
+/// exit code.
+fn finish(report: &TaskReport, path: &Path, json: bool) -> u8 {
+    if let Err(e) = report.write(path) {
+        eprintln!("{e}");
+        return EXIT_FAILED.max(report.exit_code);
+    }
+    if json {
+        println!("{}", serde_json::to_string(report).unwrap_or_default());
+    }
+    report.exit_code
+}

@@ -1,0 +1,284 @@
+//! Submission files for farm engines, built from a plan. Each maps the engine's array index
+//! onto `kg run --plan PLAN --task-index I`; none submits anything.
+//!
+//! - Slurm: a job-array batch script (`$SLURM_ARRAY_TASK_ID`), for `sbatch`.
+//! - Kubernetes: an Indexed Job (`$JOB_COMPLETION_INDEX`), with a per-index retry limit so
+//!   one failing task does not stop the others, for `kubectl apply -f`.
+//! - Open Job Description: a `jobtemplate-2023-09` template with one INT task parameter,
+//!   for `openjd run` or Deadline Cloud.
+//! - OpenCue: a job spec (cjsl 1.12) with one layer whose frame range is the task indices,
+//!   for `cueadmin`/`pycuerun`-style submission.
+
+use serde_json::json;
+
+use super::plan::Plan;
+
+/// A farm engine `kg emit` writes for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Target {
+    /// Slurm job array script.
+    Slurm,
+    /// Kubernetes Indexed Job manifest.
+    K8s,
+    /// Open Job Description job template.
+    #[value(name = "openjd")]
+    OpenJd,
+    /// OpenCue job spec XML.
+    #[value(name = "opencue")]
+    OpenCue,
+}
+
+impl Target {
+    /// The name `kg emit` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Target::Slurm => "slurm",
+            Target::K8s => "k8s",
+            Target::OpenJd => "openjd",
+            Target::OpenCue => "opencue",
+        }
+    }
+}
+
+/// What a submission file needs beyond the plan: where things are as the farm host sees
+/// them, and resource hints.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EmitOptions {
+    /// The `kg` executable on the farm host.
+    pub kg: String,
+    /// The plan file on the farm host (absolute, or relative to `workdir`).
+    pub plan: String,
+    /// The output root on the farm host (absolute, or relative to `workdir`).
+    pub out: String,
+    /// The folder each task runs in (shared storage).
+    pub workdir: String,
+    /// Job name.
+    pub name: String,
+    /// Cores per task; also `kg run --threads`.
+    pub cores: u32,
+    /// Memory per task, MiB, if a limit should be requested.
+    pub memory_mib: Option<u64>,
+    /// At most this many tasks at once, if limited.
+    pub max_parallel: Option<usize>,
+    /// Attempts per task after the first (engines that retry by themselves).
+    pub retries: u32,
+    /// Kubernetes: the container image that has `kg`.
+    pub image: String,
+    /// Kubernetes: the PersistentVolumeClaim mounted at `workdir`.
+    pub volume_claim: String,
+    /// OpenCue: show name.
+    pub show: String,
+    /// OpenCue: shot name.
+    pub shot: String,
+    /// OpenCue: user name.
+    pub user: String,
+}
+
+/// The submission file for `target`; an error when the plan has no tasks.
+pub fn emit(target: Target, plan: &Plan, options: &EmitOptions) -> Result<String, String> {
+    if plan.tasks.is_empty() {
+        return Err("the plan has no tasks".into());
+    }
+    Ok(match target {
+        Target::Slurm => slurm(plan, options),
+        Target::K8s => k8s(plan, options),
+        Target::OpenJd => openjd(plan, options),
+        Target::OpenCue => opencue(plan, options),
+    })
+}
+
+/// `0-N` for the plan's task indices (`0` for a single task).
+fn index_range(plan: &Plan) -> String {
+    match plan.tasks.len() {
+        0 | 1 => "0".into(),
+        n => format!("0-{}", n - 1),
+    }
+}
+
+/// The `kg run` arguments after the executable, with `index` standing for the task index.
+fn run_args(options: &EmitOptions, index: &str) -> Vec<String> {
+    let mut args: Vec<String> = ["run", "--plan", &options.plan, "--task-index", index, "--out", &options.out]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    args.extend(["--threads".to_string(), options.cores.to_string()]);
+    args
+}
+
+/// A word for a POSIX shell: bare when it is plainly safe, else single-quoted.
+fn shell_word(word: &str) -> String {
+    let safe = !word.is_empty() && word.chars().all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c));
+    if safe { word.to_string() } else { format!("'{}'", word.replace('\'', r"'\''")) }
+}
+
+/// A shell command line running one task; `index` is put in as it is (a quoted variable
+/// or an engine's token), every other word is quoted as needed.
+fn shell_command(options: &EmitOptions, index: &str) -> String {
+    const INDEX: &str = "KG_TASK_INDEX_PLACEHOLDER";
+    std::iter::once(options.kg.clone())
+        .chain(run_args(options, INDEX))
+        .map(|word| if word == INDEX { index.to_string() } else { shell_word(&word) })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn header(plan: &Plan, target: Target, how: &str) -> String {
+    let after = if plan.after.is_empty() {
+        String::new()
+    } else {
+        format!(
+            "\nReads outputs of {}: submit it once those tasks are done (a task whose input is missing exits 2).",
+            plan.after.join(", ")
+        )
+    };
+    format!(
+        "Generated by `kg emit {}`: {} tasks of graph {} (sha256 {}).\n{how}{after}",
+        target.name(),
+        plan.tasks.len(),
+        plan.graph.path,
+        plan.graph.sha256
+    )
+}
+
+fn comment_lines(text: &str, prefix: &str) -> String {
+    text.lines().map(|l| format!("{prefix}{l}\n")).collect()
+}
+
+fn slurm(plan: &Plan, options: &EmitOptions) -> String {
+    let mut s = String::from("#!/bin/bash\n");
+    let how = if plan.after.is_empty() {
+        "Submit with: sbatch THIS_FILE"
+    } else {
+        "Submit with: sbatch --dependency=afterok:UPSTREAM_JOB_ID THIS_FILE"
+    };
+    s += &comment_lines(&header(plan, Target::Slurm, how), "# ");
+    s += &format!("#SBATCH --job-name={}\n", shell_word(&options.name));
+    let limit = options.max_parallel.map(|p| format!("%{p}")).unwrap_or_default();
+    s += &format!("#SBATCH --array={}{limit}\n", index_range(plan));
+    s += "#SBATCH --ntasks=1\n";
+    s += &format!("#SBATCH --cpus-per-task={}\n", options.cores);
+    if let Some(mib) = options.memory_mib {
+        s += &format!("#SBATCH --mem={mib}M\n");
+    }
+    s += &format!("#SBATCH --chdir={}\n", shell_word(&options.workdir));
+    s += &format!("#SBATCH --output={}\n", shell_word(&format!("{}-%A_%a.log", options.name)));
+    s += "set -euo pipefail\n";
+    s += &format!("exec {}\n", shell_command(options, "\"$SLURM_ARRAY_TASK_ID\""));
+    s
+}
+
+/// A YAML scalar: JSON string syntax is valid YAML and quotes everything that needs it.
+fn yaml_str(text: &str) -> String {
+    serde_json::Value::String(text.to_string()).to_string()
+}
+
+/// A Kubernetes object name: lower-case alphanumerics and '-', at most 63 characters.
+fn k8s_name(name: &str) -> String {
+    let cleaned: String =
+        name.to_lowercase().chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '-' }).take(63).collect();
+    let trimmed = cleaned.trim_matches('-');
+    if trimmed.is_empty() { "kg".into() } else { trimmed.to_string() }
+}
+
+fn k8s(plan: &Plan, options: &EmitOptions) -> String {
+    let n = plan.tasks.len();
+    let mut s = comment_lines(&header(plan, Target::K8s, "Apply with: kubectl apply -f THIS_FILE"), "# ");
+    s += "apiVersion: batch/v1\nkind: Job\nmetadata:\n";
+    s += &format!("  name: {}\n", yaml_str(&k8s_name(&options.name)));
+    s += "spec:\n  completionMode: Indexed\n";
+    s += &format!("  completions: {n}\n");
+    s += &format!("  parallelism: {}\n", options.max_parallel.unwrap_or(n).min(n));
+    // Retries count per index, so one failing task never fails the others.
+    s += &format!("  backoffLimitPerIndex: {}\n", options.retries);
+    s += "  podFailurePolicy:\n    rules:\n";
+    s += "      # Exit code 2: invalid graph, plan or input; retrying cannot help.\n";
+    s += "      - action: FailIndex\n        onExitCodes:\n          containerName: kg\n";
+    s += "          operator: In\n          values: [2]\n";
+    s += "  template:\n    spec:\n      restartPolicy: Never\n      containers:\n";
+    s += "        - name: kg\n";
+    s += &format!("          image: {}\n", yaml_str(&options.image));
+    s += &format!("          workingDir: {}\n", yaml_str(&options.workdir));
+    s += &format!(
+        "          command: [\"/bin/sh\", \"-c\", {}]\n",
+        yaml_str(&format!("exec {}", shell_command(options, "\"$JOB_COMPLETION_INDEX\"")))
+    );
+    s += "          resources:\n            requests:\n";
+    s += &format!("              cpu: {}\n", yaml_str(&options.cores.to_string()));
+    if let Some(mib) = options.memory_mib {
+        s += &format!("              memory: {}\n", yaml_str(&format!("{mib}Mi")));
+        s += &format!("            limits:\n              memory: {}\n", yaml_str(&format!("{mib}Mi")));
+    }
+    s += "          volumeMounts:\n";
+    s += &format!("            - name: work\n              mountPath: {}\n", yaml_str(&options.workdir));
+    s += "      volumes:\n        - name: work\n          persistentVolumeClaim:\n";
+    s += &format!("            claimName: {}\n", yaml_str(&options.volume_claim));
+    s
+}
+
+fn openjd(plan: &Plan, options: &EmitOptions) -> String {
+    let args = run_args(options, "{{Task.Param.TaskIndex}}");
+    let mut step = json!({
+        "name": "kg-run",
+        "description": header(plan, Target::OpenJd, "Run with: openjd run THIS_FILE (a local session stops at the first failed task;\n`--task-param TaskIndex=I` runs one task in its own session, as a farm does)"),
+        "parameterSpace": {
+            "taskParameterDefinitions": [
+                { "name": "TaskIndex", "type": "INT", "range": index_range(plan) }
+            ]
+        },
+        "script": {
+            "actions": {
+                "onRun": { "command": options.kg, "args": args }
+            }
+        }
+    });
+    let mut amounts = vec![json!({ "name": "amount.worker.vcpu", "min": options.cores })];
+    if let Some(mib) = options.memory_mib {
+        amounts.push(json!({ "name": "amount.worker.memory", "min": mib }));
+    }
+    step["hostRequirements"] = json!({ "amounts": amounts });
+    let template = json!({
+        "specificationVersion": "jobtemplate-2023-09",
+        "name": options.name,
+        "steps": [step],
+    });
+    let mut text = serde_json::to_string_pretty(&template).unwrap_or_default();
+    text.push('\n');
+    text
+}
+
+/// Text escaped for XML content and attribute values.
+fn xml(text: &str) -> String {
+    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;").replace('\'', "&apos;")
+}
+
+fn opencue(plan: &Plan, options: &EmitOptions) -> String {
+    let command = shell_command(options, "#IFRAME#");
+    let mut s = String::from("<?xml version=\"1.0\"?>\n");
+    s +=
+        "<!DOCTYPE spec PUBLIC \"SPI Cue Specification Language\" \"http://localhost:8080/spcue/dtd/cjsl-1.12.dtd\">\n";
+    s += &format!(
+        "<!-- {} -->\n",
+        xml(&header(plan, Target::OpenCue, "Frame N of the layer runs task N.")).replace('\n', " ")
+    );
+    s += "<spec>\n";
+    s += &format!(
+        "  <show>{}</show>\n  <shot>{}</shot>\n  <user>{}</user>\n",
+        xml(&options.show),
+        xml(&options.shot),
+        xml(&options.user)
+    );
+    s += &format!("  <job name=\"{}\">\n", xml(&options.name));
+    s += "    <paused>false</paused>\n";
+    s += &format!("    <maxretries>{}</maxretries>\n", options.retries);
+    s += "    <autoeat>false</autoeat>\n";
+    s += "    <layers>\n      <layer name=\"kg-run\" type=\"Render\">\n";
+    s += &format!("        <cmd>cd {} &amp;&amp; {}</cmd>\n", xml(&shell_word(&options.workdir)), xml(&command));
+    s += &format!("        <range>{}</range>\n        <chunk>1</chunk>\n", index_range(plan));
+    s += &format!("        <cores>{}</cores>\n", options.cores);
+    if let Some(mib) = options.memory_mib {
+        s += &format!("        <memory>{mib}m</memory>\n");
+    }
+    s += "        <services>\n          <service>shell</service>\n        </services>\n";
+    s += "      </layer>\n    </layers>\n  </job>\n</spec>\n";
+    s
+}
