@@ -1,0 +1,55 @@
+//! UI frame time of the editor on a 500-node graph (issue goal: < 16 ms per frame), measured
+//! headless through egui_kittest: layout, canvas, panel and painting into egui's shapes,
+//! without GPU rasterisation. Run: `cargo bench --bench editor_frame`.
+
+#![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
+
+use std::fmt::Write as _;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use egui_kittest::Harness;
+use kinegraph::editor::EditorApp;
+
+/// A graph of `n` nodes: constants feeding a chain of adders, laid out on a grid.
+fn big_graph(n: usize) -> String {
+    let mut nodes = String::new();
+    let mut edges = String::new();
+    let mut layout = String::new();
+    for i in 0..n {
+        let (kind, params) = if i % 2 == 0 {
+            ("scalar.constant", format!("{{\"value\": {i}.0}}"))
+        } else {
+            ("scalar.add", "{\"offset\": 1.0}".to_string())
+        };
+        writeln!(nodes, "\"n{i}\": (kind: \"{kind}\", params: {params}),").unwrap();
+        if i % 2 == 1 {
+            writeln!(edges, "(from: \"n{}.value\", to: \"n{i}.a\"),", i - 1).unwrap();
+            if i >= 3 {
+                writeln!(edges, "(from: \"n{}.sum\", to: \"n{i}.b\"),", i - 2).unwrap();
+            }
+        }
+        writeln!(layout, "\"n{i}\": ({}.0, {}.0),", (i % 25) * 220, (i / 25) * 140).unwrap();
+    }
+    format!(
+        "(format: \"kinegraph.graph\", version: 2, nodes: {{ {nodes} }}, edges: [ {edges} ], layout: {{ {layout} }})"
+    )
+}
+
+fn bench(c: &mut Criterion) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("big.ron");
+    std::fs::write(&path, big_graph(500)).unwrap();
+    let mut app = EditorApp::new(&egui::Context::default(), Some(&path));
+    app.wait_for_evaluation();
+    assert_eq!(app.doc().nodes.len(), 500);
+    let mut harness =
+        Harness::builder().with_size([1600.0, 1000.0]).build_ui_state(|ui, app: &mut EditorApp| app.ui(ui), app);
+    harness.run_steps(4);
+    c.bench_function("editor/frame_500_nodes_as_opened", |b| b.iter(|| harness.step()));
+    harness.state_mut().select(Some("n251"));
+    harness.run_steps(2);
+    c.bench_function("editor/frame_500_nodes_with_panel", |b| b.iter(|| harness.step()));
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
