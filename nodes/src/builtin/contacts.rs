@@ -142,8 +142,8 @@ const LEAVE_SPEED: FloatParam =
 const MIN_DURATION: FloatParam =
     FloatParam::new("min_duration_secs", "Shorter contacts are ignored.", 0.05, 0.0, 10.0, "s");
 
-/// Reads the threshold params of a contacts node (shared by nodes that detect contacts).
-pub fn thresholds_from(ctx: &NodeContext<'_>) -> Result<ContactThresholds, NodeError> {
+/// Reads and checks the threshold params.
+fn thresholds_from(ctx: &NodeContext<'_>) -> Result<ContactThresholds, NodeError> {
     let t = ContactThresholds {
         enter_height_m: ctx.float(&ENTER_HEIGHT)?,
         enter_speed_mps: ctx.float(&ENTER_SPEED)?,
