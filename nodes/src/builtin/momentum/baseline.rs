@@ -61,7 +61,7 @@ pub fn concatenate_baseline(
     let pose_a: Vec<Vec<Vec3>> = (0..n1).map(|f| body_frame_pose(a, &a.poses, f)).collect();
     let pose_b: Vec<Vec<Vec3>> = (0..n2).map(|f| body_frame_pose(b, &b.poses, f)).collect();
     let distance = |i: usize, j: usize| -> f64 {
-        [0, fade / 2, fade]
+        [0, (fade - 1) / 2, fade - 1]
             .iter()
             .map(|&k| {
                 let (p, q) = (&pose_a[(i + k).min(n1 - 1)], &pose_b[(j + k).min(n2 - 1)]);

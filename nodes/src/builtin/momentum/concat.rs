@@ -39,10 +39,11 @@ use crate::node::Report;
 /// Which frames of the blendable periods may be blended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Support {
-    /// Double support where the periods have some; all frames where they have none (an
-    /// airborne flip), with a note in the report.
+    /// Double support where the periods have at least `min_blend_secs` of it; all frames
+    /// otherwise (an airborne flip), with a note in the report.
     Auto,
-    /// Only double-support frames (the paper's rule); refuses when there are none.
+    /// Only double-support frames (the paper's rule); refuses when the periods have less
+    /// than `min_blend_secs` of it.
     Double,
     /// Every frame.
     Any,
@@ -84,7 +85,8 @@ pub struct ConcatParams {
     /// Bounds on the time scale s of eq. 9 (1..1 turns scaling off).
     pub time_scale_range: (f64, f64),
     /// The second clip's main-phase peak plays at least this long after the first's,
-    /// seconds. The paper's cost favours the earliest blend, which for two similar motions
+    /// seconds, before the blend's time scaling (which can shorten the window by up to
+    /// 1 − 1/s). The paper's cost favours the earliest blend, which for two similar motions
     /// overlaps their main phases into one; a gap keeps both (a double flip stays double).
     pub min_peak_gap_secs: f64,
 }
@@ -247,7 +249,7 @@ fn allowed(case: &Case, a: &Analysis, b: &Analysis, support: Support, min_frames
             if enough(&d) && d.first.contains(&true) && d.second.contains(&true) {
                 Some(d)
             } else {
-                Some(make(false, "any (the blendable periods have no double support)"))
+                Some(make(false, "any (the blendable periods have too little double support)"))
             }
         }
     }
@@ -463,8 +465,18 @@ pub fn concatenate(
     // 1. Alignment about the vertical axis (the main phases' mean momenta).
     let (yaw, yaw_from) = alignment(a, b, (a.phases.main, b.phases.main), params.rule);
     let turn_f = yaw_rotation(yaw);
-    let l2: Vec<DVec3> = b.smoothed.iter().map(|l| turn_f.as_dquat() * *l).collect();
-    let arms2: Vec<Vec3> = b.track.arms_m.iter().map(|r| turn_f * *r).collect();
+    // F_inertia pairs the two clips' segments one to one: with rest offsets that differ, the
+    // bone-length model can give the second clip other segments, so its momentum and arms
+    // are then recomputed under the first clip's model.
+    let same_model;
+    let (b_momentum, b_arms) = if a.model == b.model {
+        (&b.smoothed, &b.track.arms_m)
+    } else {
+        same_model = a.reanalysed(b.clip.clone(), options);
+        (&same_model.smoothed, &same_model.track.arms_m)
+    };
+    let l2: Vec<DVec3> = b_momentum.iter().map(|l| turn_f.as_dquat() * *l).collect();
+    let arms2: Vec<Vec3> = b_arms.iter().map(|r| turn_f * *r).collect();
     // 2–3. Blendable periods and the optimal timing per pairing of them.
     let scale = 0.5 * (a.smoothed_peak().powi(2) + b.smoothed_peak().powi(2)).max(f64::MIN_POSITIVE);
     let min_frames = ((params.min_blend_secs * fps).round() as usize).max(2);

@@ -352,7 +352,7 @@ const JOINED: Output<Arc<Clip>> = Output::new("clip", "The two motions as one.")
 const SUPPORT: ChoiceParam = ChoiceParam::new(
     "support",
     "Which frames may blend: double (both feet down, the paper's rule), any, or auto (double support where \
-     the blendable periods have it, any frame where they have none, e.g. airborne flips).",
+     the blendable periods have at least min_blend_secs of it, any frame otherwise, e.g. airborne flips).",
     Support::NAMES,
     "auto",
 );
@@ -392,8 +392,9 @@ const MAX_SCALE: FloatParam =
     FloatParam::new("max_time_scale", "Upper bound of the time scale s; 1 and 1 turn scaling off.", 2.0, 1.0, 20.0, "");
 const MIN_GAP: FloatParam = FloatParam::new(
     "min_peak_gap_secs",
-    "The second motion's peak plays at least this long after the first's. 0 is the paper's method, which \
-     overlaps two similar motions into one; about one main phase keeps a double flip double.",
+    "The second motion's peak plays at least this long after the first's (before the blend's time scaling). \
+     0 is the paper's method, which overlaps two similar motions into one; about one main phase keeps a \
+     double flip double.",
     0.0,
     0.0,
     60.0,

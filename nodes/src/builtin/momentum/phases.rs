@@ -22,10 +22,12 @@ pub struct PhaseOptions {
 pub fn segment_phases(momentum: &[DVec3], fps: f64, options: PhaseOptions) -> Phases {
     let n = momentum.len();
     let last = n.saturating_sub(1);
-    let tm = options
-        .main_frame
-        .map(|f| f.min(last))
-        .unwrap_or_else(|| (0..n).max_by(|&a, &b| momentum[a].length().total_cmp(&momentum[b].length())).unwrap_or(0));
+    // The peak is searched inside hand-set borders, so they are kept as given.
+    let lo = options.main_start.unwrap_or(0).min(last);
+    let hi = options.main_end.unwrap_or(n).min(n).max((lo + 1).min(n));
+    let tm = options.main_frame.map(|f| f.min(last)).unwrap_or_else(|| {
+        (lo..hi).max_by(|&a, &b| momentum[a].length().total_cmp(&momentum[b].length())).unwrap_or(lo)
+    });
     let reference = momentum.get(tm).copied().unwrap_or_default();
     let opposes = |f: usize| momentum[f].dot(reference) < 0.0;
     let main_start = options
@@ -80,6 +82,11 @@ mod tests {
         assert_eq!(forced.preparatory, Some(FrameRange::new(0, 2)));
         assert_eq!(forced.main, FrameRange::new(2, 3));
         assert_eq!(forced.posterior, Some(FrameRange::new(3, 4)));
+        // Hand-set borders around the smaller of two peaks keep the peak search inside them.
+        let two = profile(&[1.0, 3.0, 1.0, 2.0, 9.0, 2.0]);
+        let kept =
+            segment_phases(&two, 30.0, PhaseOptions { main_start: Some(0), main_end: Some(3), ..Default::default() });
+        assert_eq!((kept.main_frame, kept.main), (1, FrameRange::new(0, 3)));
         let manual_peak = segment_phases(&flip, 30.0, PhaseOptions { main_frame: Some(1), ..Default::default() });
         assert_eq!(manual_peak.main_frame, 1);
     }
