@@ -97,6 +97,30 @@ pub fn torso_orientation(poses: &ClipPoses, frame: usize, landmarks: &Landmarks)
     Some(crate::math::quat_normalize_or_identity(Quat::from_mat3(&glam::Mat3::from_cols(left, up, forward))))
 }
 
+/// How far apart two torsos face, radians, and what was compared: `b` at frame `g` is
+/// turned by `turn` first. The paper compares torso facings projected on the ground; a body
+/// far from upright (on its hands in a cartwheel) has no such facing, so there the whole
+/// torso orientations are compared instead.
+pub fn facing_difference(
+    (poses_a, landmarks_a, f): (&ClipPoses, &Landmarks, usize),
+    (poses_b, landmarks_b, g): (&ClipPoses, &Landmarks, usize),
+    turn: Quat,
+) -> (f64, &'static str) {
+    if torso_upright(poses_a, f, landmarks_a) && torso_upright(poses_b, g, landmarks_b) {
+        let angle = match (torso_facing(poses_a, f, landmarks_a), torso_facing(poses_b, g, landmarks_b)) {
+            (Some(x), Some(y)) => angle_between(x, turn * y),
+            _ => 0.0,
+        };
+        (angle, "ground facing")
+    } else {
+        let angle = match (torso_orientation(poses_a, f, landmarks_a), torso_orientation(poses_b, g, landmarks_b)) {
+            (Some(x), Some(y)) => f64::from(x.angle_between(turn * y)),
+            _ => 0.0,
+        };
+        (angle, "torso orientation (not upright)")
+    }
+}
+
 /// The point between the two ankles at `frame`, on the ground plane (y = 0).
 pub fn feet_centre(poses: &ClipPoses, frame: usize, landmarks: &Landmarks) -> Vec3 {
     let [l, r] = landmarks.feet();

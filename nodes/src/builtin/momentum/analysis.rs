@@ -92,7 +92,7 @@ pub fn analyse(
 }
 
 /// World poses, angular momentum and its smoothed version for `clip` under `model`.
-fn kinematics(clip: &Clip, model: &BodyModel, smoothing_secs: f64) -> (ClipPoses, MomentumTrack, Vec<DVec3>) {
+pub fn kinematics(clip: &Clip, model: &BodyModel, smoothing_secs: f64) -> (ClipPoses, MomentumTrack, Vec<DVec3>) {
     let poses = forward_kinematics(clip);
     let track = momentum_of_poses(&poses, clip.fps(), model);
     let half_width = (smoothing_secs * clip.fps()).round() as usize;

@@ -6,7 +6,7 @@
 use glam::{DVec3, Vec3};
 
 use super::body::BodyModel;
-use crate::model::{Clip, ClipPoses, Curves, CurvesError, forward_kinematics};
+use crate::model::{ClipPoses, Curves, CurvesError};
 
 /// Angular momentum and centre-of-mass trajectories of one clip.
 #[derive(Clone, Debug, PartialEq)]
@@ -71,12 +71,8 @@ where
     (samples[b] - samples[a]) * (fps / (b - a) as f64)
 }
 
-/// Angular momentum of `clip` under `model`.
-pub fn momentum_track(clip: &Clip, model: &BodyModel) -> MomentumTrack {
-    momentum_of_poses(&forward_kinematics(clip), clip.fps(), model)
-}
-
-/// As [`momentum_track`], from already computed world poses.
+/// Angular momentum under `model` of a clip's world poses (from
+/// [`forward_kinematics`](crate::model::forward_kinematics)) at `fps` frames per second.
 pub fn momentum_of_poses(poses: &ClipPoses, fps: f64, model: &BodyModel) -> MomentumTrack {
     let frames = poses.frame_count();
     let segments = model.segments.len();
@@ -146,7 +142,7 @@ mod tests {
 
     use super::*;
     use crate::builtin::momentum::body::{MassOverride, MassTable, body_model};
-    use crate::model::{ImportScale, Joint, Skeleton};
+    use crate::model::{Clip, ImportScale, Joint, Skeleton};
 
     /// Two point masses on a rigid rod spinning about Y at ω rad/s: L = I ω with
     /// I = Σ m r², an analytic case.
@@ -179,7 +175,7 @@ mod tests {
         )
         .unwrap();
         let model = body_model(&skeleton, 20.0, MassTable::DeLevaMale, Some(&o)).unwrap();
-        let track = momentum_track(&clip, &model);
+        let track = momentum_of_poses(&crate::model::forward_kinematics(&clip), clip.fps(), &model);
         let inertia = 2.0 * 10.0 * 0.5 * 0.5;
         // Central differences of a circle shrink the speed by sin(ωh)/(ωh).
         let h = 1.0 / fps;

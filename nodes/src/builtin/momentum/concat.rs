@@ -26,9 +26,7 @@ use std::sync::Arc;
 use glam::{DVec3, Quat, Vec3};
 use serde_json::json;
 
-use super::align::{
-    Rule, angle_between, feet_centre, place, torso_facing, torso_orientation, torso_upright, yaw_rotation,
-};
+use super::align::{Rule, facing_difference, feet_centre, place, torso_facing, yaw_rotation};
 use super::analysis::{Analysis, AnalysisOptions, analyse};
 use crate::builtin::clip_edit::resample;
 use crate::builtin::contacts::ground_height;
@@ -551,21 +549,8 @@ pub fn concatenate(
     let g0 = (f0 as isize - t) as usize;
     // Facing check where the blend starts, then the sliding that puts the feet together.
     let centre = timing.centre;
-    // The paper compares torso facings projected on the ground. A body far from upright (on
-    // its hands in a cartwheel) has no such facing, so there the whole torso orientations
-    // are compared instead.
-    let upright = torso_upright(&a.poses, f0, &a.landmarks) && torso_upright(&b.poses, g0, &b.landmarks);
-    let facing_angle = if upright {
-        match (torso_facing(&a.poses, f0, &a.landmarks), torso_facing(&b.poses, g0, &b.landmarks)) {
-            (Some(x), Some(y)) => angle_between(x, turn_f * y),
-            _ => 0.0,
-        }
-    } else {
-        match (torso_orientation(&a.poses, f0, &a.landmarks), torso_orientation(&b.poses, g0, &b.landmarks)) {
-            (Some(x), Some(y)) => f64::from(x.angle_between(turn_f * y)),
-            _ => 0.0,
-        }
-    };
+    let (facing_angle, facing_compared) =
+        facing_difference((&a.poses, &a.landmarks, f0), (&b.poses, &b.landmarks, g0), turn_f);
     if facing_angle > params.max_facing_rad {
         return Err(ConcatError::Facing {
             angle_deg: facing_angle.to_degrees(),
@@ -584,11 +569,14 @@ pub fn concatenate(
     let (lo, hi) = params.time_scale_range;
     let s = s_raw.clamp(lo.min(hi), hi.max(lo));
     let new_len = (((ff - f0) as f64 / s).round() as usize).max(1);
-    let out =
-        if ff > f0 && new_len != ff - f0 { rescale_window(&blended, f0, ff, new_len)? } else { (*blended).clone() };
-    // Measurements on the result.
-    let out = Arc::new(out);
-    let result = a.reanalysed(out.clone(), options);
+    // Measurements on the result (analysed again only when the window was rescaled).
+    let (out, result) = if ff > f0 && new_len != ff - f0 {
+        let out = Arc::new(rescale_window(&blended, f0, ff, new_len)?);
+        let result = a.reanalysed(out.clone(), options);
+        (out, result)
+    } else {
+        (blended, blended_analysis)
+    };
     let window_out = FrameRange::new(f0, f0 + new_len + 1);
     let skate = foot_skate_m(&result, window_out, options.contacts.enter_height_m);
     let secs = |frames: f64| frames / fps;
@@ -614,7 +602,7 @@ pub fn concatenate(
         "window_secs": [secs(f0 as f64), secs(ff as f64)],
         "window_grown_by_threshold_frames": grown_by_threshold,
         "facing_deg": facing_angle.to_degrees(),
-        "facing_compared": if upright { "ground facing" } else { "torso orientation (not upright)" },
+        "facing_compared": facing_compared,
         "feet_offset_m": [offset_m.x, offset_m.z],
         "time_scale_raw": s_raw,
         "time_scale": s,

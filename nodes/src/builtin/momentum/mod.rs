@@ -14,7 +14,7 @@ use std::sync::Arc;
 
 use serde_json::json;
 
-use self::align::{Rule, angle_between, feet_centre, place, torso_facing, yaw_rotation};
+use self::align::{Rule, facing_difference, feet_centre, place, yaw_rotation};
 use self::analysis::{Analysis, AnalysisOptions, analyse};
 use self::baseline::{BaselineParams, concatenate_baseline};
 use self::body::{MassOverride, MassTable};
@@ -83,6 +83,34 @@ fn analysis_options(ctx: &NodeContext<'_>) -> Result<AnalysisOptions, NodeError>
     })
 }
 
+/// The mass model, angular momentum and smoothed momentum of `clip` under the node's mass
+/// params: what the single-clip nodes need, without the landmarks and contacts of a full
+/// analysis (so any rig works, through the bone-length fallback).
+fn momentum_of(
+    ctx: &mut NodeContext<'_>,
+    clip: &Clip,
+) -> Result<(body::BodyModel, angular::MomentumTrack, Vec<glam::DVec3>), NodeError> {
+    let options = analysis_options(ctx)?;
+    let model = body::body_model(clip.skeleton(), options.total_mass_kg, options.table, options.mass_override.as_ref())
+        .map_err(|e| NodeError::Failed(e.to_string()))?;
+    if model.method.starts_with("bone_length (") {
+        ctx.warn(format!("mass model: {}", model.method));
+    }
+    let (_, track, smoothed) = analysis::kinematics(clip, &model, options.smoothing_secs);
+    Ok((model, track, smoothed))
+}
+
+/// Both clips of a two-clip node, the second at the first's rate, analysed with the node's
+/// settings.
+fn analysed_pair(ctx: &mut NodeContext<'_>) -> Result<(Analysis, Analysis, AnalysisOptions), NodeError> {
+    let first = ctx.input(&FIRST)?;
+    let second = at_rate_of(ctx, &first, ctx.input(&SECOND)?)?;
+    let options = analysis_options(ctx)?;
+    let a = analysed(first, "first", &options, None, None)?;
+    let b = analysed(second, "second", &options, None, None)?;
+    Ok((a, b, options))
+}
+
 fn analysed(
     clip: Arc<Clip>,
     port: &'static str,
@@ -149,16 +177,7 @@ impl Node for AngularMomentum {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
-        let options = analysis_options(ctx)?;
-        let table =
-            body::body_model(clip.skeleton(), options.total_mass_kg, options.table, options.mass_override.as_ref())
-                .map_err(|e| NodeError::Failed(e.to_string()))?;
-        if table.method.starts_with("bone_length (") {
-            ctx.warn(format!("mass model: {}", table.method));
-        }
-        let track = angular::momentum_track(&clip, &table);
-        let half_width = (options.smoothing_secs * clip.fps()).round() as usize;
-        let smoothed = angular::smooth(&track.momentum, half_width);
+        let (table, track, smoothed) = momentum_of(ctx, &clip)?;
         let mut curves = track.curves().map_err(|e| NodeError::Failed(e.to_string()))?;
         curves
             .push("|L| smoothed", "kg·m²/s", smoothed.iter().map(|l| l.length()).collect())
@@ -216,7 +235,6 @@ impl Node for SegmentPhases {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
-        let options = analysis_options(ctx)?;
         let frame = |secs: Option<f64>| secs.map(|s| (s * clip.fps()).round() as usize);
         let phase_options = PhaseOptions {
             main_frame: frame(ctx.optional_float(&MAIN_SECS)?),
@@ -228,8 +246,8 @@ impl Node for SegmentPhases {
         {
             return Err(NodeError::param("main_end_secs", "must come after main_start_secs"));
         }
-        let analysis = analysed(clip.clone(), "clip", &options, None, None)?;
-        let phases = segment_phases(&analysis.smoothed, clip.fps(), phase_options);
+        let (_, _, smoothed) = momentum_of(ctx, &clip)?;
+        let phases = segment_phases(&smoothed, clip.fps(), phase_options);
         let secs =
             |r: Option<crate::model::FrameRange>| r.map(|r| [r.start as f64 / clip.fps(), r.end as f64 / clip.fps()]);
         ctx.set_output(
@@ -298,12 +316,8 @@ impl Node for Align {
         &ALIGN
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
-        let first = ctx.input(&FIRST)?;
-        let second = at_rate_of(ctx, &first, ctx.input(&SECOND)?)?;
-        let options = analysis_options(ctx)?;
         let rule = rule_of(ctx)?;
-        let a = analysed(first, "first", &options, None, None)?;
-        let b = analysed(second, "second", &options, None, None)?;
+        let (a, b, _) = analysed_pair(ctx)?;
         let (yaw, yaw_from) = concat::alignment(&a, &b, (a.phases.main, b.phases.main), rule);
         let turn = yaw_rotation(yaw);
         // Where the blend would start: the end of the first main phase, and the start of
@@ -313,15 +327,12 @@ impl Node for Align {
             (Rule::Reverse, Some(prep)) => prep.second_half().start,
             _ => b.phases.main.start,
         };
-        let facing = match (torso_facing(&a.poses, f, &a.landmarks), torso_facing(&b.poses, g, &b.landmarks)) {
-            (Some(x), Some(y)) => angle_between(x, turn * y).to_degrees(),
-            _ => 0.0,
-        };
+        let (facing, facing_compared) =
+            facing_difference((&a.poses, &a.landmarks, f), (&b.poses, &b.landmarks, g), turn);
         let max = ctx.float(&MAX_FACING)?;
-        if facing > max {
-            return Err(NodeError::Failed(format!(
-                "after alignment the torsos face {facing:.1}° apart, more than {max:.1}°: these motions do not chain"
-            )));
+        if facing.to_degrees() > max {
+            let refusal = concat::ConcatError::Facing { angle_deg: facing.to_degrees(), max_deg: max };
+            return Err(NodeError::Failed(refusal.to_string()));
         }
         let offset = feet_centre(&a.poses, f, &a.landmarks) - turn * feet_centre(&b.poses, g, &b.landmarks);
         let placed = place(&b.clip, yaw, offset).map_err(|e| NodeError::Failed(e.to_string()))?;
@@ -333,7 +344,8 @@ impl Node for Align {
                 "yaw_deg": yaw.to_degrees(),
                 "yaw_from": yaw_from,
                 "feet_offset_m": [offset.x, offset.z],
-                "facing_deg": facing,
+                "facing_deg": facing.to_degrees(),
+                "facing_compared": facing_compared,
                 "first_frame": f,
                 "second_frame": g,
             })),
@@ -523,11 +535,7 @@ impl Node for ConcatBaseline {
         &CONCAT_BASELINE
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
-        let first = ctx.input(&FIRST)?;
-        let second = at_rate_of(ctx, &first, ctx.input(&SECOND)?)?;
-        let options = analysis_options(ctx)?;
-        let a = analysed(first, "first", &options, None, None)?;
-        let b = analysed(second, "second", &options, None, None)?;
+        let (a, b, options) = analysed_pair(ctx)?;
         let params = BaselineParams { search_share: ctx.float(&SEARCH_SHARE)?, crossfade_secs: ctx.float(&CROSSFADE)? };
         let joined = concatenate_baseline(&a, &b, &params, &options).map_err(|e| NodeError::Failed(e.to_string()))?;
         set_joined(ctx, joined);
