@@ -58,6 +58,26 @@ fn clicking_a_node_title_opens_its_panel_and_plays_its_clip() {
 }
 
 #[test]
+fn a_clip_pinned_for_comparison_stays_on_show_under_another_selection() {
+    let mut harness = harness(Some(&demo_path()));
+    harness.get_by_label("resample").click_accesskit();
+    harness.run_steps(3);
+    harness.get_by_label("pin to compare").click();
+    harness.run_steps(2);
+    harness.get_by_label("trim").click_accesskit();
+    harness.run_steps(3);
+    assert_eq!(harness.state().selected(), Some("trim"));
+    harness.get_by_label("comparing with resample");
+    for view in ["side", "top", "front", "frame"] {
+        harness.get_by_label(view).click();
+        harness.run_steps(1);
+    }
+    harness.get_by_label("unpin").click();
+    harness.run_steps(2);
+    assert!(harness.query_by_label("comparing with resample").is_none());
+}
+
+#[test]
 fn a_param_edit_goes_through_the_reducer_and_undo_restores_it() {
     let mut harness = harness(Some(&demo_path()));
     let before = document::to_string(harness.state().doc());

@@ -1,123 +1,507 @@
-//! The viewport: the selected node's clip output as a skeleton, drawn with egui's painter
-//! in an orthographic side or front view, with play/pause and a frame slider.
+//! The viewport: the selected node's clip as a skeleton in 3-D (perspective, Y up, metres),
+//! drawn with egui's painter, with a timeline, an orbit camera, a ground grid, the root and
+//! foot trajectories, foot contacts, and a second clip pinned beside it for comparison.
 //!
-//! Steps: 1. forward kinematics once per clip (kept while the same `Arc<Clip>` is shown);
-//! 2. the bounding box of every joint over every frame fixes the scale, so the figure
-//! does not jump while playing; 3. each frame draws a line from every joint to its parent.
+//! Steps: 1. forward kinematics and foot contacts once per clip (kept while the same
+//! `Arc<Clip>` is shown); 2. the bounding box of every joint over every frame frames the
+//! camera and places the grid at the lowest point the clip reaches, so nothing jumps while
+//! playing; 3. each frame projects every bone through the camera and draws it.
 
 use std::sync::Arc;
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, Ui, Vec2};
 use glam::Vec3;
-use kinegraph_nodes::model::{Clip, ClipPoses, forward_kinematics};
+use kinegraph_nodes::builtin::contacts::contacts_of;
+use kinegraph_nodes::model::{Clip, ClipPoses, Contacts, forward_kinematics};
 
-/// Which plane the orthographic camera looks at (Y up, metres).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum View {
-    /// Looking along −X: Z to the right.
-    Side,
-    /// Looking along −Z: X to the right.
-    Front,
+/// Vertical field of view of the camera (radians).
+const FOV_Y: f32 = 0.8;
+/// Grid spacing (metres).
+const GRID_STEP_M: f32 = 0.5;
+/// Playback speeds offered.
+const SPEEDS: [f32; 5] = [0.1, 0.25, 0.5, 1.0, 2.0];
+
+const BONE: Color32 = Color32::from_rgb(230, 230, 210);
+const JOINT: Color32 = Color32::from_rgb(80, 170, 255);
+const COMPARED: Color32 = Color32::from_rgb(255, 150, 60);
+const CONTACT: Color32 = Color32::from_rgb(90, 220, 120);
+
+/// An orbit camera around `target`: `yaw` about +Y from +Z, `pitch` above the ground.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Camera {
+    /// Radians; 0 looks along −Z (the front of a CMU clip).
+    pub(crate) yaw: f32,
+    /// Radians, kept inside ±89°.
+    pub(crate) pitch: f32,
+    /// Metres from the target.
+    pub(crate) distance: f32,
+    /// The point orbited (metres).
+    pub(crate) target: Vec3,
 }
 
-/// Playback state and the FK of the clip on show.
+impl Default for Camera {
+    fn default() -> Self {
+        Camera { yaw: 0.6, pitch: 0.35, distance: 5.0, target: Vec3::new(0.0, 1.0, 0.0) }
+    }
+}
+
+impl Camera {
+    const MAX_PITCH: f32 = 1.55;
+
+    /// Where the camera is.
+    pub(crate) fn eye(&self) -> Vec3 {
+        let (sy, cy) = self.yaw.sin_cos();
+        let (sp, cp) = self.pitch.sin_cos();
+        self.target + self.distance * Vec3::new(cp * sy, sp, cp * cy)
+    }
+
+    /// Looks at the box `lo..hi` from the current direction, close enough to see all of it.
+    pub(crate) fn frame(&mut self, lo: Vec3, hi: Vec3, aspect: f32) {
+        self.target = (lo + hi) * 0.5;
+        let radius = ((hi - lo).length() * 0.5).max(0.1);
+        let half_fov = (FOV_Y * 0.5).min(((FOV_Y * 0.5).tan() * aspect.max(0.1)).atan());
+        self.distance = radius / half_fov.sin() * 1.05;
+    }
+
+    /// Turns the camera by a pointer drag (points).
+    pub(crate) fn orbit(&mut self, drag: Vec2) {
+        self.yaw -= drag.x * 0.008;
+        self.pitch = (self.pitch + drag.y * 0.008).clamp(-Self::MAX_PITCH, Self::MAX_PITCH);
+    }
+
+    /// Slides the target in the view plane so the ground follows the pointer.
+    pub(crate) fn pan(&mut self, drag: Vec2, viewport_height: f32) {
+        let metres_per_point = 2.0 * self.distance * (FOV_Y * 0.5).tan() / viewport_height.max(1.0);
+        let (right, up, _) = self.basis();
+        self.target += (-drag.x * right + drag.y * up) * metres_per_point;
+    }
+
+    /// Moves towards the target by a scroll amount (points; positive = closer).
+    pub(crate) fn zoom(&mut self, scroll: f32) {
+        self.distance = (self.distance * (-scroll * 0.002).exp()).clamp(0.05, 1e4);
+    }
+
+    /// The camera's right, up and forward unit vectors.
+    fn basis(&self) -> (Vec3, Vec3, Vec3) {
+        let forward = (self.target - self.eye()).normalize_or_zero();
+        let right = forward.cross(Vec3::Y).normalize_or_zero();
+        (right, right.cross(forward), forward)
+    }
+
+    /// World → screen for a viewport `rect` (a pinhole camera with [`FOV_Y`]); `None` for
+    /// points behind the camera.
+    pub(crate) fn projector(&self, rect: Rect) -> impl Fn(Vec3) -> Option<Pos2> + use<> {
+        let (eye, (right, up, forward)) = (self.eye(), self.basis());
+        let points_per_unit = rect.height() * 0.5 / (FOV_Y * 0.5).tan();
+        let centre = rect.center();
+        move |p: Vec3| {
+            let d = p - eye;
+            let depth = d.dot(forward);
+            (depth > 1e-3).then(|| {
+                let s = points_per_unit / depth;
+                Pos2::new(centre.x + d.dot(right) * s, centre.y - d.dot(up) * s)
+            })
+        }
+    }
+}
+
+/// A clip ready to draw: its poses, bounds, root and foot tracks and contacts.
+struct Shown {
+    clip: Arc<Clip>,
+    title: String,
+    poses: ClipPoses,
+    lo: Vec3,
+    hi: Vec3,
+    /// Foot contacts, when the feet are found by joint name.
+    contacts: Option<Contacts>,
+    /// Joint indices of the feet (left, right), matching `contacts.feet`.
+    feet: Vec<usize>,
+}
+
+impl Shown {
+    fn new(clip: &Arc<Clip>, title: &str) -> Self {
+        let poses = forward_kinematics(clip);
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for f in 0..poses.frame_count() {
+            for t in poses.frame(f) {
+                lo = lo.min(t.translation);
+                hi = hi.max(t.translation);
+            }
+        }
+        if poses.frame_count() == 0 || clip.skeleton().joints().is_empty() {
+            (lo, hi) = (Vec3::ZERO, Vec3::ONE);
+        }
+        let found = contacts_of(clip, &poses).ok();
+        let feet = found.as_ref().map(|(_, feet)| feet.to_vec()).unwrap_or_default();
+        Shown { clip: clip.clone(), title: title.to_string(), poses, lo, hi, contacts: found.map(|(c, _)| c), feet }
+    }
+
+    fn duration_secs(&self) -> f64 {
+        self.clip.frame_count() as f64 / self.clip.fps().max(1e-6)
+    }
+
+    /// The frame shown at `time_secs` (held at the last frame past the end).
+    fn frame_at(&self, time_secs: f64) -> usize {
+        ((time_secs * self.clip.fps()).max(0.0) as usize).min(self.poses.frame_count().saturating_sub(1))
+    }
+
+    fn in_contact(&self, foot: usize, frame: usize) -> bool {
+        self.contacts.as_ref().and_then(|c| c.feet.get(foot)).is_some_and(|f| f.intervals.iter().any(|r| r.contains(frame)))
+    }
+}
+
+/// What the viewport draws besides the skeleton.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Overlays {
+    grid: bool,
+    trajectories: bool,
+    contacts: bool,
+}
+
+/// Playback state, camera, the clip on show and the clip pinned for comparison.
 pub(crate) struct Viewport {
     playing: bool,
+    looping: bool,
+    speed: f32,
     time_secs: f64,
-    view: View,
-    shown: Option<(Arc<Clip>, ClipPoses, Vec3, Vec3)>,
+    camera: Camera,
+    /// Frame the camera on the next draw (a new clip, or the user asked).
+    reframe: bool,
+    overlays: Overlays,
+    shown: Option<Shown>,
+    compared: Option<Shown>,
 }
 
 impl Default for Viewport {
     fn default() -> Self {
-        Viewport { playing: true, time_secs: 0.0, view: View::Side, shown: None }
+        Viewport {
+            playing: true,
+            looping: true,
+            speed: 1.0,
+            time_secs: 0.0,
+            camera: Camera::default(),
+            reframe: true,
+            overlays: Overlays { grid: true, trajectories: true, contacts: true },
+            shown: None,
+            compared: None,
+        }
     }
 }
 
 impl Viewport {
-    /// Draws `clip` (or a hint when there is none).
+    /// Draws `clip` (or a hint when there is none) with the timeline above it.
     pub(crate) fn show(&mut self, ui: &mut Ui, title: &str, clip: Option<&Arc<Clip>>) {
-        let Some(clip) = clip else {
-            self.shown = None;
+        match clip {
+            Some(clip) if !self.shown.as_ref().is_some_and(|s| Arc::ptr_eq(&s.clip, clip)) => {
+                let first = self.shown.is_none();
+                self.shown = Some(Shown::new(clip, title));
+                self.reframe |= first;
+            }
+            Some(_) => {}
+            None => self.shown = None,
+        }
+        if self.shown.is_none() && self.compared.is_none() {
             ui.centered_and_justified(|ui| {
                 ui.label(egui::RichText::new("Select a node with a clip output to play it here.").weak());
             });
             return;
-        };
-        if !self.shown.as_ref().is_some_and(|(c, ..)| Arc::ptr_eq(c, clip)) {
-            let poses = forward_kinematics(clip);
-            let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-            for f in 0..poses.frame_count() {
-                for t in poses.frame(f) {
-                    lo = lo.min(t.translation);
-                    hi = hi.max(t.translation);
-                }
-            }
-            self.shown = Some((clip.clone(), poses, lo, hi));
         }
-        let frames = clip.frame_count();
-        let fps = clip.fps().max(1e-6);
-        let duration = frames as f64 / fps;
-        if self.playing && frames > 1 {
-            let dt = f64::from(ui.input(|i| i.stable_dt).min(0.1));
-            self.time_secs = (self.time_secs + dt) % duration.max(1e-6);
-            ui.ctx().request_repaint();
-        }
-        let mut frame = ((self.time_secs * fps) as usize).min(frames.saturating_sub(1));
-        ui.horizontal(|ui| {
-            ui.label(egui::RichText::new(title).strong());
-            if ui.button(if self.playing { "pause" } else { "play" }).clicked() {
-                self.playing = !self.playing;
-            }
-            let slider = ui.add(egui::Slider::new(&mut frame, 0..=frames.saturating_sub(1)).text("frame"));
-            if slider.changed() {
-                self.playing = false;
-                self.time_secs = frame as f64 / fps;
-            }
-            ui.label(format!("{:.2} s / {:.2} s @ {fps:.0} fps", frame as f64 / fps, duration));
-            ui.selectable_value(&mut self.view, View::Side, "side");
-            ui.selectable_value(&mut self.view, View::Front, "front");
-        });
-        let Some((_, poses, lo, hi)) = &self.shown else { return };
-        let (response, painter) = ui.allocate_painter(ui.available_size().max(Vec2::splat(50.0)), Sense::hover());
+        let duration = self.shown.iter().chain(&self.compared).map(Shown::duration_secs).fold(0.0, f64::max);
+        self.advance(ui, duration);
+        self.timeline(ui, duration);
+        self.contact_strip(ui);
+        let (response, painter) = ui.allocate_painter(ui.available_size().max(Vec2::splat(50.0)), Sense::click_and_drag());
         let rect = response.rect;
+        self.steer_camera(ui, &response);
+        if self.reframe {
+            let (lo, hi) = self.bounds();
+            self.camera.frame(lo, hi, rect.width() / rect.height().max(1.0));
+            self.reframe = false;
+        }
         painter.rect_filled(rect, 4.0, Color32::from_gray(24));
-        if poses.frame_count() == 0 {
+        let project = self.camera.projector(rect);
+        let painter = painter.with_clip_rect(rect);
+        let floor = self.bounds().0.y;
+        if self.overlays.grid {
+            draw_grid(&painter, &project, self.bounds(), floor);
+        }
+        for (shown, colour) in self.shown.iter().map(|s| (s, BONE)).chain(self.compared.iter().map(|s| (s, COMPARED))) {
+            if self.overlays.trajectories {
+                draw_trajectories(&painter, &project, shown, floor, colour);
+            }
+            draw_skeleton(&painter, &project, shown, shown.frame_at(self.time_secs), colour, self.overlays.contacts);
+        }
+    }
+
+    /// Moves the clock on while playing; stops at the end unless looping.
+    fn advance(&mut self, ui: &Ui, duration: f64) {
+        if !self.playing || duration <= 0.0 {
             return;
         }
-        let project = |p: Vec3| -> Vec2 {
-            match self.view {
-                View::Side => Vec2::new(p.z, p.y),
-                View::Front => Vec2::new(p.x, p.y),
+        let dt = f64::from(ui.input(|i| i.stable_dt).min(0.1) * self.speed);
+        self.time_secs += dt;
+        if self.time_secs >= duration {
+            if self.looping {
+                self.time_secs %= duration;
+            } else {
+                self.time_secs = duration;
+                self.playing = false;
             }
-        };
-        let (plo, phi) = (project(*lo), project(*hi));
-        let to_screen = fit(rect.shrink(16.0), plo, phi);
-        // Ground line at y = 0 when it is in view.
-        let ground = to_screen(Vec2::new(plo.x, 0.0)).y;
-        if rect.y_range().contains(ground) {
-            painter.line_segment(
-                [Pos2::new(rect.left(), ground), Pos2::new(rect.right(), ground)],
-                Stroke::new(1.0, Color32::from_gray(70)),
-            );
         }
-        let pose = poses.frame(frame.min(poses.frame_count() - 1));
-        let stroke = Stroke::new(2.0, Color32::from_rgb(230, 230, 210));
-        for (j, joint) in clip.skeleton().joints().iter().enumerate() {
-            let here = to_screen(project(pose[j].translation));
-            if let Some(parent) = joint.parent {
-                painter.line_segment([to_screen(project(pose[parent].translation)), here], stroke);
+        ui.ctx().request_repaint();
+    }
+
+    fn timeline(&mut self, ui: &mut Ui, duration: f64) {
+        ui.horizontal(|ui| {
+            let title = self.shown.as_ref().map_or("", |s| s.title.as_str());
+            ui.label(egui::RichText::new(title).strong());
+            if ui.button(if self.playing { "pause" } else { "play" }).clicked() {
+                if !self.playing && self.time_secs >= duration {
+                    self.time_secs = 0.0;
+                }
+                self.playing = !self.playing;
             }
-            painter.circle_filled(here, 2.5, Color32::from_rgb(80, 170, 255));
+            let mut time = self.time_secs;
+            let slider = ui.add(egui::Slider::new(&mut time, 0.0..=duration.max(1e-3)).suffix(" s").text("time"));
+            if slider.changed() {
+                self.playing = false;
+                self.time_secs = time;
+            }
+            if let Some(s) = &self.shown {
+                ui.label(format!("frame {} @ {:.0} fps", s.frame_at(self.time_secs), s.clip.fps()));
+            }
+            egui::ComboBox::from_id_salt("kg_speed").selected_text(format!("{}×", self.speed)).width(54.0).show_ui(
+                ui,
+                |ui| {
+                    for s in SPEEDS {
+                        ui.selectable_value(&mut self.speed, s, format!("{s}×"));
+                    }
+                },
+            );
+            ui.checkbox(&mut self.looping, "loop");
+        });
+        ui.horizontal(|ui| {
+            ui.label("view");
+            for (label, yaw, pitch) in [("front", 0.0, 0.05), ("side", std::f32::consts::FRAC_PI_2, 0.05), ("top", 0.0, 1.5)] {
+                if ui.button(label).clicked() {
+                    (self.camera.yaw, self.camera.pitch) = (yaw, pitch);
+                    self.reframe = true;
+                }
+            }
+            if ui.button("frame").on_hover_text("fit the clip in view (or double-click the view)").clicked() {
+                self.reframe = true;
+            }
+            ui.separator();
+            ui.checkbox(&mut self.overlays.grid, "grid");
+            ui.checkbox(&mut self.overlays.trajectories, "trails");
+            ui.checkbox(&mut self.overlays.contacts, "contacts");
+            ui.separator();
+            if let Some(shown) = &self.shown
+                && ui.button("pin to compare").on_hover_text("keep this clip on show, in orange, to compare others with it").clicked()
+            {
+                self.compared = Some(Shown::new(&shown.clip, &shown.title));
+            }
+            if let Some(c) = &self.compared {
+                ui.colored_label(COMPARED, format!("comparing with {}", c.title));
+                if ui.button("unpin").clicked() {
+                    self.compared = None;
+                }
+            }
+        });
+    }
+
+    /// Each foot's contacts as bars along the clip's time, with the current time marked.
+    fn contact_strip(&self, ui: &mut Ui) {
+        let Some(shown) = &self.shown else { return };
+        let Some(contacts) = shown.contacts.as_ref().filter(|_| self.overlays.contacts) else { return };
+        let frames = contacts.frame_count.max(1) as f32;
+        for foot in &contacts.feet {
+            ui.horizontal(|ui| {
+                ui.add_sized([90.0, 12.0], egui::Label::new(egui::RichText::new(&foot.foot).small()).truncate());
+                let (rect, _) = ui.allocate_exact_size(Vec2::new(ui.available_width(), 8.0), Sense::hover());
+                let painter = ui.painter();
+                painter.rect_filled(rect, 2.0, Color32::from_gray(40));
+                for r in &foot.intervals {
+                    let x0 = rect.left() + rect.width() * r.start as f32 / frames;
+                    let x1 = rect.left() + rect.width() * r.end as f32 / frames;
+                    painter.rect_filled(Rect::from_x_y_ranges(x0..=x1, rect.y_range()), 1.0, CONTACT);
+                }
+                let x = rect.left() + rect.width() * shown.frame_at(self.time_secs) as f32 / frames;
+                painter.line_segment([Pos2::new(x, rect.top()), Pos2::new(x, rect.bottom())], Stroke::new(1.5, Color32::WHITE));
+            });
+        }
+    }
+
+    fn steer_camera(&mut self, ui: &Ui, response: &egui::Response) {
+        let pan = response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+            || (response.dragged_by(egui::PointerButton::Primary) && ui.input(|i| i.modifiers.shift));
+        if pan {
+            self.camera.pan(response.drag_delta(), response.rect.height());
+        } else if response.dragged_by(egui::PointerButton::Primary) {
+            self.camera.orbit(response.drag_delta());
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                self.camera.zoom(scroll);
+            }
+        }
+        if response.double_clicked() {
+            self.reframe = true;
+        }
+    }
+
+    /// The box around both clips on show.
+    fn bounds(&self) -> (Vec3, Vec3) {
+        self.shown
+            .iter()
+            .chain(&self.compared)
+            .map(|s| (s.lo, s.hi))
+            .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+            .unwrap_or((Vec3::ZERO, Vec3::ONE))
+    }
+}
+
+/// Grid lines every [`GRID_STEP_M`] on the floor under the clip, one metre beyond it, with the
+/// world X (red) and Z (blue) axes through the origin when they cross it.
+fn draw_grid(painter: &egui::Painter, project: &impl Fn(Vec3) -> Option<Pos2>, (lo, hi): (Vec3, Vec3), floor: f32) {
+    let snap = |v: f32, up: bool| if up { (v / GRID_STEP_M).ceil() } else { (v / GRID_STEP_M).floor() } * GRID_STEP_M;
+    let (x0, x1) = (snap(lo.x - 1.0, false), snap(hi.x + 1.0, true));
+    let (z0, z1) = (snap(lo.z - 1.0, false), snap(hi.z + 1.0, true));
+    let line = |a: Vec3, b: Vec3, colour: Color32| {
+        if let (Some(a), Some(b)) = (project(a), project(b)) {
+            painter.line_segment([a, b], Stroke::new(1.0, colour));
+        }
+    };
+    let steps = |from: f32, to: f32| (0..=((to - from) / GRID_STEP_M).round() as i32).map(move |i| from + i as f32 * GRID_STEP_M);
+    for x in steps(x0, x1) {
+        let colour = if x.abs() < 1e-4 { Color32::from_rgb(70, 90, 160) } else { Color32::from_gray(50) };
+        line(Vec3::new(x, floor, z0), Vec3::new(x, floor, z1), colour);
+    }
+    for z in steps(z0, z1) {
+        let colour = if z.abs() < 1e-4 { Color32::from_rgb(160, 70, 70) } else { Color32::from_gray(50) };
+        line(Vec3::new(x0, floor, z), Vec3::new(x1, floor, z), colour);
+    }
+}
+
+/// The root's path on the floor and each foot's path, over the whole clip.
+fn draw_trajectories(
+    painter: &egui::Painter,
+    project: &impl Fn(Vec3) -> Option<Pos2>,
+    shown: &Shown,
+    floor: f32,
+    colour: Color32,
+) {
+    let frames = shown.poses.frame_count();
+    let mut tracks = vec![(0, true)];
+    tracks.extend(shown.feet.iter().map(|&f| (f, false)));
+    for (joint, on_floor) in tracks {
+        if joint >= shown.clip.skeleton().joints().len() {
+            continue;
+        }
+        let points: Vec<Pos2> = (0..frames)
+            .filter_map(|f| {
+                let p = shown.poses.position(f, joint);
+                project(if on_floor { Vec3::new(p.x, floor, p.z) } else { p })
+            })
+            .collect();
+        painter.add(egui::Shape::line(points, Stroke::new(1.0, colour.gamma_multiply(0.35))));
+    }
+}
+
+/// Bones as lines from each joint to its parent, joints as dots; a foot in contact at
+/// `frame` gets a green disc on the floor under it.
+fn draw_skeleton(
+    painter: &egui::Painter,
+    project: &impl Fn(Vec3) -> Option<Pos2>,
+    shown: &Shown,
+    frame: usize,
+    colour: Color32,
+    contacts: bool,
+) {
+    if shown.poses.frame_count() == 0 {
+        return;
+    }
+    let pose = shown.poses.frame(frame);
+    for (j, joint) in shown.clip.skeleton().joints().iter().enumerate() {
+        let Some(here) = project(pose[j].translation) else { continue };
+        if let Some(parent) = joint.parent
+            && let Some(there) = project(pose[parent].translation)
+        {
+            painter.line_segment([there, here], Stroke::new(2.0, colour));
+        }
+        painter.circle_filled(here, 2.5, if colour == BONE { JOINT } else { colour });
+    }
+    if contacts {
+        for (i, &foot) in shown.feet.iter().enumerate() {
+            if shown.in_contact(i, frame)
+                && let Some(p) = project(pose[foot].translation)
+            {
+                painter.circle_stroke(p, 7.0, Stroke::new(2.0, CONTACT));
+            }
         }
     }
 }
 
-/// Maps the box `lo..hi` (metres, Y up) into `rect` keeping the aspect ratio.
-fn fit(rect: Rect, lo: Vec2, hi: Vec2) -> impl Fn(Vec2) -> Pos2 {
-    let size = (hi - lo).max(Vec2::splat(1e-3));
-    let scale = (rect.width() / size.x).min(rect.height() / size.y);
-    let centre = (lo + hi) * 0.5;
-    let screen_centre = rect.center();
-    move |p: Vec2| Pos2::new(screen_centre.x + (p.x - centre.x) * scale, screen_centre.y - (p.y - centre.y) * scale)
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rect() -> Rect {
+        Rect::from_min_size(Pos2::ZERO, Vec2::new(800.0, 400.0))
+    }
+
+    #[test]
+    fn the_target_projects_to_the_centre_and_the_camera_right_goes_right() {
+        let camera = Camera { yaw: 0.0, pitch: 0.0, distance: 4.0, target: Vec3::new(1.0, 1.0, 0.0) };
+        let project = camera.projector(rect());
+        let centre = project(camera.target).unwrap();
+        assert!((centre - rect().center()).length() < 1e-3, "{centre:?}");
+        // Yaw 0 puts the eye on +Z looking along −Z: world +X is screen right, +Y is up.
+        let right = project(camera.target + Vec3::X * 0.5).unwrap();
+        let up = project(camera.target + Vec3::Y * 0.5).unwrap();
+        assert!(right.x > centre.x + 1.0 && (right.y - centre.y).abs() < 1e-3);
+        assert!(up.y < centre.y - 1.0 && (up.x - centre.x).abs() < 1e-3);
+        // Half a metre at 4 m with a 0.8 rad field of view over 400 points (pinhole model).
+        let expected = 0.5 / 4.0 / (FOV_Y * 0.5).tan() * 200.0;
+        assert!((up.y - centre.y + expected).abs() < 1e-2, "{} vs {expected}", centre.y - up.y);
+        assert!(project(camera.eye() + Vec3::Z).is_none(), "behind the camera");
+    }
+
+    #[test]
+    fn orbiting_keeps_the_distance_and_clamps_the_pitch() {
+        let mut camera = Camera::default();
+        camera.orbit(Vec2::new(300.0, -10_000.0));
+        assert!((camera.eye().distance(camera.target) - camera.distance).abs() < 1e-4);
+        assert_eq!(camera.pitch, -Camera::MAX_PITCH);
+        camera.zoom(1e6);
+        assert!(camera.distance >= 0.05 && camera.distance.is_finite());
+    }
+
+    #[test]
+    fn framing_puts_every_corner_of_the_box_in_view() {
+        let (lo, hi) = (Vec3::new(-3.0, 0.0, -1.0), Vec3::new(2.0, 1.8, 4.0));
+        for (yaw, pitch) in [(0.0, 0.0), (1.0, 0.4), (-2.5, 1.4)] {
+            let mut camera = Camera { yaw, pitch, ..Camera::default() };
+            camera.frame(lo, hi, 2.0);
+            let project = camera.projector(rect());
+            for i in 0..8 {
+                let corner = Vec3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                );
+                let p = project(corner).unwrap();
+                assert!(rect().expand(1.0).contains(p), "yaw {yaw}: {corner} at {p:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn panning_moves_the_target_in_the_view_plane() {
+        let mut camera = Camera { yaw: 0.0, pitch: 0.0, distance: 4.0, target: Vec3::ZERO };
+        camera.pan(Vec2::new(-100.0, 0.0), 400.0);
+        assert!(camera.target.x > 0.0 && camera.target.y.abs() < 1e-6 && camera.target.z.abs() < 1e-6);
+    }
 }

@@ -117,6 +117,13 @@ pub fn detect_contacts(
     Contacts { fps: clip.fps(), frame_count: clip.frame_count(), feet, double_support }
 }
 
+/// Contacts of both feet of `clip`, the feet found by joint name, with the feet's joint
+/// indices (left, right); the joint names not found otherwise.
+pub fn contacts_of(clip: &Clip, poses: &ClipPoses) -> Result<(Contacts, [usize; 2]), Vec<String>> {
+    let landmarks = find_landmarks(clip.skeleton())?;
+    Ok((detect_contacts(clip, poses, &landmarks, &ContactThresholds::default()), landmarks.feet()))
+}
+
 /// Registers the contact node.
 pub fn register(registry: &mut Registry) {
     registry.add(Box::new(DetectContacts));
