@@ -218,3 +218,42 @@ fn a_concat_report_and_momentum_curves_are_readable_in_the_panel() {
     harness.get_by_role_and_label(Role::CheckBox, "L.x (kg·m²/s)");
     harness.get_by_role_and_label(Role::CheckBox, "com.y (m)");
 }
+
+#[test]
+fn copy_and_paste_carry_a_fragment_with_its_inner_wire_in_one_undo_step() {
+    let mut harness = harness(Some(&demo_path()));
+    let before = document::to_string(harness.state().doc());
+    harness.get_by_label("trim").click_accesskit();
+    harness.run_steps(2);
+    let text = harness.state_mut().copy_selection().expect("a node is selected");
+    // What goes on the clipboard is graph-file text: `kg check` could read it.
+    assert!(document::parse(&text, Path::new("clipboard.ron")).is_ok(), "{text}");
+    harness.event(egui::Event::Paste(text));
+    harness.run_steps(2);
+    assert!(harness.state().doc().nodes.contains_key("trim_2"));
+    assert_eq!(harness.state().selected(), Some("trim_2"));
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.run_steps(2);
+    assert_eq!(document::to_string(harness.state().doc()), before);
+    // Text that is no graph is refused with a message and changes nothing.
+    harness.event(egui::Event::Paste("not a graph".into()));
+    harness.run_steps(2);
+    let (message, is_error) = harness.state().message().unwrap();
+    assert!(is_error && message.starts_with("the clipboard holds no graph fragment"), "{message}");
+    assert_eq!(document::to_string(harness.state().doc()), before);
+}
+
+#[test]
+fn tab_over_the_canvas_opens_the_add_menu_at_the_pointer() {
+    let mut harness = harness(Some(&demo_path()));
+    harness.hover_at(egui::pos2(200.0, 120.0));
+    harness.run_steps(1);
+    harness.key_press(egui::Key::Tab);
+    harness.run_steps(2);
+    harness.get_by_role(Role::TextInput).type_text("contacts");
+    harness.run_steps(2);
+    harness.get_by_label("motion.contacts").click();
+    harness.run_steps(3);
+    assert_eq!(harness.state().doc().nodes.get("contacts").map(|n| n.kind.as_str()), Some("motion.contacts"));
+    assert!(harness.query_by_label("Add node").is_none(), "the menu closes once a node is added");
+}

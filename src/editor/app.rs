@@ -12,6 +12,7 @@ use kinegraph_nodes::node::{Registry, Value};
 
 use super::canvas::{Badge, Canvas};
 use super::commands::{EditError, EditorCommand, History};
+use super::fragment;
 use super::panel::{self, PanelState};
 use super::results::{self, ResultsState};
 use super::viewport::Viewport;
@@ -52,6 +53,8 @@ pub struct EditorApp {
     prompt: Option<(Prompt, String)>,
     title: String,
     frame_ms: f32,
+    /// The last fragment copied in the editor (the system clipboard gets it too).
+    clipboard: Option<String>,
 }
 
 impl EditorApp {
@@ -81,6 +84,7 @@ impl EditorApp {
             prompt: None,
             title: String::new(),
             frame_ms: 0.0,
+            clipboard: None,
         };
         match path {
             Some(p) => app.open(p),
@@ -137,6 +141,45 @@ impl EditorApp {
             Err(e) => self.message = Some((e.to_string(), true)),
         }
         result
+    }
+
+    /// The nodes edits of the selection act on: the canvas selection (shift-drag a box,
+    /// shift-click), else the node whose panel is shown.
+    pub fn selection(&self) -> Vec<String> {
+        if self.canvas_selection.is_empty() {
+            self.selected.iter().cloned().collect()
+        } else {
+            self.canvas_selection.clone()
+        }
+    }
+
+    /// Copies the selection as a graph fragment (see [`fragment`]); returns its text.
+    pub fn copy_selection(&mut self) -> Option<String> {
+        let text = fragment::copy(&self.doc, &self.selection())?;
+        self.message = Some((format!("copied {}", self.selection().join(", ")), false));
+        self.clipboard = Some(text.clone());
+        Some(text)
+    }
+
+    /// Pastes a graph fragment as one undoable edit and shows the first pasted node.
+    pub fn paste_text(&mut self, text: &str) {
+        match fragment::paste(&self.doc, &self.registry, text) {
+            Ok((cmd, ids)) => {
+                if self.edit(cmd).is_ok() {
+                    self.message = Some((format!("pasted {}", ids.join(", ")), false));
+                    self.selected = ids.into_iter().next();
+                }
+            }
+            Err(e) => self.message = Some((e.to_string(), true)),
+        }
+    }
+
+    /// Deletes the selection as one undoable edit.
+    pub fn delete_selection(&mut self) {
+        let ids = self.selection();
+        if !ids.is_empty() {
+            let _ = self.edit(EditorCommand::RemoveNodes { ids });
+        }
     }
 
     /// Undoes the latest edit.
@@ -310,6 +353,12 @@ impl EditorApp {
 
     fn shortcuts(&mut self, ui: &mut Ui) {
         let typing = ui.ctx().egui_wants_keyboard_input();
+        if !typing && ui.input_mut(|i| i.consume_key(Modifiers::NONE, Key::Tab)) {
+            // Before any widget is drawn, so Tab opens the add menu instead of moving focus.
+            if let Some(pos) = ui.input(|i| i.pointer.hover_pos()) {
+                self.canvas.open_add_menu(pos);
+            }
+        }
         let (redo, undo, save) = ui.input_mut(|i| {
             (
                 i.consume_key(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z)
@@ -326,9 +375,38 @@ impl EditorApp {
         if save {
             self.save();
         }
-        let delete = !typing && ui.input(|i| i.key_pressed(Key::Delete));
-        if delete && let Some(id) = self.selected.clone() {
-            let _ = self.edit(EditorCommand::RemoveNodes { ids: vec![id] });
+        if typing {
+            return;
+        }
+        let (delete, duplicate) = ui.input_mut(|i| {
+            (i.key_pressed(Key::Delete) || i.key_pressed(Key::Backspace), i.consume_key(Modifiers::COMMAND, Key::D))
+        });
+        let clipboard: Vec<egui::Event> = ui.input(|i| {
+            i.events
+                .iter()
+                .filter(|e| matches!(e, egui::Event::Copy | egui::Event::Cut | egui::Event::Paste(_)))
+                .cloned()
+                .collect()
+        });
+        for event in clipboard {
+            match event {
+                egui::Event::Copy | egui::Event::Cut => {
+                    if let Some(text) = self.copy_selection() {
+                        ui.ctx().copy_text(text);
+                        if event == egui::Event::Cut {
+                            self.delete_selection();
+                        }
+                    }
+                }
+                egui::Event::Paste(text) => self.paste_text(&text),
+                _ => {}
+            }
+        }
+        if duplicate && let Some(text) = fragment::copy(&self.doc, &self.selection()) {
+            self.paste_text(&text);
+        }
+        if delete {
+            self.delete_selection();
         }
     }
 
@@ -378,11 +456,37 @@ impl EditorApp {
                     self.redo();
                     ui.close();
                 }
+                ui.separator();
+                let any = !self.selection().is_empty();
+                if ui.add_enabled(any, egui::Button::new("Copy")).on_hover_text("Ctrl+C: as graph-file text").clicked()
+                {
+                    if let Some(text) = self.copy_selection() {
+                        ui.ctx().copy_text(text);
+                    }
+                    ui.close();
+                }
+                let pasted = self.clipboard.clone();
+                if ui.add_enabled(pasted.is_some(), egui::Button::new("Paste")).on_hover_text("Ctrl+V").clicked() {
+                    if let Some(text) = pasted {
+                        self.paste_text(&text);
+                    }
+                    ui.close();
+                }
+                if ui.add_enabled(any, egui::Button::new("Duplicate")).on_hover_text("Ctrl+D").clicked() {
+                    if let Some(text) = fragment::copy(&self.doc, &self.selection()) {
+                        self.paste_text(&text);
+                    }
+                    ui.close();
+                }
+                if ui.add_enabled(any, egui::Button::new("Delete")).on_hover_text("Delete").clicked() {
+                    self.delete_selection();
+                    ui.close();
+                }
             });
             ui.menu_button("Add", |ui| {
                 ui.add(egui::TextEdit::singleline(&mut self.canvas.search).hint_text("search…"));
                 let search = self.canvas.search.clone();
-                if let Some(kind) = super::canvas::catalogue_menu(ui, &self.registry, &search) {
+                if let Some(kind) = super::canvas::catalogue_menu(ui, &self.registry, &search, |_| true) {
                     let id = super::commands::fresh_node_id(&self.doc, kind);
                     let y = self.doc.layout.values().map(|p| p.1).fold(0.0_f32, f32::max) + 140.0;
                     let _ = self.edit(EditorCommand::AddNode { id: id.clone(), kind: kind.into(), pos: (0.0, y) });
@@ -421,8 +525,11 @@ impl EditorApp {
         let Some(id) = self.selected.clone() else {
             ui.heading("No node selected");
             ui.label(
-                "Click a node's title to edit its parameters. Right-click the canvas to add nodes, \
-                 a node to delete it; double-click the canvas to fit the graph in view.",
+                "Click a node's title to edit its parameters. Right-click the canvas (or press Tab) \
+                 to add nodes, or drop a wire on empty canvas to add a node already connected; \
+                 right-click a node to delete it. Shift-drag a box to select several; Ctrl+C, \
+                 Ctrl+V and Ctrl+D copy, paste and duplicate them as graph-file text. \
+                 Double-click the canvas to fit the graph in view.",
             );
             if !self.doc.description.is_empty() {
                 ui.separator();

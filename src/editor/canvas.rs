@@ -7,8 +7,9 @@
 
 use std::collections::BTreeMap;
 
+use egui::emath::TSTransform;
 use egui::{Color32, Pos2, RichText, Ui};
-use egui_snarl::ui::{PinInfo, SnarlStyle, SnarlViewer, SnarlWidget};
+use egui_snarl::ui::{AnyPins, PinInfo, SnarlStyle, SnarlViewer, SnarlWidget};
 use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 use kinegraph_nodes::node::{NodeSchema, PortSpec, PortType, Registry};
 
@@ -92,6 +93,12 @@ pub(crate) struct Canvas {
     synced: BTreeMap<NodeId, Pos2>,
     /// Text of the add-node search box.
     pub(crate) search: String,
+    /// Where the Tab add-node menu is open (screen).
+    add_at: Option<Pos2>,
+    /// Canvas (graph) space → screen, as last drawn.
+    to_screen: TSTransform,
+    /// The canvas' screen area, as last drawn (none before the first draw).
+    rect: Option<egui::Rect>,
 }
 
 impl Canvas {
@@ -158,8 +165,11 @@ impl Canvas {
         let mut style = SnarlStyle::new();
         style.collapsible = Some(false);
         style.centering = Some(true);
+        self.rect = Some(ui.max_rect());
         SnarlWidget::new().id(egui::Id::new(CANVAS_ID)).style(style).show(&mut self.snarl, &mut viewer, ui);
         let mut out = viewer.out;
+        self.to_screen = out.to_screen;
+        self.tab_menu(ui, doc, registry, &mut out);
         out.selected = egui_snarl::ui::get_selected_nodes(egui::Id::new(CANVAS_ID), ui.ctx())
             .into_iter()
             .filter_map(|nid| self.snarl.get_node(nid).cloned())
@@ -181,6 +191,49 @@ impl Canvas {
     }
 }
 
+impl Canvas {
+    /// Opens the add-node menu at `screen_pos` when that is over the canvas (the Tab key).
+    pub(crate) fn open_add_menu(&mut self, screen_pos: Pos2) {
+        if self.rect.is_some_and(|r| r.contains(screen_pos)) {
+            self.add_at = Some(screen_pos);
+        }
+    }
+
+    /// The add-node menu opened by [`Canvas::open_add_menu`]; the node lands where it opened.
+    fn tab_menu(&mut self, ui: &mut Ui, doc: &GraphDoc, registry: &Registry, out: &mut CanvasOutput) {
+        let Some(at) = self.add_at else { return };
+        let area = egui::Area::new(egui::Id::new("kg_tab_add")).fixed_pos(at).order(egui::Order::Foreground).show(
+            ui.ctx(),
+            |ui| {
+                egui::Frame::popup(ui.style())
+                    .show(ui, |ui| {
+                        ui.label("Add node");
+                        ui.add(egui::TextEdit::singleline(&mut self.search).hint_text("search…").desired_width(180.0))
+                            .request_focus();
+                        egui::ScrollArea::vertical()
+                            .max_height(360.0)
+                            .show(ui, |ui| catalogue_menu(ui, registry, &self.search, |_| true))
+                            .inner
+                    })
+                    .inner
+            },
+        );
+        let closed = ui.input(|i| i.key_pressed(egui::Key::Escape)) || area.response.clicked_elsewhere();
+        if let Some(kind) = area.inner {
+            let pos = self.to_screen.inverse() * at;
+            out.commands.push(EditorCommand::AddNode {
+                id: fresh_node_id(doc, kind),
+                kind: kind.into(),
+                pos: (pos.x, pos.y),
+            });
+            self.search.clear();
+            self.add_at = None;
+        } else if closed {
+            self.add_at = None;
+        }
+    }
+}
+
 /// What the user did on the canvas this frame.
 #[derive(Default)]
 pub(crate) struct CanvasOutput {
@@ -192,6 +245,8 @@ pub(crate) struct CanvasOutput {
     pub(crate) selected: Vec<String>,
     /// The node whose title was clicked.
     pub(crate) clicked: Option<String>,
+    /// Canvas (graph) space → screen, as drawn this frame.
+    pub(crate) to_screen: TSTransform,
 }
 
 fn schema(doc: &GraphDoc, registry: &Registry, id: &str) -> Option<&'static NodeSchema> {
@@ -353,12 +408,53 @@ impl SnarlViewer<String> for Viewer<'_> {
     fn show_graph_menu(&mut self, pos: Pos2, ui: &mut Ui, _snarl: &mut Snarl<String>) {
         ui.label("Add node");
         ui.add(egui::TextEdit::singleline(self.search).hint_text("search…").desired_width(180.0)).request_focus();
-        if let Some(kind) = catalogue_menu(ui, self.registry, self.search) {
+        if let Some(kind) = catalogue_menu(ui, self.registry, self.search, |_| true) {
             let id = fresh_node_id(self.doc, kind);
             self.out.commands.push(EditorCommand::AddNode { id, kind: kind.to_string(), pos: (pos.x, pos.y) });
             self.search.clear();
             ui.close();
         }
+    }
+
+    fn has_dropped_wire_menu(&mut self, _src_pins: AnyPins, _snarl: &mut Snarl<String>) -> bool {
+        true
+    }
+
+    /// A wire dropped on empty canvas offers the kinds that can take it (or feed it) and
+    /// adds the chosen node already connected, as one undo step.
+    fn show_dropped_wire_menu(&mut self, pos: Pos2, ui: &mut Ui, src_pins: AnyPins, snarl: &mut Snarl<String>) {
+        let (endpoint, ty, from_output) = match src_pins {
+            AnyPins::Out(pins) => {
+                let Some(pin) = pins.first() else { return };
+                let Some(id) = snarl.get_node(pin.node) else { return };
+                let Some(port) = schema(self.doc, self.registry, id).and_then(|s| s.outputs.get(pin.output)) else {
+                    return;
+                };
+                (format!("{id}.{}", port.name), port.ty, true)
+            }
+            AnyPins::In(pins) => {
+                let Some(pin) = pins.first() else { return };
+                let Some(id) = snarl.get_node(pin.node) else { return };
+                let Some(port) = schema(self.doc, self.registry, id).and_then(|s| s.inputs.get(pin.input)) else {
+                    return;
+                };
+                (format!("{id}.{}", port.name), port.ty, false)
+            }
+        };
+        ui.label(format!("Add a node that {} a {}", if from_output { "takes" } else { "gives" }, ty.name()));
+        ui.add(egui::TextEdit::singleline(self.search).hint_text("search…").desired_width(180.0)).request_focus();
+        let picked = catalogue_menu(ui, self.registry, self.search, |s| facing_port(s, ty, from_output).is_some());
+        if let Some(cmd) =
+            picked.and_then(|kind| add_connected(self.doc, self.registry, &endpoint, from_output, kind, pos))
+        {
+            self.out.commands.push(cmd);
+            self.search.clear();
+            ui.close();
+        }
+    }
+
+    fn current_transform(&mut self, to_global: &mut TSTransform, _snarl: &mut Snarl<String>) {
+        self.out.to_screen = *to_global;
     }
 
     fn has_node_menu(&mut self, _node: &String) -> bool {
@@ -382,17 +478,23 @@ impl SnarlViewer<String> for Viewer<'_> {
     }
 }
 
-/// The node catalogue grouped by category and filtered by `search` (kind, category or
-/// doc text); returns the kind clicked.
-pub(crate) fn catalogue_menu(ui: &mut Ui, registry: &Registry, search: &str) -> Option<&'static str> {
+/// The node catalogue grouped by category, narrowed to the kinds `accepts` and filtered by
+/// `search` (kind, category or doc text); returns the kind clicked.
+pub(crate) fn catalogue_menu(
+    ui: &mut Ui,
+    registry: &Registry,
+    search: &str,
+    accepts: impl Fn(&NodeSchema) -> bool,
+) -> Option<&'static str> {
     let needle = search.trim().to_lowercase();
     let mut groups: BTreeMap<&str, Vec<&'static NodeSchema>> = BTreeMap::new();
     for node in registry.iter() {
         let s = node.schema();
-        let hit = needle.is_empty()
-            || s.kind.contains(&needle)
-            || s.category.contains(&needle)
-            || s.doc.to_lowercase().contains(&needle);
+        let hit = accepts(s)
+            && (needle.is_empty()
+                || s.kind.contains(&needle)
+                || s.category.contains(&needle)
+                || s.doc.to_lowercase().contains(&needle));
         if hit {
             groups.entry(s.category).or_default().push(s);
         }
@@ -409,6 +511,37 @@ pub(crate) fn catalogue_menu(ui: &mut Ui, registry: &Registry, search: &str) -> 
     picked
 }
 
+/// The first port of type `ty` on the side of `schema` that faces a dropped wire: its
+/// inputs when the wire comes from an output, else its outputs.
+fn facing_port(schema: &NodeSchema, ty: PortType, from_output: bool) -> Option<&'static str> {
+    let ports = if from_output { schema.inputs } else { schema.outputs };
+    ports.iter().find(|p| p.ty == ty).map(|p| p.name)
+}
+
+/// One undo step that adds a node of `kind` at `pos` and wires it to `endpoint`, the port
+/// a wire was dragged from (an output when `from_output`).
+fn add_connected(
+    doc: &GraphDoc,
+    registry: &Registry,
+    endpoint: &str,
+    from_output: bool,
+    kind: &str,
+    pos: Pos2,
+) -> Option<EditorCommand> {
+    let (node, port) = split_endpoint(endpoint)?;
+    let dragged = schema(doc, registry, node)?;
+    let ports = if from_output { dragged.outputs } else { dragged.inputs };
+    let ty = ports.iter().find(|p| p.name == port)?.ty;
+    let facing = facing_port(registry.get(kind)?.schema(), ty, from_output)?;
+    let id = fresh_node_id(doc, kind);
+    let new_end = format!("{id}.{facing}");
+    let (from, to) = if from_output { (endpoint.to_string(), new_end) } else { (new_end, endpoint.to_string()) };
+    Some(EditorCommand::Batch(vec![
+        EditorCommand::AddNode { id, kind: kind.to_string(), pos: (pos.x, pos.y) },
+        EditorCommand::Connect { from, to },
+    ]))
+}
+
 /// A port's label (with its type and doc as tooltip) and its pin, coloured by type.
 fn port_pin(ui: &mut Ui, port: Option<&PortSpec>, label: impl Fn(&PortSpec) -> String) -> PinInfo {
     match port {
@@ -417,5 +550,34 @@ fn port_pin(ui: &mut Ui, port: Option<&PortSpec>, label: impl Fn(&PortSpec) -> S
             PinInfo::circle().with_fill(type_color(p.ty))
         }
         None => PinInfo::circle(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use crate::document;
+    use crate::editor::commands::apply;
+
+    #[test]
+    fn a_dropped_wire_adds_a_node_wired_on_the_matching_side() {
+        let registry = Registry::builtin();
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron");
+        let mut doc = document::load_file(&path).unwrap().doc;
+        // From an output: the new node's clip input takes it.
+        let cmd = add_connected(&doc, &registry, "clip.clip", true, "motion.contacts", Pos2::new(5.0, 6.0)).unwrap();
+        apply(&mut doc, &registry, &cmd).unwrap();
+        assert_eq!(doc.nodes["contacts"].kind, "motion.contacts");
+        assert_eq!(doc.layout["contacts"], (5.0, 6.0));
+        assert!(doc.edges.iter().any(|e| e.from == "clip.clip" && e.to == "contacts.clip"));
+        // From an input: the new node's output feeds it (replacing what fed it).
+        let cmd = add_connected(&doc, &registry, "resample.clip", false, "clip.trim", Pos2::ZERO).unwrap();
+        apply(&mut doc, &registry, &cmd).unwrap();
+        assert!(doc.edges.iter().any(|e| e.from == "trim_2.clip" && e.to == "resample.clip"));
+        // A kind with no port of the wire's type is neither offered nor wired.
+        let load_mesh = registry.get("mesh.load").unwrap().schema();
+        assert!(facing_port(load_mesh, PortType::Clip, true).is_none());
+        assert!(add_connected(&doc, &registry, "clip.clip", true, "mesh.load", Pos2::ZERO).is_none());
     }
 }

@@ -214,6 +214,9 @@ pub enum EditError {
     /// Nothing to undo or redo.
     #[error("nothing to {0}")]
     NothingTo(&'static str),
+    /// Pasted text is not a graph fragment.
+    #[error("the clipboard holds no graph fragment: {0}")]
+    BadFragment(String),
 }
 
 /// A fresh, readable node id for a new node of `kind`: the kind's last segment

@@ -2,6 +2,7 @@
 //!
 //! - [`commands`]: the pure command reducer over [`GraphDoc`](crate::document::GraphDoc)
 //!   with undo/redo; widgets only ever emit its commands.
+//! - [`fragment`]: copy and paste of graph fragments as graph-file text.
 //! - [`worker`]: the evaluation thread that owns the engine; stale results are dropped by
 //!   request id.
 //!
@@ -9,6 +10,7 @@
 //! `kg edit` lives here too; nothing outside this module names egui or eframe.
 
 pub mod commands;
+pub mod fragment;
 pub mod worker;
 
 #[cfg(feature = "editor")]

@@ -146,7 +146,10 @@ impl Shown {
     }
 
     fn in_contact(&self, foot: usize, frame: usize) -> bool {
-        self.contacts.as_ref().and_then(|c| c.feet.get(foot)).is_some_and(|f| f.intervals.iter().any(|r| r.contains(frame)))
+        self.contacts
+            .as_ref()
+            .and_then(|c| c.feet.get(foot))
+            .is_some_and(|f| f.intervals.iter().any(|r| r.contains(frame)))
     }
 }
 
@@ -210,7 +213,8 @@ impl Viewport {
         self.advance(ui, duration);
         self.timeline(ui, duration);
         self.contact_strip(ui);
-        let (response, painter) = ui.allocate_painter(ui.available_size().max(Vec2::splat(50.0)), Sense::click_and_drag());
+        let (response, painter) =
+            ui.allocate_painter(ui.available_size().max(Vec2::splat(50.0)), Sense::click_and_drag());
         let rect = response.rect;
         self.steer_camera(ui, &response);
         if self.reframe {
@@ -262,6 +266,7 @@ impl Viewport {
                 self.playing = !self.playing;
             }
             let mut time = self.time_secs;
+            ui.spacing_mut().slider_width = (ui.available_width() - 330.0).max(120.0);
             let slider = ui.add(egui::Slider::new(&mut time, 0.0..=duration.max(1e-3)).suffix(" s").text("time"));
             if slider.changed() {
                 self.playing = false;
@@ -282,7 +287,9 @@ impl Viewport {
         });
         ui.horizontal(|ui| {
             ui.label("view");
-            for (label, yaw, pitch) in [("front", 0.0, 0.05), ("side", std::f32::consts::FRAC_PI_2, 0.05), ("top", 0.0, 1.5)] {
+            for (label, yaw, pitch) in
+                [("front", 0.0, 0.05), ("side", std::f32::consts::FRAC_PI_2, 0.05), ("top", 0.0, 1.5)]
+            {
                 if ui.button(label).clicked() {
                     (self.camera.yaw, self.camera.pitch) = (yaw, pitch);
                     self.reframe = true;
@@ -297,7 +304,10 @@ impl Viewport {
             ui.checkbox(&mut self.overlays.contacts, "contacts");
             ui.separator();
             if let Some(shown) = &self.shown
-                && ui.button("pin to compare").on_hover_text("keep this clip on show, in orange, to compare others with it").clicked()
+                && ui
+                    .button("pin to compare")
+                    .on_hover_text("keep this clip on show, in orange, to compare others with it")
+                    .clicked()
             {
                 self.compared = Some(Shown::new(&shown.clip, &shown.title));
             }
@@ -327,7 +337,10 @@ impl Viewport {
                     painter.rect_filled(Rect::from_x_y_ranges(x0..=x1, rect.y_range()), 1.0, CONTACT);
                 }
                 let x = rect.left() + rect.width() * shown.frame_at(self.time_secs) as f32 / frames;
-                painter.line_segment([Pos2::new(x, rect.top()), Pos2::new(x, rect.bottom())], Stroke::new(1.5, Color32::WHITE));
+                painter.line_segment(
+                    [Pos2::new(x, rect.top()), Pos2::new(x, rect.bottom())],
+                    Stroke::new(1.5, Color32::WHITE),
+                );
             });
         }
     }
@@ -374,7 +387,9 @@ fn draw_grid(painter: &egui::Painter, project: &impl Fn(Vec3) -> Option<Pos2>, (
             painter.line_segment([a, b], Stroke::new(1.0, colour));
         }
     };
-    let steps = |from: f32, to: f32| (0..=((to - from) / GRID_STEP_M).round() as i32).map(move |i| from + i as f32 * GRID_STEP_M);
+    let steps = |from: f32, to: f32| {
+        (0..=((to - from) / GRID_STEP_M).round() as i32).map(move |i| from + i as f32 * GRID_STEP_M)
+    };
     for x in steps(x0, x1) {
         let colour = if x.abs() < 1e-4 { Color32::from_rgb(70, 90, 160) } else { Color32::from_gray(50) };
         line(Vec3::new(x, floor, z0), Vec3::new(x, floor, z1), colour);
