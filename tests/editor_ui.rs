@@ -16,8 +16,20 @@ fn demo_path() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron")
 }
 
+/// A settings folder of its own per editor, so tests never see the user's recent files or
+/// autosaves, nor each other's.
+fn fresh_settings_dir() -> PathBuf {
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("editor-settings-{}-{n}", std::process::id()))
+}
+
 fn harness(path: Option<&Path>) -> Harness<'static, EditorApp> {
-    let mut app = EditorApp::new(&egui::Context::default(), path);
+    harness_in(path, fresh_settings_dir())
+}
+
+fn harness_in(path: Option<&Path>, settings_dir: PathBuf) -> Harness<'static, EditorApp> {
+    let mut app = EditorApp::with_settings_dir(&egui::Context::default(), path, settings_dir);
     app.wait_for_evaluation();
     let mut harness =
         Harness::builder().with_size([1400.0, 860.0]).build_ui_state(|ui, app: &mut EditorApp| app.ui(ui), app);
@@ -194,7 +206,7 @@ fn save_and_reload_and_saving_without_edits_changes_no_byte() {
     assert!(!app.is_dirty());
     let saved = document::to_string(app.doc());
     assert_eq!(std::fs::read_to_string(&copy).unwrap(), saved);
-    let reloaded = EditorApp::new(&egui::Context::default(), Some(&copy));
+    let reloaded = EditorApp::with_settings_dir(&egui::Context::default(), Some(&copy), fresh_settings_dir());
     assert_eq!(document::to_string(reloaded.doc()), saved);
     assert!(!reloaded.is_dirty());
 }
@@ -256,4 +268,36 @@ fn tab_over_the_canvas_opens_the_add_menu_at_the_pointer() {
     harness.run_steps(3);
     assert_eq!(harness.state().doc().nodes.get("contacts").map(|n| n.kind.as_str()), Some("motion.contacts"));
     assert!(harness.query_by_label("Add node").is_none(), "the menu closes once a node is added");
+}
+
+#[test]
+fn unsaved_edits_survive_a_crash_through_the_autosave() {
+    let dir = tempfile::tempdir().unwrap();
+    let graph = dir.path().join("demo.ron");
+    std::fs::copy(demo_path(), &graph).unwrap();
+    let settings = dir.path().join("settings");
+    let edited = {
+        let mut harness = harness_in(Some(&graph), settings.clone());
+        let cmd =
+            EditorCommand::SetParam { node: "trim".into(), param: "end_secs".into(), value: ParamValue::Float(0.75) };
+        harness.state_mut().edit(cmd).unwrap();
+        harness.state_mut().autosave_now();
+        document::to_string(harness.state().doc())
+        // Dropped without saving: the editor "crashed".
+    };
+    let file_before = std::fs::read(&graph).unwrap();
+    let mut harness = harness_in(Some(&graph), settings.clone());
+    harness.get_by_label("Recover unsaved work");
+    harness.get_by_label("Restore").click();
+    harness.run_steps(2);
+    assert_eq!(document::to_string(harness.state().doc()), edited);
+    assert!(harness.state().is_dirty(), "restored work is unsaved until the user saves");
+    assert_eq!(std::fs::read(&graph).unwrap(), file_before, "restoring writes nothing");
+    harness.state_mut().save();
+    drop(harness);
+    // Saved: nothing left to recover, and the graph is first in the recent files.
+    let harness = harness_in(Some(&graph), settings.clone());
+    assert!(harness.query_by_label("Recover unsaved work").is_none());
+    let recent = kinegraph::editor::files::RecentFiles::load(&settings);
+    assert_eq!(recent.paths.first(), Some(&std::path::absolute(&graph).unwrap()));
 }

@@ -12,6 +12,7 @@ use kinegraph_nodes::node::{Registry, Value};
 
 use super::canvas::{Badge, Canvas};
 use super::commands::{EditError, EditorCommand, History};
+use super::files::{self, Autosave, RecentFiles, default_settings_dir};
 use super::fragment;
 use super::panel::{self, PanelState};
 use super::results::{self, ResultsState};
@@ -20,12 +21,15 @@ use super::worker::{Worker, WorkerMessage};
 use crate::document::{self, GraphDoc};
 use crate::engine::{NodeStatus, RunReport};
 
-/// Which path prompt is open.
+/// What the file dialog is open for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Prompt {
     Open,
     SaveAs,
 }
+
+/// How often unsaved edits are autosaved (seconds).
+const AUTOSAVE_SECS: f64 = 30.0;
 
 /// The editor: one document, its history, views and the evaluation worker.
 pub struct EditorApp {
@@ -50,7 +54,16 @@ pub struct EditorApp {
     viewport: Viewport,
     message: Option<(String, bool)>,
     refusal: Option<(String, f64)>,
-    prompt: Option<(Prompt, String)>,
+    /// The file dialog and what it is open for.
+    dialog: egui_file_dialog::FileDialog,
+    prompt: Option<Prompt>,
+    /// Recent files and autosaves live here.
+    settings_dir: PathBuf,
+    recent: RecentFiles,
+    /// Editor time of the last autosave, and the text it wrote.
+    autosaved: (f64, String),
+    /// Unsaved work found from an earlier session, offered back to the user.
+    recovery: Option<Autosave>,
     title: String,
     frame_ms: f32,
     /// The last fragment copied in the editor (the system clipboard gets it too).
@@ -58,8 +71,14 @@ pub struct EditorApp {
 }
 
 impl EditorApp {
-    /// An editor on `path` (or an empty graph); `ctx` is woken by the worker.
+    /// An editor on `path` (or an empty graph) keeping recent files and autosaves in the
+    /// user's settings folder (see [`default_settings_dir`]); `ctx` is woken by the worker.
     pub fn new(ctx: &egui::Context, path: Option<&Path>) -> Self {
+        Self::with_settings_dir(ctx, path, default_settings_dir())
+    }
+
+    /// An editor keeping recent files and autosaves in `settings_dir`.
+    pub fn with_settings_dir(ctx: &egui::Context, path: Option<&Path>, settings_dir: PathBuf) -> Self {
         let wake_ctx = ctx.clone();
         let worker = Worker::spawn(Registry::builtin(), Arc::new(move || wake_ctx.request_repaint()));
         let mut app = EditorApp {
@@ -81,14 +100,26 @@ impl EditorApp {
             viewport: Viewport::default(),
             message: None,
             refusal: None,
+            dialog: egui_file_dialog::FileDialog::new()
+                .add_file_filter_extensions("graphs (.ron)", vec!["ron"])
+                .default_file_filter("graphs (.ron)")
+                .add_save_extension("graph", "ron")
+                .default_save_extension("graph"),
             prompt: None,
+            recent: RecentFiles::load(&settings_dir),
+            settings_dir,
+            autosaved: (0.0, String::new()),
+            recovery: None,
             title: String::new(),
             frame_ms: 0.0,
             clipboard: None,
         };
         match path {
             Some(p) => app.open(p),
-            None => app.document_replaced(),
+            None => {
+                app.document_replaced();
+                app.recovery = files::recoverable(&app.settings_dir, None, &app.clean_text);
+            }
         }
         app
     }
@@ -208,6 +239,8 @@ impl EditorApp {
                 self.history.clear();
                 self.message = Some((format!("opened {}", path.display()), false));
                 self.document_replaced();
+                self.remember(path);
+                self.recovery = files::recoverable(&self.settings_dir, Some(path), &self.clean_text);
             }
             Err(e) => self.message = Some((e.to_string(), true)),
         }
@@ -217,7 +250,7 @@ impl EditorApp {
     /// written, so the file keeps every byte.
     pub fn save(&mut self) {
         match self.path.clone() {
-            None => self.prompt = Some((Prompt::SaveAs, "graph.ron".into())),
+            None => self.open_dialog(Prompt::SaveAs),
             Some(_) if !self.dirty => self.message = Some(("no changes to save".into(), false)),
             Some(path) => self.save_as(&path),
         }
@@ -227,12 +260,108 @@ impl EditorApp {
     pub fn save_as(&mut self, path: &Path) {
         match document::save_file(&self.doc, path) {
             Ok(()) => {
+                files::discard_autosave(&self.settings_dir, self.path.as_deref());
                 self.path = Some(path.to_path_buf());
                 self.clean_text = document::to_string(&self.doc);
                 self.dirty = false;
                 self.message = Some((format!("saved {}", path.display()), false));
+                self.remember(path);
             }
             Err(e) => self.message = Some((e.to_string(), true)),
+        }
+    }
+
+    /// Puts `path` first in the recent files (a settings folder that cannot be written
+    /// costs the list, not the edit: the status bar says so).
+    fn remember(&mut self, path: &Path) {
+        if let Err(e) = self.recent.touch(&self.settings_dir, path) {
+            self.message = Some((format!("recent files not saved: {e}"), true));
+        }
+    }
+
+    /// Writes the unsaved document to its autosave now (also done every
+    /// [`AUTOSAVE_SECS`] while there are unsaved edits, and when the window closes).
+    pub fn autosave_now(&mut self) {
+        if !self.dirty {
+            return;
+        }
+        let text = document::to_string(&self.doc);
+        if text == self.autosaved.1 {
+            return;
+        }
+        match files::write_autosave(&self.settings_dir, self.path.as_deref(), &text) {
+            Ok(()) => self.autosaved.1 = text,
+            Err(e) => self.message = Some((format!("autosave failed: {e}"), true)),
+        }
+    }
+
+    fn autosave_tick(&mut self, ctx: &egui::Context) {
+        let now = ctx.input(|i| i.time);
+        if self.dirty && now - self.autosaved.0 >= AUTOSAVE_SECS {
+            self.autosaved.0 = now;
+            self.autosave_now();
+        }
+        if self.dirty {
+            ctx.request_repaint_after(std::time::Duration::from_secs_f64(AUTOSAVE_SECS));
+        }
+    }
+
+    fn open_dialog(&mut self, prompt: Prompt) {
+        if let Some(dir) = self.path.as_deref().and_then(Path::parent) {
+            self.dialog.config_mut().initial_directory = std::path::absolute(dir).unwrap_or_else(|_| dir.to_path_buf());
+        }
+        match prompt {
+            Prompt::Open => self.dialog.pick_file(),
+            Prompt::SaveAs => self.dialog.save_file(),
+        }
+        self.prompt = Some(prompt);
+    }
+
+    fn file_dialog(&mut self, ctx: &egui::Context) {
+        let Some(prompt) = self.prompt else { return };
+        self.dialog.update(ctx);
+        if let Some(path) = self.dialog.take_picked() {
+            self.prompt = None;
+            match prompt {
+                Prompt::Open => self.open(&path),
+                Prompt::SaveAs => self.save_as(&path),
+            }
+        } else if !matches!(self.dialog.state(), egui_file_dialog::DialogState::Open) {
+            self.prompt = None;
+        }
+    }
+
+    /// Offers unsaved work from an earlier session back: restore it (unsaved, so the file
+    /// is untouched until the user saves) or discard it.
+    fn recovery_window(&mut self, ctx: &egui::Context) {
+        let Some(save) = &self.recovery else { return };
+        let what = save.source.as_ref().map_or("an untitled graph".into(), |p| p.display().to_string());
+        let mut choice = None;
+        egui::Window::new("Recover unsaved work").collapsible(false).resizable(false).show(ctx, |ui| {
+            ui.label(format!("Edits to {what} were not saved when the editor last closed."));
+            ui.horizontal(|ui| {
+                if ui.button("Restore").clicked() {
+                    choice = Some(true);
+                }
+                if ui.button("Discard").clicked() {
+                    choice = Some(false);
+                }
+            });
+        });
+        let Some(restore) = choice else { return };
+        let Some(save) = self.recovery.take() else { return };
+        if !restore {
+            files::discard_autosave(&self.settings_dir, self.path.as_deref());
+            return;
+        }
+        match document::parse(&save.text, &files::autosave_path(&self.settings_dir, self.path.as_deref())) {
+            Ok(loaded) => {
+                self.doc = loaded.doc;
+                self.history.clear();
+                self.document_replaced();
+                self.message = Some(("restored unsaved work: save to keep it".into(), false));
+            }
+            Err(e) => self.message = Some((format!("the autosave could not be read: {e}"), true)),
         }
     }
 
@@ -346,7 +475,9 @@ impl EditorApp {
             self.viewport.show(ui, &title, clip.as_ref());
         });
         egui::CentralPanel::default().show(ui, |ui| self.canvas(ui));
-        self.prompt_window(ui.ctx());
+        self.file_dialog(ui.ctx());
+        self.recovery_window(ui.ctx());
+        self.autosave_tick(ui.ctx());
         self.refusal_tooltip(ui);
         self.frame_ms = started.elapsed().as_secs_f32() * 1e3;
     }
@@ -431,17 +562,26 @@ impl EditorApp {
                     ui.close();
                 }
                 if ui.button("Open…").clicked() {
-                    let start = self.path.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
-                    self.prompt = Some((Prompt::Open, start));
+                    self.open_dialog(Prompt::Open);
                     ui.close();
                 }
+                ui.menu_button("Open recent", |ui| {
+                    if self.recent.paths.is_empty() {
+                        ui.label(RichText::new("no recent files").weak());
+                    }
+                    for path in self.recent.paths.clone() {
+                        if ui.button(path.display().to_string()).clicked() {
+                            self.open(&path);
+                            ui.close();
+                        }
+                    }
+                });
                 if ui.button("Save").clicked() {
                     self.save();
                     ui.close();
                 }
                 if ui.button("Save as…").clicked() {
-                    let start = self.path.as_ref().map(|p| p.display().to_string()).unwrap_or("graph.ron".into());
-                    self.prompt = Some((Prompt::SaveAs, start));
+                    self.open_dialog(Prompt::SaveAs);
                     ui.close();
                 }
             });
@@ -587,38 +727,6 @@ impl EditorApp {
         });
         ui.ctx().request_repaint();
     }
-
-    fn prompt_window(&mut self, ctx: &egui::Context) {
-        let Some((kind, mut text)) = self.prompt.take() else { return };
-        let title = match kind {
-            Prompt::Open => "Open graph",
-            Prompt::SaveAs => "Save graph as",
-        };
-        let mut open = true;
-        let mut done = None;
-        egui::Window::new(title).collapsible(false).open(&mut open).show(ctx, |ui| {
-            ui.label("Path of the .ron graph file:");
-            let r = ui.add(egui::TextEdit::singleline(&mut text).desired_width(360.0));
-            let enter = r.lost_focus() && ui.input(|i| i.key_pressed(Key::Enter));
-            ui.horizontal(|ui| {
-                if ui.button(if kind == Prompt::Open { "Open" } else { "Save" }).clicked() || enter {
-                    done = Some(PathBuf::from(text.trim()));
-                }
-                if ui.button("Cancel").clicked() {
-                    done = Some(PathBuf::new());
-                }
-            });
-        });
-        match done {
-            Some(p) if p.as_os_str().is_empty() => {}
-            Some(p) => match kind {
-                Prompt::Open => self.open(&p),
-                Prompt::SaveAs => self.save_as(&p),
-            },
-            None if open => self.prompt = Some((kind, text)),
-            None => {}
-        }
-    }
 }
 
 fn badge_of(status: NodeStatus, message: Option<String>) -> Badge {
@@ -634,6 +742,11 @@ fn badge_of(status: NodeStatus, message: Option<String>) -> Badge {
 impl eframe::App for EditorApp {
     fn ui(&mut self, ui: &mut Ui, _frame: &mut eframe::Frame) {
         EditorApp::ui(self, ui);
+    }
+
+    /// Closing with unsaved edits keeps them in the autosave, offered back next time.
+    fn on_exit(&mut self, _gl: Option<&eframe::glow::Context>) {
+        self.autosave_now();
     }
 }
 

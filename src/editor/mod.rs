@@ -18,6 +18,8 @@ mod app;
 #[cfg(feature = "editor")]
 mod canvas;
 #[cfg(feature = "editor")]
+pub mod files;
+#[cfg(feature = "editor")]
 mod panel;
 #[cfg(feature = "editor")]
 mod results;
