@@ -234,3 +234,37 @@ fn node_catalogue_snapshot() {
     let schemas: Vec<_> = registry.iter().map(|n| n.schema()).collect();
     insta::assert_json_snapshot!("node_catalogue", schemas);
 }
+
+/// `motion.segment_phases` gives the curve it cut the phases from: the momentum along its
+/// main-phase direction is |L| at the main-phase moment, and its sign agrees with every
+/// phase (the sign test of Shum et al. read back from the other output).
+#[test]
+fn phase_curves_agree_with_the_phases() {
+    let engine = Engine::new(Registry::builtin());
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut doc = GraphDoc::new();
+    let walk = root.join("assets/mannequin_walk.bvh").display().to_string();
+    doc.nodes.insert("clip".into(), node("clip.load", &[("path", ParamValue::Text(walk))]));
+    doc.nodes.insert("phases".into(), node("motion.segment_phases", &[]));
+    doc.edges = vec![edge("clip.clip", "phases.clip")];
+    let g = compile(&doc, engine.registry(), Path::new("phases"), &SourceMap::default()).unwrap();
+    let report = engine.run(&g, &RunOptions::new(root.to_path_buf()));
+    let outputs = &report.outputs["phases"];
+    let (Some(Value::Phases(phases)), Some(Value::Curves(curves))) = (&outputs[0], &outputs[1]) else {
+        panic!("{outputs:?}");
+    };
+    let channel = |name: &str| curves.channels().iter().find(|c| c.name == name).unwrap().values.clone();
+    let (magnitude, along) = (channel("|L| smoothed"), channel("L along main"));
+    assert_eq!(along.len(), magnitude.len());
+    let m = phases.main_frame;
+    assert!((along[m] - magnitude[m]).abs() < 1e-9 && magnitude[m] > 0.0);
+    for f in phases.main.start..phases.main.end {
+        assert!(along[f] >= 0.0, "main frame {f}: {}", along[f]);
+    }
+    for range in [phases.preparatory, phases.posterior].into_iter().flatten() {
+        for f in range.start..range.end {
+            assert!(along[f] < 0.0, "frame {f} of {range:?}: {}", along[f]);
+        }
+    }
+    assert!(along.iter().zip(&magnitude).all(|(a, m)| a.abs() <= m + 1e-9), "a projection never exceeds the length");
+}

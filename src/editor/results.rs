@@ -3,8 +3,8 @@
 
 use std::collections::BTreeSet;
 
-use egui::{CollapsingHeader, RichText, Ui};
-use egui_plot::{Legend, Line, Plot};
+use egui::{CollapsingHeader, Color32, RichText, Ui};
+use egui_plot::{Legend, Line, Plot, Span};
 use kinegraph_nodes::model::{Contacts, Curves, FrameRange, Phases};
 use kinegraph_nodes::node::{PortSpec, Value};
 use serde_json::Value as Json;
@@ -20,6 +20,11 @@ pub(crate) struct ResultsState {
 
 /// Draws the results of node `id`: one section per non-clip output.
 pub(crate) fn show(ui: &mut Ui, state: &mut ResultsState, id: &str, ports: &[PortSpec], outputs: &[Option<Value>]) {
+    // Phases the node also gives are shaded on its curve plots.
+    let phases = outputs.iter().find_map(|v| match v {
+        Some(Value::Phases(p)) => Some(p.clone()),
+        _ => None,
+    });
     for (port, value) in ports.iter().zip(outputs) {
         let key = format!("{id}.{}", port.name);
         match value {
@@ -37,7 +42,7 @@ pub(crate) fn show(ui: &mut Ui, state: &mut ResultsState, id: &str, ports: &[Por
                 CollapsingHeader::new(format!("Curves ({})", port.name))
                     .id_salt(&key)
                     .default_open(true)
-                    .show(ui, |ui| curves_plot(ui, state, &key, curves));
+                    .show(ui, |ui| curves_plot(ui, state, &key, curves, phases.as_deref()));
             }
             Some(Value::Phases(phases)) => {
                 CollapsingHeader::new(format!("Phases ({})", port.name))
@@ -92,9 +97,9 @@ fn scalar_text(value: &Json) -> String {
     }
 }
 
-/// Checkboxes per channel and one plot against time (seconds). The first channel's unit
-/// is shown by default, so the first view has one scale.
-fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves) {
+/// Checkboxes per channel and one plot against time (seconds), `phases` shaded behind. The
+/// first channel's unit is shown by default, so the first view has one scale.
+fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves, phases: Option<&Phases>) {
     let channels = curves.channels();
     if state.initialised.insert(key.to_string()) {
         let unit = channels.first().map(|c| c.unit.clone()).unwrap_or_default();
@@ -117,6 +122,18 @@ fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves
     });
     let fps = curves.fps();
     Plot::new(format!("{key}.plot")).height(180.0).legend(Legend::default()).x_axis_label("s").show(ui, |plot| {
+        if let Some(p) = phases {
+            let shades = [
+                ("preparatory", p.preparatory, Color32::from_rgba_unmultiplied(90, 140, 255, 40)),
+                ("main", Some(p.main), Color32::from_rgba_unmultiplied(255, 110, 90, 40)),
+                ("posterior", p.posterior, Color32::from_rgba_unmultiplied(110, 220, 130, 40)),
+            ];
+            for (name, range, colour) in shades {
+                if let Some(r) = range {
+                    plot.span(Span::new(name, r.start as f64 / p.fps..=r.end as f64 / p.fps).fill(colour));
+                }
+            }
+        }
         for c in channels.iter().filter(|c| state.shown.contains(&format!("{key}.{}", c.name))) {
             let points: Vec<[f64; 2]> = c.values.iter().enumerate().map(|(i, v)| [i as f64 / fps, *v]).collect();
             plot.line(Line::new(c.name.clone(), points));

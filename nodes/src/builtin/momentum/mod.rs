@@ -12,6 +12,7 @@ pub mod phases;
 
 use std::sync::Arc;
 
+use glam::DVec3;
 use serde_json::json;
 
 use self::align::{Rule, facing_difference, feet_centre, place, yaw_rotation};
@@ -203,6 +204,11 @@ impl Node for AngularMomentum {
 
 const PHASES: Output<Arc<Phases>> =
     Output::new("phases", "Preparatory, main and posterior frame ranges (missing phases left out).");
+const PHASE_CURVES: Output<Arc<Curves>> = Output::new(
+    "curves",
+    "What the phases were cut from, one sample per frame: smoothed |L| and the smoothed momentum along its \
+     direction at the main-phase moment (kg·m²/s; negative where the body turns the other way).",
+);
 const MAIN_SECS: FloatParam = FloatParam::optional(
     "main_secs",
     "A moment inside the main phase; unset takes the moment of largest angular momentum.",
@@ -224,7 +230,7 @@ static SEGMENT_PHASES: NodeSchema = NodeSchema {
     doc: "Splits a dynamic motion into preparatory, main and posterior phases by the direction of its angular \
           momentum; borders can be set by hand.",
     inputs: &[CLIP.spec()],
-    outputs: &[PHASES.spec(), REPORT.spec()],
+    outputs: &[PHASES.spec(), PHASE_CURVES.spec(), REPORT.spec()],
     params: &[TOTAL_MASS.0, MASS_TABLE.0, MASS_OVERRIDE.0, SMOOTHING.0, MAIN_SECS.0, MAIN_START.0, MAIN_END.0],
     writes_files: false,
 };
@@ -248,6 +254,14 @@ impl Node for SegmentPhases {
         }
         let (_, _, smoothed) = momentum_of(ctx, &clip)?;
         let phases = segment_phases(&smoothed, clip.fps(), phase_options);
+        let main_direction = smoothed.get(phases.main_frame).map_or(DVec3::ZERO, |l| l.normalize_or_zero());
+        let mut curves = Curves::new(clip.fps(), smoothed.len());
+        let pushed =
+            curves.push("|L| smoothed", "kg·m²/s", smoothed.iter().map(|l| l.length()).collect()).and_then(|()| {
+                curves.push("L along main", "kg·m²/s", smoothed.iter().map(|l| l.dot(main_direction)).collect())
+            });
+        pushed.map_err(|e| NodeError::Failed(e.to_string()))?;
+        ctx.set_output(&PHASE_CURVES, Arc::new(curves));
         let secs =
             |r: Option<crate::model::FrameRange>| r.map(|r| [r.start as f64 / clip.fps(), r.end as f64 / clip.fps()]);
         ctx.set_output(
