@@ -258,12 +258,12 @@ fn phase_curves_agree_with_the_phases() {
     assert_eq!(along.len(), magnitude.len());
     let m = phases.main_frame;
     assert!((along[m] - magnitude[m]).abs() < 1e-9 && magnitude[m] > 0.0);
-    for f in phases.main.start..phases.main.end {
-        assert!(along[f] >= 0.0, "main frame {f}: {}", along[f]);
+    for (f, a) in along.iter().enumerate().take(phases.main.end).skip(phases.main.start) {
+        assert!(*a >= 0.0, "main frame {f}: {a}");
     }
     for range in [phases.preparatory, phases.posterior].into_iter().flatten() {
-        for f in range.start..range.end {
-            assert!(along[f] < 0.0, "frame {f} of {range:?}: {}", along[f]);
+        for (f, a) in along.iter().enumerate().take(range.end).skip(range.start) {
+            assert!(*a < 0.0, "frame {f} of {range:?}: {a}");
         }
     }
     assert!(along.iter().zip(&magnitude).all(|(a, m)| a.abs() <= m + 1e-9), "a projection never exceeds the length");
