@@ -266,7 +266,7 @@ impl Viewport {
                 self.playing = !self.playing;
             }
             let mut time = self.time_secs;
-            ui.spacing_mut().slider_width = (ui.available_width() - 330.0).max(120.0);
+            ui.spacing_mut().slider_width = (ui.available_width() - 440.0).max(120.0);
             let slider = ui.add(egui::Slider::new(&mut time, 0.0..=duration.max(1e-3)).suffix(" s").text("time"));
             if slider.changed() {
                 self.playing = false;
