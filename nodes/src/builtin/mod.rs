@@ -6,6 +6,7 @@ pub mod barnet;
 pub mod clip_edit;
 pub mod clip_io;
 pub mod contacts;
+pub mod ik;
 pub mod mannequin;
 pub mod mesh_io;
 pub mod momentum;
