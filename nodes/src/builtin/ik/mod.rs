@@ -6,3 +6,5 @@ pub mod solve;
 
 pub use rig::{Dof, DofKind, IkPose, IkRig, RigError};
 pub use solve::{IkSolver, SolveParams, SolveReport};
+pub mod retarget;
+pub mod scale;

@@ -213,12 +213,24 @@ impl IkRig {
     /// A pose of this rig from one frame's local rotations and translations.
     pub fn pose_from(&self, rotations: &[Quat], translations: &[Vec3]) -> IkPose {
         let mut pose = IkPose {
-            rotations: rotations.iter().map(|q| q.as_dquat()).collect(),
-            translations: translations.iter().map(|t| t.as_dvec3()).collect(),
+            rotations: vec![DQuat::IDENTITY; rotations.len()],
+            translations: vec![DVec3::ZERO; translations.len()],
             euler: vec![[0.0; 3]; self.rig_joint_count()],
         };
-        self.set_euler_from_rotations(&mut pose);
+        self.fill_pose(rotations, translations, &mut pose);
         pose
+    }
+
+    /// Overwrites `pose` (of this rig) with one frame's local rotations and translations,
+    /// without allocating.
+    pub fn fill_pose(&self, rotations: &[Quat], translations: &[Vec3], pose: &mut IkPose) {
+        for (d, q) in pose.rotations.iter_mut().zip(rotations) {
+            *d = q.as_dquat();
+        }
+        for (d, t) in pose.translations.iter_mut().zip(translations) {
+            *d = t.as_dvec3();
+        }
+        self.set_euler_from_rotations(pose);
     }
 
     /// Re-reads a pose's Euler angles from its rotations (after changing rotations).

@@ -85,8 +85,10 @@ pub struct IkSolver {
     /// Its eigenvectors (columns) and eigenvalues (squared singular values of `J √W`).
     basis: DMatrix<f64>,
     sigma_sq: DVector<f64>,
+    /// Damped inverse per eigen-direction.
+    inverse: DVector<f64>,
     /// Goal offsets `X_g − X`, stacked.
-    dx: DVector<f64>,
+    pub(crate) dx: DVector<f64>,
     /// Goal offsets of a trial pose.
     trial_dx: DVector<f64>,
     /// `(J W Jᵀ + Λ²)⁻¹ dX`.
@@ -114,6 +116,7 @@ impl IkSolver {
             jwjt: DMatrix::zeros(m, m),
             basis: DMatrix::zeros(m, m),
             sigma_sq: DVector::zeros(m),
+            inverse: DVector::zeros(m),
             dx: DVector::zeros(m),
             trial_dx: DVector::zeros(m),
             y: DVector::zeros(m),
@@ -191,13 +194,12 @@ impl IkSolver {
         &self.jt
     }
 
-    /// Builds `W Jᵀ` and the eigen-decomposition of `J W Jᵀ`, then solves
-    /// `y = (J W Jᵀ + Λ²)⁻¹ dX` with the damping `Λ` applied per singular direction
-    /// (selectively: only directions whose singular value is under the threshold are
-    /// damped). The threshold is `singular` in metres per radian, or, when `relative`, a
-    /// fraction of the largest singular value. Returns the dexterity `σ_min / σ_max` of
-    /// `J √W`.
-    pub(crate) fn damped_solve(&mut self, singular: f64, max_damping: f64, relative: bool) -> f64 {
+    /// Builds `W Jᵀ` and the eigen-decomposition of `J W Jᵀ`, and the per-direction
+    /// inverse `1 / (σ² + λ²)` with the damping `λ` applied only to singular directions of
+    /// `J √W` whose singular value is under the threshold (selective damping). The threshold
+    /// is `singular` in metres per radian, or, when `relative`, a fraction of the largest
+    /// singular value. Returns the dexterity `σ_min / σ_max` of `J √W`.
+    pub(crate) fn decompose(&mut self, singular: f64, max_damping: f64, relative: bool) -> f64 {
         self.wjt.copy_from(&self.jt);
         for (mut row, w) in self.wjt.row_iter_mut().zip(&self.weights) {
             row *= *w;
@@ -215,7 +217,6 @@ impl IkSolver {
         }
         let s_max = self.sigma_sq.max().max(0.0).sqrt();
         let s_min = self.sigma_sq.min().max(0.0).sqrt();
-        self.y.fill(0.0);
         for i in 0..self.sigma_sq.len() {
             let s = self.sigma_sq[i].max(0.0).sqrt();
             let measure = if relative { if s_max > 0.0 { s / s_max } else { 0.0 } } else { s };
@@ -226,14 +227,20 @@ impl IkSolver {
                 0.0
             };
             let denom = s * s + lambda_sq;
-            if denom > 1e-300 {
-                let u = self.basis.column(i);
-                let coef = u.dot(&self.dx) / denom;
-                self.y.axpy(coef, &u, 1.0);
-            }
+            self.inverse[i] = if denom > 1e-300 { denom.recip() } else { 0.0 };
         }
-        self.step.gemv(1.0, &self.wjt, &self.y, 0.0);
         if s_max > 0.0 { s_min / s_max } else { 0.0 }
+    }
+
+    /// `out = J⁺ rhs` with the last [`IkSolver::decompose`] (`rhs` has one row per task row).
+    pub(crate) fn apply_pinv(&mut self, rhs: &DVector<f64>, out: &mut DVector<f64>) {
+        self.y.fill(0.0);
+        for i in 0..self.inverse.len() {
+            let u = self.basis.column(i);
+            let coef = u.dot(rhs) * self.inverse[i];
+            self.y.axpy(coef, &u, 1.0);
+        }
+        out.gemv(1.0, &self.wjt, &self.y, 0.0);
     }
 
     /// Forward kinematics only: the goal offsets of `pose` into `trial_dx`; returns the
@@ -259,7 +266,10 @@ impl IkSolver {
         let mut error = self.linearise(pose, goals);
         while error > params.tolerance_m && iterations < params.max_iterations {
             iterations += 1;
-            self.damped_solve(params.singular_m, params.max_damping_m, false);
+            self.decompose(params.singular_m, params.max_damping_m, false);
+            let (dx, mut step) = (std::mem::take(&mut self.dx), std::mem::take(&mut self.step));
+            self.apply_pinv(&dx, &mut step);
+            (self.dx, self.step) = (dx, step);
             // The motion the linear model predicts for the full step: J · step.
             self.motion.gemv_tr(1.0, &self.jt, &self.step, 0.0);
             for d in 0..self.start.len() {
