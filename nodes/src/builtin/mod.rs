@@ -24,6 +24,7 @@ pub fn register(registry: &mut Registry) {
     scalar::register(registry);
     mannequin::register(registry);
     contacts::register(registry);
+    ik::register(registry);
     momentum::register(registry);
     arm::register(registry);
     skin::register(registry);

@@ -8,3 +8,12 @@ pub use rig::{Dof, DofKind, IkPose, IkRig, RigError};
 pub use solve::{IkSolver, SolveParams, SolveReport};
 pub mod retarget;
 pub mod scale;
+
+use crate::node::Registry;
+
+/// Registers the IK family's nodes.
+pub fn register(registry: &mut Registry) {
+    registry.add(Box::new(solve::IkSolve));
+    registry.add(Box::new(scale::ScaleSkeleton));
+    registry.add(Box::new(retarget::RetargetOnline));
+}

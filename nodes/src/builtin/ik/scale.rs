@@ -10,6 +10,7 @@ use std::sync::Arc;
 use glam::Vec3;
 
 use crate::model::{Clip, ClipError, Skeleton, SkeletonError};
+use crate::node::{FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, TextParam};
 
 /// Why a scale rule list is rejected.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -86,6 +87,52 @@ pub fn scale_clip(clip: &Clip, uniform: f32, rules: &[(String, f32)]) -> Result<
         .map(|(i, t)| if i % joints == 0 { *t * root_ratio } else { *t * factors[i % joints] })
         .collect();
     Ok(Clip::new(skeleton, clip.fps(), clip.rotations().to_vec(), translations, clip.import_scale)?)
+}
+
+const CLIP: Input<Arc<Clip>> = Input::required("clip", "The clip whose skeleton to resize.");
+const SCALED: Output<Arc<Clip>> = Output::new(
+    "clip",
+    "The same motion on the resized skeleton: joint angles copied, the root path scaled by the change in hip height.",
+);
+const UNIFORM: FloatParam =
+    FloatParam::new("scale", "Factor for every bone no rule names (0.6 = 60 %).", 1.0, 0.01, 100.0, "");
+const RULES: TextParam = TextParam::new(
+    "bones",
+    "Per-bone factors, `NAME=FACTOR` separated by commas: a rule scales the bones that start at every joint whose name ends with NAME (longest match wins), e.g. `UpLeg=0.62, Leg=0.52`.",
+    "",
+);
+
+/// `skeleton.scale`.
+pub struct ScaleSkeleton;
+
+static SCALE_SKELETON: NodeSchema = NodeSchema {
+    kind: "skeleton.scale",
+    category: "skeleton",
+    doc: "Resizes a character bone by bone (non-uniformly), keeping its joint angles: makes test characters of other proportions.",
+    inputs: &[CLIP.spec()],
+    outputs: &[SCALED.spec()],
+    params: &[UNIFORM.0, RULES.0],
+    writes_files: false,
+};
+
+impl Node for ScaleSkeleton {
+    fn schema(&self) -> &'static NodeSchema {
+        &SCALE_SKELETON
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let clip = ctx.input(&CLIP)?;
+        let rules = parse_rules(ctx.text_param(&RULES)?).map_err(|e| NodeError::param("bones", e.to_string()))?;
+        let uniform = ctx.float(&UNIFORM)? as f32;
+        let unused: Vec<String> = rules
+            .iter()
+            .filter(|(suffix, _)| !clip.skeleton().joints().iter().any(|j| j.name.to_ascii_lowercase().ends_with(suffix.as_str())))
+            .map(|(suffix, _)| format!("bone rule `{suffix}` matches no joint"))
+            .collect();
+        ctx.warn_all(unused);
+        let scaled = scale_clip(&clip, uniform, &rules).map_err(|e| NodeError::param("bones", e.to_string()))?;
+        ctx.set_output(&SCALED, Arc::new(scaled));
+        Ok(())
+    }
 }
 
 #[cfg(test)]
