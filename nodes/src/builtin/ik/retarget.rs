@@ -28,8 +28,8 @@ use super::rig::{DofKind, IkPose, IkRig};
 use super::scale;
 use super::solve::IkSolver;
 use crate::builtin::momentum::body::{find_landmarks, limb_tip};
-use crate::model::fk::pose_world;
 use crate::builtin::momentum::into_report;
+use crate::model::fk::pose_world;
 use crate::model::{Clip, Contacts, FrameRange, Skeleton, Transform};
 use crate::node::{ChoiceParam, FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Report};
 use serde_json::json;
@@ -295,7 +295,13 @@ pub fn retarget_clip(
     let mut out_tr = Vec::with_capacity(frames * skeleton.len());
     let mut reports = Vec::with_capacity(frames);
     let plants: Vec<Plants> = match contacts {
-        Some(c) => c.feet.iter().zip(&tips).take(2).map(|(foot, &tip)| Plants::new(source, tip, &foot.intervals, blend_frames)).collect(),
+        Some(c) => c
+            .feet
+            .iter()
+            .zip(&tips)
+            .take(2)
+            .map(|(foot, &tip)| Plants::new(source, tip, &foot.intervals, blend_frames))
+            .collect(),
         None => Vec::new(),
     };
     for f in 0..frames {

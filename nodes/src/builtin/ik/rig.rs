@@ -98,10 +98,9 @@ impl IkRig {
         let mut path = vec![e];
         let mut j = e;
         while j != r {
-            j = self.skeleton.joints()[j].parent.ok_or_else(|| RigError::NotAChain {
-                root: root.to_owned(),
-                end: end.to_owned(),
-            })?;
+            j = self.skeleton.joints()[j]
+                .parent
+                .ok_or_else(|| RigError::NotAChain { root: root.to_owned(), end: end.to_owned() })?;
             path.push(j);
         }
         path.reverse();

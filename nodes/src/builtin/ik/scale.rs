@@ -58,8 +58,12 @@ pub fn bone_factors(skeleton: &Skeleton, uniform: f32, rules: &[(String, f32)]) 
 
 /// The skeleton with every bone scaled by its factor (see [`bone_factors`]).
 pub fn scale_skeleton(skeleton: &Skeleton, factors: &[f32]) -> Result<Skeleton, SkeletonError> {
-    let joints =
-        skeleton.joints().iter().zip(factors).map(|(j, f)| crate::model::Joint { rest_offset: j.rest_offset * *f, ..j.clone() }).collect();
+    let joints = skeleton
+        .joints()
+        .iter()
+        .zip(factors)
+        .map(|(j, f)| crate::model::Joint { rest_offset: j.rest_offset * *f, ..j.clone() })
+        .collect();
     Skeleton::new(joints)
 }
 
@@ -125,7 +129,9 @@ impl Node for ScaleSkeleton {
         let uniform = ctx.float(&UNIFORM)? as f32;
         let unused: Vec<String> = rules
             .iter()
-            .filter(|(suffix, _)| !clip.skeleton().joints().iter().any(|j| j.name.to_ascii_lowercase().ends_with(suffix.as_str())))
+            .filter(|(suffix, _)| {
+                !clip.skeleton().joints().iter().any(|j| j.name.to_ascii_lowercase().ends_with(suffix.as_str()))
+            })
             .map(|(suffix, _)| format!("bone rule `{suffix}` matches no joint"))
             .collect();
         ctx.warn_all(unused);

@@ -345,7 +345,11 @@ fn parse_goals(text: &str) -> Result<Vec<DVec3>, String> {
         .map(str::trim)
         .filter(|g| !g.is_empty())
         .map(|g| {
-            let v: Vec<f64> = g.split_whitespace().map(str::parse).collect::<Result<_, _>>().map_err(|_| format!("`{g}` is not three numbers"))?;
+            let v: Vec<f64> = g
+                .split_whitespace()
+                .map(str::parse)
+                .collect::<Result<_, _>>()
+                .map_err(|_| format!("`{g}` is not three numbers"))?;
             match v.as_slice() {
                 [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(DVec3::new(*x, *y, *z)),
                 _ => Err(format!("`{g}` is not three finite numbers")),
@@ -372,7 +376,11 @@ fn parse_weights(text: &str) -> Result<Vec<(String, f64)>, String> {
 
 /// Builds the rig of an `ik.solve` node: each chain's joints turn about three axes with the
 /// given weights (1 where none is given).
-pub fn chains_rig(skeleton: &Arc<Skeleton>, chains: &[ChainSpec], weights: &[(String, f64)]) -> Result<IkRig, RigError> {
+pub fn chains_rig(
+    skeleton: &Arc<Skeleton>,
+    chains: &[ChainSpec],
+    weights: &[(String, f64)],
+) -> Result<IkRig, RigError> {
     let mut rig = IkRig::new(skeleton.clone());
     for (name, _) in weights {
         rig.joint(name)?;
@@ -409,7 +417,8 @@ pub fn solve_clip(
         reports.push(solver.solve(&mut pose, &frame_goals, params));
         solver.rig().rotations_of(&pose, &mut rotations[f * joints..(f + 1) * joints]);
     }
-    let out = Clip::new(clip.skeleton().clone(), clip.fps(), rotations, clip.translations().to_vec(), clip.import_scale)?;
+    let out =
+        Clip::new(clip.skeleton().clone(), clip.fps(), rotations, clip.translations().to_vec(), clip.import_scale)?;
     Ok((out, reports))
 }
 
@@ -462,7 +471,8 @@ impl Node for IkSolve {
             return Err(NodeError::param("chains", "name at least one chain, e.g. `LeftUpLeg>LeftToeBase`"));
         }
         let weights = parse_weights(ctx.text_param(&WEIGHTS)?).map_err(|e| NodeError::param("weights", e))?;
-        let rig = chains_rig(clip.skeleton(), &chains, &weights).map_err(|e| NodeError::param("chains", e.to_string()))?;
+        let rig =
+            chains_rig(clip.skeleton(), &chains, &weights).map_err(|e| NodeError::param("chains", e.to_string()))?;
         let params = SolveParams {
             tolerance_m: ctx.float(&TOLERANCE)?,
             max_iterations: usize::try_from(ctx.int(&ITERATIONS)?).unwrap_or(1),
@@ -471,27 +481,41 @@ impl Node for IkSolve {
         let result = match &curves {
             Some(c) => {
                 if c.frame_count() != clip.frame_count() {
-                    return Err(NodeError::input("targets", "the goal curves and the clip have different frame counts"));
+                    return Err(NodeError::input(
+                        "targets",
+                        "the goal curves and the clip have different frame counts",
+                    ));
                 }
                 let mut paths = Vec::new();
                 for chain in &chains {
                     let axis = |a: &str| {
                         c.channel(&format!("{}.{a}", chain.end)).map(|ch| ch.values.clone()).ok_or_else(|| {
-                            NodeError::input("targets", format!("no channel `{}.{a}` for chain end `{}`", chain.end, chain.end))
+                            NodeError::input(
+                                "targets",
+                                format!("no channel `{}.{a}` for chain end `{}`", chain.end, chain.end),
+                            )
                         })
                     };
                     paths.push([axis("x")?, axis("y")?, axis("z")?]);
                 }
-                solve_clip(&clip, rig, |f, out| {
-                    for (o, p) in out.iter_mut().zip(&paths) {
-                        *o = DVec3::new(p[0][f], p[1][f], p[2][f]);
-                    }
-                }, &params)
+                solve_clip(
+                    &clip,
+                    rig,
+                    |f, out| {
+                        for (o, p) in out.iter_mut().zip(&paths) {
+                            *o = DVec3::new(p[0][f], p[1][f], p[2][f]);
+                        }
+                    },
+                    &params,
+                )
             }
             None => {
                 let goals = parse_goals(ctx.text_param(&GOALS)?).map_err(|e| NodeError::param("goals", e))?;
                 if goals.len() != chains.len() {
-                    return Err(NodeError::param("goals", format!("{} goals for {} chains", goals.len(), chains.len())));
+                    return Err(NodeError::param(
+                        "goals",
+                        format!("{} goals for {} chains", goals.len(), chains.len()),
+                    ));
                 }
                 solve_clip(&clip, rig, |_, out| out.copy_from_slice(&goals), &params)
             }
@@ -501,7 +525,10 @@ impl Node for IkSolve {
         let residuals: Vec<f64> = reports.iter().map(|r| r.residual_m).collect();
         let unconverged = reports.iter().filter(|r| !r.converged).count();
         if unconverged > 0 {
-            ctx.warn(format!("{unconverged} of {} frames did not reach their goals (out of reach or limited)", reports.len()));
+            ctx.warn(format!(
+                "{unconverged} of {} frames did not reach their goals (out of reach or limited)",
+                reports.len()
+            ));
         }
         ctx.set_output(
             &SOLVE_REPORT,
