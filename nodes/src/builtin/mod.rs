@@ -6,6 +6,7 @@ pub mod barnet;
 pub mod clip_edit;
 pub mod clip_io;
 pub mod contacts;
+pub mod ik;
 pub mod mannequin;
 pub mod mesh_io;
 pub mod momentum;
@@ -23,6 +24,7 @@ pub fn register(registry: &mut Registry) {
     scalar::register(registry);
     mannequin::register(registry);
     contacts::register(registry);
+    ik::register(registry);
     momentum::register(registry);
     arm::register(registry);
     skin::register(registry);

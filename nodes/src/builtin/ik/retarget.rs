@@ -1,0 +1,531 @@
+//! Online motion retargeting by inverse rate control (Choi & Ko 2000).
+//!
+//! Per frame `n`, with the end-effector goals `x₁ᵈ(n)` (primary task) and the source's joint
+//! angles `θ_src(n)` (secondary task):
+//!
+//! `Δθ = J⁺ K₁ (x₁ᵈ(n) − x₁(θ(n−1))) + (I − J⁺J) K₂ (θ_src(n) − θ(n−1))`
+//!
+//! 1. The closed-loop primary error is clamped to `max_task_step_m` per effector (update
+//!    clamping: a goal that jumps does not throw the body).
+//! 2. `J⁺` is the weighted damped pseudo-inverse of [`IkSolver`]; the damping grows where
+//!    the dexterity `σ / σ_max` of a direction falls below `dexterity` (the gains are
+//!    lowered in the near-singular directions only).
+//! 3. The secondary task moves only in the primary task's null space, so the source's
+//!    style is kept wherever the goals leave freedom.
+//! 4. `Δθ` is clamped to `max_angle_step_rad` per DOF, then to the joint limits.
+//!
+//! The kernel holds one pose and fixed buffers: it consumes a stream one frame at a time in
+//! constant memory.
+
+use std::sync::Arc;
+
+use glam::{DVec3, Quat, Vec3};
+use nalgebra::DVector;
+
+use std::f64::consts::PI;
+
+use super::rig::{DofKind, IkPose, IkRig};
+use super::scale;
+use super::solve::IkSolver;
+use crate::builtin::momentum::body::{find_landmarks, limb_tip};
+use crate::builtin::momentum::into_report;
+use crate::model::fk::pose_world;
+use crate::model::{Clip, Contacts, FrameRange, Skeleton, Transform};
+use crate::node::{ChoiceParam, FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Report};
+use serde_json::json;
+
+/// Gains and clamps of the online retargeting filter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RetargetParams {
+    /// Primary gain `K₁` (1 = the paper's `I`, best tracking).
+    pub primary_gain: f64,
+    /// Secondary gain `K₂` (1 = the paper's `I`).
+    pub secondary_gain: f64,
+    /// Directions whose singular value is below this fraction of the largest are damped.
+    pub dexterity: f64,
+    /// Damping at an exact singularity (metres per radian).
+    pub max_damping_m: f64,
+    /// Largest primary error fed back in one frame, per effector (metres).
+    pub max_task_step_m: f64,
+    /// Largest change of one DOF in one frame (radians, or metres for the root).
+    pub max_angle_step_rad: f64,
+    /// Extra primary-only corrections per frame (0 = the paper's single update).
+    pub extra_iterations: usize,
+    /// Time over which a planted foot's goal blends in and out at contact edges (seconds).
+    pub plant_blend_secs: f64,
+    /// Updates run on the first frame before the stream starts, so it begins on its goals.
+    pub settle_iterations: usize,
+}
+
+impl Default for RetargetParams {
+    fn default() -> Self {
+        RetargetParams {
+            primary_gain: 1.0,
+            secondary_gain: 1.0,
+            dexterity: 0.02,
+            max_damping_m: 0.02,
+            max_task_step_m: 0.25,
+            max_angle_step_rad: 0.2,
+            extra_iterations: 0,
+            settle_iterations: 100,
+            plant_blend_secs: 0.05,
+        }
+    }
+}
+
+/// What one frame's update did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameReport {
+    /// Largest effector error after the update (metres).
+    pub error_m: f64,
+    /// Dexterity `σ_min / σ_max` of the weighted Jacobian at the frame.
+    pub dexterity: f64,
+}
+
+/// The streaming retargeting filter: feed it frames with [`OnlineRetargeter::step`].
+#[derive(Clone, Debug)]
+pub struct OnlineRetargeter {
+    solver: IkSolver,
+    params: RetargetParams,
+    pose: IkPose,
+    primary: DVector<f64>,
+    secondary: DVector<f64>,
+    projected: DVector<f64>,
+    j_secondary: DVector<f64>,
+    goals: Vec<DVec3>,
+    reached: Vec<DVec3>,
+}
+
+impl OnlineRetargeter {
+    /// A filter over `rig` starting from `initial` (the target's first pose).
+    pub fn new(rig: IkRig, initial: IkPose, params: RetargetParams) -> Self {
+        let n = rig.dofs().len();
+        let m = 3 * rig.effectors().len();
+        OnlineRetargeter {
+            goals: vec![DVec3::ZERO; rig.effectors().len()],
+            reached: vec![DVec3::ZERO; rig.effectors().len()],
+            solver: IkSolver::new(rig),
+            params,
+            pose: initial,
+            primary: DVector::zeros(n),
+            secondary: DVector::zeros(n),
+            projected: DVector::zeros(n),
+            j_secondary: DVector::zeros(m),
+        }
+    }
+
+    /// The current (last output) pose.
+    pub fn pose(&self) -> &IkPose {
+        &self.pose
+    }
+
+    /// The rig.
+    pub fn rig(&self) -> &IkRig {
+        self.solver.rig()
+    }
+
+    /// Heap bytes held by the filter's buffers: constant over a stream.
+    pub fn buffer_bytes(&self) -> usize {
+        let f = std::mem::size_of::<f64>();
+        (self.primary.len() + self.secondary.len() + self.projected.len() + self.j_secondary.len()) * f
+            + (self.goals.capacity() + self.reached.capacity()) * std::mem::size_of::<DVec3>()
+            + self.pose.rotations.capacity() * std::mem::size_of::<glam::DQuat>()
+            + self.pose.translations.capacity() * std::mem::size_of::<DVec3>()
+            + self.pose.euler.capacity() * 3 * f
+    }
+
+    /// One frame: `source` is the source pose on the target rig (its DOF values are the
+    /// secondary task, its non-rig joints are copied), `goals` the effector positions.
+    pub fn step(&mut self, source: &IkPose, goals: &[DVec3]) -> FrameReport {
+        let p = self.params;
+        // Joints outside the rig follow the source directly.
+        self.pose.rotations.clone_from_slice(&source.rotations);
+        for (g, goal) in self.goals.iter_mut().zip(goals) {
+            *g = *goal;
+        }
+        let rig_dofs = self.solver.rig().dofs().len();
+        let mut dexterity = 0.0;
+        for pass in 0..=p.extra_iterations {
+            self.solver.linearise(&self.pose, &self.goals);
+            // Update clamp and K₁ on the primary error.
+            for e in 0..self.goals.len() {
+                let mut d = DVec3::new(self.solver.dx[3 * e], self.solver.dx[3 * e + 1], self.solver.dx[3 * e + 2]);
+                let len = d.length();
+                if len > p.max_task_step_m {
+                    d *= p.max_task_step_m / len;
+                }
+                for k in 0..3 {
+                    self.solver.dx[3 * e + k] = p.primary_gain * d[k];
+                }
+            }
+            dexterity = self.solver.decompose(p.dexterity, p.max_damping_m, true);
+            let dx = std::mem::replace(&mut self.solver.dx, DVector::zeros(0));
+            self.solver.apply_pinv(&dx, &mut self.primary);
+            self.solver.dx = dx;
+            if pass == 0 {
+                // Secondary task projected on the null space: z − J⁺ (J z).
+                for d in 0..rig_dofs {
+                    let rig = self.solver.rig();
+                    let diff = rig.dof_value(source, d) - rig.dof_value(&self.pose, d);
+                    // Angles the shorter way round (Euler angles wrap at ±π).
+                    let diff = match rig.dofs()[d].kind {
+                        DofKind::Rotation { .. } => (diff + PI).rem_euclid(2.0 * PI) - PI,
+                        DofKind::Translation { .. } => diff,
+                    };
+                    self.secondary[d] = p.secondary_gain * diff;
+                }
+                self.j_secondary.gemv_tr(1.0, self.solver.jacobian_transposed(), &self.secondary, 0.0);
+                let js = std::mem::replace(&mut self.j_secondary, DVector::zeros(0));
+                self.solver.apply_pinv(&js, &mut self.projected);
+                self.j_secondary = js;
+                self.primary += &self.secondary;
+                self.primary -= &self.projected;
+            }
+            for d in 0..rig_dofs {
+                let delta = self.primary[d].clamp(-p.max_angle_step_rad, p.max_angle_step_rad);
+                let value = self.solver.rig().dof_value(&self.pose, d) + delta;
+                self.solver.rig().set_dof(&mut self.pose, d, value);
+            }
+        }
+        self.solver.effector_positions(&self.pose, &mut self.reached);
+        let error_m = self.reached.iter().zip(&self.goals).map(|(r, g)| (*r - *g).length()).fold(0.0, f64::max);
+        FrameReport { error_m, dexterity }
+    }
+}
+
+/// Which effectors a clip retarget tracks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Effectors {
+    /// Both toe tips (Choi & Ko's walking experiment).
+    Feet,
+    /// Both toe tips and both hands.
+    FeetAndHands,
+}
+
+/// A clip retargeted onto another skeleton, with one report per frame.
+#[derive(Clone, Debug)]
+pub struct Retargeted {
+    /// The target clip.
+    pub clip: Clip,
+    /// Per-frame error and dexterity.
+    pub frames: Vec<FrameReport>,
+    /// The effector joints of the target, in task order.
+    pub effectors: Vec<usize>,
+}
+
+/// Why a clip cannot be retargeted.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum RetargetError {
+    /// The target skeleton lacks a joint of the source.
+    #[error("the target skeleton has no joint `{0}` (the source and target must share joint names)")]
+    MissingJoint(String),
+    /// Feet or hands not found by name.
+    #[error("could not find the limbs by joint name (missing: {0})")]
+    Landmarks(String),
+    /// Building the rig failed.
+    #[error(transparent)]
+    Rig(#[from] super::rig::RigError),
+    /// Building the clip failed.
+    #[error(transparent)]
+    Clip(#[from] crate::model::ClipError),
+}
+
+/// The retargeting rig over a target skeleton: the root translates, every joint between the
+/// root and the chosen tips turns about three axes, the tips are the effectors.
+pub fn retarget_rig(skeleton: &Arc<Skeleton>, effectors: Effectors) -> Result<IkRig, RetargetError> {
+    let landmarks = find_landmarks(skeleton).map_err(|m| RetargetError::Landmarks(m.join(", ")))?;
+    let mut tips: Vec<usize> = landmarks.feet().iter().map(|&f| limb_tip(skeleton, f)).collect();
+    if effectors == Effectors::FeetAndHands {
+        tips.extend(landmarks.limbs.iter().map(|side| limb_tip(skeleton, side[5])));
+    }
+    let mut rig = IkRig::new(skeleton.clone());
+    rig.add_root_translation(1.0);
+    let root = skeleton.joints()[0].name.clone();
+    for &tip in &tips {
+        // The root's orientation follows the source (heading is free in a walk, and an
+        // Euler root would meet gimbal lock at ±90° of heading); the joints below it turn.
+        let path = rig.chain_joints(&root, &skeleton.joints()[tip].name)?;
+        for &j in path.iter().take(path.len() - 1).skip(1) {
+            rig.add_joint(j, [true; 3], 1.0);
+        }
+        rig.add_effector(tip);
+    }
+    Ok(rig.finish()?)
+}
+
+/// Retargets `source` onto the skeleton of `target` (a clip whose joints have the source's
+/// names, e.g. from `skeleton.scale`; its first frame is the start pose, settled on the
+/// first goals). The effectors follow the source's tips unmodified; while a foot is in
+/// contact (`contacts`, from the source) its goal is held at one horizontal place (see
+/// [`Plants`]), so the stance foot is the fixed base the body moves about, and base and
+/// swing foot switch at contact boundaries. The root's secondary task is the
+/// source root path scaled by the ratio of root heights.
+pub fn retarget_clip(
+    source: &Clip,
+    target: &Clip,
+    contacts: Option<&Contacts>,
+    effectors: Effectors,
+    params: RetargetParams,
+) -> Result<Retargeted, RetargetError> {
+    let blend_frames = (params.plant_blend_secs * source.fps()).round().max(1.0) as usize;
+    let skeleton = target.skeleton();
+    let map: Vec<usize> = skeleton
+        .joints()
+        .iter()
+        .map(|j| source.skeleton().index_of(&j.name).ok_or_else(|| RetargetError::MissingJoint(j.name.clone())))
+        .collect::<Result<_, _>>()?;
+    let rig = retarget_rig(skeleton, effectors)?;
+    let tips: Vec<usize> = rig.effectors().iter().map(|&e| map[e]).collect();
+    let effector_joints = rig.effectors().to_vec();
+    let ratio = {
+        let (h0, h1) = (scale::root_height(source.skeleton()), scale::root_height(skeleton));
+        if h0 > 1e-6 { h1 / h0 } else { 1.0 }
+    };
+    let rest: Vec<Vec3> = skeleton.joints().iter().map(|j| j.rest_offset).collect();
+    let frames = source.frame_count();
+    // Per-frame scratch, allocated once.
+    let mut rotations = vec![Quat::IDENTITY; skeleton.len()];
+    let mut translations = rest.clone();
+    let mut source_world = vec![Transform::IDENTITY; source.joint_count()];
+    let mut goals = vec![DVec3::ZERO; tips.len()];
+    let initial = rig.pose_from(target.frame_rotations(0), target.frame_translations(0));
+    let mut source_pose = initial.clone();
+    let mut filter = OnlineRetargeter::new(rig, initial, params);
+    let mut out_rot = Vec::with_capacity(frames * skeleton.len());
+    let mut out_tr = Vec::with_capacity(frames * skeleton.len());
+    let mut reports = Vec::with_capacity(frames);
+    let plants: Vec<Plants> = match contacts {
+        Some(c) => c
+            .feet
+            .iter()
+            .zip(&tips)
+            .take(2)
+            .map(|(foot, &tip)| Plants::new(source, tip, &foot.intervals, blend_frames))
+            .collect(),
+        None => Vec::new(),
+    };
+    for f in 0..frames {
+        pose_world(source.skeleton(), source.frame_rotations(f), source.frame_translations(f), &mut source_world);
+        for (t, &s) in map.iter().enumerate() {
+            rotations[t] = source.frame_rotations(f)[s];
+        }
+        translations[0] = source.frame_translations(f)[map[0]] * ratio;
+        filter.rig().fill_pose(&rotations, &translations, &mut source_pose);
+        for (k, &tip) in tips.iter().enumerate() {
+            let here = source_world[tip].translation.as_dvec3();
+            goals[k] = match plants.get(k).and_then(|p| p.at(f)) {
+                // Planted: the toe is drawn to its planted place, its height follows the source.
+                Some((place, w)) => here.lerp(place.with_y(here.y), w),
+                None => here,
+            };
+        }
+        if f == 0 {
+            // Start on the first frame's goals: the stream's first pose is solved fully.
+            for _ in 0..params.settle_iterations {
+                filter.step(&source_pose, &goals);
+            }
+        }
+        reports.push(filter.step(&source_pose, &goals));
+        let pose = filter.pose();
+        let start = out_rot.len();
+        out_rot.resize(start + skeleton.len(), Quat::IDENTITY);
+        filter.rig().rotations_of(pose, &mut out_rot[start..]);
+        out_tr.extend(rest.iter().enumerate().map(|(j, r)| if j == 0 { pose.translations[0].as_vec3() } else { *r }));
+    }
+    let clip = Clip::new(skeleton.clone(), source.fps(), out_rot, out_tr, target.import_scale)?;
+    Ok(Retargeted { clip, frames: reports, effectors: effector_joints })
+}
+
+/// Where a point is planted during each contact of one foot, and how strongly at a frame.
+///
+/// The place is the point's horizontal position at the frame of the interval where it is
+/// lowest (the moment it is surely down: contacts begin at heel strike, while the toe may
+/// still be moving). The weight ramps linearly from 0 to 1 over `blend` frames at both
+/// edges of the interval, so goals do not jump.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plants {
+    spans: Vec<(FrameRange, DVec3)>,
+    blend: usize,
+}
+
+impl Plants {
+    /// The planted places of joint `point` of `clip` over `intervals`.
+    pub fn new(clip: &Clip, point: usize, intervals: &[FrameRange], blend: usize) -> Self {
+        let mut world = vec![Transform::IDENTITY; clip.joint_count()];
+        let mut at = |f: usize| {
+            pose_world(clip.skeleton(), clip.frame_rotations(f), clip.frame_translations(f), &mut world);
+            world[point].translation.as_dvec3()
+        };
+        let spans = intervals
+            .iter()
+            .filter(|r| r.end > r.start && r.end <= clip.frame_count())
+            .map(|r| {
+                let place = (r.start..r.end).map(&mut at).min_by(|a, b| a.y.total_cmp(&b.y)).unwrap_or_default();
+                (*r, place)
+            })
+            .collect();
+        Plants { spans, blend: blend.max(1) }
+    }
+
+    /// The planted place and its weight in (0, 1] at `frame`, if the point is planted.
+    pub fn at(&self, frame: usize) -> Option<(DVec3, f64)> {
+        let (r, place) = self.spans.iter().find(|(r, _)| r.contains(frame))?;
+        let from_edge = (frame - r.start + 1).min(r.end - frame);
+        Some((*place, (from_edge as f64 / self.blend as f64).min(1.0)))
+    }
+}
+
+const SOURCE: Input<Arc<Clip>> = Input::required("source", "The captured motion to carry over.");
+const TARGET: Input<Arc<Clip>> = Input::required(
+    "target",
+    "A clip on the character to animate (joint names as in the source, e.g. from skeleton.scale); its first frame is the start pose.",
+);
+const CONTACTS: Input<Arc<Contacts>> = Input::optional(
+    "contacts",
+    "Foot contacts of the source (motion.contacts): planted feet stay put and serve as the base the body moves about.",
+);
+const RETARGETED: Output<Arc<Clip>> = Output::new("clip", "The motion on the target character.");
+const REPORT: Output<Arc<Report>> =
+    Output::new("report", "Effector tracking error per frame and the smallest dexterity met.");
+const TRACK: ChoiceParam = ChoiceParam::new(
+    "effectors",
+    "Which tips follow the source exactly: the toe tips, or the toe tips and the hands.",
+    &["feet", "feet_and_hands"],
+    "feet",
+);
+const GAIN: FloatParam = FloatParam::new(
+    "imitation_gain",
+    "How strongly the joints are pulled toward the source's angles where the tips leave freedom (K₂; 1 = fully each frame).",
+    1.0,
+    0.0,
+    1.0,
+    "",
+);
+const DEXTERITY: FloatParam = FloatParam::new(
+    "dexterity",
+    "Near-straight limbs are eased (damped) when a direction's dexterity σ/σ_max falls below this.",
+    0.02,
+    0.0,
+    1.0,
+    "",
+);
+const MAX_ANGLE_STEP: FloatParam = FloatParam::new(
+    "max_angle_step_rad",
+    "Largest change of one joint angle in one frame (update clamp).",
+    0.2,
+    0.001,
+    3.2,
+    "rad",
+);
+
+/// `retarget.online`.
+pub struct RetargetOnline;
+
+static RETARGET_ONLINE: NodeSchema = NodeSchema {
+    kind: "retarget.online",
+    category: "retarget",
+    doc: "Carries a captured motion onto a character of other proportions frame by frame (Choi & Ko's online retargeting): the toe tips follow the source, the joints imitate its angles, planted feet do not slide.",
+    inputs: &[SOURCE.spec(), TARGET.spec(), CONTACTS.spec()],
+    outputs: &[RETARGETED.spec(), REPORT.spec()],
+    params: &[TRACK.0, GAIN.0, DEXTERITY.0, MAX_ANGLE_STEP.0],
+    writes_files: false,
+};
+
+impl Node for RetargetOnline {
+    fn schema(&self) -> &'static NodeSchema {
+        &RETARGET_ONLINE
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let source = ctx.input(&SOURCE)?;
+        let target = ctx.input(&TARGET)?;
+        let contacts = ctx.optional_input(&CONTACTS)?;
+        if let Some(c) = &contacts
+            && c.frame_count != source.frame_count()
+        {
+            return Err(NodeError::input("contacts", "the contacts were found on another clip (frame counts differ)"));
+        }
+        let effectors = if ctx.choice(&TRACK)? == "feet_and_hands" { Effectors::FeetAndHands } else { Effectors::Feet };
+        let params = RetargetParams {
+            secondary_gain: ctx.float(&GAIN)?,
+            dexterity: ctx.float(&DEXTERITY)?,
+            max_angle_step_rad: ctx.float(&MAX_ANGLE_STEP)?,
+            ..RetargetParams::default()
+        };
+        let out = retarget_clip(&source, &target, contacts.as_deref(), effectors, params).map_err(|e| match e {
+            RetargetError::MissingJoint(_) | RetargetError::Landmarks(_) => NodeError::input("target", e.to_string()),
+            _ => NodeError::input("source", e.to_string()),
+        })?;
+        let errors: Vec<f64> = out.frames.iter().map(|r| r.error_m).collect();
+        let max = errors.iter().copied().fold(0.0, f64::max);
+        let mean = errors.iter().sum::<f64>() / errors.len().max(1) as f64;
+        let dexterity = out.frames.iter().map(|r| r.dexterity).fold(f64::INFINITY, f64::min);
+        ctx.set_output(
+            &REPORT,
+            Arc::new(into_report(json!({
+                "max_error_m": max,
+                "mean_error_m": mean,
+                "min_dexterity": if dexterity.is_finite() { dexterity } else { 0.0 },
+                "error_m_per_frame": errors,
+            }))),
+        );
+        ctx.set_output(&RETARGETED, Arc::new(out.clip));
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Joint;
+
+    /// A long synthetic stream (a leg swinging for 100 000 frames): the filter's buffers do
+    /// not grow, and it keeps tracking.
+    #[test]
+    fn a_long_stream_runs_in_constant_memory() {
+        let skeleton = Arc::new(
+            Skeleton::new(vec![
+                Joint::new("Hips", None, Vec3::new(0.0, 0.9, 0.0)),
+                Joint::new("LeftUpLeg", Some(0), Vec3::new(0.1, 0.0, 0.0)),
+                Joint::new("LeftLeg", Some(1), Vec3::new(0.0, -0.45, 0.0)),
+                Joint::new("LeftFoot", Some(2), Vec3::new(0.0, -0.4, 0.0)),
+                Joint::new("LeftToe", Some(3), Vec3::new(0.0, -0.05, 0.12)),
+            ])
+            .unwrap(),
+        );
+        let mut rig = IkRig::new(skeleton.clone());
+        rig.add_root_translation(1.0);
+        for j in 1..4 {
+            rig.add_joint(j, [true; 3], 1.0);
+        }
+        rig.add_effector(4);
+        let rig = rig.finish().unwrap();
+        let rest: Vec<Vec3> = skeleton.joints().iter().map(|j| j.rest_offset).collect();
+        let rotations = vec![Quat::IDENTITY; 5];
+        let initial = rig.pose_from(&rotations, &rest);
+        let mut source = initial.clone();
+        let mut filter = OnlineRetargeter::new(rig, initial, RetargetParams::default());
+        let bytes = filter.buffer_bytes();
+        let mut worst = 0.0f64;
+        for f in 0..100_000 {
+            let t = f as f64 / 120.0;
+            let goal = DVec3::new(0.1, 0.05 + 0.05 * (3.0 * t).sin().max(0.0), 0.12 + 0.2 * (3.0 * t).sin());
+            source.euler[0][0] = 0.3 * (3.0 * t).sin();
+            let report = filter.step(&source, &[goal]);
+            if f > 10 {
+                worst = worst.max(report.error_m);
+            }
+            assert_eq!(filter.buffer_bytes(), bytes, "frame {f}");
+        }
+        assert!(worst < 0.005, "worst tracking error {worst} m");
+        assert!(filter.pose().euler.iter().flatten().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn plants_ramp_in_and_out_at_the_edges() {
+        let skeleton = Arc::new(Skeleton::new(vec![Joint::new("a", None, Vec3::ZERO)]).unwrap());
+        let clip = Clip::rest_pose(skeleton, 30.0, 20).unwrap();
+        let plants = Plants::new(&clip, 0, &[FrameRange::new(4, 14)], 4);
+        let weights: Vec<f64> = (0..20).map(|f| plants.at(f).map_or(0.0, |(_, w)| w)).collect();
+        assert_eq!(&weights[3..15], &[0.0, 0.25, 0.5, 0.75, 1.0, 1.0, 1.0, 1.0, 0.75, 0.5, 0.25, 0.0]);
+    }
+}

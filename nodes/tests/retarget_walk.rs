@@ -1,0 +1,163 @@
+//! Online retargeting (Choi & Ko 2000) of a real CMU walk onto a ~60 % non-uniform
+//! skeleton: tracking of the swing toe, the pelvis, the leg angles, and foot skate against a
+//! plain angle copy. Needs `../shared/data` (skips without it outside CI). The figures are
+//! printed (`--nocapture`) for the closing note.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use kinegraph_nodes::builtin::clip_edit::trim;
+use kinegraph_nodes::builtin::contacts::{ContactThresholds, detect_contacts, ground_height};
+use kinegraph_nodes::builtin::ik::retarget::{Effectors, Plants, RetargetParams, retarget_clip};
+use kinegraph_nodes::builtin::ik::scale::{parse_rules, scale_clip};
+use kinegraph_nodes::builtin::momentum::body::{find_landmarks, limb_tip};
+use kinegraph_nodes::corpus::shared_data;
+use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
+use kinegraph_nodes::model::{Clip, Contacts, forward_kinematics};
+
+/// Horizontal travel of each foot's toe tip summed over the contact frames where the toe is
+/// down (within 1 cm of the height it rests at, [`ground_height`]), in metres, and the
+/// number of such frames: how far planted toes slide.
+fn skate(clip: &Clip, contacts: &Contacts) -> (f64, usize) {
+    let poses = forward_kinematics(clip);
+    let landmarks = find_landmarks(clip.skeleton()).unwrap();
+    let (mut travel, mut frames) = (0.0, 0);
+    for (k, &foot) in landmarks.feet().iter().enumerate() {
+        let tip = limb_tip(clip.skeleton(), foot);
+        let track: Vec<_> = (0..clip.frame_count()).map(|f| poses.position(f, tip).as_dvec3()).collect();
+        let ground = ground_height(&track);
+        for r in &contacts.feet[k].intervals {
+            for f in r.start + 1..r.end {
+                if track[f].y - ground > 0.01 || track[f - 1].y - ground > 0.01 {
+                    continue;
+                }
+                let d = poses.position(f, tip) - poses.position(f - 1, tip);
+                travel += f64::from(Vec3::new(d.x, 0.0, d.z).length());
+                frames += 1;
+            }
+        }
+    }
+    (travel, frames)
+}
+
+/// Euler X (flexion) angle of joint `name` per frame, radians.
+fn flexion(clip: &Clip, name: &str) -> Vec<f64> {
+    let j = clip.skeleton().index_of(name).unwrap();
+    (0..clip.frame_count()).map(|f| f64::from(clip.frame_rotations(f)[j].to_euler(glam::EulerRot::XYZ).0)).collect()
+}
+
+fn range(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::NEG_INFINITY, f64::max) - v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn cmu_walk_retargets_to_a_smaller_character_without_skating() {
+    let Some(data) = shared_data() else { return };
+    let (source, _) = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value;
+    // Without the cgspeed T-pose frame 0 (data README).
+    let source = Arc::new(trim(&source, 0.01, None).unwrap());
+    // ~60 %, non-uniform: short shins, shorter thighs, longer feet than uniform.
+    let rules = parse_rules("UpLeg=0.62, Leg=0.52, Foot=0.7, Spine=0.65").unwrap();
+    let copied = scale_clip(&source, 0.6, &rules).unwrap();
+    let contacts = detect_contacts(
+        &source,
+        &forward_kinematics(&source),
+        &find_landmarks(source.skeleton()).unwrap(),
+        &ContactThresholds::default(),
+    );
+    let out = retarget_clip(&source, &copied, Some(&contacts), Effectors::Feet, RetargetParams::default()).unwrap();
+    let clip = &out.clip;
+    assert_eq!(clip.frame_count(), source.frame_count());
+    assert!(clip.rotations().iter().all(|q| q.is_finite()) && clip.translations().iter().all(|t| t.is_finite()));
+
+    // Swing-toe tracking: distance from the source toe tip while that foot is in the air.
+    let (sp, tp) = (forward_kinematics(&source), forward_kinematics(clip));
+    let landmarks = find_landmarks(source.skeleton()).unwrap();
+    let (mut max_err, mut sum, mut n) = (0.0f64, 0.0, 0);
+    for (k, &foot) in landmarks.feet().iter().enumerate() {
+        let tip = limb_tip(source.skeleton(), foot);
+        for f in 1..clip.frame_count() {
+            if contacts.feet[k].intervals.iter().any(|r| r.contains(f)) {
+                continue;
+            }
+            let e = f64::from((tp.position(f, tip) - sp.position(f, tip)).length());
+            max_err = max_err.max(e);
+            sum += e;
+            n += 1;
+        }
+    }
+    let mean_err = sum / n as f64;
+    println!("swing toe error: max {:.3} cm, mean {:.4} cm over {n} frames", max_err * 100.0, mean_err * 100.0);
+    let worst_frame = out.frames.iter().map(|r| r.error_m).fold(0.0, f64::max);
+    let min_dex = out.frames.iter().map(|r| r.dexterity).fold(f64::INFINITY, f64::min);
+    println!("all effectors: worst {:.3} cm; smallest dexterity {min_dex:.4}", worst_frame * 100.0);
+
+    // Pelvis: height relative to the source, and its horizontal path.
+    let root = |c: &Clip| c.frame_translations(0)[0];
+    let heights: Vec<f64> = (0..clip.frame_count())
+        .map(|f| f64::from(clip.frame_translations(f)[0].y / source.frame_translations(f)[0].y))
+        .collect();
+    let mean_ratio = heights.iter().sum::<f64>() / heights.len() as f64;
+    let last = clip.frame_count() - 1;
+    let travel_t = (clip.frame_translations(last)[0] - root(clip)).with_y(0.0).length();
+    let travel_s = (source.frame_translations(last)[0] - root(&source)).with_y(0.0).length();
+    println!(
+        "pelvis height / source: mean {mean_ratio:.3} (min {:.3}, max {:.3}); horizontal travel {travel_t:.3} m vs source {travel_s:.3} m",
+        heights.iter().copied().fold(f64::INFINITY, f64::min),
+        heights.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+    );
+
+    // Knee and hip flexion against the source.
+    for name in ["LeftUpLeg", "LeftLeg", "RightUpLeg", "RightLeg"] {
+        let (a, b) = (flexion(&source, name), flexion(clip, name));
+        let rms = (a.iter().zip(&b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / a.len() as f64).sqrt();
+        println!(
+            "{name} flexion: range {:.1}° → {:.1}°, RMS difference {:.1}°",
+            range(&a).to_degrees(),
+            range(&b).to_degrees(),
+            rms.to_degrees()
+        );
+    }
+
+    // Skate on the planted frames: plain angle copy vs retargeted, and the source itself.
+    let (s_src, frames) = skate(&source, &contacts);
+    let (s_copy, _) = skate(&copied, &contacts);
+    let (s_ret, _) = skate(clip, &contacts);
+    println!(
+        "toe skate over the toe-down contact frames ({frames} in the source): source {:.1} cm, angle copy {:.1} cm, retargeted {:.1} cm",
+        s_src * 100.0,
+        s_copy * 100.0,
+        s_ret * 100.0
+    );
+
+    assert!(max_err < 0.005, "swing toe max error {max_err} m");
+    assert!(mean_err < 0.001, "swing toe mean error {mean_err} m");
+    // The core of each contact (the planted goal at full weight, edges excluded): there the
+    // retargeted toe must stand still, unlike the angle copy's.
+    let core = |c: &Clip| {
+        let poses = forward_kinematics(c);
+        let mut travel = 0.0;
+        for (k, &foot) in landmarks.feet().iter().enumerate() {
+            let tip = limb_tip(c.skeleton(), foot);
+            let plants = Plants::new(&source, tip, &contacts.feet[k].intervals, 6);
+            for f in 1..c.frame_count() {
+                if plants.at(f).is_some_and(|(_, w)| w >= 1.0) && plants.at(f - 1).is_some_and(|(_, w)| w >= 1.0) {
+                    let d = poses.position(f, tip) - poses.position(f - 1, tip);
+                    travel += f64::from(Vec3::new(d.x, 0.0, d.z).length());
+                }
+            }
+        }
+        travel
+    };
+    let (core_src, core_copy, core_ret) = (core(&source), core(&copied), core(clip));
+    println!(
+        "toe travel in the contacts' planted cores: source {:.1} cm, angle copy {:.1} cm, retargeted {:.2} cm",
+        core_src * 100.0,
+        core_copy * 100.0,
+        core_ret * 100.0
+    );
+    assert!(core_ret < 0.1 * core_copy, "retargeted {core_ret} vs copy {core_copy}");
+    assert!(mean_ratio < 0.9, "the smaller character's pelvis must ride lower");
+}
