@@ -83,7 +83,13 @@ pub fn corpus_features(clip_set: &ClipSet, params: &DistanceParams) -> (PoseFeat
     let mut starts = vec![0];
     for c in clip_set.clips() {
         let clip = &c.clip;
-        features.push_frames(clip.rotations(), clip.translations(), clip.joint_count(), clip.fps(), 0..clip.frame_count());
+        features.push_frames(
+            clip.rotations(),
+            clip.translations(),
+            clip.joint_count(),
+            clip.fps(),
+            0..clip.frame_count(),
+        );
         starts.push(features.len());
     }
     (features, starts)

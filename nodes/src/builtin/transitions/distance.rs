@@ -225,7 +225,12 @@ mod tests {
                 Quat::from_rotation_z(t),
             ]);
             let root = turn * Vec3::new(0.5 * t, 0.9 + 0.01 * t, 0.0) + shift;
-            translations.extend([root, s.joints()[1].rest_offset, s.joints()[2].rest_offset, s.joints()[3].rest_offset]);
+            translations.extend([
+                root,
+                s.joints()[1].rest_offset,
+                s.joints()[2].rest_offset,
+                s.joints()[3].rest_offset,
+            ]);
         }
         Clip::new(s, 10.0, rotations, translations, ImportScale::METRES).unwrap()
     }

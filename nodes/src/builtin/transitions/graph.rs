@@ -146,11 +146,11 @@ pub fn build_graph(clusters: Arc<Clusters>, direction: Direction, limits: PathLi
         let f = &clusters.features;
         let centre_distance = f64::from(f.distance(clusters.centres[a as usize], clusters.centres[b as usize]));
         let cost = shortest as f64 * centre_distance;
-        graph.add_edge(NodeIndex::new(a as usize), NodeIndex::new(b as usize), TransitionEdge {
-            clips,
-            centre_distance,
-            cost,
-        });
+        graph.add_edge(
+            NodeIndex::new(a as usize),
+            NodeIndex::new(b as usize),
+            TransitionEdge { clips, centre_distance, cost },
+        );
     }
     TransitionGraph { clusters, graph, direction, limits, tables: (0..n).map(|_| OnceLock::new()).collect() }
 }
@@ -200,6 +200,7 @@ impl TransitionGraph {
             s["node_pairs_with_path"] = connected.into();
             s["share_of_pairs_with_path"] = (connected as f64 / pairs.max(1) as f64).into();
             s["truncated_searches"] = tables.iter().filter(|t| t.truncated).count().into();
+            s["searches_with_dropped_labels"] = tables.iter().filter(|t| t.labels_dropped > 0).count().into();
         }
         s
     }
@@ -225,7 +226,11 @@ mod tests {
         ])
         .unwrap();
         let c = cluster(Arc::new(set), DistanceParams { weights: vec![1.0], velocity_weight: 0.0 }, 0.01);
-        build_graph(Arc::new(c), direction, PathLimits { k: 5, max_cost: f64::INFINITY, max_labels: 10_000 })
+        build_graph(
+            Arc::new(c),
+            direction,
+            PathLimits { k: 5, max_cost: f64::INFINITY, max_labels: 10_000, max_labels_per_node: 10_000 },
+        )
     }
 
     #[test]

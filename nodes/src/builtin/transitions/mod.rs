@@ -159,8 +159,7 @@ pub fn load_clip_set(folder: &Path, patterns: &str, fps: f64, family: Option<&st
         }
         None => families.values().max_by_key(|f| (f.len(), std::cmp::Reverse(f[0]))).cloned().unwrap_or_default(),
     };
-    let left_out: Vec<String> =
-        (0..clips.len()).filter(|i| !chosen.contains(i)).map(|i| clips[i].0.clone()).collect();
+    let left_out: Vec<String> = (0..clips.len()).filter(|i| !chosen.contains(i)).map(|i| clips[i].0.clone()).collect();
     let skeleton = clips[chosen[0]].1.skeleton().clone();
     let mut stems: BTreeMap<String, usize> = BTreeMap::new();
     for &i in &chosen {
@@ -358,6 +357,7 @@ impl Node for BuildGraph {
             k: ctx.int(&K)? as usize,
             max_cost: ctx.optional_float(&MAX_COST)?.unwrap_or(f64::INFINITY),
             max_labels: 2_000_000,
+            max_labels_per_node: 8 * ctx.int(&K)? as usize,
         };
         let graph = graph::build_graph(clusters, direction, limits);
         let summary = graph.summary(true);
@@ -494,7 +494,8 @@ fn compare_with_crossfade(
     use quality::peak_angular_acceleration;
     let options = AnalysisOptions::default();
     let whole = |c: &Clip| FrameRange::new(0, c.frame_count());
-    let source_peak = peak_angular_acceleration(a, layout, whole(a)).max(peak_angular_acceleration(b, layout, whole(b)));
+    let source_peak =
+        peak_angular_acceleration(a, layout, whole(a)).max(peak_angular_acceleration(b, layout, whole(b)));
     let ours = analyse(output.clone(), &options, None, None).map_err(|e| e.to_string())?;
     let (fa, fb) = (
         analyse(a.clone(), &options, None, None).map_err(|e| e.to_string())?,

@@ -36,6 +36,9 @@ pub struct PathTable {
     pub labels_popped: usize,
     /// True when the search stopped at its label budget: the table may then miss paths.
     pub truncated: bool,
+    /// Undominated labels dropped at full nodes (`max_labels_per_node`): when nonzero the
+    /// table may miss some paths.
+    pub labels_dropped: usize,
 }
 
 /// Search limits.
@@ -47,6 +50,10 @@ pub struct PathLimits {
     pub max_cost: f64,
     /// Safety budget of popped labels per search.
     pub max_labels: usize,
+    /// Undominated labels kept per node before further ones are dropped. Unbounded, the
+    /// search is exact but can grow exponentially on large dense graphs; bounded, its work
+    /// is linear in the graph size and the table counts what it dropped.
+    pub max_labels_per_node: usize,
 }
 
 /// A label: a simple path from the source.
@@ -103,6 +110,10 @@ pub fn k_best_paths(adjacency: &[Vec<(u32, f64)>], source: u32, limits: PathLimi
         let dominating =
             popped[v].iter().filter(|&&p| labels[p].cost <= cost && subset(&labels[p].visited, &labels[id].visited));
         if dominating.take(limits.k).count() >= limits.k {
+            continue;
+        }
+        if popped[v].len() >= limits.max_labels_per_node {
+            table.labels_dropped += 1;
             continue;
         }
         table.labels_popped += 1;
@@ -175,7 +186,11 @@ mod tests {
             let k = rng.gen_range(1..5usize);
             let max_cost = if trial % 2 == 0 { f64::INFINITY } else { 25.0 };
             for s in 0..n as u32 {
-                let table = k_best_paths(&adjacency, s, PathLimits { k, max_cost, max_labels: usize::MAX });
+                let table = k_best_paths(
+                    &adjacency,
+                    s,
+                    PathLimits { k, max_cost, max_labels: usize::MAX, max_labels_per_node: usize::MAX },
+                );
                 let all = brute_force(&adjacency, s);
                 for t in 0..n {
                     let mut want: Vec<f64> = all[t].iter().copied().filter(|c| *c <= max_cost).collect();
@@ -207,10 +222,18 @@ mod tests {
     #[test]
     fn unreachable_targets_and_the_budget() {
         let adjacency = vec![vec![(1, 1.0)], vec![], vec![(0, 1.0)]];
-        let t = k_best_paths(&adjacency, 0, PathLimits { k: 5, max_cost: f64::INFINITY, max_labels: 100 });
+        let t = k_best_paths(
+            &adjacency,
+            0,
+            PathLimits { k: 5, max_cost: f64::INFINITY, max_labels: 100, max_labels_per_node: 100 },
+        );
         assert_eq!(t.paths[1], vec![CandidatePath { nodes: vec![0, 1], cost: 1.0 }]);
         assert!(t.paths[2].is_empty() && !t.truncated);
-        let t = k_best_paths(&adjacency, 0, PathLimits { k: 5, max_cost: f64::INFINITY, max_labels: 1 });
+        let t = k_best_paths(
+            &adjacency,
+            0,
+            PathLimits { k: 5, max_cost: f64::INFINITY, max_labels: 1, max_labels_per_node: 100 },
+        );
         assert!(t.truncated && t.paths[1].is_empty());
     }
 }

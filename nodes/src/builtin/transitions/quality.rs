@@ -38,8 +38,7 @@ mod tests {
         let s = Arc::new(Skeleton::new(vec![Joint::new("Hips", None, Vec3::Y)]).unwrap());
         let frames = 20;
         let rotations = (0..frames).map(|f| Quat::from_rotation_x(0.5 * a * (f as f32 / fps).powi(2))).collect();
-        let clip =
-            Clip::new(s.clone(), f64::from(fps), rotations, vec![Vec3::Y; frames], ImportScale::METRES).unwrap();
+        let clip = Clip::new(s.clone(), f64::from(fps), rotations, vec![Vec3::Y; frames], ImportScale::METRES).unwrap();
         let layout = PoseFeatures::empty(&DistanceParams { weights: vec![1.0], velocity_weight: 0.0 });
         let peak = peak_angular_acceleration(&clip, &layout, FrameRange::new(0, frames));
         assert!((peak - f64::from(a)).abs() < 0.05, "{peak}");

@@ -362,8 +362,8 @@ fn bezier_fallback(
     let (p0, p3) = (heading_free(out, last), heading_free(target, 0));
     let layout = &c.features;
     let d = out.features(layout, last..last + 1).distance_to(0, &target.features(layout, 0..1), 0);
-    let frames =
-        ((f64::from(d) / p.sigma_per_frame).round() as usize).clamp(p.min_fallback_frames.max(2), p.max_fallback_frames);
+    let frames = ((f64::from(d) / p.sigma_per_frame).round() as usize)
+        .clamp(p.min_fallback_frames.max(2), p.max_fallback_frames);
     let (root_rotation, root_position) = (out.rot(last)[0], out.trans(last)[0]);
     let heading = Quat::from_rotation_y(heading_yaw(root_rotation));
     let offsets = out.trans(last).to_vec();
