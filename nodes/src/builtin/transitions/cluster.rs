@@ -57,16 +57,15 @@ pub fn nearest_centre(features: &PoseFeatures, centres: &[usize], query: &PoseFe
 /// The two-pass clustering of every frame of `features` with radius `radius`.
 pub fn two_pass(features: &PoseFeatures, radius: f32) -> TwoPass {
     const UNDEFINED: u32 = u32::MAX;
-    let n = features.len();
-    let mut labels = vec![UNDEFINED; n];
+    let mut labels = vec![UNDEFINED; features.len()];
     let mut centres: Vec<usize> = Vec::new();
-    for i in 0..n {
+    for (i, label) in labels.iter_mut().enumerate() {
         let (c, d) = nearest_centre(features, &centres, features, i);
         if centres.is_empty() || d > 2.0 * radius {
-            labels[i] = centres.len() as u32;
+            *label = centres.len() as u32;
             centres.push(i);
         } else if d < radius {
-            labels[i] = c;
+            *label = c;
         }
     }
     let undefined = labels.iter().filter(|&&l| l == UNDEFINED).count();

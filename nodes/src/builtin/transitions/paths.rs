@@ -192,8 +192,8 @@ mod tests {
                     PathLimits { k, max_cost, max_labels: usize::MAX, max_labels_per_node: usize::MAX },
                 );
                 let all = brute_force(&adjacency, s);
-                for t in 0..n {
-                    let mut want: Vec<f64> = all[t].iter().copied().filter(|c| *c <= max_cost).collect();
+                for (t, all_t) in all.iter().enumerate() {
+                    let mut want: Vec<f64> = all_t.iter().copied().filter(|c| *c <= max_cost).collect();
                     want.sort_by(f64::total_cmp);
                     want.truncate(if t == s as usize { 0 } else { k });
                     let got: Vec<f64> = table.paths[t].iter().map(|p| p.cost).collect();

@@ -107,8 +107,7 @@ impl Motion {
         if clip.backward {
             let j = m.joints;
             let frames = m.frame_count();
-            let reorder = |v: &[Quat]| (0..frames).rev().flat_map(|f| v[f * j..(f + 1) * j].to_vec()).collect();
-            m.rotations = reorder(&m.rotations);
+            m.rotations = (0..frames).rev().flat_map(|f| m.rotations[f * j..(f + 1) * j].to_vec()).collect();
             m.translations = (0..frames).rev().flat_map(|f| m.translations[f * j..(f + 1) * j].to_vec()).collect();
         }
         m
