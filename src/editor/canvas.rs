@@ -74,6 +74,9 @@ pub(crate) fn type_color(ty: PortType) -> Color32 {
         PortType::Report => Color32::from_rgb(215, 215, 215),
         PortType::MeshSequence => Color32::from_rgb(240, 200, 60),
         PortType::BarNet => Color32::from_rgb(160, 160, 160),
+        PortType::ClipSet => Color32::from_rgb(40, 120, 220),
+        PortType::Clusters => Color32::from_rgb(150, 110, 230),
+        PortType::TransitionGraph => Color32::from_rgb(90, 200, 160),
     }
 }
 

@@ -13,6 +13,7 @@ pub mod momentum;
 pub mod pose_space;
 pub mod scalar;
 pub mod skin;
+pub mod transitions;
 
 use crate::node::Registry;
 
@@ -30,4 +31,5 @@ pub fn register(registry: &mut Registry) {
     skin::register(registry);
     pose_space::register(registry);
     barnet::register(registry);
+    transitions::register(registry);
 }

@@ -2,6 +2,7 @@
 
 pub mod barnet;
 pub mod clip;
+pub mod clip_set;
 pub mod curves;
 pub mod fk;
 pub mod intervals;
@@ -11,6 +12,7 @@ pub mod skeleton;
 pub mod units;
 
 pub use clip::{Clip, ClipError};
+pub use clip_set::{ClipSet, ClipSetError, NamedClip};
 
 /// Largest coordinate (metres) a joint offset or translation may have. Real scenes stay far
 /// below it; the bound keeps sums along joint chains finite in f32, so forward kinematics

@@ -152,6 +152,11 @@ impl<'a> NodeContext<'a> {
         Ok(self.services.base_dir.join(self.text(p.0.name)?))
     }
 
+    /// A folder named by a text parameter, resolved against the graph's folder.
+    pub fn input_folder(&self, p: &TextParam) -> Result<PathBuf, NodeError> {
+        Ok(self.services.base_dir.join(self.text(p.0.name)?))
+    }
+
     /// An optional input file, resolved against the graph's folder; `None` when unset.
     pub fn optional_input_path(&self, p: &InputPathParam) -> Result<Option<PathBuf>, NodeError> {
         if self.param(p.0.name).is_none() { Ok(None) } else { self.input_path(p).map(Some) }

@@ -2,7 +2,8 @@
 
 use std::sync::Arc;
 
-use crate::model::{BarNet, Clip, Contacts, Curves, Mesh, MeshSequence, Phases};
+use crate::builtin::transitions::{Clusters, TransitionGraph};
+use crate::model::{BarNet, Clip, ClipSet, Contacts, Curves, Mesh, MeshSequence, Phases};
 
 /// A node's structured account of what it decided (chosen parameters, measured errors):
 /// shown by `kg run --json` and the editor, compared by `kg test`.
@@ -32,6 +33,12 @@ pub enum PortType {
     MeshSequence,
     /// A bar-net coupled to a control mesh.
     BarNet,
+    /// Named clips on one skeleton at one frame rate.
+    ClipSet,
+    /// Every frame of a clip set labelled with a pose cluster.
+    Clusters,
+    /// Pose clusters joined by the clips that pass between them.
+    TransitionGraph,
 }
 
 impl PortType {
@@ -48,6 +55,9 @@ impl PortType {
             PortType::Report => "report",
             PortType::MeshSequence => "mesh_sequence",
             PortType::BarNet => "bar_net",
+            PortType::ClipSet => "clip_set",
+            PortType::Clusters => "clusters",
+            PortType::TransitionGraph => "transition_graph",
         }
     }
 }
@@ -75,6 +85,12 @@ pub enum Value {
     MeshSequence(Arc<MeshSequence>),
     /// See [`PortType::BarNet`].
     BarNet(Arc<BarNet>),
+    /// See [`PortType::ClipSet`].
+    ClipSet(Arc<ClipSet>),
+    /// See [`PortType::Clusters`].
+    Clusters(Arc<Clusters>),
+    /// See [`PortType::TransitionGraph`].
+    TransitionGraph(Arc<TransitionGraph>),
 }
 
 impl Value {
@@ -91,6 +107,9 @@ impl Value {
             Value::Report(_) => PortType::Report,
             Value::MeshSequence(_) => PortType::MeshSequence,
             Value::BarNet(_) => PortType::BarNet,
+            Value::ClipSet(_) => PortType::ClipSet,
+            Value::Clusters(_) => PortType::Clusters,
+            Value::TransitionGraph(_) => PortType::TransitionGraph,
         }
     }
 }
@@ -133,3 +152,6 @@ port_value!(Arc<Contacts>, Contacts);
 port_value!(Arc<Report>, Report);
 port_value!(Arc<MeshSequence>, MeshSequence);
 port_value!(Arc<BarNet>, BarNet);
+port_value!(Arc<ClipSet>, ClipSet);
+port_value!(Arc<Clusters>, Clusters);
+port_value!(Arc<TransitionGraph>, TransitionGraph);

@@ -1,0 +1,586 @@
+//! Flexible motion transition (Peng, Lin et al. 2007): a corpus of short action clips is
+//! clustered frame by frame, the clusters become a graph whose edges are the clips passing
+//! between them, and any sequence of actions is played with transitions found in the graph
+//! — or, where the data never connects two poses, interpolated through the clusters on the
+//! way (Bézier fallback).
+
+pub mod cluster;
+pub mod distance;
+pub mod graph;
+pub mod paths;
+pub mod quality;
+pub mod synthesis;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+
+use rand::SeedableRng;
+use serde_json::json;
+
+pub use cluster::Clusters;
+pub use graph::TransitionGraph;
+
+use self::distance::DistanceParams;
+use self::graph::Direction;
+use self::paths::PathLimits;
+use self::synthesis::{Motion, SynthesisParams, TransitionInfo, append_transition};
+use super::clip_edit::resample;
+use super::clip_io::{ClipLoadOptions, load_clip};
+use super::momentum::analysis::{AnalysisOptions, analyse};
+use super::momentum::baseline::{BaselineParams, concatenate_baseline};
+use super::momentum::concat::foot_skate_m;
+use crate::model::{Clip, ClipSet, FrameRange, NamedClip, Skeleton};
+use crate::node::{
+    ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry, Report,
+    TextParam, nearest_name,
+};
+
+/// Registers the transition nodes.
+pub fn register(registry: &mut Registry) {
+    registry.add(Box::new(LoadClipSet));
+    registry.add(Box::new(ClusterFrames));
+    registry.add(Box::new(BuildGraph));
+    registry.add(Box::new(Transition));
+    registry.add(Box::new(Sequence));
+}
+
+/// Case-insensitive wildcard match (`*` any run, `?` one character).
+fn wildcard(pattern: &[u8], name: &[u8]) -> bool {
+    match (pattern.first(), name.first()) {
+        (None, None) => true,
+        (Some(b'*'), _) => wildcard(&pattern[1..], name) || (!name.is_empty() && wildcard(pattern, &name[1..])),
+        (Some(p), Some(n)) if *p == b'?' || p.eq_ignore_ascii_case(n) => wildcard(&pattern[1..], &name[1..]),
+        _ => false,
+    }
+}
+
+/// Whether a motion of a captured T-pose starts the clip: cgspeed's CMU conversions put one
+/// before the first captured frame, and it would become a cluster of its own joined to
+/// every clip by a one-frame jump.
+fn starts_with_t_pose(clip: &Clip) -> bool {
+    let mean_angle = |f: usize| {
+        let r = clip.frame_rotations(f);
+        r[1..].iter().map(|q| q.w.abs().min(1.0).acos()).sum::<f32>() / (r.len() - 1).max(1) as f32
+    };
+    clip.frame_count() > 2 && clip.joint_count() > 1 && mean_angle(0) < 0.01 && mean_angle(1) > 0.05
+}
+
+/// `clip` on `skeleton` (same names and hierarchy): each joint keeps its own animated
+/// translation relative to its rest offset, on the reference skeleton's rest offsets.
+fn onto_skeleton(clip: &Clip, skeleton: &Arc<Skeleton>) -> Result<Clip, String> {
+    if Arc::ptr_eq(clip.skeleton(), skeleton) {
+        return Ok(clip.clone());
+    }
+    let (own, reference) = (clip.skeleton().joints(), skeleton.joints());
+    if own.len() != reference.len() || own.iter().zip(reference).any(|(a, b)| a.name != b.name || a.parent != b.parent)
+    {
+        return Err("is on a skeleton with other joints than the graph's".into());
+    }
+    let n = own.len();
+    let translations = clip
+        .translations()
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let j = i % n;
+            if j == 0 { *t } else { reference[j].rest_offset + (*t - own[j].rest_offset) }
+        })
+        .collect();
+    Clip::new(skeleton.clone(), clip.fps(), clip.rotations().to_vec(), translations, clip.import_scale)
+        .map_err(|e| e.to_string())
+}
+
+/// `clip` at `fps` on `skeleton`.
+fn conform(clip: &Clip, skeleton: &Arc<Skeleton>, fps: f64) -> Result<Clip, String> {
+    let at_rate = if (clip.fps() - fps).abs() > 1e-6 * fps {
+        resample(clip, fps).map_err(|e| e.to_string())?
+    } else {
+        clip.clone()
+    };
+    onto_skeleton(&at_rate, skeleton)
+}
+
+/// Identity of a skeleton family: joint names and parents.
+fn family_key(skeleton: &Skeleton) -> Vec<(String, Option<usize>)> {
+    skeleton.joints().iter().map(|j| (j.name.clone(), j.parent)).collect()
+}
+
+/// A loaded clip set and what was left out or changed.
+#[derive(Debug)]
+pub struct LoadedClipSet {
+    /// The set.
+    pub set: ClipSet,
+    /// Clips of other skeleton families, by path.
+    pub left_out: Vec<String>,
+    /// Oddities met (units detected, T-poses dropped).
+    pub warnings: Vec<String>,
+}
+
+/// Loads every file under `folder` (recursively) whose name matches one of `patterns`
+/// (comma-separated wildcards), groups them by skeleton family, keeps the family of the
+/// clip named `family` (else the largest family, ties to the first file), drops cgspeed
+/// T-pose first frames, resamples to `fps` and puts every clip on the first clip's skeleton.
+/// Actions are named by file stem, or by their path under `folder` when two stems clash.
+pub fn load_clip_set(folder: &Path, patterns: &str, fps: f64, family: Option<&str>) -> Result<LoadedClipSet, String> {
+    let patterns: Vec<&str> = patterns.split(',').map(str::trim).filter(|p| !p.is_empty()).collect();
+    let mut files: Vec<_> = ["bvh", "glb", "gltf"]
+        .iter()
+        .flat_map(|ext| crate::corpus::files_with_extension(folder, ext))
+        .filter(|p| {
+            let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            patterns.iter().any(|pat| wildcard(pat.as_bytes(), name.as_bytes()))
+        })
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(format!("no file in {} matches '{}'", folder.display(), patterns.join(", ")));
+    }
+    let mut warnings = Vec::new();
+    let mut clips = Vec::new();
+    for path in &files {
+        let loaded = load_clip(path, ClipLoadOptions::default()).map_err(|e| e.to_string())?;
+        warnings.extend(loaded.warnings);
+        let relative = path.strip_prefix(folder).unwrap_or(path).with_extension("");
+        clips.push((relative.to_string_lossy().replace('\\', "/"), loaded.value));
+    }
+    let mut families: BTreeMap<Vec<(String, Option<usize>)>, Vec<usize>> = BTreeMap::new();
+    for (i, (_, clip)) in clips.iter().enumerate() {
+        families.entry(family_key(clip.skeleton())).or_default().push(i);
+    }
+    let stem = |relative: &str| relative.rsplit('/').next().unwrap_or(relative).to_string();
+    let chosen: Vec<usize> = match family {
+        Some(name) => {
+            let index = clips
+                .iter()
+                .position(|(r, _)| r == name || stem(r) == name)
+                .ok_or_else(|| format!("no clip called '{name}' to pick the skeleton family from"))?;
+            families.values().find(|f| f.contains(&index)).cloned().unwrap_or_default()
+        }
+        None => families.values().max_by_key(|f| (f.len(), std::cmp::Reverse(f[0]))).cloned().unwrap_or_default(),
+    };
+    let left_out: Vec<String> = (0..clips.len()).filter(|i| !chosen.contains(i)).map(|i| clips[i].0.clone()).collect();
+    let skeleton = clips[chosen[0]].1.skeleton().clone();
+    let mut stems: BTreeMap<String, usize> = BTreeMap::new();
+    for &i in &chosen {
+        *stems.entry(stem(&clips[i].0)).or_default() += 1;
+    }
+    let mut named = Vec::new();
+    for &i in &chosen {
+        let (relative, clip) = &clips[i];
+        let clip = if starts_with_t_pose(clip) {
+            warnings.push(format!("{relative}: dropped a T-pose first frame"));
+            clip.slice(1, clip.frame_count())
+        } else {
+            clip.clone()
+        };
+        let clip = conform(&clip, &skeleton, fps).map_err(|e| format!("{relative} {e}"))?;
+        if clip.frame_count() < 2 {
+            warnings.push(format!("{relative}: left out, fewer than 2 frames"));
+            continue;
+        }
+        let name = if stems[&stem(relative)] > 1 { relative.clone() } else { stem(relative) };
+        named.push(NamedClip { name, clip: Arc::new(clip) });
+    }
+    let set = ClipSet::new(named).map_err(|e| e.to_string())?;
+    Ok(LoadedClipSet { set, left_out, warnings })
+}
+
+fn report_of(value: serde_json::Value) -> Arc<Report> {
+    Arc::new(match value {
+        serde_json::Value::Object(map) => map,
+        _ => Report::new(),
+    })
+}
+
+const FOLDER: TextParam = TextParam::new(
+    "folder",
+    "Folder to read clips from (sub-folders included). Relative paths start at the graph file's folder.",
+    ".",
+);
+const PATTERN: TextParam = TextParam::new(
+    "pattern",
+    "Which files to read: file-name wildcards separated by commas, e.g. \"02_*.bvh, 144_05.bvh\".",
+    "*.bvh",
+);
+const SET_FPS: FloatParam =
+    FloatParam::new("fps", "Every clip is resampled to this frame rate.", 30.0, 1.0, 1000.0, "fps");
+const FAMILY: TextParam = TextParam::new(
+    "family",
+    "Clips must share one skeleton: keep the family of the clip with this name; empty keeps the largest family.",
+    "",
+);
+const CLIP_SET_OUT: Output<Arc<ClipSet>> =
+    Output::new("clip_set", "The clips, named by file stem, on one skeleton at one frame rate.");
+const REPORT: Output<Arc<Report>> = Output::new("report", "What was decided and measured.");
+
+/// `load.clip_set`.
+pub struct LoadClipSet;
+
+static LOAD_CLIP_SET: NodeSchema = NodeSchema {
+    kind: "load.clip_set",
+    category: "io",
+    doc: "Loads a folder of action clips as one set: one skeleton family (others are left out with a warning), one frame rate, each action named by its file name.",
+    inputs: &[],
+    outputs: &[CLIP_SET_OUT.spec(), REPORT.spec()],
+    params: &[FOLDER.0, PATTERN.0, SET_FPS.0, FAMILY.0],
+    writes_files: false,
+};
+
+impl Node for LoadClipSet {
+    fn schema(&self) -> &'static NodeSchema {
+        &LOAD_CLIP_SET
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let folder = ctx.input_folder(&FOLDER)?;
+        if !folder.is_dir() {
+            return Err(NodeError::param("folder", format!("{} is not a folder", folder.display())));
+        }
+        let family = ctx.text_param(&FAMILY)?.trim().to_string();
+        let family = (!family.is_empty()).then_some(family.as_str());
+        let loaded = load_clip_set(&folder, ctx.text_param(&PATTERN)?, ctx.float(&SET_FPS)?, family)
+            .map_err(NodeError::Failed)?;
+        ctx.warn_all(loaded.warnings);
+        if !loaded.left_out.is_empty() {
+            ctx.warn(format!(
+                "left out {} clip(s) on other skeletons: {}",
+                loaded.left_out.len(),
+                loaded.left_out.join(", ")
+            ));
+        }
+        let mut report = loaded.set.summary();
+        report["left_out"] = json!(loaded.left_out);
+        ctx.set_output(&CLIP_SET_OUT, Arc::new(loaded.set));
+        ctx.set_output(&REPORT, report_of(report));
+        Ok(())
+    }
+}
+
+const CLIP_SET_IN: Input<Arc<ClipSet>> = Input::required("clip_set", "The action clips to cluster.");
+const RADIUS: FloatParam = FloatParam::new(
+    "radius",
+    "Cluster radius r in pose-distance units (about rad² summed over the weighted joints): frames nearer than r to a centre join it, frames beyond 2r start a new cluster. Larger means fewer clusters.",
+    0.6,
+    1e-6,
+    1e6,
+    "",
+);
+const VELOCITY_WEIGHT: FloatParam = FloatParam::new(
+    "velocity_weight",
+    "ν: how much differences in joint and root velocities count beside differences in pose.",
+    0.003,
+    0.0,
+    100.0,
+    "s²",
+);
+const JOINT_WEIGHTS: TextParam = TextParam::new(
+    "joint_weights",
+    "Per-joint weights overriding the defaults (1 for pelvis, spine, hips, knees, shoulders and elbows, 0 elsewhere), e.g. \"LeftFoot=0.5, Head=1\".",
+    "",
+);
+const CLUSTERS_OUT: Output<Arc<Clusters>> = Output::new("clusters", "Every frame labelled with its pose cluster.");
+
+/// `motion.cluster`.
+pub struct ClusterFrames;
+
+static CLUSTER_FRAMES: NodeSchema = NodeSchema {
+    kind: "motion.cluster",
+    category: "motion",
+    doc: "Groups every frame of a clip set into pose clusters (two passes with radius r), comparing poses whatever the character's position and facing.",
+    inputs: &[CLIP_SET_IN.spec()],
+    outputs: &[CLUSTERS_OUT.spec(), REPORT.spec()],
+    params: &[RADIUS.0, VELOCITY_WEIGHT.0, JOINT_WEIGHTS.0],
+    writes_files: false,
+};
+
+impl Node for ClusterFrames {
+    fn schema(&self) -> &'static NodeSchema {
+        &CLUSTER_FRAMES
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let set = ctx.input(&CLIP_SET_IN)?;
+        let params = DistanceParams::lee_defaults(set.skeleton(), ctx.float(&VELOCITY_WEIGHT)? as f32)
+            .with_overrides(set.skeleton(), ctx.text_param(&JOINT_WEIGHTS)?)
+            .map_err(|e| NodeError::param("joint_weights", e))?;
+        if params.weights.iter().all(|w| *w == 0.0) {
+            return Err(NodeError::param("joint_weights", "every joint has weight 0"));
+        }
+        let clusters = cluster::cluster(set, params, ctx.float(&RADIUS)? as f32);
+        ctx.set_output(&REPORT, report_of(clusters.summary()));
+        ctx.set_output(&CLUSTERS_OUT, Arc::new(clusters));
+        Ok(())
+    }
+}
+
+const CLUSTERS_IN: Input<Arc<Clusters>> = Input::required("clusters", "Clustered frames of a clip set.");
+const DIRECTION: ChoiceParam = ChoiceParam::new(
+    "direction",
+    "\"directed\": clips only play forwards; \"undirected\": a transition may also play a clip backwards.",
+    &["directed", "undirected"],
+    "directed",
+);
+const K: IntParam = IntParam::new("paths", "K: candidate paths kept per pair of clusters.", 5, 1, 100);
+const MAX_COST: FloatParam = FloatParam::optional(
+    "max_cost",
+    "Candidate paths costing more (frames × pose distance, summed over the path) are discarded; unset keeps all.",
+    0.0,
+    1e12,
+    "",
+);
+const GRAPH_OUT: Output<Arc<TransitionGraph>> = Output::new(
+    "graph",
+    "Clusters joined by the clips passing between them; candidate paths are found when first needed.",
+);
+
+/// `motion.transition_graph`.
+pub struct BuildGraph;
+
+static BUILD_GRAPH: NodeSchema = NodeSchema {
+    kind: "motion.transition_graph",
+    category: "motion",
+    doc: "Builds the transition graph: one node per pose cluster with its short clips, an edge wherever a clip passes from one cluster to another. The report gives frames, clusters, clips, edges and the share of cluster pairs with a candidate path.",
+    inputs: &[CLUSTERS_IN.spec()],
+    outputs: &[GRAPH_OUT.spec(), REPORT.spec()],
+    params: &[DIRECTION.0, K.0, MAX_COST.0],
+    writes_files: false,
+};
+
+impl Node for BuildGraph {
+    fn schema(&self) -> &'static NodeSchema {
+        &BUILD_GRAPH
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let clusters = ctx.input(&CLUSTERS_IN)?;
+        let direction =
+            if ctx.choice(&DIRECTION)? == "undirected" { Direction::Undirected } else { Direction::Directed };
+        let limits = PathLimits {
+            k: ctx.int(&K)? as usize,
+            max_cost: ctx.optional_float(&MAX_COST)?.unwrap_or(f64::INFINITY),
+            max_labels: 2_000_000,
+            max_labels_per_node: 8 * ctx.int(&K)? as usize,
+        };
+        let graph = graph::build_graph(clusters, direction, limits);
+        let summary = graph.summary(true);
+        if summary["truncated_searches"].as_u64().unwrap_or(0) > 0 {
+            ctx.warn("some candidate path searches hit their label budget and may miss paths; set max_cost");
+        }
+        ctx.set_output(&REPORT, report_of(summary));
+        ctx.set_output(&GRAPH_OUT, Arc::new(graph));
+        Ok(())
+    }
+}
+
+const GRAPH_IN: Input<Arc<TransitionGraph>> = Input::required("graph", "The transition graph to travel.");
+const SEED: IntParam =
+    IntParam::new("seed", "Seed of the random choice among candidate paths (same seed, same result).", 0, 0, 1 << 40);
+const WINDOW_OUT: IntParam =
+    IntParam::new("window_out_frames", "Frames at the end of the motion searched for each join point.", 10, 1, 1000);
+const WINDOW_IN: IntParam = IntParam::new(
+    "window_in_frames",
+    "Frames at the start of each incoming clip searched for its join point.",
+    25,
+    1,
+    1000,
+);
+const MAX_CLIP_SECS: FloatParam = FloatParam::new(
+    "max_clip_secs",
+    "Passing clips longer than this are used only when nothing shorter links two clusters.",
+    2.0,
+    0.0,
+    1e4,
+    "s",
+);
+const SIGMA: FloatParam = FloatParam::new(
+    "sigma",
+    "σ: pose distance covered per frame where no path exists and the pose is interpolated; smaller means longer, slower fallbacks.",
+    0.05,
+    1e-6,
+    1e6,
+    "",
+);
+
+fn synthesis_params(ctx: &NodeContext<'_>, fps: f64) -> Result<SynthesisParams, NodeError> {
+    Ok(SynthesisParams {
+        window_out_frames: ctx.int(&WINDOW_OUT)? as usize,
+        window_in_frames: ctx.int(&WINDOW_IN)? as usize,
+        max_clip_frames: (ctx.float(&MAX_CLIP_SECS)? * fps).round() as usize,
+        sigma_per_frame: ctx.float(&SIGMA)?,
+        ..SynthesisParams::default()
+    })
+}
+
+fn rng_of(ctx: &NodeContext<'_>) -> Result<rand_chacha::ChaCha8Rng, NodeError> {
+    Ok(rand_chacha::ChaCha8Rng::seed_from_u64(ctx.int(&SEED)? as u64))
+}
+
+/// A clip from a port made fit for `graph` (its skeleton and rate), or an error naming the port.
+fn fit(graph: &TransitionGraph, clip: &Clip, port: &'static str) -> Result<Clip, NodeError> {
+    let set = &graph.clusters.clip_set;
+    if clip.frame_count() == 0 {
+        return Err(NodeError::input(port, "has no frames"));
+    }
+    conform(clip, set.skeleton(), set.fps()).map_err(|e| NodeError::input(port, e))
+}
+
+const SOURCE: Input<Arc<Clip>> = Input::required("source", "The clip the transition starts from (its last frame).");
+const TARGET: Input<Arc<Clip>> = Input::required("target", "The clip the transition leads into (its first frame).");
+const JOINED_OUT: Output<Arc<Clip>> =
+    Output::new("clip", "Source, transition and target as one continuous clip, at the graph's frame rate.");
+const TRANSITION_OUT: Output<Arc<Clip>> = Output::new("transition", "The transition frames alone.");
+
+/// `motion.transition`.
+pub struct Transition;
+
+static TRANSITION: NodeSchema = NodeSchema {
+    kind: "motion.transition",
+    category: "motion",
+    doc: "Links two clips through the transition graph: finds the clusters of the source's last and the target's first pose, picks a candidate path at random (cheaper paths likelier) and chains the clips along it, or interpolates through the clusters in between when no path exists.",
+    inputs: &[GRAPH_IN.spec(), SOURCE.spec(), TARGET.spec()],
+    outputs: &[JOINED_OUT.spec(), TRANSITION_OUT.spec(), REPORT.spec()],
+    params: &[SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0],
+    writes_files: false,
+};
+
+impl Node for Transition {
+    fn schema(&self) -> &'static NodeSchema {
+        &TRANSITION
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let graph = ctx.input(&GRAPH_IN)?;
+        let source = fit(&graph, ctx.input(&SOURCE)?.as_ref(), "source")?;
+        let target = fit(&graph, ctx.input(&TARGET)?.as_ref(), "target")?;
+        let params = synthesis_params(ctx, graph.clusters.clip_set.fps())?;
+        let mut out = Motion::of_clip(&source);
+        let info = append_transition(&graph, &mut out, &Motion::of_clip(&target), &params, &mut rng_of(ctx)?);
+        let joined = out.into_clip(&source).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let transition = joined.slice(info.frames.start, info.frames.end);
+        let mut report = serde_json::to_value(&info).unwrap_or_default();
+        report["duration_secs"] = json!(transition.duration_secs());
+        ctx.set_output(&TRANSITION_OUT, Arc::new(transition));
+        ctx.set_output(&JOINED_OUT, Arc::new(joined));
+        ctx.set_output(&REPORT, report_of(report));
+        Ok(())
+    }
+}
+
+const ACTIONS: TextParam = TextParam::new(
+    "actions",
+    "The actions to play in order, by clip name, separated by commas (e.g. \"02_01, 02_05, 144_05\").",
+    "",
+);
+const SEQUENCE_OUT: Output<Arc<Clip>> = Output::new("clip", "The actions played one after another with transitions.");
+
+/// `motion.sequence`.
+pub struct Sequence;
+
+static SEQUENCE: NodeSchema = NodeSchema {
+    kind: "motion.sequence",
+    category: "motion",
+    doc: "Plays a list of actions from the graph's clip set in order as one continuous clip, with a transition between each two. The report lists each transition's path, cost and whether it was interpolated, and compares its smoothness and foot sliding with a plain crossfade of the same two clips.",
+    inputs: &[GRAPH_IN.spec()],
+    outputs: &[SEQUENCE_OUT.spec(), REPORT.spec()],
+    params: &[ACTIONS.0, SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0],
+    writes_files: false,
+};
+
+/// Smoothness of one transition of a sequence against a crossfade of the same two clips.
+fn compare_with_crossfade(
+    layout: &distance::PoseFeatures,
+    output: &Arc<Clip>,
+    info: &TransitionInfo,
+    a: &Arc<Clip>,
+    b: &Arc<Clip>,
+) -> Result<serde_json::Value, String> {
+    use quality::peak_angular_acceleration;
+    let options = AnalysisOptions::default();
+    let whole = |c: &Clip| FrameRange::new(0, c.frame_count());
+    let source_peak =
+        peak_angular_acceleration(a, layout, whole(a)).max(peak_angular_acceleration(b, layout, whole(b)));
+    let ours = analyse(output.clone(), &options, None, None).map_err(|e| e.to_string())?;
+    let (fa, fb) = (
+        analyse(a.clone(), &options, None, None).map_err(|e| e.to_string())?,
+        analyse(b.clone(), &options, None, None).map_err(|e| e.to_string())?,
+    );
+    let fade = concatenate_baseline(&fa, &fb, &BaselineParams::default(), &options).map_err(|e| e.to_string())?;
+    let window = fade.report.get("window_frames").and_then(|w| w.as_array()).map_or(FrameRange::new(0, 0), |w| {
+        let at = |k: usize| w.get(k).and_then(|x| x.as_u64()).unwrap_or(0) as usize;
+        FrameRange::new(at(0), at(1) + 1)
+    });
+    let ratio = |peak: f64| peak / source_peak.max(1e-9);
+    Ok(json!({
+        "source_peak_angular_acceleration": source_peak,
+        "peak_ratio": ratio(peak_angular_acceleration(output, layout, info.frames)),
+        "foot_skate_m": foot_skate_m(&ours, info.frames, options.contacts.enter_height_m),
+        "crossfade_peak_ratio": ratio(peak_angular_acceleration(&fade.clip, layout, window)),
+        "crossfade_foot_skate_m": fade.report.get("foot_skate_in_blend_m").cloned().unwrap_or_default(),
+    }))
+}
+
+impl Node for Sequence {
+    fn schema(&self) -> &'static NodeSchema {
+        &SEQUENCE
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let graph = ctx.input(&GRAPH_IN)?;
+        let set = &graph.clusters.clip_set;
+        let names: Vec<String> =
+            ctx.text_param(&ACTIONS)?.split(',').map(str::trim).filter(|s| !s.is_empty()).map(String::from).collect();
+        let clips: Vec<&NamedClip> = names
+            .iter()
+            .map(|n| {
+                set.get(n.as_str()).ok_or_else(|| {
+                    let hint = nearest_name(n, set.clips().iter().map(|c| c.name.as_str()))
+                        .map_or(String::new(), |s| format!(" (did you mean '{s}'?)"));
+                    NodeError::param("actions", format!("no clip called '{n}' in the set{hint}"))
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        let Some(first) = clips.first() else {
+            return Err(NodeError::param("actions", "names no action"));
+        };
+        let params = synthesis_params(ctx, set.fps())?;
+        let mut rng = rng_of(ctx)?;
+        let mut out = Motion::of_clip(&first.clip);
+        let mut infos = Vec::new();
+        for (k, next) in clips.iter().enumerate().skip(1) {
+            ctx.check_cancelled()?;
+            ctx.progress(k as f32 / clips.len() as f32);
+            infos.push(append_transition(&graph, &mut out, &Motion::of_clip(&next.clip), &params, &mut rng));
+        }
+        let clip = Arc::new(out.into_clip(&first.clip).map_err(|e| NodeError::Failed(e.to_string()))?);
+        let mut transitions = Vec::new();
+        for (k, info) in infos.iter().enumerate() {
+            let mut entry = serde_json::to_value(info).unwrap_or_default();
+            entry["from"] = json!(clips[k].name);
+            entry["to"] = json!(clips[k + 1].name);
+            match compare_with_crossfade(&graph.clusters.features, &clip, info, &clips[k].clip, &clips[k + 1].clip) {
+                Ok(q) => entry["smoothness"] = q,
+                Err(e) => ctx.warn(format!("transition {k}: smoothness not measured: {e}")),
+            }
+            transitions.push(entry);
+        }
+        let report = json!({
+            "actions": names,
+            "frames": clip.frame_count(),
+            "duration_secs": clip.duration_secs(),
+            "fallbacks": infos.iter().filter(|i| i.fallback).count(),
+            "transitions": transitions,
+        });
+        ctx.set_output(&SEQUENCE_OUT, clip);
+        ctx.set_output(&REPORT, report_of(report));
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wildcards_match_file_names() {
+        assert!(wildcard(b"*.bvh", b"02_01.BVH"));
+        assert!(wildcard(b"02_0?.bvh", b"02_05.bvh"));
+        assert!(!wildcard(b"02_*.bvh", b"144_05.bvh"));
+        assert!(wildcard(b"*", b""));
+    }
+}

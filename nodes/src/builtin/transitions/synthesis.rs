@@ -1,0 +1,383 @@
+//! Transition synthesis (Peng et al. 2007, "Run-Time Phase"):
+//!
+//! 1. Locate the node pair: the clusters nearest to the source's last frame and to the
+//!    target's first frame.
+//! 2. Pick one candidate path with probability ∝ 1/cost (seeded).
+//! 3. Chain greedily: for each edge of the path take the passage (not longer than a
+//!    limit) whose first frame is nearest the motion's last frame, and join it where the
+//!    distance grid between the motion's last 10 frames and the passage's first 25 is
+//!    smallest; the target is joined the same way at the end. Each join turns and moves
+//!    the incoming frames so heading and floor position match at the join, and blends over
+//!    the frames of the motion after the join point.
+//! 4. No candidate path: a greedy walk over the cluster medoids (centre frames) from the
+//!    source's cluster to the target's, each step to the nearest medoid that is closer to
+//!    the target than the current one; its two halves are averaged into control poses C1,
+//!    C2 and the transition follows two quadratic Bézier pieces P0–C1–M and M–C2–P3
+//!    (M midway between C1 and C2, so the curve is C1-continuous), evaluated on
+//!    quaternions with de Casteljau slerps, over D(P0, P3)/σ frames (eq. 2).
+
+use glam::{Quat, Vec3};
+use rand::Rng;
+
+use super::cluster::nearest_centre;
+use super::distance::{PoseFeatures, heading_yaw};
+use super::graph::{EdgeClip, TransitionGraph};
+use crate::math::{quat_normalize_or_identity, slerp_short};
+use crate::model::{Clip, ClipError, FrameRange};
+
+/// Settings of transition synthesis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SynthesisParams {
+    /// Frames at the end of the motion searched for a join (the paper's 10).
+    pub window_out_frames: usize,
+    /// Frames at the start of the incoming clip searched for a join (the paper's 25).
+    pub window_in_frames: usize,
+    /// Passages longer than this are used only when an edge has no shorter one.
+    pub max_clip_frames: usize,
+    /// σ of eq. 2: pose distance covered per frame by the Bézier fallback.
+    pub sigma_per_frame: f64,
+    /// Bounds of the fallback's length, frames.
+    pub min_fallback_frames: usize,
+    /// Upper bound of the fallback's length, frames.
+    pub max_fallback_frames: usize,
+}
+
+impl Default for SynthesisParams {
+    fn default() -> Self {
+        SynthesisParams {
+            window_out_frames: 10,
+            window_in_frames: 25,
+            max_clip_frames: 60,
+            sigma_per_frame: 0.05,
+            min_fallback_frames: 4,
+            max_fallback_frames: 60,
+        }
+    }
+}
+
+/// Frame-major local transforms being assembled, on the graph's skeleton.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Motion {
+    joints: usize,
+    fps: f64,
+    rotations: Vec<Quat>,
+    translations: Vec<Vec3>,
+}
+
+impl Motion {
+    /// The frames of `clip`.
+    pub fn of_clip(clip: &Clip) -> Motion {
+        Motion {
+            joints: clip.joint_count(),
+            fps: clip.fps(),
+            rotations: clip.rotations().to_vec(),
+            translations: clip.translations().to_vec(),
+        }
+    }
+
+    /// Frame count.
+    pub fn frame_count(&self) -> usize {
+        self.rotations.len() / self.joints.max(1)
+    }
+
+    fn rot(&self, f: usize) -> &[Quat] {
+        &self.rotations[f * self.joints..(f + 1) * self.joints]
+    }
+
+    fn trans(&self, f: usize) -> &[Vec3] {
+        &self.translations[f * self.joints..(f + 1) * self.joints]
+    }
+
+    fn truncate(&mut self, frames: usize) {
+        self.rotations.truncate(frames * self.joints);
+        self.translations.truncate(frames * self.joints);
+    }
+
+    /// Features of frames `range` (velocities from neighbouring frames of this motion).
+    fn features(&self, layout: &PoseFeatures, range: std::ops::Range<usize>) -> PoseFeatures {
+        let mut f = layout.clone_empty();
+        f.push_frames(&self.rotations, &self.translations, self.joints, self.fps, range);
+        f
+    }
+
+    /// A corpus passage as frames, reversed when played backwards.
+    fn of_passage(graph: &TransitionGraph, clip: &EdgeClip) -> Motion {
+        let source = &graph.clusters.clip_set.clips()[clip.run.clip as usize].clip;
+        let mut m = Motion::of_clip(&source.slice(clip.run.start as usize, clip.run.end as usize));
+        if clip.backward {
+            let j = m.joints;
+            let frames = m.frame_count();
+            m.rotations = (0..frames).rev().flat_map(|f| m.rotations[f * j..(f + 1) * j].to_vec()).collect();
+            m.translations = (0..frames).rev().flat_map(|f| m.translations[f * j..(f + 1) * j].to_vec()).collect();
+        }
+        m
+    }
+
+    /// The motion as a clip on `like`'s skeleton.
+    pub fn into_clip(self, like: &Clip) -> Result<Clip, ClipError> {
+        Clip::new(like.skeleton().clone(), self.fps, self.rotations, self.translations, like.import_scale)
+    }
+}
+
+/// Appends `incoming` to `out` at the minimum of the distance grid between `out`'s last
+/// `window_out_frames` and `incoming`'s first `window_in_frames`, turning and moving
+/// `incoming` to match heading and floor position there and blending over the overlap.
+/// Returns the output frame where blending started.
+fn join(out: &mut Motion, incoming: &Motion, layout: &PoseFeatures, p: &SynthesisParams) -> usize {
+    let n = out.frame_count();
+    let (m, w) = (p.window_out_frames.clamp(1, n), p.window_in_frames.clamp(1, incoming.frame_count()));
+    let tail = out.features(layout, n - m..n);
+    let head = incoming.features(layout, 0..w);
+    let mut best = (0, 0, f32::INFINITY);
+    for a in 0..m {
+        for b in 0..w {
+            let d = tail.distance_to(a, &head, b);
+            if d < best.2 {
+                best = (a, b, d);
+            }
+        }
+    }
+    let (i, j) = (n - m + best.0, best.1);
+    let placed = placed_at(incoming, j, out.rot(i)[0], out.trans(i)[0]);
+    let overlap = n - i;
+    let last = placed.frame_count() - 1;
+    let mut blended = Motion { rotations: Vec::new(), translations: Vec::new(), ..*out };
+    for k in 0..overlap {
+        let beta = (k + 1) as f32 / (overlap + 1) as f32;
+        let g = (j + k).min(last);
+        let (ra, rb) = (out.rot(i + k), placed.rot(g));
+        let (ta, tb) = (out.trans(i + k), placed.trans(g));
+        blended.rotations.extend(ra.iter().zip(rb).map(|(a, b)| slerp_short(*a, *b, beta)));
+        blended.translations.extend(ta.iter().zip(tb).map(|(a, b)| a.lerp(*b, beta)));
+    }
+    out.truncate(i);
+    out.rotations.extend(blended.rotations);
+    out.translations.extend(blended.translations);
+    let from = (j + overlap).min(placed.frame_count());
+    out.rotations.extend_from_slice(&placed.rotations[from * out.joints..]);
+    out.translations.extend_from_slice(&placed.translations[from * out.joints..]);
+    i
+}
+
+/// `motion` turned about the vertical and moved on the floor so that its frame `frame`
+/// has the heading of `root_rotation` and the floor position of `root_position_m`.
+fn placed_at(motion: &Motion, frame: usize, root_rotation: Quat, root_position_m: Vec3) -> Motion {
+    let turn = Quat::from_rotation_y(heading_yaw(root_rotation) - heading_yaw(motion.rot(frame)[0]));
+    let pivot = motion.trans(frame)[0];
+    let mut placed = motion.clone();
+    let j = motion.joints;
+    for f in 0..motion.frame_count() {
+        placed.rotations[f * j] = turn * motion.rotations[f * j];
+        let p = turn * (motion.translations[f * j] - Vec3::new(pivot.x, 0.0, pivot.z));
+        placed.translations[f * j] = Vec3::new(p.x + root_position_m.x, p.y, p.z + root_position_m.z);
+    }
+    placed
+}
+
+/// What one transition did.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct TransitionInfo {
+    /// Cluster of the source's last frame.
+    pub source_cluster: u32,
+    /// Cluster of the target's first frame.
+    pub target_cluster: u32,
+    /// Candidate paths between them.
+    pub candidates: usize,
+    /// The path followed (clusters), empty for the fallback.
+    pub path: Vec<u32>,
+    /// Its transition cost (eq. 1); 0 when the clusters coincide; none for the fallback.
+    pub cost: Option<f64>,
+    /// Whether the Bézier fallback was used.
+    pub fallback: bool,
+    /// Medoid walk of the fallback (clusters).
+    pub medoid_walk: Vec<u32>,
+    /// Output frames from the first join (or fallback start) to where the target plays on its own.
+    pub frames: FrameRange,
+}
+
+/// The cluster nearest frame `frame` of `motion`.
+fn locate(graph: &TransitionGraph, motion: &Motion, frame: usize) -> u32 {
+    let c = &graph.clusters;
+    nearest_centre(&c.features, &c.centres, &motion.features(&c.features, frame..frame + 1), 0).0
+}
+
+/// Appends a transition and then `target` to `out`, which must be on the graph's skeleton
+/// and frame rate and hold at least one frame, as must `target`.
+pub fn append_transition(
+    graph: &TransitionGraph,
+    out: &mut Motion,
+    target: &Motion,
+    params: &SynthesisParams,
+    rng: &mut impl Rng,
+) -> TransitionInfo {
+    let layout = &graph.clusters.features;
+    let s = locate(graph, out, out.frame_count() - 1);
+    let t = locate(graph, target, 0);
+    let table = graph.paths_from(s);
+    let candidates = &table.paths[t as usize];
+    let mut info = TransitionInfo {
+        source_cluster: s,
+        target_cluster: t,
+        candidates: candidates.len(),
+        path: Vec::new(),
+        cost: None,
+        fallback: false,
+        medoid_walk: Vec::new(),
+        frames: FrameRange::new(0, 0),
+    };
+    let chosen = if s == t {
+        Some((vec![s], 0.0))
+    } else if candidates.is_empty() {
+        None
+    } else {
+        let weight = |c: f64| 1.0 / c.max(1e-9);
+        let total: f64 = candidates.iter().map(|c| weight(c.cost)).sum();
+        let mut pick = rng.gen_range(0.0..total);
+        let mut index = candidates.len() - 1;
+        for (k, c) in candidates.iter().enumerate() {
+            pick -= weight(c.cost);
+            if pick < 0.0 {
+                index = k;
+                break;
+            }
+        }
+        Some((candidates[index].nodes.clone(), candidates[index].cost))
+    };
+    let Some((path, cost)) = chosen else {
+        info.fallback = true;
+        info.medoid_walk = medoid_walk(graph, s, t);
+        let start = out.frame_count();
+        let inserted = bezier_fallback(graph, out, target, &info.medoid_walk, params);
+        info.frames = FrameRange::new(start, start + inserted);
+        return info;
+    };
+    let mut first_join = None;
+    for pair in path.windows(2) {
+        let Some(edge) = graph.edge(pair[0], pair[1]) else { continue };
+        let short: Vec<&EdgeClip> = edge.clips.iter().filter(|c| c.run.len() <= params.max_clip_frames).collect();
+        let pool: Vec<&EdgeClip> = if short.is_empty() { edge.clips.iter().collect() } else { short };
+        let last = out.features(layout, out.frame_count() - 1..out.frame_count());
+        let best = pool
+            .into_iter()
+            .map(|c| {
+                let m = Motion::of_passage(graph, c);
+                let d = last.distance_to(0, &m.features(layout, 0..1), 0);
+                (d, m)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((_, passage)) = best {
+            let at = join(out, &passage, layout, params);
+            first_join.get_or_insert(at);
+        }
+    }
+    let before = out.frame_count();
+    let at = join(out, target, layout, params);
+    info.path = path;
+    info.cost = Some(cost);
+    info.frames = FrameRange::new(first_join.unwrap_or(at), before);
+    info
+}
+
+/// Greedy walk over medoids from `s` to `t`: from the current cluster, among the clusters
+/// not yet visited and nearer to `t` than the current one, step to the nearest.
+pub fn medoid_walk(graph: &TransitionGraph, s: u32, t: u32) -> Vec<u32> {
+    let c = &graph.clusters;
+    let d = |a: u32, b: u32| c.features.distance(c.centres[a as usize], c.centres[b as usize]);
+    let mut walk = vec![s];
+    let mut current = s;
+    while current != t {
+        let to_target = d(current, t);
+        current = (0..c.cluster_count() as u32)
+            .filter(|&n| n != current && !walk.contains(&n) && d(n, t) < to_target)
+            .min_by(|&a, &b| d(current, a).total_cmp(&d(current, b)).then(a.cmp(&b)))
+            .unwrap_or(t);
+        walk.push(current);
+    }
+    walk
+}
+
+/// A full pose in heading-free form: root height (m), root rotation with its heading
+/// removed, every other joint's local rotation.
+#[derive(Clone, Debug, PartialEq)]
+struct Pose {
+    height_m: f32,
+    rotations: Vec<Quat>,
+}
+
+fn heading_free(motion: &Motion, frame: usize) -> Pose {
+    let mut rotations = motion.rot(frame).to_vec();
+    rotations[0] = Quat::from_rotation_y(-heading_yaw(rotations[0])) * rotations[0];
+    Pose { height_m: motion.trans(frame)[0].y, rotations }
+}
+
+/// The average of poses: mean height, per joint the normalised sum of sign-aligned
+/// quaternions (close to the rotation mean for the nearby poses of a walk half).
+fn average(poses: &[Pose]) -> Pose {
+    let mut out = poses[0].clone();
+    out.height_m = poses.iter().map(|p| p.height_m).sum::<f32>() / poses.len() as f32;
+    for (k, q) in out.rotations.iter_mut().enumerate() {
+        let reference = *q;
+        let sum = poses.iter().fold(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0), |acc, p| {
+            let r = p.rotations[k];
+            acc + if r.dot(reference) < 0.0 { -r } else { r }
+        });
+        *q = quat_normalize_or_identity(sum);
+    }
+    out
+}
+
+/// Quadratic Bézier on poses by de Casteljau with slerps.
+fn quadratic(a: &Pose, b: &Pose, c: &Pose, s: f32) -> Pose {
+    let lerp = |x: f32, y: f32| x + (y - x) * s;
+    let height_m = lerp(lerp(a.height_m, b.height_m), lerp(b.height_m, c.height_m));
+    let rotations = (0..a.rotations.len())
+        .map(|k| {
+            let (p, q, r) = (a.rotations[k], b.rotations[k], c.rotations[k]);
+            slerp_short(slerp_short(p, q, s), slerp_short(q, r, s), s)
+        })
+        .collect();
+    Pose { height_m, rotations }
+}
+
+/// The Bézier fallback: appends the interpolated frames, then `target` placed at the
+/// source's last heading and floor position. Returns the number of interpolated frames.
+fn bezier_fallback(
+    graph: &TransitionGraph,
+    out: &mut Motion,
+    target: &Motion,
+    walk: &[u32],
+    p: &SynthesisParams,
+) -> usize {
+    let c = &graph.clusters;
+    let last = out.frame_count() - 1;
+    let medoid = |n: u32| {
+        let (clip, frame) = c.locate(c.centres[n as usize]);
+        heading_free(&Motion::of_clip(&c.clip_set.clips()[clip].clip.slice(frame, frame + 1)), 0)
+    };
+    let half = walk.len().div_ceil(2);
+    let c1 = average(&walk[..half].iter().map(|&n| medoid(n)).collect::<Vec<_>>());
+    let c2 = average(&walk[half..].iter().map(|&n| medoid(n)).collect::<Vec<_>>());
+    let mid = quadratic(&c1, &c1, &c2, 0.5);
+    let (p0, p3) = (heading_free(out, last), heading_free(target, 0));
+    let layout = &c.features;
+    let d = out.features(layout, last..last + 1).distance_to(0, &target.features(layout, 0..1), 0);
+    let frames = ((f64::from(d) / p.sigma_per_frame).round() as usize)
+        .clamp(p.min_fallback_frames.max(2), p.max_fallback_frames);
+    let (root_rotation, root_position) = (out.rot(last)[0], out.trans(last)[0]);
+    let heading = Quat::from_rotation_y(heading_yaw(root_rotation));
+    let offsets = out.trans(last).to_vec();
+    for k in 1..frames {
+        let u = k as f32 / frames as f32;
+        let pose = if u < 0.5 { quadratic(&p0, &c1, &mid, 2.0 * u) } else { quadratic(&mid, &c2, &p3, 2.0 * u - 1.0) };
+        let mut rotations = pose.rotations;
+        rotations[0] = heading * rotations[0];
+        out.rotations.extend(rotations);
+        let mut translations = offsets.clone();
+        translations[0] = Vec3::new(root_position.x, pose.height_m, root_position.z);
+        out.translations.extend(translations);
+    }
+    let placed = placed_at(target, 0, root_rotation, root_position);
+    out.rotations.extend_from_slice(&placed.rotations);
+    out.translations.extend_from_slice(&placed.translations);
+    frames - 1
+}
