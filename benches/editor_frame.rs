@@ -39,7 +39,8 @@ fn bench(c: &mut Criterion) {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("big.ron");
     std::fs::write(&path, big_graph(500)).unwrap();
-    let mut app = EditorApp::new(&egui::Context::default(), Some(&path));
+    // Its own settings folder: no recent files or autosaves of the machine's user.
+    let mut app = EditorApp::with_settings_dir(&egui::Context::default(), Some(&path), dir.path().join("settings"));
     app.wait_for_evaluation();
     assert_eq!(app.doc().nodes.len(), 500);
     let mut harness =
