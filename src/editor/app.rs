@@ -205,6 +205,13 @@ impl EditorApp {
         }
     }
 
+    /// Pastes a copy of the selection beside it (the system clipboard is left alone).
+    pub fn duplicate_selection(&mut self) {
+        if let Some(text) = fragment::copy(&self.doc, &self.selection()) {
+            self.paste_text(&text);
+        }
+    }
+
     /// Deletes the selection as one undoable edit.
     pub fn delete_selection(&mut self) {
         let ids = self.selection();
@@ -533,8 +540,8 @@ impl EditorApp {
                 _ => {}
             }
         }
-        if duplicate && let Some(text) = fragment::copy(&self.doc, &self.selection()) {
-            self.paste_text(&text);
+        if duplicate {
+            self.duplicate_selection();
         }
         if delete {
             self.delete_selection();
@@ -613,9 +620,7 @@ impl EditorApp {
                     ui.close();
                 }
                 if ui.add_enabled(any, egui::Button::new("Duplicate")).on_hover_text("Ctrl+D").clicked() {
-                    if let Some(text) = fragment::copy(&self.doc, &self.selection()) {
-                        self.paste_text(&text);
-                    }
+                    self.duplicate_selection();
                     ui.close();
                 }
                 if ui.add_enabled(any, egui::Button::new("Delete")).on_hover_text("Delete").clicked() {
@@ -624,9 +629,8 @@ impl EditorApp {
                 }
             });
             ui.menu_button("Add", |ui| {
-                ui.add(egui::TextEdit::singleline(&mut self.canvas.search).hint_text("search…"));
-                let search = self.canvas.search.clone();
-                if let Some(kind) = super::canvas::catalogue_menu(ui, &self.registry, &search, |_| true) {
+                if let Some(kind) = super::canvas::catalogue_menu(ui, &self.registry, &mut self.canvas.search, |_| true)
+                {
                     let id = super::commands::fresh_node_id(&self.doc, kind);
                     let y = self.doc.layout.values().map(|p| p.1).fold(0.0_f32, f32::max) + 140.0;
                     let _ = self.edit(EditorCommand::AddNode { id: id.clone(), kind: kind.into(), pos: (0.0, y) });

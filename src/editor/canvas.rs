@@ -211,11 +211,9 @@ impl Canvas {
                 egui::Frame::popup(ui.style())
                     .show(ui, |ui| {
                         ui.label("Add node");
-                        ui.add(egui::TextEdit::singleline(&mut self.search).hint_text("search…").desired_width(180.0))
-                            .request_focus();
                         egui::ScrollArea::vertical()
                             .max_height(360.0)
-                            .show(ui, |ui| catalogue_menu(ui, registry, &self.search, |_| true))
+                            .show(ui, |ui| catalogue_menu(ui, registry, &mut self.search, |_| true))
                             .inner
                     })
                     .inner
@@ -410,7 +408,6 @@ impl SnarlViewer<String> for Viewer<'_> {
 
     fn show_graph_menu(&mut self, pos: Pos2, ui: &mut Ui, _snarl: &mut Snarl<String>) {
         ui.label("Add node");
-        ui.add(egui::TextEdit::singleline(self.search).hint_text("search…").desired_width(180.0)).request_focus();
         if let Some(kind) = catalogue_menu(ui, self.registry, self.search, |_| true) {
             let id = fresh_node_id(self.doc, kind);
             self.out.commands.push(EditorCommand::AddNode { id, kind: kind.to_string(), pos: (pos.x, pos.y) });
@@ -445,7 +442,6 @@ impl SnarlViewer<String> for Viewer<'_> {
             }
         };
         ui.label(format!("Add a node that {} a {}", if from_output { "takes" } else { "gives" }, ty.name()));
-        ui.add(egui::TextEdit::singleline(self.search).hint_text("search…").desired_width(180.0)).request_focus();
         let picked = catalogue_menu(ui, self.registry, self.search, |s| facing_port(s, ty, from_output).is_some());
         if let Some(cmd) =
             picked.and_then(|kind| add_connected(self.doc, self.registry, &endpoint, from_output, kind, pos))
@@ -481,14 +477,15 @@ impl SnarlViewer<String> for Viewer<'_> {
     }
 }
 
-/// The node catalogue grouped by category, narrowed to the kinds `accepts` and filtered by
-/// `search` (kind, category or doc text); returns the kind clicked.
+/// A focused search box over the node catalogue grouped by category, narrowed to the kinds
+/// `accepts` and filtered by `search` (kind, category or doc text); returns the kind clicked.
 pub(crate) fn catalogue_menu(
     ui: &mut Ui,
     registry: &Registry,
-    search: &str,
+    search: &mut String,
     accepts: impl Fn(&NodeSchema) -> bool,
 ) -> Option<&'static str> {
+    ui.add(egui::TextEdit::singleline(search).hint_text("search…").desired_width(180.0)).request_focus();
     let needle = search.trim().to_lowercase();
     let mut groups: BTreeMap<&str, Vec<&'static NodeSchema>> = BTreeMap::new();
     for node in registry.iter() {

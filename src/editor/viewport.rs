@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, Ui, Vec2};
 use glam::Vec3;
-use kinegraph_nodes::builtin::contacts::contacts_of;
+use kinegraph_nodes::builtin::contacts::{ContactThresholds, contacts_of};
 use kinegraph_nodes::model::{Clip, ClipPoses, Contacts, forward_kinematics};
 
 /// Vertical field of view of the camera (radians).
@@ -131,7 +131,7 @@ impl Shown {
         if poses.frame_count() == 0 || clip.skeleton().joints().is_empty() {
             (lo, hi) = (Vec3::ZERO, Vec3::ONE);
         }
-        let found = contacts_of(clip, &poses).ok();
+        let found = contacts_of(clip, &poses, &ContactThresholds::default()).ok();
         let feet = found.as_ref().map(|(_, feet)| feet.to_vec()).unwrap_or_default();
         Shown { clip: clip.clone(), title: title.to_string(), poses, lo, hi, contacts: found.map(|(c, _)| c), feet }
     }

@@ -119,9 +119,13 @@ pub fn detect_contacts(
 
 /// Contacts of both feet of `clip`, the feet found by joint name, with the feet's joint
 /// indices (left, right); the joint names not found otherwise.
-pub fn contacts_of(clip: &Clip, poses: &ClipPoses) -> Result<(Contacts, [usize; 2]), Vec<String>> {
+pub fn contacts_of(
+    clip: &Clip,
+    poses: &ClipPoses,
+    thresholds: &ContactThresholds,
+) -> Result<(Contacts, [usize; 2]), Vec<String>> {
     let landmarks = find_landmarks(clip.skeleton())?;
-    Ok((detect_contacts(clip, poses, &landmarks, &ContactThresholds::default()), landmarks.feet()))
+    Ok((detect_contacts(clip, poses, &landmarks, thresholds), landmarks.feet()))
 }
 
 /// Registers the contact node.
@@ -187,13 +191,12 @@ impl Node for DetectContacts {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
         let thresholds = thresholds_from(ctx)?;
-        let landmarks = find_landmarks(clip.skeleton()).map_err(|missing| {
+        let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &thresholds).map_err(|missing| {
             NodeError::input(
                 "clip",
                 format!("the feet could not be found by joint name (missing: {})", missing.join(", ")),
             )
         })?;
-        let contacts = detect_contacts(&clip, &forward_kinematics(&clip), &landmarks, &thresholds);
         ctx.set_output(&CONTACTS, Arc::new(contacts));
         Ok(())
     }
