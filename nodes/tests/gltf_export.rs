@@ -189,3 +189,37 @@ fn corpus_samples_re_exported_pass_the_validator() {
     }
     validate(&files);
 }
+
+/// A CMU walk carried onto CesiumMan (another naming, rest pose and size) through the
+/// automatic bone map, exported with CesiumMan's skinned mesh: the validator passes, and
+/// the character keeps its feet near the floor it stands on.
+#[test]
+fn a_cmu_walk_on_cesium_man_passes_the_validator() {
+    use kinegraph_nodes::builtin::ik::map::{clip_roles, map_by_roles, transfer};
+    use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
+    let Some(data) = shared_data() else { return };
+    let walk = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value.0;
+    let walk = walk.slice(1, walk.frame_count());
+    let asset = read_gltf_file(&data.join("gltf/CesiumMan.glb"), &GltfReadOptions::default()).unwrap().value;
+    let man = &asset.clips[0].clip;
+    let (t, s) = (clip_roles(man, "target").unwrap(), clip_roles(&walk, "source").unwrap());
+    let map = map_by_roles(man.skeleton(), &t, walk.skeleton(), &s);
+    let out = transfer(&walk, man, &map, None).unwrap();
+    println!("CesiumMan: {} pairs, unmapped {:?}, root scale {:.3}", map.joints.len(), out.unmapped, out.root_scale);
+    assert!(out.clip.rotations().iter().all(|q| q.is_finite()));
+    // Lowest point of the feet over the walk against the CesiumMan's own first frame.
+    let lowest = |c: &Clip| {
+        let poses = forward_kinematics(c);
+        (0..c.frame_count())
+            .flat_map(|f| t.legs.iter().map(move |l| (f, l.joints()[2])))
+            .map(|(f, j)| poses.position(f, j).y)
+            .fold(f32::INFINITY, f32::min)
+    };
+    let (own, carried) = (lowest(man), lowest(&out.clip));
+    println!("ankle floor: CesiumMan's own walk {own:.3} m, carried CMU walk {carried:.3} m");
+    assert!((own - carried).abs() < 0.05, "{own} vs {carried}");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cmu_on_cesium_man.glb");
+    write_glb_file(&path, &out.clip, asset.meshes.first()).unwrap();
+    validate(&[path]);
+}

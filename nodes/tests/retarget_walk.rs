@@ -10,6 +10,7 @@ use std::sync::Arc;
 use glam::Vec3;
 use kinegraph_nodes::builtin::clip_edit::trim;
 use kinegraph_nodes::builtin::contacts::{ContactThresholds, detect_contacts, ground_height};
+use kinegraph_nodes::builtin::ik::foot_lock::planted_travel_m;
 use kinegraph_nodes::builtin::ik::retarget::{Effectors, Plants, RetargetParams, retarget_clip};
 use kinegraph_nodes::builtin::ik::scale::{parse_rules, scale_clip};
 use kinegraph_nodes::builtin::momentum::body::{find_landmarks, limb_tip};
@@ -136,20 +137,16 @@ fn cmu_walk_retargets_to_a_smaller_character_without_skating() {
     assert!(mean_err < 0.001, "swing toe mean error {mean_err} m");
     // The core of each contact (the planted goal at full weight, edges excluded): there the
     // retargeted toe must stand still, unlike the angle copy's.
-    let core = |c: &Clip| {
-        let poses = forward_kinematics(c);
-        let mut travel = 0.0;
-        for (k, &foot) in landmarks.feet().iter().enumerate() {
-            let tip = limb_tip(c.skeleton(), foot);
-            let plants = Plants::new(&source, tip, &contacts.feet[k].intervals, 6);
-            for f in 1..c.frame_count() {
-                if plants.at(f).is_some_and(|(_, w)| w >= 1.0) && plants.at(f - 1).is_some_and(|(_, w)| w >= 1.0) {
-                    let d = poses.position(f, tip) - poses.position(f - 1, tip);
-                    travel += f64::from(Vec3::new(d.x, 0.0, d.z).length());
-                }
-            }
-        }
-        travel
+    let core = |c: &Clip| -> f64 {
+        landmarks
+            .feet()
+            .iter()
+            .enumerate()
+            .map(|(k, &foot)| {
+                let tip = limb_tip(c.skeleton(), foot);
+                planted_travel_m(c, tip, &Plants::new(&source, tip, &contacts.feet[k].intervals, 6))
+            })
+            .sum()
     };
     let (core_src, core_copy, core_ret) = (core(&source), core(&copied), core(clip));
     println!(

@@ -77,6 +77,7 @@ pub(crate) fn type_color(ty: PortType) -> Color32 {
         PortType::ClipSet => Color32::from_rgb(40, 120, 220),
         PortType::Clusters => Color32::from_rgb(150, 110, 230),
         PortType::TransitionGraph => Color32::from_rgb(90, 200, 160),
+        PortType::BoneMap => Color32::from_rgb(200, 160, 90),
     }
 }
 

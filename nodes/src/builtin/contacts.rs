@@ -9,6 +9,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
+use crate::builtin::ik::roles::body_roles;
 use crate::builtin::momentum::angular::central_difference;
 use crate::builtin::momentum::body::{Landmarks, find_landmarks, limb_tip};
 use crate::model::{Clip, ClipPoses, Contacts, FootContacts, FrameRange, forward_kinematics, intervals::intersect_all};
@@ -94,10 +95,14 @@ pub fn detect_contacts(
     landmarks: &Landmarks,
     thresholds: &ContactThresholds,
 ) -> Contacts {
+    feet_contacts(clip, poses, landmarks.feet(), thresholds)
+}
+
+/// Contacts of the two ankle joints `feet` (left, right) of `clip`.
+fn feet_contacts(clip: &Clip, poses: &ClipPoses, feet: [usize; 2], thresholds: &ContactThresholds) -> Contacts {
     let skeleton = clip.skeleton();
     let track = |j: usize| (0..poses.frame_count()).map(|f| poses.position(f, j).as_dvec3()).collect::<Vec<DVec3>>();
-    let feet: Vec<FootContacts> = landmarks
-        .feet()
+    let feet: Vec<FootContacts> = feet
         .iter()
         .map(|&ankle| {
             let toe = limb_tip(skeleton, ankle);
@@ -117,15 +122,28 @@ pub fn detect_contacts(
     Contacts { fps: clip.fps(), frame_count: clip.frame_count(), feet, double_support }
 }
 
-/// Contacts of both feet of `clip`, the feet found by joint name, with the feet's joint
-/// indices (left, right); the joint names not found otherwise.
+/// Contacts of both feet of `clip` with the feet's joint indices (left, right). The feet
+/// are found by joint name, or else from the body's shape in the first frame (any rig that
+/// stands on two legs, e.g. a glTF character with generic joint names); otherwise the
+/// joint names not found.
 pub fn contacts_of(
     clip: &Clip,
     poses: &ClipPoses,
     thresholds: &ContactThresholds,
 ) -> Result<(Contacts, [usize; 2]), Vec<String>> {
-    let landmarks = find_landmarks(clip.skeleton())?;
-    Ok((detect_contacts(clip, poses, &landmarks, thresholds), landmarks.feet()))
+    let feet = match find_landmarks(clip.skeleton()) {
+        Ok(landmarks) => landmarks.feet(),
+        Err(missing) => {
+            let first: Vec<glam::Vec3> = if poses.frame_count() > 0 {
+                poses.frame(0).iter().map(|t| t.translation).collect()
+            } else {
+                Vec::new()
+            };
+            let roles = body_roles(clip.skeleton(), &first).map_err(|_| missing)?;
+            roles.legs.map(|l| l.joints()[2])
+        }
+    };
+    Ok((feet_contacts(clip, poses, feet, thresholds), feet))
 }
 
 /// Registers the contact node.
@@ -194,7 +212,10 @@ impl Node for DetectContacts {
         let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &thresholds).map_err(|missing| {
             NodeError::input(
                 "clip",
-                format!("the feet could not be found by joint name (missing: {})", missing.join(", ")),
+                format!(
+                    "the feet could not be found, by joint name (missing: {}) or by the body's shape",
+                    missing.join(", ")
+                ),
             )
         })?;
         ctx.set_output(&CONTACTS, Arc::new(contacts));

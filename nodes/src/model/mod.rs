@@ -1,6 +1,7 @@
 //! The motion data model: skeletons, clips, meshes, skins, forward kinematics and units.
 
 pub mod barnet;
+pub mod bone_map;
 pub mod clip;
 pub mod clip_set;
 pub mod curves;
@@ -24,6 +25,7 @@ pub fn coordinate_in_range(v: glam::Vec3) -> bool {
     v.is_finite() && v.abs().max_element() <= MAX_COORDINATE_M
 }
 pub use barnet::{BarNet, BarNetError};
+pub use bone_map::BoneMap;
 pub use curves::{CurveChannel, Curves, CurvesError};
 pub use fk::{ClipPoses, Transform, forward_kinematics};
 pub use intervals::{Contacts, FootContacts, FrameRange, Phases};

@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use crate::builtin::transitions::{Clusters, TransitionGraph};
-use crate::model::{BarNet, Clip, ClipSet, Contacts, Curves, Mesh, MeshSequence, Phases};
+use crate::model::{BarNet, BoneMap, Clip, ClipSet, Contacts, Curves, Mesh, MeshSequence, Phases};
 
 /// A node's structured account of what it decided (chosen parameters, measured errors):
 /// shown by `kg run --json` and the editor, compared by `kg test`.
@@ -39,6 +39,8 @@ pub enum PortType {
     Clusters,
     /// Pose clusters joined by the clips that pass between them.
     TransitionGraph,
+    /// Which joint of one skeleton drives which joint of another.
+    BoneMap,
 }
 
 impl PortType {
@@ -58,6 +60,7 @@ impl PortType {
             PortType::ClipSet => "clip_set",
             PortType::Clusters => "clusters",
             PortType::TransitionGraph => "transition_graph",
+            PortType::BoneMap => "bone_map",
         }
     }
 }
@@ -91,6 +94,8 @@ pub enum Value {
     Clusters(Arc<Clusters>),
     /// See [`PortType::TransitionGraph`].
     TransitionGraph(Arc<TransitionGraph>),
+    /// See [`PortType::BoneMap`].
+    BoneMap(Arc<BoneMap>),
 }
 
 impl Value {
@@ -110,6 +115,7 @@ impl Value {
             Value::ClipSet(_) => PortType::ClipSet,
             Value::Clusters(_) => PortType::Clusters,
             Value::TransitionGraph(_) => PortType::TransitionGraph,
+            Value::BoneMap(_) => PortType::BoneMap,
         }
     }
 }
@@ -155,3 +161,4 @@ port_value!(Arc<BarNet>, BarNet);
 port_value!(Arc<ClipSet>, ClipSet);
 port_value!(Arc<Clusters>, Clusters);
 port_value!(Arc<TransitionGraph>, TransitionGraph);
+port_value!(Arc<BoneMap>, BoneMap);

@@ -359,7 +359,7 @@ fn parse_goals(text: &str) -> Result<Vec<DVec3>, String> {
 }
 
 /// Parses `"LeftLeg=0.1, LeftUpLeg=0.8"` into per-joint stiffness weights in [0, 1].
-fn parse_weights(text: &str) -> Result<Vec<(String, f64)>, String> {
+pub(crate) fn parse_weights(text: &str) -> Result<Vec<(String, f64)>, String> {
     text.split(',')
         .map(str::trim)
         .filter(|w| !w.is_empty())

@@ -1,0 +1,528 @@
+//! Bone maps and motion transfer between skeletons of different names, proportions and rest
+//! poses (a CMU capture onto a glTF character).
+//!
+//! Mapping: the body roles of both skeletons (by joint name where the names say, else by
+//! shape: [`super::roles`]) are paired — pelvis, the
+//! spine by relative height between pelvis, chest and head, and per leg and arm the joints
+//! above the limb (clavicle, hip joint) counted back from it, the upper, lower and end
+//! joints, and the joints below the end (toes, fingers) counted on. A RON bone-map file
+//! adds to or overrides the pairs.
+//!
+//! Transfer, with each clip's first frame as its reference pose:
+//! 1. Per mapped target joint, the reference alignment `A` turns the target's bones to point
+//!    where the source's mapped bones point in its reference (one bone: the shortest arc; a
+//!    joint with several mapped bones below it, like the pelvis: the best-fit rotation of
+//!    all of them, Kabsch). Unmapped joints follow their parent rigidly.
+//! 2. Each frame, a mapped target joint takes the source joint's world rotation change
+//!    since the reference: `W_t(f) = W_s(f) · W_s(0)⁻¹ · A · W_t(0)`; unmapped joints keep
+//!    their reference local rotation.
+//! 3. The pelvis follows the source's pelvis path scaled by the ratio of leg lengths (or
+//!    `root_scale`), the root being moved so the pelvis lands there.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use glam::{Mat3, Quat, Vec3};
+use nalgebra::Matrix3;
+use serde_json::json;
+
+use super::roles::{BodyRoles, Limb, body_roles, named_roles};
+use crate::builtin::momentum::body::find_landmarks;
+use crate::builtin::momentum::into_report;
+use crate::formats::FormatError;
+use crate::model::bone_map::BoneMap;
+use crate::model::fk::pose_world;
+use crate::model::{Clip, ClipError, Skeleton, Transform};
+use crate::node::{
+    ChoiceParam, FloatParam, Input, InputPathParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
+    Report, nearest_name,
+};
+
+/// Why a bone map or a transfer failed.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum MapError {
+    /// The body parts of a skeleton could not be read from its shape.
+    #[error("cannot read the body of the {which} skeleton from its first frame: {why}")]
+    Roles {
+        /// `source` or `target`.
+        which: &'static str,
+        /// What was missing.
+        why: String,
+    },
+    /// A bone-map entry names a joint the skeleton lacks.
+    #[error("the bone map names {which} joint `{name}`, which the {which} skeleton lacks{hint}")]
+    UnknownJoint {
+        /// `source` or `target`.
+        which: &'static str,
+        /// The name.
+        name: String,
+        /// A "did you mean" suffix, or empty.
+        hint: String,
+    },
+    /// Nothing maps.
+    #[error("no joint of the target is mapped")]
+    Empty,
+    /// A clip without frames.
+    #[error("the {0} clip has no frames")]
+    NoFrames(&'static str),
+    /// The result could not be built.
+    #[error(transparent)]
+    Clip(#[from] ClipError),
+}
+
+/// The automatic map from body roles: target joint → source joint (see the module doc).
+pub fn map_by_roles(target: &Skeleton, t: &BodyRoles, source: &Skeleton, s: &BodyRoles) -> BoneMap {
+    let mut pairs: Vec<(usize, usize)> = vec![(t.pelvis, s.pelvis)];
+    // Spine joints below and above the chest; end sites carry no motion of their own.
+    let split = |sk: &Skeleton, r: &BodyRoles| {
+        let at = r.spine.iter().position(|&j| j == r.chest).unwrap_or(0);
+        let real = |part: &[usize]| part.iter().copied().filter(|&j| !sk.joints()[j].end_site).collect::<Vec<_>>();
+        (real(&r.spine[..=at]), real(&r.spine[at + 1..]))
+    };
+    let (t_lower, t_upper) = split(target, t);
+    let (s_lower, s_upper) = split(source, s);
+    let (t_lower_from, s_lower_from) = (t.pelvis, s.pelvis);
+    pairs.extend(by_height(target, t_lower_from, &t_lower, source, s_lower_from, &s_lower));
+    pairs.extend(by_height(target, t.chest, &t_upper, source, s.chest, &s_upper));
+    for (tl, sl) in t.legs.iter().zip(&s.legs).chain(t.arms.iter().zip(&s.arms)) {
+        pairs.extend(limb_pairs(tl, sl));
+    }
+    let name = |sk: &Skeleton, j: usize| sk.joints()[j].name.clone();
+    let joints = pairs
+        .into_iter()
+        .filter(|&(tj, sj)| !target.joints()[tj].end_site && !source.joints()[sj].end_site)
+        .map(|(tj, sj)| (name(target, tj), name(source, sj)))
+        .collect();
+    BoneMap { joints }
+}
+
+/// Pairs the joints of two chains by their relative distance along the chain from `from`.
+fn by_height(
+    target: &Skeleton,
+    t_from: usize,
+    t_chain: &[usize],
+    source: &Skeleton,
+    s_from: usize,
+    s_chain: &[usize],
+) -> Vec<(usize, usize)> {
+    let fractions = |sk: &Skeleton, from: usize, chain: &[usize]| {
+        let rest = sk.rest_positions();
+        let mut along = Vec::with_capacity(chain.len());
+        let (mut total, mut previous) = (0.0f32, from);
+        for &j in chain {
+            total += rest[j].distance(rest[previous]);
+            along.push(total);
+            previous = j;
+        }
+        along.iter().map(|a| if total > 0.0 { a / total } else { 1.0 }).collect::<Vec<f32>>()
+    };
+    let (tf, sf) = (fractions(target, t_from, t_chain), fractions(source, s_from, s_chain));
+    t_chain
+        .iter()
+        .zip(&tf)
+        .filter_map(|(&tj, &u)| {
+            let k = (0..s_chain.len()).min_by(|&a, &b| (sf[a] - u).abs().total_cmp(&(sf[b] - u).abs()))?;
+            Some((tj, s_chain[k]))
+        })
+        .collect()
+}
+
+/// Pairs two limbs: the upper, lower and end joints, the joints above counted back from the
+/// upper joint, the joints below counted on from the end.
+fn limb_pairs(t: &Limb, s: &Limb) -> Vec<(usize, usize)> {
+    let above = t.chain[..t.upper].iter().rev().zip(s.chain[..s.upper].iter().rev());
+    let from_upper = t.chain[t.upper..].iter().zip(&s.chain[s.upper..]);
+    above.chain(from_upper).map(|(&a, &b)| (a, b)).collect()
+}
+
+/// A bone map resolved to joint indices: `(target joint, source joint)` pairs.
+fn resolve(map: &BoneMap, target: &Skeleton, source: &Skeleton) -> Result<Vec<(usize, usize)>, MapError> {
+    let find = |sk: &Skeleton, which: &'static str, name: &str| {
+        sk.index_of(name).ok_or_else(|| MapError::UnknownJoint {
+            which,
+            name: name.to_owned(),
+            hint: nearest_name(name, sk.joints().iter().map(|j| j.name.as_str()))
+                .map(|n| format!(" (did you mean `{n}`?)"))
+                .unwrap_or_default(),
+        })
+    };
+    let mut pairs = map
+        .joints
+        .iter()
+        .map(|(t, s)| Ok((find(target, "target", t)?, find(source, "source", s)?)))
+        .collect::<Result<Vec<_>, MapError>>()?;
+    pairs.sort_unstable();
+    if pairs.is_empty() {
+        return Err(MapError::Empty);
+    }
+    Ok(pairs)
+}
+
+/// World transforms of a clip's first frame (its reference pose).
+pub fn reference(clip: &Clip, which: &'static str) -> Result<Vec<Transform>, MapError> {
+    if clip.frame_count() == 0 {
+        return Err(MapError::NoFrames(which));
+    }
+    let mut world = vec![Transform::IDENTITY; clip.joint_count()];
+    pose_world(clip.skeleton(), clip.frame_rotations(0), clip.frame_translations(0), &mut world);
+    Ok(world)
+}
+
+/// The body roles of a clip's skeleton: from its joint names when they name every limb
+/// (CMU, DAZ, 3ds Max, HumanIK, Mixamo, Blender styles), else from its shape in the first
+/// frame (any naming).
+pub fn clip_roles(clip: &Clip, which: &'static str) -> Result<BodyRoles, MapError> {
+    let world = reference(clip, which)?;
+    if let Some(roles) = find_landmarks(clip.skeleton()).ok().and_then(|l| named_roles(clip.skeleton(), &l)) {
+        return Ok(roles);
+    }
+    shape_roles(clip.skeleton(), &world, which)
+}
+
+/// The body roles of a skeleton posed at `world`, read from its shape only.
+pub fn shape_roles(skeleton: &Skeleton, world: &[Transform], which: &'static str) -> Result<BodyRoles, MapError> {
+    let pos: Vec<Vec3> = world.iter().map(|t| t.translation).collect();
+    body_roles(skeleton, &pos).map_err(|why| MapError::Roles { which, why })
+}
+
+/// Mean leg length (hip to knee to ankle, metres) of a skeleton in a reference pose.
+fn leg_length(roles: &BodyRoles, world: &[Transform]) -> f32 {
+    let leg = |l: &Limb| {
+        let [a, b, c] = l.joints().map(|j| world[j].translation);
+        a.distance(b) + b.distance(c)
+    };
+    0.5 * (leg(&roles.legs[0]) + leg(&roles.legs[1]))
+}
+
+/// The rotation that best turns the unit directions `from` onto `to` (Kabsch, through the SVD
+/// of their 3×3 correlation); the shortest arc for a single pair, identity for none.
+fn best_rotation(pairs: &[(Vec3, Vec3)]) -> Quat {
+    match pairs {
+        [] => Quat::IDENTITY,
+        [(a, b)] => Quat::from_rotation_arc(*a, *b),
+        _ => {
+            let mut h = Matrix3::<f64>::zeros();
+            for (a, b) in pairs {
+                let (a, b) = (a.as_dvec3(), b.as_dvec3());
+                h += nalgebra::Vector3::new(b.x, b.y, b.z) * nalgebra::Vector3::new(a.x, a.y, a.z).transpose();
+            }
+            let svd = h.svd(true, true);
+            let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else { return Quat::IDENTITY };
+            let d = (u * v_t).determinant().signum();
+            let r = u * Matrix3::from_diagonal(&nalgebra::Vector3::new(1.0, 1.0, d)) * v_t;
+            let m = Mat3::from_cols(
+                Vec3::new(r[(0, 0)] as f32, r[(1, 0)] as f32, r[(2, 0)] as f32),
+                Vec3::new(r[(0, 1)] as f32, r[(1, 1)] as f32, r[(2, 1)] as f32),
+                Vec3::new(r[(0, 2)] as f32, r[(1, 2)] as f32, r[(2, 2)] as f32),
+            );
+            Quat::from_mat3(&m)
+        }
+    }
+}
+
+/// A motion carried onto another skeleton.
+#[derive(Clone, Debug)]
+pub struct Transferred {
+    /// The source's motion on the target skeleton, at the source's frame rate.
+    pub clip: Clip,
+    /// Target joints no source joint drives (they keep their reference angles).
+    pub unmapped: Vec<String>,
+    /// Factor applied to the pelvis path.
+    pub root_scale: f64,
+}
+
+/// Carries `source`'s motion onto `target`'s skeleton through `map` (see the module doc).
+/// `root_scale` replaces the leg-length ratio; without it both skeletons need legs.
+pub fn transfer(source: &Clip, target: &Clip, map: &BoneMap, root_scale: Option<f64>) -> Result<Transferred, MapError> {
+    let (t_sk, s_sk) = (target.skeleton(), source.skeleton());
+    let pairs = resolve(map, t_sk, s_sk)?;
+    let (s_ref, t_ref) = (reference(source, "source")?, reference(target, "target")?);
+    let roles = clip_roles(target, "target").and_then(|t| Ok((t, clip_roles(source, "source")?)));
+    let scale = match (root_scale, &roles) {
+        (Some(s), _) => s,
+        (None, Ok((t, s))) => {
+            let s_len = leg_length(s, &s_ref);
+            if s_len > 1e-6 { f64::from(leg_length(t, &t_ref) / s_len) } else { 1.0 }
+        }
+        (None, Err(e)) => return Err(e.clone()),
+    };
+    // The pelvis pair carries the path: from the body roles, or else the topmost mapped joint.
+    let pelvis = match &roles {
+        Ok((t, s)) => (t.pelvis, s.pelvis),
+        Err(_) => pairs[0],
+    };
+    let n = t_sk.len();
+    let mut driver: Vec<Option<usize>> = vec![None; n];
+    for &(t, s) in &pairs {
+        driver[t] = Some(s);
+    }
+    // The nearest mapped ancestor of each target joint.
+    let mut mapped_above: Vec<Option<usize>> = vec![None; n];
+    for (j, joint) in t_sk.joints().iter().enumerate() {
+        mapped_above[j] = joint.parent.and_then(|p| if driver[p].is_some() { Some(p) } else { mapped_above[p] });
+    }
+    // 1. Reference alignment per joint.
+    let mut links: Vec<Vec<(Vec3, Vec3)>> = vec![Vec::new(); n];
+    for c in 0..n {
+        let (Some(cs), Some(t)) = (driver[c], mapped_above[c]) else { continue };
+        let Some(ts) = driver[t] else { continue };
+        let (dt, ds) = (t_ref[c].translation - t_ref[t].translation, s_ref[cs].translation - s_ref[ts].translation);
+        if let (Some(dt), Some(ds)) = (dt.try_normalize(), ds.try_normalize()) {
+            links[t].push((dt, ds));
+        }
+    }
+    let mut align = vec![Quat::IDENTITY; n];
+    for j in 0..n {
+        let inherited = t_sk.joints()[j].parent.map_or(Quat::IDENTITY, |p| align[p]);
+        align[j] = if driver[j].is_some() && !links[j].is_empty() { best_rotation(&links[j]) } else { inherited };
+    }
+    // Per mapped joint: W_t(f) = W_s(f) · offset, offset = W_s(0)⁻¹ · A · W_t(0).
+    let offset: Vec<Quat> = (0..n)
+        .map(|j| match driver[j] {
+            Some(s) => s_ref[s].rotation.inverse() * align[j] * t_ref[j].rotation,
+            None => Quat::IDENTITY,
+        })
+        .collect();
+    let frames = source.frame_count();
+    let mut rotations = Vec::with_capacity(frames * n);
+    let mut translations = Vec::with_capacity(frames * n);
+    let mut s_world = vec![Transform::IDENTITY; source.joint_count()];
+    let mut t_world = vec![Transform::IDENTITY; n];
+    let mut world_rot = vec![Quat::IDENTITY; n];
+    for f in 0..frames {
+        pose_world(s_sk, source.frame_rotations(f), source.frame_translations(f), &mut s_world);
+        let start = rotations.len();
+        for (j, joint) in t_sk.joints().iter().enumerate() {
+            let parent_rot = joint.parent.map_or(Quat::IDENTITY, |p| world_rot[p]);
+            let local = match driver[j] {
+                Some(s) => parent_rot.inverse() * s_world[s].rotation * offset[j],
+                None => target.frame_rotations(0)[j],
+            };
+            world_rot[j] = parent_rot * local;
+            rotations.push(local);
+        }
+        translations.extend_from_slice(target.frame_translations(0));
+        // 3. Root moved so the pelvis follows the scaled source pelvis.
+        pose_world(t_sk, &rotations[start..], &translations[start..], &mut t_world);
+        let goal = s_world[pelvis.1].translation * scale as f32;
+        translations[start] += goal - t_world[pelvis.0].translation;
+    }
+    let unmapped = (0..n)
+        .filter(|&j| driver[j].is_none() && !t_sk.joints()[j].end_site)
+        .map(|j| t_sk.joints()[j].name.clone())
+        .collect();
+    let clip = Clip::new(t_sk.clone(), source.fps(), rotations, translations, target.import_scale)?;
+    Ok(Transferred { clip, unmapped, root_scale: scale })
+}
+
+const SOURCE: Input<Arc<Clip>> = Input::required("source", "The motion to carry over (e.g. a CMU capture).");
+const TARGET: Input<Arc<Clip>> = Input::required(
+    "target",
+    "A clip on the character to animate (e.g. clip.load of its glTF): its skeleton receives the motion; its first frame is its reference pose.",
+);
+const MAPPED: Output<Arc<Clip>> = Output::new("clip", "The source's motion on the target's skeleton.");
+const MAP_OUT: Output<Arc<BoneMap>> =
+    Output::new("map", "The bone map used (target joint → source joint), for export.bone_map.");
+const REPORT: Output<Arc<Report>> =
+    Output::new("report", "The pairs, the target joints left unmapped, the body parts found and the root scale.");
+const MAP_FILE: InputPathParam = InputPathParam::optional(
+    "map_file",
+    "A bone-map RON file (see export.bone_map); its pairs are added to the automatic ones and win over them.",
+    &["ron"],
+);
+const AUTO: ChoiceParam = ChoiceParam::new(
+    "auto",
+    "How pairs are found before the file's: from the body's shape (legs, arms, spine — any naming), or none (the file only).",
+    &["body", "none"],
+    "body",
+);
+const ROOT_SCALE: FloatParam = FloatParam::optional(
+    "root_scale",
+    "Factor on the pelvis path. Unset: the target's leg length over the source's.",
+    1e-3,
+    1e3,
+    "",
+);
+
+/// `skeleton.map`.
+pub struct MapSkeleton;
+
+static MAP_SKELETON: NodeSchema = NodeSchema {
+    kind: "skeleton.map",
+    category: "ik",
+    doc: "Carries a motion onto a character with other joint names, proportions and rest pose: joints are paired by body part (or a bone-map file), each takes its source joint's turning, the pelvis path is scaled by leg length.",
+    inputs: &[SOURCE.spec(), TARGET.spec()],
+    outputs: &[MAPPED.spec(), MAP_OUT.spec(), REPORT.spec()],
+    params: &[MAP_FILE.0, AUTO.0, ROOT_SCALE.0],
+    writes_files: false,
+};
+
+impl Node for MapSkeleton {
+    fn schema(&self) -> &'static NodeSchema {
+        &MAP_SKELETON
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let source = ctx.input(&SOURCE)?;
+        let target = ctx.input(&TARGET)?;
+        let failed = |e: MapError| match e {
+            MapError::Roles { which: "source", .. } | MapError::NoFrames("source") => {
+                NodeError::input("source", e.to_string())
+            }
+            MapError::UnknownJoint { .. } | MapError::Empty => NodeError::param("map_file", e.to_string()),
+            e => NodeError::input("target", e.to_string()),
+        };
+        let mut map = BoneMap::default();
+        let mut roles = BTreeMap::new();
+        if ctx.choice(&AUTO)? == "body" {
+            let (t, s) =
+                (clip_roles(&target, "target").map_err(failed)?, clip_roles(&source, "source").map_err(failed)?);
+            map = map_by_roles(target.skeleton(), &t, source.skeleton(), &s);
+            roles.insert("target", roles_json(target.skeleton(), &t));
+            roles.insert("source", roles_json(source.skeleton(), &s));
+        }
+        if let Some(path) = ctx.optional_input_path(&MAP_FILE)? {
+            let text = std::fs::read_to_string(&path).map_err(|e| FormatError::io(&path, &e))?;
+            map.joints.extend(BoneMap::from_ron(&text, &path)?.joints);
+        }
+        let out = transfer(&source, &target, &map, ctx.optional_float(&ROOT_SCALE)?).map_err(failed)?;
+        if !out.unmapped.is_empty() {
+            ctx.warn(format!(
+                "{} target joints have no source joint and keep their reference angles: {}",
+                out.unmapped.len(),
+                out.unmapped.join(", ")
+            ));
+        }
+        ctx.set_output(
+            &REPORT,
+            Arc::new(into_report(json!({
+                "pairs": map.joints.len(),
+                "map": map.joints,
+                "unmapped": out.unmapped,
+                "root_scale": out.root_scale,
+                "body": roles,
+            }))),
+        );
+        ctx.set_output(&MAPPED, Arc::new(out.clip));
+        ctx.set_output(&MAP_OUT, Arc::new(map));
+        Ok(())
+    }
+}
+
+/// The body parts found, by joint name, for the report.
+fn roles_json(skeleton: &Skeleton, roles: &BodyRoles) -> serde_json::Value {
+    let name = |j: usize| skeleton.joints()[j].name.clone();
+    let limb = |l: &Limb| l.joints().map(name);
+    json!({
+        "pelvis": name(roles.pelvis),
+        "chest": name(roles.chest),
+        "legs": [limb(&roles.legs[0]), limb(&roles.legs[1])],
+        "arms": [limb(&roles.arms[0]), limb(&roles.arms[1])],
+    })
+}
+
+const MAP_IN: Input<Arc<BoneMap>> = Input::required("map", "The bone map to save (skeleton.map).");
+const FILE_OUT: Output<Arc<std::path::PathBuf>> = Output::new("file", "The file written.");
+const MAP_FILE_OUT: OutputPathParam =
+    OutputPathParam::new("file", "Where to write, relative to the run's output folder.", "ron", "bone_map.ron");
+
+/// `export.bone_map`.
+pub struct ExportBoneMap;
+
+static EXPORT_BONE_MAP: NodeSchema = NodeSchema {
+    kind: "export.bone_map",
+    category: "io",
+    doc: "Saves a bone map as a RON file (one `target: source` pair a line) to edit by hand and reuse through skeleton.map's map_file.",
+    inputs: &[MAP_IN.spec()],
+    outputs: &[FILE_OUT.spec()],
+    params: &[MAP_FILE_OUT.0],
+    writes_files: true,
+};
+
+impl Node for ExportBoneMap {
+    fn schema(&self) -> &'static NodeSchema {
+        &EXPORT_BONE_MAP
+    }
+    fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
+        let map = ctx.input(&MAP_IN)?;
+        let relative = ctx.write_output(&MAP_FILE_OUT, map.to_ron().as_bytes())?;
+        ctx.set_output(&FILE_OUT, Arc::new(relative));
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::builtin::mannequin::mannequin_clip;
+    use crate::model::forward_kinematics;
+
+    #[test]
+    fn kabsch_recovers_a_known_rotation_and_one_pair_is_the_shortest_arc() {
+        let q = Quat::from_euler(glam::EulerRot::YXZ, 0.7, -0.3, 0.2);
+        let dirs = [Vec3::X, Vec3::new(0.0, 0.6, 0.8), Vec3::new(-0.6, 0.0, 0.8)];
+        let pairs: Vec<(Vec3, Vec3)> = dirs.iter().map(|d| (*d, q * *d)).collect();
+        assert!(best_rotation(&pairs).angle_between(q) < 1e-5);
+        let one = best_rotation(&[(Vec3::X, Vec3::Y)]);
+        assert!((one * Vec3::X - Vec3::Y).length() < 1e-6);
+        assert!((one.to_axis_angle().1 - std::f32::consts::FRAC_PI_2).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_clip_mapped_onto_its_own_skeleton_is_unchanged() {
+        let clip = mannequin_clip(40, 30.0, 1.0, 1.2).unwrap();
+        let roles = clip_roles(&clip, "source").unwrap();
+        let map = map_by_roles(clip.skeleton(), &roles, clip.skeleton(), &roles);
+        // Every joint maps to itself (end sites aside, the mannequin has none).
+        assert_eq!(map.joints.len(), clip.joint_count());
+        assert!(map.joints.iter().all(|(t, s)| t == s));
+        let out = transfer(&clip, &clip, &map, None).unwrap();
+        assert!((out.root_scale - 1.0).abs() < 1e-6);
+        let (a, b) = (forward_kinematics(&clip), forward_kinematics(&out.clip));
+        for f in 0..clip.frame_count() {
+            for j in 0..clip.joint_count() {
+                assert!((a.position(f, j) - b.position(f, j)).length() < 1e-5, "frame {f} joint {j}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_character_in_another_rest_pose_points_its_bones_like_the_source() {
+        // Target: the mannequin 1.3× larger, its first frame turned 90° about Y with the arms
+        // raised sideways. Each of its bones must point where the source's does.
+        let source = mannequin_clip(30, 30.0, 1.0, 1.2).unwrap();
+        let big = Arc::new(source.skeleton().scaled(1.3).unwrap());
+        let n = big.len();
+        let mut rot = vec![Quat::IDENTITY; n];
+        rot[0] = Quat::from_rotation_y(std::f32::consts::FRAC_PI_2);
+        for (name, angle) in [("LeftArm", 1.2f32), ("RightArm", -1.2)] {
+            rot[big.index_of(name).unwrap()] = Quat::from_rotation_z(angle);
+        }
+        let tr: Vec<Vec3> = big.joints().iter().map(|j| j.rest_offset).collect();
+        let target = Clip::new(big, 30.0, rot, tr, crate::model::ImportScale::METRES).unwrap();
+        let (t, s) = (clip_roles(&target, "target").unwrap(), clip_roles(&source, "source").unwrap());
+        let map = map_by_roles(target.skeleton(), &t, source.skeleton(), &s);
+        let out = transfer(&source, &target, &map, None).unwrap();
+        assert!((out.root_scale - 1.3).abs() < 1e-4, "{}", out.root_scale);
+        let (a, b) = (forward_kinematics(&source), forward_kinematics(&out.clip));
+        let sk = source.skeleton();
+        for f in 0..source.frame_count() {
+            for j in 1..n {
+                let p = sk.joints()[j].parent.unwrap();
+                let da = (a.position(f, j) - a.position(f, p)).normalize_or_zero();
+                let db = (b.position(f, j) - b.position(f, p)).normalize_or_zero();
+                assert!(da.angle_between(db) < 1e-3, "frame {f} bone {}", sk.joints()[j].name);
+            }
+            // The pelvis path is the source's, scaled.
+            assert!((b.position(f, 0) - 1.3 * a.position(f, 0)).length() < 1e-4);
+        }
+    }
+
+    #[test]
+    fn map_entries_naming_missing_joints_are_refused_with_a_hint() {
+        let clip = mannequin_clip(5, 30.0, 1.0, 1.0).unwrap();
+        let map = BoneMap { joints: [("LeftLeg".to_owned(), "LeftLegg".to_owned())].into_iter().collect() };
+        let e = transfer(&clip, &clip, &map, Some(1.0)).unwrap_err();
+        assert!(e.to_string().contains("did you mean `LeftLeg`"), "{e}");
+        assert_eq!(transfer(&clip, &clip, &BoneMap::default(), Some(1.0)).unwrap_err(), MapError::Empty);
+    }
+}

@@ -1,0 +1,249 @@
+//! Body roles of a humanoid skeleton read from its shape, not its joint names: which joints
+//! are the pelvis, the spine, and the upper, lower and end joints of each leg and arm. Joint
+//! names differ between every rig (`LeftUpLeg`, `lThigh`, `leg_joint_L_1`), the shape of a
+//! standing biped does not.
+//!
+//! On a reference pose standing upright (Y up):
+//! 1. The feet are the lowest leaf joint and the lowest other leaf in the body's lowest
+//!    quarter that splits from it high above the ground (more than 30 % of the body's
+//!    height): toes of one foot split at the ankle. Their lowest common ancestor is the
+//!    pelvis.
+//! 2. The head is the highest leaf; the spine is the path from the pelvis to it.
+//! 3. The arms are the two leaves farthest from where they leave the spine (three joints or
+//!    more below it), splitting from
+//!    each other on the spine; the lower of the two split points of the arms is the chest.
+//! 4. Along each limb (from the spine or pelvis to its leaf) the end joint is where the
+//!    limb branches (a hand into fingers), the lower and upper joints the two above it;
+//!    a limb without branches has its upper, lower and end joints start the two longest
+//!    consecutive bones (thigh and shin, upper arm and forearm).
+//! 5. Forward is where the toes point from the ankles; left is up × forward.
+
+use glam::Vec3;
+
+use crate::builtin::momentum::body::{Landmarks, limb_tip};
+use crate::model::Skeleton;
+
+/// One leg or arm: its joints from the spine (or pelvis) out to its tip.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Limb {
+    /// Joints from the one after the spine or pelvis to the leaf, in order.
+    pub chain: Vec<usize>,
+    /// Index in `chain` of the upper joint (hip or shoulder); the lower (knee or elbow) and
+    /// end (ankle or wrist) joints follow it.
+    pub upper: usize,
+}
+
+impl Limb {
+    /// The upper, lower and end joints (hip, knee, ankle or shoulder, elbow, wrist).
+    pub fn joints(&self) -> [usize; 3] {
+        [self.chain[self.upper], self.chain[self.upper + 1], self.chain[self.upper + 2]]
+    }
+}
+
+/// The body roles of a skeleton (see the module doc).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BodyRoles {
+    /// Where the legs split.
+    pub pelvis: usize,
+    /// Where the arms split from the spine.
+    pub chest: usize,
+    /// From the joint after the pelvis up to the head's leaf.
+    pub spine: Vec<usize>,
+    /// Left, right.
+    pub legs: [Limb; 2],
+    /// Left, right.
+    pub arms: [Limb; 2],
+}
+
+/// Reads the body roles of `skeleton` posed at `pos_in_world` (one position per joint),
+/// or says which part of the body it could not find.
+pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRoles, String> {
+    let joints = skeleton.joints();
+    let n = joints.len();
+    if pos_in_world.len() != n {
+        return Err("no pose to read it from".into());
+    }
+    let mut children = vec![0usize; n];
+    for j in joints {
+        if let Some(p) = j.parent {
+            children[p] += 1;
+        }
+    }
+    let leaves: Vec<usize> = (0..n).filter(|&j| children[j] == 0).collect();
+    let by_height = |a: &&usize, b: &&usize| pos_in_world[**a].y.total_cmp(&pos_in_world[**b].y);
+    let lowest = *leaves.iter().min_by(by_height).ok_or("no joints")?;
+    let highest = *leaves.iter().max_by(by_height).ok_or("no joints")?;
+    let height = pos_in_world[highest].y - pos_in_world[lowest].y;
+    if height <= 0.0 {
+        return Err("a flat skeleton (no height between its lowest and highest joints)".into());
+    }
+    let other_foot = leaves
+        .iter()
+        .filter(|&&l| {
+            let above_ground = |j: usize| pos_in_world[j].y - pos_in_world[lowest].y;
+            above_ground(l) < 0.25 * height && above_ground(common_ancestor(skeleton, lowest, l)) > 0.3 * height
+        })
+        .min_by(by_height)
+        .copied()
+        .ok_or("only one leg (no second low leaf splitting from the first above the knees)")?;
+    let pelvis = common_ancestor(skeleton, lowest, other_foot);
+    let spine = path_below(skeleton, pelvis, highest).ok_or("the head is not above the pelvis in the hierarchy")?;
+    // Arms: leaves leaving the spine, farthest from where they leave it.
+    let leaves_spine_at = |l: usize| spine.iter().rev().copied().find(|&s| is_ancestor(skeleton, s, l));
+    let reach = |l: usize| leaves_spine_at(l).map_or(0.0, |s| pos_in_world[l].distance(pos_in_world[s]));
+    let candidates: Vec<usize> = leaves
+        .iter()
+        .copied()
+        .filter(|&l| l != highest && !spine.contains(&l))
+        .filter(|&l| {
+            // An arm has a shoulder, an elbow and a wrist below where it leaves the spine.
+            leaves_spine_at(l).and_then(|s| path_below(skeleton, s, l)).is_some_and(|p| p.len() >= 3)
+        })
+        .collect();
+    let farthest = |from: &[usize]| from.iter().copied().max_by(|&a, &b| reach(a).total_cmp(&reach(b)));
+    let arm_a = farthest(&candidates).ok_or("no arms (no leaf leaving the spine)")?;
+    let others: Vec<usize> =
+        candidates.iter().copied().filter(|&l| spine.contains(&common_ancestor(skeleton, arm_a, l))).collect();
+    let arm_b = farthest(&others).ok_or("only one arm")?;
+    let splits = [arm_a, arm_b].map(|l| leaves_spine_at(l).unwrap_or(pelvis));
+    let chest = if spine.iter().position(|&s| s == splits[0]) < spine.iter().position(|&s| s == splits[1]) {
+        splits[0]
+    } else {
+        splits[1]
+    };
+
+    let limb = |from: usize, leaf: usize, what: &str| -> Result<Limb, String> {
+        let chain = path_below(skeleton, from, leaf).ok_or_else(|| format!("the {what} is not below the body"))?;
+        // A hand with fingers (or a foot with toes) is where the chain branches.
+        if let Some(end) = chain.iter().position(|&j| children[j] >= 2).filter(|&e| e >= 2) {
+            return Ok(Limb { chain, upper: end - 2 });
+        }
+        let bone = |j: usize| joints[j].parent.map_or(0.0, |p| pos_in_world[j].distance(pos_in_world[p]));
+        let upper = (0..chain.len().saturating_sub(2))
+            .max_by(|&a, &b| {
+                (bone(chain[a + 1]) + bone(chain[a + 2])).total_cmp(&(bone(chain[b + 1]) + bone(chain[b + 2])))
+            })
+            .ok_or_else(|| format!("the {what} has fewer than three joints"))?;
+        Ok(Limb { chain, upper })
+    };
+    let legs = [limb(pelvis, lowest, "leg")?, limb(pelvis, other_foot, "leg")?];
+    let arms = [limb(splits[0], arm_a, "arm")?, limb(splits[1], arm_b, "arm")?];
+
+    // Sides: left is up × forward, forward is where the toes point from the ankles.
+    let forward: Vec3 = legs
+        .iter()
+        .map(|l| (pos_in_world[*l.chain.last().unwrap_or(&0)] - pos_in_world[l.joints()[2]]).with_y(0.0))
+        .sum();
+    let left = Vec3::Y.cross(forward).normalize_or_zero();
+    if left == Vec3::ZERO {
+        return Err("no facing (the toes do not point forward of the ankles)".into());
+    }
+    let leftness = |l: &Limb| pos_in_world[l.joints()[2]].dot(left);
+    let sided = |[a, b]: [Limb; 2]| if leftness(&a) >= leftness(&b) { [a, b] } else { [b, a] };
+    Ok(BodyRoles { pelvis, chest, spine, legs: sided(legs), arms: sided(arms) })
+}
+
+/// The body roles from joints found by name ([`crate::builtin::momentum::body::find_landmarks`]):
+/// the pelvis splits the thighs, the chest the upper arms, the spine runs to the head's tip,
+/// each limb from its split to the tip below its end joint.
+pub fn named_roles(skeleton: &Skeleton, landmarks: &Landmarks) -> Option<BodyRoles> {
+    let [left, right] = landmarks.limbs;
+    let pelvis = common_ancestor(skeleton, left[0], right[0]);
+    let chest = common_ancestor(skeleton, left[3], right[3]);
+    let spine = path_below(skeleton, pelvis, limb_tip(skeleton, landmarks.head))?;
+    let limb = |from: usize, upper: usize, end: usize| {
+        let chain = path_below(skeleton, from, limb_tip(skeleton, end))?;
+        Some(Limb { upper: chain.iter().position(|&j| j == upper)?, chain })
+    };
+    Some(BodyRoles {
+        pelvis,
+        chest,
+        spine,
+        legs: [limb(pelvis, left[0], left[2])?, limb(pelvis, right[0], right[2])?],
+        arms: [limb(chest, left[3], left[5])?, limb(chest, right[3], right[5])?],
+    })
+}
+
+/// True when `ancestor` is a strict ancestor of `joint`.
+fn is_ancestor(skeleton: &Skeleton, ancestor: usize, mut joint: usize) -> bool {
+    while let Some(p) = skeleton.joints()[joint].parent {
+        if p == ancestor {
+            return true;
+        }
+        joint = p;
+    }
+    false
+}
+
+/// The deepest joint that is `a` or `b` or an ancestor of both.
+fn common_ancestor(skeleton: &Skeleton, a: usize, b: usize) -> usize {
+    let mut x = a;
+    loop {
+        if x == b || is_ancestor(skeleton, x, b) {
+            return x;
+        }
+        match skeleton.joints()[x].parent {
+            Some(p) => x = p,
+            None => return x,
+        }
+    }
+}
+
+/// The joints strictly below `top` down to `leaf` (included), top first, when `leaf`
+/// lies under `top`.
+fn path_below(skeleton: &Skeleton, top: usize, leaf: usize) -> Option<Vec<usize>> {
+    let mut path = Vec::new();
+    let mut j = leaf;
+    while j != top {
+        path.push(j);
+        j = skeleton.joints()[j].parent?;
+    }
+    path.reverse();
+    Some(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::builtin::mannequin::mannequin_skeleton;
+
+    #[test]
+    fn the_mannequin_roles_match_its_names() {
+        let sk = mannequin_skeleton().unwrap();
+        let roles = body_roles(&sk, &sk.rest_positions()).unwrap();
+        let name = |j: usize| sk.joints()[j].name.as_str();
+        let names = |l: &Limb| l.joints().map(name);
+        assert_eq!(name(roles.pelvis), "Hips");
+        assert_eq!(name(roles.chest), "Chest");
+        assert_eq!(names(&roles.legs[0]), ["LeftUpLeg", "LeftLeg", "LeftFoot"]);
+        assert_eq!(names(&roles.legs[1]), ["RightUpLeg", "RightLeg", "RightFoot"]);
+        assert_eq!(names(&roles.arms[0]), ["LeftArm", "LeftForeArm", "LeftHand"]);
+        assert_eq!(names(&roles.arms[1]), ["RightArm", "RightForeArm", "RightHand"]);
+        assert_eq!(
+            roles.spine.iter().map(|&j| name(j)).collect::<Vec<_>>(),
+            ["Spine", "Chest", "Neck", "Head", "HeadTop"]
+        );
+    }
+
+    #[test]
+    fn a_skeleton_turned_to_face_another_way_keeps_its_sides() {
+        let sk = mannequin_skeleton().unwrap();
+        let turn = glam::Quat::from_rotation_y(2.5);
+        let rest: Vec<Vec3> = sk.rest_positions().iter().map(|p| turn * *p).collect();
+        let roles = body_roles(&sk, &rest).unwrap();
+        assert_eq!(sk.joints()[roles.legs[0].joints()[0]].name, "LeftUpLeg");
+        assert_eq!(sk.joints()[roles.arms[1].joints()[2]].name, "RightHand");
+    }
+
+    #[test]
+    fn a_one_legged_or_flat_skeleton_is_refused_with_the_reason() {
+        let sk = mannequin_skeleton().unwrap();
+        let mut rest = sk.rest_positions();
+        for p in &mut rest {
+            p.y = 0.0;
+        }
+        assert!(body_roles(&sk, &rest).unwrap_err().contains("flat"));
+        let one_leg = Skeleton::new(sk.joints()[..16].to_vec()).unwrap();
+        assert!(body_roles(&one_leg, &one_leg.rest_positions()).unwrap_err().contains("one leg"));
+    }
+}

@@ -1,0 +1,112 @@
+//! Bone maps on the real corpus: body roles read from the skeletons' shapes agree with the
+//! roles their joint names give, and the same CMU take in two conventions (cgspeed's
+//! MotionBuilder and DAZ files of 02_02) maps onto each other. Needs `../shared/data`
+//! (skips without it outside CI). Figures are printed (`--nocapture`).
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use kinegraph_nodes::builtin::ik::map::{clip_roles, map_by_roles, reference, shape_roles, transfer};
+use kinegraph_nodes::builtin::momentum::body::find_landmarks;
+use kinegraph_nodes::corpus::{files_with_extension, shared_data};
+use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
+use kinegraph_nodes::model::{Clip, forward_kinematics};
+
+fn load(path: &std::path::Path) -> Clip {
+    read_bvh_file(path, BvhReadOptions::default()).unwrap().value.0
+}
+
+#[test]
+fn shape_roles_agree_with_named_landmarks_on_every_corpus_skeleton() {
+    let Some(data) = shared_data() else { return };
+    let (mut checked, mut unread, mut disagree) = (0, Vec::new(), Vec::new());
+    for path in files_with_extension(&data.join("bvh"), "bvh") {
+        let clip = load(&path);
+        // Name-based landmarks are the independent answer; rigs they do not cover are skipped.
+        let Ok(named) = find_landmarks(clip.skeleton()) else { continue };
+        let roles = match shape_roles(clip.skeleton(), &reference(&clip, "source").unwrap(), "source") {
+            Ok(roles) => roles,
+            Err(e) => {
+                println!("{}: {e}", path.display());
+                unread.push(path.clone());
+                continue;
+            }
+        };
+        let name = |j: usize| clip.skeleton().joints()[j].name.clone();
+        let shape: Vec<[String; 3]> = roles.legs.iter().chain(&roles.arms).map(|l| l.joints().map(name)).collect();
+        let by_name: Vec<[String; 3]> = [(0usize, 0usize), (1, 0), (0, 3), (1, 3)]
+            .iter()
+            .map(|&(side, first)| [first, first + 1, first + 2].map(|k| name(named.limbs[side][k])))
+            .collect();
+        if shape != by_name {
+            println!("{}: shape {shape:?} but names {by_name:?}", path.display());
+            disagree.push(path.clone());
+            continue;
+        }
+        checked += 1;
+    }
+    println!(
+        "{checked} clips: shape roles equal named landmarks; {} not read from their shape, {} read otherwise",
+        unread.len(),
+        disagree.len()
+    );
+    assert!(checked >= 30, "only {checked} corpus clips agree");
+    // The MASS HumanIK files hang mesh-attachment joints (`*_RIGMESH`, up to a metre off the
+    // body) from the limbs and spine, which the shape reader cannot tell from limbs; their
+    // names are read instead (`clip_roles`). Every other rig must agree.
+    let odd: Vec<_> =
+        unread.iter().chain(&disagree).filter(|p| !p.to_string_lossy().contains("mass_humanik")).collect();
+    assert!(odd.is_empty(), "{odd:?}");
+}
+
+#[test]
+fn the_daz_copy_of_a_take_maps_onto_the_motionbuilder_copy() {
+    let Some(data) = shared_data() else { return };
+    let daz = load(&data.join("bvh/cmu_daz/02_02.bvh"));
+    let cmu = load(&data.join("bvh/cmu/02_02.bvh"));
+    let (t, s) = (clip_roles(&cmu, "target").unwrap(), clip_roles(&daz, "source").unwrap());
+    let map = map_by_roles(cmu.skeleton(), &t, daz.skeleton(), &s);
+    for (target, source) in [("LeftUpLeg", "lThigh"), ("RightLeg", "rShin"), ("LeftForeArm", "lForeArm")] {
+        assert_eq!(map.joints.get(target).map(String::as_str), Some(source), "{map:?}");
+    }
+    let out = transfer(&daz, &cmu, &map, None).unwrap();
+    assert_eq!(out.clip.frame_count(), cmu.frame_count());
+    // Each limb bone's world direction, every frame: the carried motion against the DAZ
+    // source it came from (the same bone, through the map), and against the real
+    // MotionBuilder file of the same take (how far the two conversions disagree).
+    let (cmu_poses, out_poses, daz_poses) =
+        (forward_kinematics(&cmu), forward_kinematics(&out.clip), forward_kinematics(&daz));
+    let daz_joint = |j: usize| daz.skeleton().index_of(&map.joints[&cmu.skeleton().joints()[j].name]).unwrap();
+    let (mut from_source, mut from_cmu) = ((0.0f32, 0.0f32), (0.0f32, 0.0f32));
+    let mut count = 0;
+    for side in 0..2 {
+        for limb in [&t.legs[side], &t.arms[side]] {
+            let [upper, lower, end] = limb.joints();
+            for (from, to) in [(upper, lower), (lower, end)] {
+                for f in 1..cmu.frame_count() {
+                    let dir = |p: &kinegraph_nodes::model::ClipPoses, a: usize, b: usize| {
+                        (p.position(f, b) - p.position(f, a)).normalize_or_zero()
+                    };
+                    let d_out = dir(&out_poses, from, to);
+                    let a_src = d_out.angle_between(dir(&daz_poses, daz_joint(from), daz_joint(to)));
+                    let a_cmu = d_out.angle_between(dir(&cmu_poses, from, to));
+                    from_source = (from_source.0 + a_src, from_source.1.max(a_src));
+                    from_cmu = (from_cmu.0 + a_cmu, from_cmu.1.max(a_cmu));
+                    count += 1;
+                }
+            }
+        }
+    }
+    let n = count as f32;
+    println!(
+        "DAZ → MotionBuilder 02_02, limb bone directions: vs the DAZ source mean {:.3}° max {:.3}°; vs the MotionBuilder file mean {:.2}° max {:.2}°; root scale {:.3}",
+        (from_source.0 / n).to_degrees(),
+        from_source.1.to_degrees(),
+        (from_cmu.0 / n).to_degrees(),
+        from_cmu.1.to_degrees(),
+        out.root_scale
+    );
+    assert!(from_source.1.to_degrees() < 0.1, "the carried bones point where the source's do");
+    assert!((from_cmu.0 / n).to_degrees() < 15.0, "the two conversions of one take agree roughly");
+    // Both files are the same performer: the leg ratio is about one.
+    assert!((out.root_scale - 1.0).abs() < 0.1, "{}", out.root_scale);
+}
