@@ -218,6 +218,31 @@ fn a_cmu_walk_on_cesium_man_passes_the_validator() {
     let (own, carried) = (lowest(man), lowest(&out.clip));
     println!("ankle floor: CesiumMan's own walk {own:.3} m, carried CMU walk {carried:.3} m");
     assert!((own - carried).abs() < 0.05, "{own} vs {carried}");
+    // CesiumMan's only joints below the ankles are heels: by them alone its front would be
+    // its back and its sides swapped. Independently of the roles: over its own walk, the
+    // knees sit behind the hip–ankle line as seen from the heels, ahead as seen on CMU's toes.
+    let knees_ahead = |clip: &Clip, roles: &kinegraph_nodes::builtin::ik::roles::BodyRoles| {
+        let poses = forward_kinematics(clip);
+        let tip = |l: usize| *roles.legs[l].chain.last().unwrap();
+        let toward_tip: Vec3 = (0..2)
+            .map(|l| (poses.position(0, tip(l)) - poses.position(0, roles.legs[l].joints()[2])).with_y(0.0))
+            .sum::<Vec3>()
+            .normalize_or_zero();
+        let mut ahead = 0.0;
+        for f in 0..clip.frame_count() {
+            for leg in &roles.legs {
+                let [hip, knee, ankle] = leg.joints().map(|j| poses.position(f, j));
+                ahead += (knee - 0.5 * (hip + ankle)).dot(toward_tip) / (2 * clip.frame_count()) as f32;
+            }
+        }
+        ahead
+    };
+    let (man_ahead, cmu_ahead) = (knees_ahead(man, &t), knees_ahead(&walk, &s));
+    println!(
+        "knees ahead of the hip–ankle line toward the leaf below the ankle: CesiumMan {man_ahead:.3} m, CMU {cmu_ahead:.3} m"
+    );
+    assert!(man_ahead < 0.0 && cmu_ahead > 0.0);
+    assert!(map.joints["leg_joint_L_1"] == "LeftUpLeg" && map.joints["Skeleton_arm_joint_R"] == "RightArm", "{map:?}");
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("cmu_on_cesium_man.glb");
     write_glb_file(&path, &out.clip, asset.meshes.first()).unwrap();

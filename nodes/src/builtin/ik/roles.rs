@@ -16,7 +16,8 @@
 //!    limb branches (a hand into fingers), the lower and upper joints the two above it;
 //!    a limb without branches has its upper, lower and end joints start the two longest
 //!    consecutive bones (thigh and shin, upper arm and forearm).
-//! 5. Forward is where the toes point from the ankles; left is up × forward.
+//! 5. Forward is where the leaves below the ankles (toes) point, unless the knees are
+//!    clearly bent the other way (the leaf is a heel, as in CesiumMan); left is up × forward.
 
 use glam::Vec3;
 
@@ -129,11 +130,21 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
     let legs = [limb(pelvis, lowest, "leg")?, limb(pelvis, other_foot, "leg")?];
     let arms = [limb(splits[0], arm_a, "arm")?, limb(splits[1], arm_b, "arm")?];
 
-    // Sides: left is up × forward, forward is where the toes point from the ankles.
-    let forward: Vec3 = legs
+    // Sides: left is up × forward; forward is where the leaves below the ankles point
+    // (toes), unless the knees clearly bend the other way (the leaf is a heel).
+    let toes: Vec3 = legs
         .iter()
         .map(|l| (pos_in_world[*l.chain.last().unwrap_or(&0)] - pos_in_world[l.joints()[2]]).with_y(0.0))
         .sum();
+    let knees: Vec3 = legs
+        .iter()
+        .map(|l| {
+            let [hip, knee, ankle] = l.joints().map(|j| pos_in_world[j]);
+            (knee - 0.5 * (hip + ankle)).with_y(0.0)
+        })
+        .sum();
+    let bent = knees.length() > 0.02 * height;
+    let forward = if bent && knees.dot(toes) < 0.0 { -toes } else { toes };
     let left = Vec3::Y.cross(forward).normalize_or_zero();
     if left == Vec3::ZERO {
         return Err("no facing (the toes do not point forward of the ankles)".into());
