@@ -274,3 +274,66 @@ fn shipped_assets_are_exactly_what_make_assets_produces() {
         assert!(made == shipped, "assets/{file} differs from what graphs/make_assets.ron makes: regenerate it");
     }
 }
+
+/// A bone map saved by `export.bone_map`, edited by hand and fed back through
+/// `skeleton.map`'s `map_file`: the edit takes effect; a broken file is a node error that
+/// names the file and line; a misspelt joint gets a "did you mean".
+#[test]
+fn a_saved_bone_map_is_edited_and_reused_and_bad_ones_are_located() {
+    let dir = tempfile::tempdir().unwrap();
+    let graph = |map_file: &str| {
+        let param =
+            if map_file.is_empty() { String::new() } else { format!(r#"params: {{ "map_file": "{map_file}" }}"#) };
+        format!(
+            r#"(format: "kinegraph.graph", version: 2,
+ nodes: {{ "walk": (kind: "generate.mannequin"),
+          "map": (kind: "skeleton.map", {param}),
+          "save": (kind: "export.bone_map", params: {{ "file": "map.ron" }}) }},
+ edges: [ (from: "walk.clip", to: "map.source"), (from: "walk.clip", to: "map.target"),
+          (from: "map.map", to: "save.map") ])"#
+        )
+    };
+    let run = |name: &str, text: String| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        let out_dir = dir.path().join(format!("{name}.out"));
+        kg(&["run", path.to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--json"])
+    };
+    let out = run("auto.ron", graph(""));
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let saved = std::fs::read_to_string(dir.path().join("auto.ron.out/map.ron")).unwrap();
+    assert!(saved.contains(r#""LeftForeArm": "LeftForeArm""#), "{saved}");
+
+    // Edited: the left forearm now takes the right forearm's motion.
+    let edited = saved.replace(r#""LeftForeArm": "LeftForeArm""#, r#""LeftForeArm": "RightForeArm""#);
+    std::fs::write(dir.path().join("edited_map.ron"), edited).unwrap();
+    let out = run("edited.ron", graph("edited_map.ron"));
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["reports"]["map"]["map"]["LeftForeArm"], "RightForeArm");
+
+    std::fs::write(
+        dir.path().join("broken_map.ron"),
+        "(\n  format: \"kinegraph.bone_map\",\n  version: 1,\n  joints: { \"a\" \"b\" },\n)",
+    )
+    .unwrap();
+    let node_error = |out: &Output| {
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(report["nodes"]["map"]["status"], "error");
+        report["nodes"]["map"]["error"].as_str().unwrap().to_owned()
+    };
+    let out = run("broken.ron", graph("broken_map.ron"));
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let err = node_error(&out);
+    assert!(err.contains("broken_map.ron:4:"), "{err}");
+
+    std::fs::write(
+        dir.path().join("misspelt_map.ron"),
+        "(format: \"kinegraph.bone_map\", version: 1, joints: { \"LeftForeArm\": \"LeftForArm\" })",
+    )
+    .unwrap();
+    let out = run("misspelt.ron", graph("misspelt_map.ron"));
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let err = node_error(&out);
+    assert!(err.contains("map_file") && err.contains("did you mean `LeftForeArm`?"), "{err}");
+}
