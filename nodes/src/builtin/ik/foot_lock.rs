@@ -233,7 +233,7 @@ static FOOT_LOCK: NodeSchema = NodeSchema {
     category: "ik",
     doc: "Removes foot sliding: while a foot is in contact it stays where it was put down. The knee and hip turn (weighted IK), the foot keeps its angle, the body keeps its path.",
     inputs: &[CLIP.spec(), CONTACTS.spec()],
-    outputs: &[LOCKED.spec(), REPORT.spec()],
+    outputs: &[LOCKED.spec(), REPORT.spec(), super::RESIDUAL_CURVES.spec()],
     params: &[BLEND.0, WEIGHTS.0, TOLERANCE.0, ITERATIONS.0],
     writes_files: false,
 };
@@ -278,6 +278,10 @@ impl Node for FootLock {
                 })
             })
             .collect();
+        ctx.set_output(
+            &super::RESIDUAL_CURVES,
+            super::residual_curves(clip.fps(), vec![("residual", "m", residuals.clone())])?,
+        );
         ctx.set_output(
             &REPORT,
             Arc::new(into_report(json!({

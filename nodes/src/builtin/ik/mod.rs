@@ -12,7 +12,26 @@ pub mod retarget;
 pub mod roles;
 pub mod scale;
 
-use crate::node::Registry;
+use std::sync::Arc;
+
+use crate::model::Curves;
+use crate::node::{NodeError, Output, Registry};
+
+/// The per-frame curves output of the IK nodes, for the editor's plots.
+const RESIDUAL_CURVES: Output<Arc<Curves>> = Output::new(
+    "residuals",
+    "Per frame, to plot: how far the ends stayed from their goals (m), and the dexterity when retargeting.",
+);
+
+/// Per-frame IK figures (`(channel, unit, values)`) at `fps` as curves.
+fn residual_curves(fps: f64, channels: Vec<(&str, &str, Vec<f64>)>) -> Result<Arc<Curves>, NodeError> {
+    let frames = channels.first().map_or(0, |c| c.2.len());
+    let mut curves = Curves::new(fps, frames);
+    for (name, unit, values) in channels {
+        curves.push(name, unit, values).map_err(|e| NodeError::Failed(e.to_string()))?;
+    }
+    Ok(Arc::new(curves))
+}
 
 /// Registers the IK family's nodes.
 pub fn register(registry: &mut Registry) {

@@ -426,7 +426,7 @@ static RETARGET_ONLINE: NodeSchema = NodeSchema {
     category: "retarget",
     doc: "Carries a captured motion onto a character of other proportions frame by frame (Choi & Ko's online retargeting): the toe tips follow the source, the joints imitate its angles, planted feet do not slide.",
     inputs: &[SOURCE.spec(), TARGET.spec(), CONTACTS.spec()],
-    outputs: &[RETARGETED.spec(), REPORT.spec()],
+    outputs: &[RETARGETED.spec(), REPORT.spec(), super::RESIDUAL_CURVES.spec()],
     params: &[TRACK.0, GAIN.0, DEXTERITY.0, MAX_ANGLE_STEP.0],
     writes_files: false,
 };
@@ -459,6 +459,16 @@ impl Node for RetargetOnline {
         let max = errors.iter().copied().fold(0.0, f64::max);
         let mean = errors.iter().sum::<f64>() / errors.len().max(1) as f64;
         let dexterity = out.frames.iter().map(|r| r.dexterity).fold(f64::INFINITY, f64::min);
+        ctx.set_output(
+            &super::RESIDUAL_CURVES,
+            super::residual_curves(
+                source.fps(),
+                vec![
+                    ("residual", "m", errors.clone()),
+                    ("dexterity", "", out.frames.iter().map(|r| r.dexterity).collect()),
+                ],
+            )?,
+        );
         ctx.set_output(
             &REPORT,
             Arc::new(into_report(json!({

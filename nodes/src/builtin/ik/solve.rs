@@ -454,7 +454,7 @@ static IK_SOLVE: NodeSchema = NodeSchema {
     category: "ik",
     doc: "Weighted Jacobian IK (Meredith & Maddock): moves chains so their ends reach goals; stiff joints (low weight) move less and the others take up the motion.",
     inputs: &[CLIP.spec(), TARGET_CURVES.spec()],
-    outputs: &[SOLVED.spec(), SOLVE_REPORT.spec()],
+    outputs: &[SOLVED.spec(), SOLVE_REPORT.spec(), super::RESIDUAL_CURVES.spec()],
     params: &[CHAINS.0, GOALS.0, WEIGHTS.0, TOLERANCE.0, ITERATIONS.0],
     writes_files: false,
 };
@@ -530,6 +530,10 @@ impl Node for IkSolve {
                 reports.len()
             ));
         }
+        ctx.set_output(
+            &super::RESIDUAL_CURVES,
+            super::residual_curves(clip.fps(), vec![("residual", "m", residuals.clone())])?,
+        );
         ctx.set_output(
             &SOLVE_REPORT,
             Arc::new(into_report(json!({
