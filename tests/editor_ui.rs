@@ -301,3 +301,18 @@ fn unsaved_edits_survive_a_crash_through_the_autosave() {
     let recent = kinegraph::editor::files::RecentFiles::load(&settings);
     assert_eq!(recent.paths.first(), Some(&std::path::absolute(&graph).unwrap()));
 }
+
+#[test]
+fn an_export_node_plays_the_clip_it_writes_with_its_skinned_mesh() {
+    let mut harness = harness(Some(&demo_path()));
+    // A clip node alone has no mesh: no mesh toggle.
+    harness.state_mut().select(Some("resample"));
+    harness.run_steps(3);
+    assert!(harness.query_by_role_and_label(Role::CheckBox, "mesh").is_none());
+    // The GLB export takes the clip and the mannequin's skinned mesh: both are on show.
+    harness.state_mut().select(Some("glb"));
+    harness.run_steps(3);
+    harness.get_by_label("pause");
+    harness.get_by_role_and_label(Role::CheckBox, "mesh").click();
+    harness.run_steps(2);
+}

@@ -16,7 +16,7 @@ use super::files::{self, Autosave, RecentFiles, default_settings_dir};
 use super::fragment;
 use super::panel::{self, PanelState};
 use super::results::{self, ResultsState};
-use super::viewport::Viewport;
+use super::viewport::{ShownMesh, Viewport};
 use super::worker::{Worker, WorkerMessage};
 use crate::document::{self, GraphDoc};
 use crate::engine::{NodeStatus, RunReport};
@@ -456,12 +456,52 @@ impl EditorApp {
         }
     }
 
-    fn selected_clip(&self) -> Option<&Arc<Clip>> {
-        let id = self.selected.as_ref()?;
-        self.report.as_ref()?.outputs.get(id)?.iter().flatten().find_map(|v| match v {
-            Value::Clip(c) => Some(c),
+    /// What the viewport plays for the selected node: its clip (or its mesh sequence's
+    /// clip), or, for a node that outputs neither (an export), the clip it takes; with the
+    /// mesh sequence it outputs, or a skinned mesh it outputs or takes.
+    fn selected_motion(&self) -> (Option<Arc<Clip>>, Option<ShownMesh>) {
+        let Some(id) = self.selected.as_ref() else { return (None, None) };
+        let outputs: Vec<&Value> = self
+            .report
+            .as_ref()
+            .and_then(|r| r.outputs.get(id))
+            .map(|o| o.iter().flatten().collect())
+            .unwrap_or_default();
+        let inputs = self.input_values(id);
+        let moving = |v: &&Value| matches!(v, Value::Clip(_) | Value::MeshSequence(_));
+        let played = if outputs.iter().any(moving) { &outputs } else { &inputs };
+        let sequence = played.iter().find_map(|v| match v {
+            Value::MeshSequence(s) => Some(s.clone()),
             _ => None,
-        })
+        });
+        let clip = played
+            .iter()
+            .find_map(|v| match v {
+                Value::Clip(c) => Some(c.clone()),
+                _ => None,
+            })
+            .or_else(|| sequence.as_ref().map(|s| s.clip.clone()));
+        let skinned = outputs.iter().chain(&inputs).find_map(|v| match v {
+            Value::Mesh(m) if m.skin.is_some() => Some(m.clone()),
+            _ => None,
+        });
+        (clip, sequence.map(ShownMesh::Baked).or(skinned.map(ShownMesh::Skinned)))
+    }
+
+    /// The values arriving at node `id`'s inputs from the last evaluation.
+    fn input_values(&self, id: &str) -> Vec<&Value> {
+        let Some(report) = &self.report else { return Vec::new() };
+        self.doc
+            .edges
+            .iter()
+            .filter(|e| e.to.split_once('.').is_some_and(|(node, _)| node == id))
+            .filter_map(|e| {
+                let (from, port) = e.from.split_once('.')?;
+                let schema = self.registry.get(&self.doc.nodes.get(from)?.kind)?.schema();
+                let index = schema.outputs.iter().position(|p| p.name == port)?;
+                report.outputs.get(from)?.get(index)?.as_ref()
+            })
+            .collect()
     }
 
     /// Draws one frame of the editor into `ui` (the whole window).
@@ -478,8 +518,8 @@ impl EditorApp {
         });
         egui::Panel::bottom("kg_viewport").resizable(true).default_size(240.0).show(ui, |ui| {
             let title = self.selected.clone().unwrap_or_default();
-            let clip = self.selected_clip().cloned();
-            self.viewport.show(ui, &title, clip.as_ref());
+            let (clip, mesh) = self.selected_motion();
+            self.viewport.show(ui, &title, clip.as_ref(), mesh);
         });
         egui::CentralPanel::default().show(ui, |ui| self.canvas(ui));
         self.file_dialog(ui.ctx());

@@ -1,18 +1,22 @@
 //! The viewport: the selected node's clip as a skeleton in 3-D (perspective, Y up, metres),
-//! drawn with egui's painter, with a timeline, an orbit camera, a ground grid, the root and
-//! foot trajectories, foot contacts, and a second clip pinned beside it for comparison.
+//! drawn with egui's painter, with its mesh when it has one (a baked mesh sequence, or a
+//! skinned mesh posed by linear blend skinning), a timeline, an orbit camera, a ground grid,
+//! the root and foot trajectories, foot contacts, and a second clip pinned beside it for
+//! comparison.
 //!
 //! Steps: 1. forward kinematics and foot contacts once per clip (kept while the same
 //! `Arc<Clip>` is shown); 2. the bounding box of every joint over every frame frames the
 //! camera and places the grid at the lowest point the clip reaches, so nothing jumps while
-//! playing; 3. each frame projects every bone through the camera and draws it.
+//! playing; 3. each frame projects every bone through the camera and draws it, after the
+//! mesh: its triangles shaded by their facing to the camera and drawn far to near.
 
 use std::sync::Arc;
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, Ui, Vec2};
 use glam::Vec3;
 use kinegraph_nodes::builtin::contacts::{ContactThresholds, contacts_of};
-use kinegraph_nodes::model::{Clip, ClipPoses, Contacts, forward_kinematics};
+use kinegraph_nodes::builtin::skin::{check_skin, lbs_frame, rest_normals, skinning_matrices};
+use kinegraph_nodes::model::{Clip, ClipPoses, Contacts, Mesh, MeshSequence, forward_kinematics};
 
 /// Vertical field of view of the camera (radians).
 const FOV_Y: f32 = 0.8;
@@ -25,6 +29,37 @@ const BONE: Color32 = Color32::from_rgb(230, 230, 210);
 const JOINT: Color32 = Color32::from_rgb(80, 170, 255);
 const COMPARED: Color32 = Color32::from_rgb(255, 150, 60);
 const CONTACT: Color32 = Color32::from_rgb(90, 220, 120);
+const SKIN: Color32 = Color32::from_rgb(150, 140, 130);
+
+/// A mesh that moves with the clip on show.
+#[derive(Clone)]
+pub(crate) enum ShownMesh {
+    /// Deformed per frame by a node (skinning, bar-net): frame `f` goes with clip frame `f`.
+    Baked(Arc<MeshSequence>),
+    /// Skinned to the clip's skeleton: posed here by linear blend skinning.
+    Skinned(Arc<Mesh>),
+}
+
+impl ShownMesh {
+    /// The mesh's vertex positions (metres) at `frame` of the clip posed as `poses`, or `None`
+    /// when it does not fit the clip (another skeleton, too few frames).
+    fn positions(&self, clip: &Clip, poses: &ClipPoses, frame: usize) -> Option<(Vec<Vec3>, &Mesh)> {
+        match self {
+            ShownMesh::Baked(seq) => {
+                (frame < seq.frame_count()).then(|| (seq.frame_positions(frame).to_vec(), seq.rest.as_ref()))
+            }
+            ShownMesh::Skinned(mesh) => {
+                let skin = mesh.skin.as_ref()?;
+                check_skin(skin, clip.skeleton(), mesh.positions.len()).ok()?;
+                let matrices = skinning_matrices(poses.frame(frame), &skin.inverse_bind_matrices);
+                let n = mesh.positions.len();
+                let (mut positions, mut normals) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
+                lbs_frame(&mesh.positions, &rest_normals(mesh), skin, &matrices, &mut positions, &mut normals);
+                Some((positions, mesh.as_ref()))
+            }
+        }
+    }
+}
 
 /// An orbit camera around `target`: `yaw` about +Y from +Z, `pitch` above the ground.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -116,6 +151,8 @@ struct Shown {
     contacts: Option<Contacts>,
     /// Joint indices of the feet (left, right), matching `contacts.feet`.
     feet: Vec<usize>,
+    /// The mesh drawn with the skeleton.
+    mesh: Option<ShownMesh>,
 }
 
 impl Shown {
@@ -133,7 +170,16 @@ impl Shown {
         }
         let found = contacts_of(clip, &poses, &ContactThresholds::default()).ok();
         let feet = found.as_ref().map(|(_, feet)| feet.to_vec()).unwrap_or_default();
-        Shown { clip: clip.clone(), title: title.to_string(), poses, lo, hi, contacts: found.map(|(c, _)| c), feet }
+        Shown {
+            clip: clip.clone(),
+            title: title.to_string(),
+            poses,
+            lo,
+            hi,
+            contacts: found.map(|(c, _)| c),
+            feet,
+            mesh: None,
+        }
     }
 
     fn duration_secs(&self) -> f64 {
@@ -156,6 +202,7 @@ impl Shown {
 /// What the viewport draws besides the skeleton.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Overlays {
+    mesh: bool,
     grid: bool,
     trajectories: bool,
     contacts: bool,
@@ -184,7 +231,7 @@ impl Default for Viewport {
             time_secs: 0.0,
             camera: Camera::default(),
             reframe: true,
-            overlays: Overlays { grid: true, trajectories: true, contacts: true },
+            overlays: Overlays { mesh: true, grid: true, trajectories: true, contacts: true },
             shown: None,
             compared: None,
         }
@@ -192,8 +239,8 @@ impl Default for Viewport {
 }
 
 impl Viewport {
-    /// Draws `clip` (or a hint when there is none) with the timeline above it.
-    pub(crate) fn show(&mut self, ui: &mut Ui, title: &str, clip: Option<&Arc<Clip>>) {
+    /// Draws `clip` (or a hint when there is none) and its `mesh`, with the timeline above.
+    pub(crate) fn show(&mut self, ui: &mut Ui, title: &str, clip: Option<&Arc<Clip>>, mesh: Option<ShownMesh>) {
         match clip {
             Some(clip) if !self.shown.as_ref().is_some_and(|s| Arc::ptr_eq(&s.clip, clip)) => {
                 let first = self.shown.is_none();
@@ -202,6 +249,9 @@ impl Viewport {
             }
             Some(_) => {}
             None => self.shown = None,
+        }
+        if let Some(shown) = &mut self.shown {
+            shown.mesh = mesh;
         }
         if self.shown.is_none() && self.compared.is_none() {
             ui.centered_and_justified(|ui| {
@@ -230,6 +280,9 @@ impl Viewport {
             draw_grid(&painter, &project, self.bounds(), floor);
         }
         for (shown, colour) in self.shown.iter().map(|s| (s, BONE)).chain(self.compared.iter().map(|s| (s, COMPARED))) {
+            if self.overlays.mesh {
+                draw_mesh(&painter, &project, self.camera.eye(), shown, shown.frame_at(self.time_secs));
+            }
             if self.overlays.trajectories {
                 draw_trajectories(&painter, &project, shown, floor, colour);
             }
@@ -299,6 +352,9 @@ impl Viewport {
                 self.reframe = true;
             }
             ui.separator();
+            if self.shown.as_ref().is_some_and(|s| s.mesh.is_some()) {
+                ui.checkbox(&mut self.overlays.mesh, "mesh");
+            }
             ui.checkbox(&mut self.overlays.grid, "grid");
             ui.checkbox(&mut self.overlays.trajectories, "trails");
             ui.checkbox(&mut self.overlays.contacts, "contacts");
@@ -423,6 +479,45 @@ fn draw_trajectories(
             .collect();
         painter.add(egui::Shape::line(points, Stroke::new(1.0, colour.gamma_multiply(0.35))));
     }
+}
+
+/// The shown clip's mesh at `frame`: triangles drawn far to near (painter's order), each
+/// shaded by how squarely it faces the camera at `eye`.
+fn draw_mesh(painter: &egui::Painter, project: &impl Fn(Vec3) -> Option<Pos2>, eye: Vec3, shown: &Shown, frame: usize) {
+    let Some(mesh) = &shown.mesh else { return };
+    if shown.poses.frame_count() == 0 {
+        return;
+    }
+    let Some((positions, rest)) = mesh.positions(&shown.clip, &shown.poses, frame) else { return };
+    let screen: Vec<Option<Pos2>> = positions.iter().map(|p| project(*p)).collect();
+    let mut faces: Vec<(f32, [usize; 3], f32)> = rest
+        .triangles
+        .iter()
+        .filter_map(|t| {
+            let [a, b, c] = t.map(|i| i as usize);
+            let (pa, pb, pc) = (*positions.get(a)?, *positions.get(b)?, *positions.get(c)?);
+            screen[a].and(screen[b]).and(screen[c])?;
+            let centre = (pa + pb + pc) / 3.0;
+            let facing = (pb - pa).cross(pc - pa).normalize_or_zero().dot((eye - centre).normalize_or_zero()).abs();
+            Some((centre.distance_squared(eye), [a, b, c], facing))
+        })
+        .collect();
+    faces.sort_by(|x, y| y.0.total_cmp(&x.0));
+    let mut out = egui::epaint::Mesh::default();
+    for (_, corners, facing) in faces {
+        let light = 0.35 + 0.65 * facing;
+        let colour = Color32::from_rgb(
+            (f32::from(SKIN.r()) * light) as u8,
+            (f32::from(SKIN.g()) * light) as u8,
+            (f32::from(SKIN.b()) * light) as u8,
+        );
+        let base = out.vertices.len() as u32;
+        for v in corners {
+            out.colored_vertex(screen[v].unwrap_or_default(), colour);
+        }
+        out.add_triangle(base, base + 1, base + 2);
+    }
+    painter.add(egui::Shape::mesh(out));
 }
 
 /// Bones as lines from each joint to its parent, joints as dots; a foot in contact at
