@@ -165,6 +165,7 @@ impl Canvas {
         registry: &Registry,
         badges: &BTreeMap<String, Badge>,
     ) -> CanvasOutput {
+        self.level_of_detail(ui.max_rect());
         let mut viewer = Viewer { doc, registry, badges, search: &mut self.search, out: CanvasOutput::default() };
         let mut style = SnarlStyle::new();
         style.collapsible = Some(false);
@@ -195,7 +196,28 @@ impl Canvas {
     }
 }
 
+/// Below this zoom node text is too small to read: nodes show their header only.
+const DETAIL_ZOOM: f32 = 0.45;
+/// A generous bound on a node's size in canvas units, to tell whether it is on screen.
+const NODE_EXTENT: egui::Vec2 = egui::vec2(420.0, 320.0);
+
 impl Canvas {
+    /// Level of detail: snarl lays out every node every frame, on screen or not, so only the
+    /// nodes on screen at a readable zoom are open (pins and body); the others are collapsed
+    /// to their header (wires still reach them). Decided on the last frame's view.
+    fn level_of_detail(&mut self, screen: egui::Rect) {
+        let readable = self.to_screen.scaling >= DETAIL_ZOOM;
+        let view = screen.expand(64.0);
+        let nodes: Vec<(NodeId, Pos2)> = self.snarl.nodes_pos_ids().map(|(nid, pos, _)| (nid, pos)).collect();
+        for (nid, pos) in nodes {
+            let on_screen = view.intersects(self.to_screen * egui::Rect::from_min_size(pos, NODE_EXTENT));
+            let open = readable && on_screen;
+            if self.snarl.get_node_info(nid).is_some_and(|n| n.open != open) {
+                self.snarl.open_node(nid, open);
+            }
+        }
+    }
+
     /// Opens the add-node menu at `screen_pos` when that is over the canvas (the Tab key).
     pub(crate) fn open_add_menu(&mut self, screen_pos: Pos2) {
         if self.rect.is_some_and(|r| r.contains(screen_pos)) {
@@ -291,18 +313,23 @@ impl SnarlViewer<String> for Viewer<'_> {
         ui: &mut Ui,
         snarl: &mut Snarl<String>,
     ) {
-        let Some(id) = snarl.get_node(node).cloned() else { return };
-        let kind = self.doc.nodes.get(&id).map(|n| n.kind.clone()).unwrap_or_default();
-        let badge = self.badges.get(&id).cloned().unwrap_or(Badge::Idle);
+        let Some(info) = snarl.get_node_info(node) else { return };
+        let (id, open) = (&info.value, info.open);
+        let badge = self.badges.get(id).unwrap_or(&Badge::Idle);
         let (text, color) = badge.label();
         ui.horizontal(|ui| {
-            let title = ui.add(egui::Label::new(RichText::new(&id).strong()).sense(egui::Sense::click()));
+            let title = ui.add(egui::Label::new(RichText::new(id).strong()).sense(egui::Sense::click()));
             if title.on_hover_text("click to edit its parameters").clicked() {
                 self.out.clicked = Some(id.clone());
             }
-            ui.label(RichText::new(&kind).weak());
+            // A collapsed node (off screen, or zoomed out) shows its id and state colour only.
+            if open {
+                ui.label(RichText::new(self.doc.nodes.get(id).map_or("", |n| n.kind.as_str())).weak());
+            }
             dot(ui, color);
-            ui.label(RichText::new(text).color(color)).on_hover_text(badge.message().unwrap_or(text));
+            if open {
+                ui.label(RichText::new(text).color(color)).on_hover_text(badge.message().unwrap_or(text));
+            }
         });
     }
 
@@ -547,7 +574,9 @@ fn add_connected(
 fn port_pin(ui: &mut Ui, port: Option<&PortSpec>, label: impl Fn(&PortSpec) -> String) -> PinInfo {
     match port {
         Some(p) => {
-            ui.label(label(p)).on_hover_text(format!("{} — {}", p.ty.name(), p.doc));
+            ui.label(label(p)).on_hover_ui(|ui| {
+                ui.label(format!("{} — {}", p.ty.name(), p.doc));
+            });
             PinInfo::circle().with_fill(type_color(p.ty))
         }
         None => PinInfo::circle(),
@@ -580,5 +609,32 @@ mod tests {
         let load_mesh = registry.get("mesh.load").unwrap().schema();
         assert!(facing_port(load_mesh, PortType::Clip, true).is_none());
         assert!(add_connected(&doc, &registry, "clip.clip", true, "mesh.load", Pos2::ZERO).is_none());
+    }
+
+    #[test]
+    fn only_nodes_on_screen_at_a_readable_zoom_are_open() {
+        let registry = Registry::builtin();
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron");
+        let doc = document::load_file(&path).unwrap().doc;
+        let mut canvas = Canvas::default();
+        canvas.sync(&doc, &registry);
+        let open = |c: &Canvas, id: &str| c.snarl.get_node_info(c.ids[id]).unwrap().open;
+        let screen = egui::Rect::from_min_size(Pos2::ZERO, egui::vec2(400.0, 300.0));
+        // 1:1, the view at the origin: `clip` (at 0, 0) is on screen, `glb` (at 660, 80)
+        // starts past the right edge and its 64 px margin (464 px).
+        canvas.level_of_detail(screen);
+        assert!(open(&canvas, "clip") && !open(&canvas, "glb"));
+        // Panned 300 px left: `glb` starts at 360 px, `clip`'s extent still reaches 120 px.
+        canvas.to_screen = TSTransform::new(egui::vec2(-300.0, 0.0), 1.0);
+        canvas.level_of_detail(screen);
+        assert!(open(&canvas, "clip") && open(&canvas, "glb"));
+        // Panned far away: neither.
+        canvas.to_screen = TSTransform::new(egui::vec2(-1500.0, 0.0), 1.0);
+        canvas.level_of_detail(screen);
+        assert!(!open(&canvas, "glb") && !open(&canvas, "clip"));
+        // Zoomed out below the readable zoom: everything is collapsed, wherever it is.
+        canvas.to_screen = TSTransform::from_scaling(0.3);
+        canvas.level_of_detail(screen);
+        assert!(doc.nodes.keys().all(|id| !open(&canvas, id)));
     }
 }
