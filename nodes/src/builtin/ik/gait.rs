@@ -41,12 +41,16 @@
 //! 7. **Legs by weighted IK.** Per leg, the hip joints turn about three axes with the hip
 //!    weight, the knee about its hinge (the Euler axis nearest the body's left-right axis,
 //!    bending backward only) with the knee weight, the ankle about three axes with the ankle
-//!    weight. While the foot is on the ground the ankle, heel and toe tip are driven to the
-//!    planned foot. In the air only the toe tip follows its path, and the foot's orientation is
-//!    whatever the weighted IK gives, drawn back to the planned one toward take-off and
-//!    landing (`w = 1 − swing_freedom · sin² πu`): this is where stiffness shows, as a stiff
-//!    knee bends less and the hip and ankle take up the motion. Every frame starts from the
-//!    previous frame's pose.
+//!    weight. Every frame starts from the previous frame's pose. From heel strike to heel-off
+//!    the ankle, heel and toe tip are driven to the planned foot, which fixes the leg. From
+//!    heel-off to the next heel strike (push-off and swing) the toe tip follows its planned
+//!    path exactly, while the foot's orientation is blended from what a toe-only weighted
+//!    solve gives (free) to the planned one by `w = 1 − swing_freedom · s(v / 0.15) ·
+//!    s((1 − v) / 0.3)` (`v` ∈ [0, 1] over that span, `s` the smoothstep): planned at
+//!    heel-off and at landing, free in between, and pulled toward the plan just enough that
+//!    the heel never goes below the ground. This is where the weights show: a stiff knee
+//!    bends less at push-off and in the swing, and the hip and ankle take up the motion.
+//!    With every foot point fixed (flat stance) the weights cannot change the leg.
 
 use std::f64::consts::PI;
 use std::sync::Arc;
@@ -67,6 +71,9 @@ use crate::model::{
 use crate::node::{
     ChoiceParam, FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Report, TextParam,
 };
+
+/// Planned ankles stay within this fraction of the leg's length (hip → knee → ankle).
+const REACH: f64 = 0.98;
 
 /// Length of one swing in the curve's parameter: `x ∈ [0, 3π]`.
 pub const SWING_CYCLE: f64 = 3.0 * PI;
@@ -203,8 +210,8 @@ pub struct GaitParams {
     pub heel_strike_rad: f64,
     /// Heel-up pitch of the foot at toe-off (radians). Default 0.5.
     pub toe_off_rad: f64,
-    /// How free the swinging foot's orientation is at mid-swing, [0, 1] (0 = exactly the
-    /// planned orientation throughout). Default 1.
+    /// How free the foot's orientation is between heel-off and landing, [0, 1] (0 = exactly
+    /// the planned orientation throughout, so the weights cannot change the leg). Default 1.
     pub swing_freedom: f64,
     /// Left, right leg settings.
     pub legs: [LegParams; 2],
@@ -293,6 +300,9 @@ pub struct LegReport {
     pub footfalls: usize,
     /// Largest knee bend over the clip: change of the thigh–shank angle from rest (rad).
     pub max_knee_flexion_rad: f64,
+    /// How far the knee bends and straightens within a swing: range of the thigh–shank
+    /// angle over the swing, mean over the swings in the clip (rad).
+    pub swing_knee_range_rad: f64,
     /// The settings this leg walked with.
     pub params: LegParams,
 }
@@ -310,8 +320,10 @@ pub struct GaitReport {
     pub max_residual_m: f64,
     /// Frames where a leg did not reach its goals within the tolerance.
     pub unconverged_frames: usize,
-    /// Pelvis (root) height above the ground between double supports (m).
+    /// Mean pelvis (root) height above the ground (m).
     pub pelvis_height_m: f64,
+    /// Pelvis rise from its lowest to its highest above the ground (m).
+    pub pelvis_rise_m: f64,
 }
 
 /// One planned footfall of one foot.
@@ -357,6 +369,11 @@ struct FootPlan {
     rotation: DQuat,
     /// Position in the swing, if the foot is in the air.
     swing_u: Option<f64>,
+    /// Position from heel-off to the next heel strike (the toe leads), if there.
+    toe_phase: Option<f64>,
+    /// The heel may not go below this height (m): the ground it stands on or will land on,
+    /// whichever is lower.
+    heel_floor_m: f64,
 }
 
 /// The path the walk follows: constant curvature from the origin.
@@ -615,7 +632,7 @@ impl Plan {
         }
     }
 
-    /// Path distance, ground height, sway and bounce of the pelvis at `t`.
+    /// Path distance, ground height, sway and bounce dip of the pelvis at `t`.
     fn pelvis(&self, t: f64) -> (f64, f64, f64, f64) {
         let k = self.keys.partition_point(|key| key.secs <= t).clamp(1, self.keys.len() - 1) - 1;
         let (a, b) = (self.keys[k], self.keys[k + 1]);
@@ -628,7 +645,7 @@ impl Plan {
             + (u3 - u2) * h * self.slopes[k + 1];
         let ground = a.ground_m + (b.ground_m - a.ground_m) * smoothstep(u);
         let wave = (PI * u).sin();
-        (s, ground, self.sway_m * wave * a.side, self.bounce_m * wave * wave)
+        (s, ground, self.sway_m * wave * a.side, self.bounce_m * (1.0 - wave * wave))
     }
 
     /// The planned foot of leg `side` at `t`.
@@ -636,6 +653,10 @@ impl Plan {
         let list = &self.footfalls[side];
         let k = list.partition_point(|f| f.strike_secs <= t).clamp(1, list.len()) - 1;
         let f = list[k];
+        let toe_phase = list
+            .get(k + 1)
+            .filter(|_| t >= f.heel_off_secs)
+            .map(|next| ((t - f.heel_off_secs) / (next.strike_secs - f.heel_off_secs)).clamp(0.0, 1.0));
         let (heel, heading, pitch, swing_u) = if t < f.lift_secs || k + 1 >= list.len() {
             let pitch = if t < f.flat_secs {
                 -self.heel_strike_rad * (1.0 - smoothstep((t - f.strike_secs) / (f.flat_secs - f.strike_secs)))
@@ -670,15 +691,17 @@ impl Plan {
         let pivot = if pitch > 0.0 { geometry[2] } else { DVec3::ZERO };
         let roll = DQuat::from_rotation_x(pitch);
         let points = geometry.map(|r| heel + yaw * (pivot + roll * (r - pivot)));
-        FootPlan { points, rotation: yaw * roll * body.face, swing_u }
+        let heel_floor_m = list.get(k + 1).map_or(f.heel.y, |next| f.heel.y.min(next.heel.y));
+        FootPlan { points, rotation: yaw * roll * body.face, swing_u, toe_phase, heel_floor_m }
     }
 
     /// Root position and rotation at `t`, with `height` the pelvis height above the ground.
-    fn root(&self, body: &Body, t: f64, height: f64) -> (DVec3, DQuat) {
-        let (s, ground, sway, bounce) = self.pelvis(t);
+    /// The pelvis at `t`: horizontal position (Y = 0), heading rotation, ground height and
+    /// bounce dip (m).
+    fn root(&self, t: f64) -> (DVec3, DQuat, f64, f64) {
+        let (s, ground, sway, dip) = self.pelvis(t);
         let psi = self.path.heading(s);
-        let position = self.path.point(s) + left(psi) * sway + DVec3::Y * (ground + height + bounce);
-        (position, DQuat::from_rotation_y(psi) * body.face * body.root_rest_rotation)
+        (self.path.point(s) + left(psi) * sway, DQuat::from_rotation_y(psi), ground, dip)
     }
 }
 
@@ -797,23 +820,35 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     let frames = (params.duration_secs * params.fps).round() as usize + 1;
     let time = |f: usize| f as f64 / params.fps;
 
-    // Pelvis height: the rest height, lowered until every planned ankle is within reach.
-    let reach = 0.97;
-    let mut height = body.root_height_m;
-    for f in 0..frames {
-        let t = time(f);
-        let (root, rotation) = plan.root(&body, t, 0.0);
-        for side in 0..2 {
-            let ankle = plan.foot(&body, side, t).points[0];
-            let yaw = rotation * (body.face * body.root_rest_rotation).inverse();
-            let hip = root + yaw * body.hips[side];
-            let horizontal = (ankle - hip).with_y(0.0).length();
-            let limit = reach * body.leg_length_m[side];
-            let vertical = (limit * limit - horizontal * horizontal).max(0.0).sqrt();
-            // hip.y = root.y + offset; root.y = (ground + bounce) + height.
-            height = height.min(ankle.y + vertical - hip.y);
-        }
-    }
+    // Pelvis height: as high as the legs allow (every planned ankle within `REACH` of its
+    // leg's length, at most the rest height), eroded and averaged over ±0.05 s so it stays
+    // under that limit and is smooth, minus the bounce dip at the double supports.
+    let allowed: Vec<f64> = (0..frames)
+        .map(|f| {
+            let t = time(f);
+            let (root, yaw, ground, _) = plan.root(t);
+            let mut top = ground + body.root_height_m;
+            for side in 0..2 {
+                let ankle = plan.foot(&body, side, t).points[0];
+                let hip = root + yaw * body.hips[side];
+                let horizontal = (ankle - hip).with_y(0.0).length();
+                let limit = REACH * body.leg_length_m[side];
+                let vertical = (limit * limit - horizontal * horizontal).max(0.0).sqrt();
+                top = top.min(ankle.y + vertical - body.hips[side].y);
+            }
+            top
+        })
+        .collect();
+    let window = ((0.05 * params.fps).round() as usize).max(1);
+    let around = |f: usize| f.saturating_sub(window)..(f + window + 1).min(frames);
+    let eroded: Vec<f64> = (0..frames).map(|f| allowed[around(f)].iter().copied().fold(f64::INFINITY, f64::min)).collect();
+    let root_y: Vec<f64> = (0..frames)
+        .map(|f| {
+            let r = around(f);
+            let n = r.len() as f64;
+            eroded[r].iter().sum::<f64>() / n - plan.root(time(f)).3
+        })
+        .collect();
 
     // The IK skeleton: the character plus a heel point under each ankle.
     let mut joints = skeleton.joints().to_vec();
@@ -866,7 +901,9 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     let mut positions = [DVec3::ZERO; 3];
     for f in 0..frames {
         let t = time(f);
-        let (root, root_rotation) = plan.root(&body, t, height);
+        let (root_xz, yaw, _, _) = plan.root(t);
+        let root = root_xz.with_y(root_y[f]);
+        let root_rotation = yaw * body.face * body.root_rest_rotation;
         let mut frame_rotations = rest_rotations[..n].to_vec();
         let mut frame_converged = true;
         frame_rotations[0] = root_rotation.as_quat();
@@ -880,16 +917,27 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
             } else {
                 params.solve
             };
-            let goals = match target.swing_u {
-                Some(u) if params.swing_freedom > 0.0 => {
+            let goals = match target.toe_phase {
+                Some(v) if params.swing_freedom > 0.0 => {
                     let toe = target.points[2];
                     free[side].solve(pose, &[toe], &solve);
                     planted[side].effector_positions(pose, &mut positions);
                     let ankle_now = planted[side].world()[body.legs[side].ankle].0;
                     let free_rotation = ankle_now * ankle_rest_rotation[side].inverse();
-                    let w = 1.0 - params.swing_freedom * (PI * u).sin().powi(2);
-                    let rotation = free_rotation.slerp(target.rotation, w);
                     let rest = foot_rest[side];
+                    let heel_y = |w: f64| toe.y + (free_rotation.slerp(target.rotation, w) * (rest[1] - rest[2])).y;
+                    // Free in the middle, planned at heel-off and landing; never heel below
+                    // the floor (the plan's heel is above it, so bisect toward the plan).
+                    let mut w = 1.0 - params.swing_freedom * smoothstep(v / 0.15) * smoothstep((1.0 - v) / 0.3);
+                    if heel_y(w) < target.heel_floor_m {
+                        let (mut lo, mut hi) = (w, 1.0);
+                        for _ in 0..30 {
+                            let mid = 0.5 * (lo + hi);
+                            if heel_y(mid) < target.heel_floor_m { lo = mid } else { hi = mid }
+                        }
+                        w = hi;
+                    }
+                    let rotation = free_rotation.slerp(target.rotation, w);
                     [toe + rotation * (rest[0] - rest[2]), toe + rotation * (rest[1] - rest[2]), toe]
                 }
                 _ => target.points,
@@ -932,6 +980,7 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     let double_support = intersect_all(&feet[0].intervals, &feet[1].intervals);
     let contacts = Contacts { fps: params.fps, frame_count: frames, feet, double_support };
 
+    let lift: Vec<f64> = (0..frames).map(|f| root_y[f] - plan.root(time(f)).2).collect();
     let (legs, cadence_steps_per_min, speed_m_per_s) = measure(&clip, &body, &plan, params, walking);
     let report = GaitReport {
         legs,
@@ -939,7 +988,9 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
         speed_m_per_s,
         max_residual_m: max_residual,
         unconverged_frames: unconverged,
-        pelvis_height_m: height,
+        pelvis_height_m: lift.iter().sum::<f64>() / frames as f64,
+        pelvis_rise_m: lift.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+            - lift.iter().copied().fold(f64::INFINITY, f64::min),
     };
     Ok(Gait { clip, contacts, footfalls: plan.footfalls.clone(), legs: body.legs.clone(), report, warnings })
 }
@@ -983,8 +1034,17 @@ fn measure(clip: &Clip, body: &Body, plan: &Plan, params: &GaitParams, walking: 
             .collect();
         let leg = &body.legs[side];
         let rest_angle = knee_angle(&rest_world(clip.skeleton()), leg);
-        let flexion =
-            (0..clip.frame_count()).map(|f| knee_angle(poses.frame(f), leg) - rest_angle).fold(0.0f64, f64::max);
+        let bend = |f: usize| knee_angle(poses.frame(f), leg) - rest_angle;
+        let flexion = (0..clip.frame_count()).map(bend).fold(0.0f64, f64::max);
+        let ranges: Vec<f64> = plan.footfalls[side]
+            .windows(2)
+            .filter(|w| walking && w[0].lift_secs >= 0.0 && frame_at(w[1].strike_secs) <= last as f64)
+            .map(|w| {
+                let frames = frame_at(w[0].lift_secs) as usize..=frame_at(w[1].strike_secs) as usize;
+                let (lo, hi) = frames.map(bend).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| (lo.min(b), hi.max(b)));
+                hi - lo
+            })
+            .collect();
         let swing = plan.footfalls[side].windows(2).next().map_or(0.0, |w| w[1].strike_secs - w[0].lift_secs);
         LegReport {
             stride_length_m: mean(&strides),
@@ -992,6 +1052,7 @@ fn measure(clip: &Clip, body: &Body, plan: &Plan, params: &GaitParams, walking: 
             swing_secs: if walking { swing } else { 0.0 },
             footfalls: own.len(),
             max_knee_flexion_rad: flexion,
+            swing_knee_range_rad: mean(&ranges),
             params: params.legs[side],
         }
     });
@@ -1154,6 +1215,7 @@ fn leg_json(leg: &LegReport) -> serde_json::Value {
         "swing_secs": leg.swing_secs,
         "footfalls": leg.footfalls,
         "max_knee_flexion_rad": leg.max_knee_flexion_rad,
+        "swing_knee_range_rad": leg.swing_knee_range_rad,
         "stride_scale": leg.params.stride_scale,
         "height_scale": leg.params.height_scale,
         "swing_speed_scale": leg.params.swing_speed_scale,
@@ -1215,6 +1277,7 @@ impl Node for ProceduralGait {
                 "cadence_steps_per_min": r.cadence_steps_per_min,
                 "speed_m_per_s": r.speed_m_per_s,
                 "pelvis_height_m": r.pelvis_height_m,
+                "pelvis_rise_m": r.pelvis_rise_m,
                 "max_residual_m": r.max_residual_m,
                 "unconverged_frames": r.unconverged_frames,
             }))),
@@ -1348,5 +1411,205 @@ mod tests {
             assert!(drift < 1e-3, "drift {drift} m");
             assert!(peak_error < 2e-3, "peak error {peak_error} m");
         }
+    }
+
+    /// Step lengths measured on the clip: how far each footfall of `side` lands ahead of the
+    /// other foot's previous footfall, along +Z (the walk goes straight along +Z).
+    fn steps(gait: &Gait, poses: &ClipPoses, side: usize) -> Vec<f64> {
+        let other = footfalls(gait, poses, 1 - side);
+        footfalls(gait, poses, side)
+            .iter()
+            .filter_map(|(t, heel)| other.iter().rev().find(|o| o.0 < *t).map(|o| heel.z - o.1.z))
+            .collect()
+    }
+
+    /// Air times of `side`: frames between successive contacts, in seconds.
+    fn swing_secs(gait: &Gait, side: usize) -> Vec<f64> {
+        let fps = gait.clip.fps();
+        gait.contacts.feet[side].intervals.windows(2).map(|w| (w[1].start - w[0].end) as f64 / fps).collect()
+    }
+
+    #[test]
+    fn the_injured_preset_limps_on_the_left() {
+        let skeleton = mannequin();
+        let base = GaitParams { fps: 60.0, duration_secs: 6.0, ..GaitParams::default() };
+        let normal = walk(&skeleton, &base);
+        let injured = walk(&skeleton, &GaitParams { legs: GaitPreset::InjuredLeftLeg.legs(), ..base });
+        // The same control changes without the stiff knee: what the weight alone does.
+        let limp_legs = [LegParams { knee_weight: 1.0, ..GaitPreset::InjuredLeftLeg.legs()[0] }, LegParams::default()];
+        let limp = walk(&skeleton, &GaitParams { legs: limp_legs, ..base });
+        let (pn, pi, pl) = (forward_kinematics(&normal.clip), forward_kinematics(&injured.clip), forward_kinematics(&limp.clip));
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let (left_step, right_step) = (mean(&steps(&injured, &pi, 0)), mean(&steps(&injured, &pi, 1)));
+        let (left_air, right_air) = (mean(&swing_secs(&injured, 0)), mean(&swing_secs(&injured, 1)));
+        let bends = [
+            (max_knee_bend(&normal, &pn, 0), max_knee_bend(&normal, &pn, 1)),
+            (max_knee_bend(&limp, &pl, 0), max_knee_bend(&limp, &pl, 1)),
+            (max_knee_bend(&injured, &pi, 0), max_knee_bend(&injured, &pi, 1)),
+        ];
+        println!(
+            "injured: left step {left_step:.4} m, right step {right_step:.4} m (ratio {:.3}); air left {left_air:.3} s, right {right_air:.3} s (ratio {:.3})",
+            left_step / right_step,
+            left_air / right_air
+        );
+        println!(
+            "max knee bend (left, right) rad: normal {:.3?}, limp with free knee {:.3?}, injured (knee weight 0.1) {:.3?}",
+            bends[0], bends[1], bends[2]
+        );
+        println!("residuals: normal {:.2e}, limp {:.2e}, injured {:.2e} m", normal.report.max_residual_m, limp.report.max_residual_m, injured.report.max_residual_m);
+        // Left step half the right one (sampling: footfalls are measured exactly, not framed).
+        assert!((left_step / right_step - 0.5).abs() < 0.02, "{left_step} / {right_step}");
+        assert!((right_step - base.stride_length_m / 2.0).abs() < 0.005, "{right_step}");
+        // The left swing 30 % faster: air time ÷ 1.3, to a frame.
+        assert!((left_air - right_air / 1.3).abs() < 1.5 / base.fps, "{left_air} vs {right_air}");
+        // The stiff knee bends measurably less than the free one with the same control, and
+        // less than in the normal walk.
+        assert!(bends[2].0 < bends[1].0 - 0.02, "{bends:?}");
+        assert!(bends[2].0 < bends[0].0 - 0.1, "{bends:?}");
+        assert!(injured.report.max_residual_m < 1e-3, "{:?}", injured.report);
+    }
+
+    #[test]
+    fn the_other_presets_change_what_they_name() {
+        let skeleton = mannequin();
+        let base = GaitParams { fps: 60.0, duration_secs: 4.0, ..GaitParams::default() };
+        let normal = walk(&skeleton, &base);
+        let individual = walk(&skeleton, &GaitParams { legs: GaitPreset::Individual.legs(), ..base });
+        let hip = walk(&skeleton, &GaitParams { legs: GaitPreset::HipInjury.legs(), ..base });
+        let limp_legs = [LegParams { hip_weight: 1.0, ..GaitPreset::HipInjury.legs()[0] }, LegParams::default()];
+        let limp = walk(&skeleton, &GaitParams { legs: limp_legs, ..base });
+        // Hip flexion (thigh from vertical) range of the left leg over the walk.
+        let hip_swing = |g: &Gait| {
+            let poses = forward_kinematics(&g.clip);
+            let leg = &g.legs[0];
+            let angles: Vec<f64> = (0..g.clip.frame_count())
+                .map(|f| {
+                    let thigh = poses.position(f, leg.knee).as_dvec3() - poses.position(f, leg.hip).as_dvec3();
+                    thigh.z.atan2(-thigh.y)
+                })
+                .collect();
+            angles.iter().copied().fold(f64::NEG_INFINITY, f64::max) - angles.iter().copied().fold(f64::INFINITY, f64::min)
+        };
+        let (n, i, l, h) = (hip_swing(&normal), hip_swing(&individual), hip_swing(&limp), hip_swing(&hip));
+        println!("left hip swing range rad: normal {n:.4}, individual {i:.4}, limp free hip {l:.4}, hip injury {h:.4}");
+        let knee = |g: &Gait| max_knee_bend(g, &forward_kinematics(&g.clip), 0);
+        println!("left knee max bend rad: normal {:.4}, individual {:.4}, limp {:.4}, hip injury {:.4}", knee(&normal), knee(&individual), knee(&limp), knee(&hip));
+        assert!(i < n, "individual {i} vs normal {n}");
+        assert!(h < l, "hip injury {h} vs limp {l}");
+        for g in [&individual, &hip] {
+            assert!(g.report.max_residual_m < 1e-3, "{:?}", g.report);
+        }
+    }
+
+    #[test]
+    fn turning_changes_the_heading_by_rate_times_duration() {
+        let params = GaitParams { turn_rate_rad_per_s: 0.3, direction_rad: 0.2, duration_secs: 4.0, ..GaitParams::default() };
+        let gait = walk(&mannequin(), &params);
+        let last = gait.clip.frame_count() - 1;
+        // The mannequin faces +Z: its root's heading is the yaw of its +Z axis.
+        let heading = |f: usize| {
+            let z = gait.clip.frame_rotations(f)[0].as_dquat() * DVec3::Z;
+            z.x.atan2(z.z)
+        };
+        let turned = heading(last) - heading(0);
+        println!("turned {turned:.4} rad in {} s (want {:.4}), start heading {:.4}", params.duration_secs, 0.3 * params.duration_secs, heading(0));
+        assert!((turned - params.turn_rate_rad_per_s * params.duration_secs).abs() < 0.01, "{turned}");
+        assert!(gait.report.max_residual_m < 1e-3, "{:?}", gait.report);
+    }
+
+    #[test]
+    fn footfalls_land_on_the_stairs() {
+        let params = GaitParams {
+            stair_rise_m: 0.15,
+            stair_run_m: 0.65,
+            stair_start_m: 1.0,
+            step_height_m: 0.12,
+            duration_secs: 5.0,
+            fps: 60.0,
+            ..GaitParams::default()
+        };
+        let skeleton = mannequin();
+        let gait = walk(&skeleton, &params);
+        let poses = forward_kinematics(&gait.clip);
+        // Foot length: heel (under the ankle) to toe tip along +Z in the rest pose.
+        let rest = skeleton.rest_positions();
+        let mut checked = 0;
+        for side in 0..2 {
+            let foot_length = f64::from(rest[gait.legs[side].toe].z - rest[gait.legs[side].ankle].z);
+            for (_, heel) in footfalls(&gait, &poses, side) {
+                // The stair under the middle of the foot, by hand: 0.15 m per 0.65 m from 1 m.
+                let s = heel.z + foot_length / 2.0;
+                let want = if s < 1.0 { 0.0 } else { 0.15 * (((s - 1.0) / 0.65).floor() + 1.0) };
+                assert!((heel.y - want).abs() < 1e-3, "heel at z {:.3}: height {:.4} vs stair {want}", heel.z, heel.y);
+                checked += usize::from(want > 0.0);
+            }
+        }
+        println!("stairs: {checked} footfalls on raised stairs, residual {:.2e} m", gait.report.max_residual_m);
+        assert!(checked >= 4);
+        assert!(gait.report.max_residual_m < 1e-3, "{:?}", gait.report);
+    }
+
+    #[test]
+    fn standing_and_bad_input_give_a_still_clip_or_a_typed_error() {
+        let skeleton = mannequin();
+        for params in [
+            GaitParams { speed_m_per_s: 0.0, ..GaitParams::default() },
+            GaitParams { stride_length_m: 0.0, ..GaitParams::default() },
+        ] {
+            let gait = walk(&skeleton, &params);
+            assert!(!gait.warnings.is_empty());
+            let first = gait.clip.frame_translations(0)[0];
+            for f in 0..gait.clip.frame_count() {
+                assert!(gait.clip.frame_rotations(f).iter().all(|q| q.is_finite()));
+                assert!((gait.clip.frame_translations(f)[0] - first).length() < 1e-6);
+            }
+            assert!(gait.contacts.feet.iter().all(|c| c.intervals == vec![FrameRange::new(0, gait.clip.frame_count())]));
+            assert!(gait.report.max_residual_m < 1e-3 && gait.report.speed_m_per_s == 0.0, "{:?}", gait.report);
+        }
+        // No legs: an arm only.
+        let arm = Arc::new(
+            Skeleton::new(vec![
+                Joint::new("Chest", None, Vec3::new(0.0, 1.4, 0.0)),
+                Joint::new("LeftArm", Some(0), Vec3::new(0.2, 0.0, 0.0)),
+                Joint::new("LeftHand", Some(1), Vec3::new(0.5, 0.0, 0.0)),
+            ])
+            .unwrap(),
+        );
+        match procedural_gait(&arm, &GaitParams::default()) {
+            Err(GaitError::MissingLegs(m)) => assert!(m.contains("left thigh") && m.contains("right foot"), "{m}"),
+            other => panic!("{other:?}"),
+        }
+        let bad = GaitParams { speed_m_per_s: f64::NAN, ..GaitParams::default() };
+        assert!(matches!(procedural_gait(&skeleton, &bad), Err(GaitError::Param { name: "speed_m_per_s", .. })));
+        let mut legs = [LegParams::default(); 2];
+        assert!(parse_leg_overrides("left.knee=0.3, right.stride=0.8", &mut legs).is_ok());
+        assert_eq!((legs[0].knee_weight, legs[1].stride_scale), (0.3, 0.8));
+        assert!(parse_leg_overrides("middle.knee=1", &mut legs).is_err());
+        let bad_weight = GaitParams { legs: [LegParams { knee_weight: 1.5, ..LegParams::default() }; 2], ..GaitParams::default() };
+        assert!(matches!(procedural_gait(&skeleton, &bad_weight), Err(GaitError::Param { name: "legs", .. })));
+    }
+
+    #[test]
+    fn a_cmu_skeleton_walks() {
+        let Some(data) = crate::corpus::shared_data() else { return };
+        let path = data.join("bvh/cmu/02_01.bvh");
+        let loaded = crate::formats::bvh::read_bvh_file(&path, Default::default()).unwrap();
+        let skeleton = loaded.value.0.skeleton().clone();
+        let params = GaitParams { fps: 60.0, duration_secs: 4.0, ..GaitParams::default() };
+        let gait = walk(&skeleton, &params);
+        let poses = forward_kinematics(&gait.clip);
+        let names: Vec<&str> = gait.legs.iter().flat_map(|l| [l.hip, l.knee, l.ankle, l.toe]).map(|j| skeleton.joints()[j].name.as_str()).collect();
+        println!("cmu legs {names:?}, report {:?}", gait.report);
+        assert!(gait.report.max_residual_m < 1e-3, "{:?}", gait.report);
+        for side in 0..2 {
+            let falls = footfalls(&gait, &poses, side);
+            for w in falls.windows(2) {
+                let stride = (w[1].1 - w[0].1).with_y(0.0).length();
+                assert!((stride - params.stride_length_m).abs() < 0.005, "stride {stride}");
+            }
+            assert!(falls.len() >= 2);
+        }
+        let knee = max_knee_bend(&gait, &poses, 0);
+        assert!(knee > 0.3 && knee < 1.6, "knee bend {knee}");
     }
 }
