@@ -312,7 +312,7 @@ pub struct LegReport {
 pub struct GaitReport {
     /// Left, right.
     pub legs: [LegReport; 2],
-    /// Footfalls per minute.
+    /// Footfalls per minute (both feet), over whole strides.
     pub cadence_steps_per_min: f64,
     /// Distance the feet advance per second, measured from the footfalls (m/s).
     pub speed_m_per_s: f64,
@@ -1056,12 +1056,9 @@ fn measure(clip: &Clip, body: &Body, plan: &Plan, params: &GaitParams, walking: 
             params: params.legs[side],
         }
     });
-    let mut strikes: Vec<f64> = falls.iter().flatten().map(|f| f.0).collect();
-    strikes.sort_by(f64::total_cmp);
-    let cadence = match (strikes.first(), strikes.last()) {
-        (Some(a), Some(b)) if b > a => 60.0 * (strikes.len() - 1) as f64 / (b - a),
-        _ => 0.0,
-    };
+    // Two footfalls per stride: 120 per minute per stride-second, over whole strides.
+    let strides = falls.iter().map(|f| f.len().saturating_sub(1)).sum::<usize>();
+    let cadence = if stride_sum.1 > 0.0 { 120.0 * strides as f64 / stride_sum.1 } else { 0.0 };
     (legs, cadence, if stride_sum.1 > 0.0 { stride_sum.0 / stride_sum.1 } else { 0.0 })
 }
 
@@ -1369,6 +1366,9 @@ mod tests {
             r.legs[0].stride_length_m, r.legs[1].stride_length_m
         );
         assert!(r.max_residual_m < 1e-3, "{r:?}");
+        // Two footfalls per stride time (stride / speed).
+        let cadence = 120.0 * params.speed_m_per_s / params.stride_length_m;
+        assert!((r.cadence_steps_per_min - cadence).abs() < 0.1, "{} vs {cadence}", r.cadence_steps_per_min);
         for side in 0..2 {
             let falls = footfalls(&gait, &poses, side);
             assert!(falls.len() >= 3, "{falls:?}");
@@ -1460,6 +1460,11 @@ mod tests {
         // Left step half the right one (sampling: footfalls are measured exactly, not framed).
         assert!((left_step / right_step - 0.5).abs() < 0.02, "{left_step} / {right_step}");
         assert!((right_step - base.stride_length_m / 2.0).abs() < 0.005, "{right_step}");
+        // Speed by hand: both steps per cycle of two double supports (0.2 · T / 2 each) and the
+        // two swings (0.4 · T, the left one ÷ 1.3), T = stride / speed.
+        let t = base.stride_length_m / base.speed_m_per_s;
+        let speed = (0.5 + 1.0) * base.stride_length_m / 2.0 / (0.2 * t + 0.4 * t / 1.3 + 0.4 * t);
+        assert!((injured.report.speed_m_per_s - speed).abs() < 1e-3, "{} vs {speed}", injured.report.speed_m_per_s);
         // The left swing 30 % faster: air time ÷ 1.3, to a frame.
         assert!((left_air - right_air / 1.3).abs() < 1.5 / base.fps, "{left_air} vs {right_air}");
         // The stiff knee bends measurably less than the free one with the same control, and
