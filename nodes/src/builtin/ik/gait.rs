@@ -602,9 +602,8 @@ impl Plan {
             previous_right = Some((b, right_heel.y));
         }
         // Monotone Hermite slopes (Fritsch–Carlson limit: at most 3× either neighbour secant).
-        let secant = |k: usize| {
-            (keys[k + 1].progress_m - keys[k].progress_m) / (keys[k + 1].secs - keys[k].secs).max(1e-12)
-        };
+        let secant =
+            |k: usize| (keys[k + 1].progress_m - keys[k].progress_m) / (keys[k + 1].secs - keys[k].secs).max(1e-12);
         let last = keys.len() - 1;
         let slopes = (0..keys.len())
             .map(|k| {
@@ -674,7 +673,11 @@ impl Plan {
             let (from, to) = (f.heel.y, next.heel.y);
             let top = from.max(to);
             let rise = foot_height_curve(x) / 2.0;
-            let y = if x <= PI { from + (top - from + self.heights[side]) * rise } else { to + (top - to + self.heights[side]) * rise };
+            let y = if x <= PI {
+                from + (top - from + self.heights[side]) * rise
+            } else {
+                to + (top - to + self.heights[side]) * rise
+            };
             let heel = f.heel.lerp(next.heel, ease).with_y(y);
             let heading = f.heading_rad + (next.heading_rad - f.heading_rad) * ease;
             let pitch = if x <= PI {
@@ -841,7 +844,8 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
         .collect();
     let window = ((0.05 * params.fps).round() as usize).max(1);
     let around = |f: usize| f.saturating_sub(window)..(f + window + 1).min(frames);
-    let eroded: Vec<f64> = (0..frames).map(|f| allowed[around(f)].iter().copied().fold(f64::INFINITY, f64::min)).collect();
+    let eroded: Vec<f64> =
+        (0..frames).map(|f| allowed[around(f)].iter().copied().fold(f64::INFINITY, f64::min)).collect();
     let root_y: Vec<f64> = (0..frames)
         .map(|f| {
             let r = around(f);
@@ -899,10 +903,10 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     let mut max_residual = 0.0f64;
     let mut unconverged = 0;
     let mut positions = [DVec3::ZERO; 3];
-    for f in 0..frames {
+    for (f, &height_m) in root_y.iter().enumerate() {
         let t = time(f);
         let (root_xz, yaw, _, _) = plan.root(t);
-        let root = root_xz.with_y(root_y[f]);
+        let root = root_xz.with_y(height_m);
         let root_rotation = yaw * body.face * body.root_rest_rotation;
         let mut frame_rotations = rest_rotations[..n].to_vec();
         let mut frame_converged = true;
@@ -1041,7 +1045,8 @@ fn measure(clip: &Clip, body: &Body, plan: &Plan, params: &GaitParams, walking: 
             .filter(|w| walking && w[0].lift_secs >= 0.0 && frame_at(w[1].strike_secs) <= last as f64)
             .map(|w| {
                 let frames = frame_at(w[0].lift_secs) as usize..=frame_at(w[1].strike_secs) as usize;
-                let (lo, hi) = frames.map(bend).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| (lo.min(b), hi.max(b)));
+                let (lo, hi) =
+                    frames.map(bend).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| (lo.min(b), hi.max(b)));
                 hi - lo
             })
             .collect();
@@ -1165,15 +1170,10 @@ const SWAY: FloatParam =
     FloatParam::new("hip_sway_m", "Sideways pelvis swing toward the stance foot, each way.", 0.03, 0.0, 0.5, "m");
 const BOUNCE: FloatParam =
     FloatParam::new("hip_bounce_m", "Vertical pelvis rise between double supports.", 0.02, 0.0, 0.5, "m");
-const STAIR_RISE: FloatParam = FloatParam::new(
-    "stair_rise_m",
-    "Height of each stair (0 = flat ground, negative = down).",
-    0.0,
-    -0.5,
-    0.5,
-    "m",
-);
-const STAIR_RUN: FloatParam = FloatParam::new("stair_run_m", "Depth of each stair along the path.", 0.3, 0.05, 5.0, "m");
+const STAIR_RISE: FloatParam =
+    FloatParam::new("stair_rise_m", "Height of each stair (0 = flat ground, negative = down).", 0.0, -0.5, 0.5, "m");
+const STAIR_RUN: FloatParam =
+    FloatParam::new("stair_run_m", "Depth of each stair along the path.", 0.3, 0.05, 5.0, "m");
 const STAIR_START: FloatParam =
     FloatParam::new("stair_start_m", "Path distance of the first stair's edge.", 1.0, -100.0, 1000.0, "m");
 
@@ -1362,8 +1362,12 @@ mod tests {
         let r = &gait.report;
         println!(
             "normal: residual {:.2e} m, unconverged {}, pelvis {:.3} m, cadence {:.1}/min, report strides {:.4} {:.4}",
-            r.max_residual_m, r.unconverged_frames, r.pelvis_height_m, r.cadence_steps_per_min,
-            r.legs[0].stride_length_m, r.legs[1].stride_length_m
+            r.max_residual_m,
+            r.unconverged_frames,
+            r.pelvis_height_m,
+            r.cadence_steps_per_min,
+            r.legs[0].stride_length_m,
+            r.legs[1].stride_length_m
         );
         assert!(r.max_residual_m < 1e-3, "{r:?}");
         // Two footfalls per stride time (stride / speed).
@@ -1391,8 +1395,7 @@ mod tests {
                 for pick in [0, 1] {
                     let point = |p: &(DVec3, DVec3)| if pick == 0 { p.0 } else { p.1 };
                     let ground = frames.iter().map(|p| point(p).y).fold(f64::INFINITY, f64::min);
-                    let down: Vec<DVec3> =
-                        frames.iter().map(point).filter(|p| p.y < ground + 1e-3).collect();
+                    let down: Vec<DVec3> = frames.iter().map(point).filter(|p| p.y < ground + 1e-3).collect();
                     for p in &down {
                         drift = drift.max((*p - down[0]).with_y(0.0).length());
                     }
@@ -1438,7 +1441,8 @@ mod tests {
         // The same control changes without the stiff knee: what the weight alone does.
         let limp_legs = [LegParams { knee_weight: 1.0, ..GaitPreset::InjuredLeftLeg.legs()[0] }, LegParams::default()];
         let limp = walk(&skeleton, &GaitParams { legs: limp_legs, ..base });
-        let (pn, pi, pl) = (forward_kinematics(&normal.clip), forward_kinematics(&injured.clip), forward_kinematics(&limp.clip));
+        let (pn, pi, pl) =
+            (forward_kinematics(&normal.clip), forward_kinematics(&injured.clip), forward_kinematics(&limp.clip));
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
         let (left_step, right_step) = (mean(&steps(&injured, &pi, 0)), mean(&steps(&injured, &pi, 1)));
         let (left_air, right_air) = (mean(&swing_secs(&injured, 0)), mean(&swing_secs(&injured, 1)));
@@ -1456,7 +1460,10 @@ mod tests {
             "max knee bend (left, right) rad: normal {:.3?}, limp with free knee {:.3?}, injured (knee weight 0.1) {:.3?}",
             bends[0], bends[1], bends[2]
         );
-        println!("residuals: normal {:.2e}, limp {:.2e}, injured {:.2e} m", normal.report.max_residual_m, limp.report.max_residual_m, injured.report.max_residual_m);
+        println!(
+            "residuals: normal {:.2e}, limp {:.2e}, injured {:.2e} m",
+            normal.report.max_residual_m, limp.report.max_residual_m, injured.report.max_residual_m
+        );
         // Left step half the right one (sampling: footfalls are measured exactly, not framed).
         assert!((left_step / right_step - 0.5).abs() < 0.02, "{left_step} / {right_step}");
         assert!((right_step - base.stride_length_m / 2.0).abs() < 0.005, "{right_step}");
@@ -1493,12 +1500,19 @@ mod tests {
                     thigh.z.atan2(-thigh.y)
                 })
                 .collect();
-            angles.iter().copied().fold(f64::NEG_INFINITY, f64::max) - angles.iter().copied().fold(f64::INFINITY, f64::min)
+            angles.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                - angles.iter().copied().fold(f64::INFINITY, f64::min)
         };
         let (n, i, l, h) = (hip_swing(&normal), hip_swing(&individual), hip_swing(&limp), hip_swing(&hip));
         println!("left hip swing range rad: normal {n:.4}, individual {i:.4}, limp free hip {l:.4}, hip injury {h:.4}");
         let knee = |g: &Gait| max_knee_bend(g, &forward_kinematics(&g.clip), 0);
-        println!("left knee max bend rad: normal {:.4}, individual {:.4}, limp {:.4}, hip injury {:.4}", knee(&normal), knee(&individual), knee(&limp), knee(&hip));
+        println!(
+            "left knee max bend rad: normal {:.4}, individual {:.4}, limp {:.4}, hip injury {:.4}",
+            knee(&normal),
+            knee(&individual),
+            knee(&limp),
+            knee(&hip)
+        );
         assert!(i < n, "individual {i} vs normal {n}");
         assert!(h < l, "hip injury {h} vs limp {l}");
         for g in [&individual, &hip] {
@@ -1508,7 +1522,8 @@ mod tests {
 
     #[test]
     fn turning_changes_the_heading_by_rate_times_duration() {
-        let params = GaitParams { turn_rate_rad_per_s: 0.3, direction_rad: 0.2, duration_secs: 4.0, ..GaitParams::default() };
+        let params =
+            GaitParams { turn_rate_rad_per_s: 0.3, direction_rad: 0.2, duration_secs: 4.0, ..GaitParams::default() };
         let gait = walk(&mannequin(), &params);
         let last = gait.clip.frame_count() - 1;
         // The mannequin faces +Z: its root's heading is the yaw of its +Z axis.
@@ -1517,7 +1532,12 @@ mod tests {
             z.x.atan2(z.z)
         };
         let turned = heading(last) - heading(0);
-        println!("turned {turned:.4} rad in {} s (want {:.4}), start heading {:.4}", params.duration_secs, 0.3 * params.duration_secs, heading(0));
+        println!(
+            "turned {turned:.4} rad in {} s (want {:.4}), start heading {:.4}",
+            params.duration_secs,
+            0.3 * params.duration_secs,
+            heading(0)
+        );
         assert!((turned - params.turn_rate_rad_per_s * params.duration_secs).abs() < 0.01, "{turned}");
         assert!(gait.report.max_residual_m < 1e-3, "{:?}", gait.report);
     }
@@ -1568,7 +1588,9 @@ mod tests {
                 assert!(gait.clip.frame_rotations(f).iter().all(|q| q.is_finite()));
                 assert!((gait.clip.frame_translations(f)[0] - first).length() < 1e-6);
             }
-            assert!(gait.contacts.feet.iter().all(|c| c.intervals == vec![FrameRange::new(0, gait.clip.frame_count())]));
+            assert!(
+                gait.contacts.feet.iter().all(|c| c.intervals == vec![FrameRange::new(0, gait.clip.frame_count())])
+            );
             assert!(gait.report.max_residual_m < 1e-3 && gait.report.speed_m_per_s == 0.0, "{:?}", gait.report);
         }
         // No legs: an arm only.
@@ -1590,7 +1612,8 @@ mod tests {
         assert!(parse_leg_overrides("left.knee=0.3, right.stride=0.8", &mut legs).is_ok());
         assert_eq!((legs[0].knee_weight, legs[1].stride_scale), (0.3, 0.8));
         assert!(parse_leg_overrides("middle.knee=1", &mut legs).is_err());
-        let bad_weight = GaitParams { legs: [LegParams { knee_weight: 1.5, ..LegParams::default() }; 2], ..GaitParams::default() };
+        let bad_weight =
+            GaitParams { legs: [LegParams { knee_weight: 1.5, ..LegParams::default() }; 2], ..GaitParams::default() };
         assert!(matches!(procedural_gait(&skeleton, &bad_weight), Err(GaitError::Param { name: "legs", .. })));
     }
 
@@ -1603,7 +1626,12 @@ mod tests {
         let params = GaitParams { fps: 60.0, duration_secs: 4.0, ..GaitParams::default() };
         let gait = walk(&skeleton, &params);
         let poses = forward_kinematics(&gait.clip);
-        let names: Vec<&str> = gait.legs.iter().flat_map(|l| [l.hip, l.knee, l.ankle, l.toe]).map(|j| skeleton.joints()[j].name.as_str()).collect();
+        let names: Vec<&str> = gait
+            .legs
+            .iter()
+            .flat_map(|l| [l.hip, l.knee, l.ankle, l.toe])
+            .map(|j| skeleton.joints()[j].name.as_str())
+            .collect();
         println!("cmu legs {names:?}, report {:?}", gait.report);
         assert!(gait.report.max_residual_m < 1e-3, "{:?}", gait.report);
         for side in 0..2 {

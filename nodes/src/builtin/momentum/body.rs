@@ -247,7 +247,12 @@ fn limb_role_words(role: usize) -> &'static [&'static str] {
 }
 
 /// The joint playing limb `role` (index into [`LIMB_ROLES`]) on `side` (0 left, 1 right).
-fn find_role(joints: &[crate::model::Joint], parsed: &[(Option<usize>, String)], side: usize, role: usize) -> Option<usize> {
+fn find_role(
+    joints: &[crate::model::Joint],
+    parsed: &[(Option<usize>, String)],
+    side: usize,
+    role: usize,
+) -> Option<usize> {
     limb_role_words(role).iter().find_map(|word| {
         (0..joints.len()).find(|&j| !joints[j].end_site && parsed[j].0 == Some(side) && parsed[j].1 == *word)
     })
@@ -308,7 +313,9 @@ pub fn find_landmarks(skeleton: &Skeleton) -> Result<Landmarks, Vec<String>> {
     // Each limb joint must sit below the previous one, or the names lied.
     if missing.is_empty() {
         for (side, slots) in limbs.iter().enumerate() {
-            if let Some(problem) = [&slots[0..3], &slots[3..6]].iter().find_map(|c| chain_order_problem(skeleton, side, c)) {
+            if let Some(problem) =
+                [&slots[0..3], &slots[3..6]].iter().find_map(|c| chain_order_problem(skeleton, side, c))
+            {
                 missing.push(problem);
                 break;
             }
