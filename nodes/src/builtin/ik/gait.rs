@@ -35,9 +35,13 @@
 //!    place to the next (`½ − ½ cos πu`).
 //! 6. **Pelvis.** At the middle of each double support the pelvis is between the two
 //!    planted heels; between those keys its distance along the path is a monotone cubic
-//!    (Hermite). It sways sideways toward the stance foot by `hip_sway_m · sin πu` and rises
-//!    by `hip_bounce_m · sin² πu` between keys. Its height above the ground is the rest height
-//!    or lower: as low as needed for every planned ankle to be within 97 % of the leg's length.
+//!    (Hermite); `u` ∈ [0, 1] runs from one key to the next. It sways sideways toward the
+//!    stance foot by `hip_sway_m · sin πu`. Its height is as high as the legs allow: per
+//!    frame, the highest root for which every planned ankle is within 98 % of its leg's
+//!    length (never above the rest height over the ground), eroded and averaged over
+//!    ±0.05 s so it is smooth and stays under that limit; then lowered by
+//!    `hip_bounce_m · cos² πu` (deepest at the double supports). The legs' geometry alone
+//!    gives a compass-like rise and fall; `hip_bounce_m` adds to it.
 //! 7. **Legs by weighted IK.** Per leg, the hip joints turn about three axes with the hip
 //!    weight, the knee about its hinge (the Euler axis nearest the body's left-right axis,
 //!    bending backward only) with the knee weight, the ankle about three axes with the ankle
@@ -196,7 +200,8 @@ pub struct GaitParams {
     pub step_height_m: f64,
     /// Sideways pelvis swing toward the stance foot (metres, each way). Default 0.03.
     pub hip_sway_m: f64,
-    /// Vertical pelvis rise between double supports (metres, trough to peak). Default 0.02.
+    /// Extra pelvis dip at the double supports (metres), on top of the rise and fall the
+    /// legs' reach gives. Default 0.02.
     pub hip_bounce_m: f64,
     /// Height of each stair (metres; 0 = flat ground, negative = going down). Default 0.
     pub stair_rise_m: f64,
@@ -1168,8 +1173,14 @@ const STEP_HEIGHT: FloatParam = FloatParam::new(
 );
 const SWAY: FloatParam =
     FloatParam::new("hip_sway_m", "Sideways pelvis swing toward the stance foot, each way.", 0.03, 0.0, 0.5, "m");
-const BOUNCE: FloatParam =
-    FloatParam::new("hip_bounce_m", "Vertical pelvis rise between double supports.", 0.02, 0.0, 0.5, "m");
+const BOUNCE: FloatParam = FloatParam::new(
+    "hip_bounce_m",
+    "Extra pelvis dip at the double supports, on top of the rise and fall the legs' reach gives.",
+    0.02,
+    0.0,
+    0.5,
+    "m",
+);
 const STAIR_RISE: FloatParam =
     FloatParam::new("stair_rise_m", "Height of each stair (0 = flat ground, negative = down).", 0.0, -0.5, 0.5, "m");
 const STAIR_RUN: FloatParam =
