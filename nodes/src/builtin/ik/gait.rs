@@ -1555,34 +1555,52 @@ mod tests {
 
     #[test]
     fn footfalls_land_on_the_stairs() {
-        let params = GaitParams {
-            stair_rise_m: 0.15,
-            stair_run_m: 0.65,
-            stair_start_m: 1.0,
-            step_height_m: 0.12,
-            duration_secs: 5.0,
-            fps: 60.0,
-            ..GaitParams::default()
-        };
         let skeleton = mannequin();
-        let gait = walk(&skeleton, &params);
-        let poses = forward_kinematics(&gait.clip);
         // Foot length: heel (under the ankle) to toe tip along +Z in the rest pose.
         let rest = skeleton.rest_positions();
-        let mut checked = 0;
-        for side in 0..2 {
-            let foot_length = f64::from(rest[gait.legs[side].toe].z - rest[gait.legs[side].ankle].z);
-            for (_, heel) in footfalls(&gait, &poses, side) {
-                // The stair under the middle of the foot, by hand: 0.15 m per 0.65 m from 1 m.
-                let s = heel.z + foot_length / 2.0;
-                let want = if s < 1.0 { 0.0 } else { 0.15 * (((s - 1.0) / 0.65).floor() + 1.0) };
-                assert!((heel.y - want).abs() < 1e-3, "heel at z {:.3}: height {:.4} vs stair {want}", heel.z, heel.y);
-                checked += usize::from(want > 0.0);
+        for rise in [0.15, -0.15] {
+            let params = GaitParams {
+                stair_rise_m: rise,
+                stair_run_m: 0.65,
+                stair_start_m: 1.0,
+                step_height_m: 0.12,
+                duration_secs: 5.0,
+                fps: 60.0,
+                ..GaitParams::default()
+            };
+            let gait = walk(&skeleton, &params);
+            let poses = forward_kinematics(&gait.clip);
+            let mut checked = 0;
+            for side in 0..2 {
+                let foot_length = f64::from(rest[gait.legs[side].toe].z - rest[gait.legs[side].ankle].z);
+                for (_, heel) in footfalls(&gait, &poses, side) {
+                    // The stair under the middle of the foot, by hand: `rise` per 0.65 m from 1 m.
+                    let s = heel.z + foot_length / 2.0;
+                    let want = if s < 1.0 { 0.0 } else { rise * (((s - 1.0) / 0.65).floor() + 1.0) };
+                    assert!(
+                        (heel.y - want).abs() < 1e-3,
+                        "heel at z {:.3}: height {:.4} vs stair {want}",
+                        heel.z,
+                        heel.y
+                    );
+                    checked += usize::from(want != 0.0);
+                }
+                // The foot never goes below the lower of the two treads it moves between: the
+                // toe's height at toe-off and the heel's at the next heel strike.
+                let last = gait.clip.frame_count() - 1;
+                for r in gait.contacts.feet[side].intervals.windows(2).filter(|r| r[1].start <= last) {
+                    let from = heel_toe(&gait, &poses, side, r[0].end - 1).1.y;
+                    let floor = from.min(heel_toe(&gait, &poses, side, r[1].start).0.y);
+                    for f in r[0].end..r[1].start {
+                        let (heel, toe) = heel_toe(&gait, &poses, side, f);
+                        assert!(heel.y > floor - 2e-3 && toe.y > floor - 2e-3, "frame {f}: {heel} {toe} floor {floor}");
+                    }
+                }
             }
+            println!("stairs {rise:+} m: {checked} footfalls on stairs, residual {:.2e} m", gait.report.max_residual_m);
+            assert!(checked >= 4);
+            assert!(gait.report.max_residual_m < 1e-3, "{:?}", gait.report);
         }
-        println!("stairs: {checked} footfalls on raised stairs, residual {:.2e} m", gait.report.max_residual_m);
-        assert!(checked >= 4);
-        assert!(gait.report.max_residual_m < 1e-3, "{:?}", gait.report);
     }
 
     #[test]
