@@ -1109,7 +1109,7 @@ pub fn parse_leg_overrides(text: &str, legs: &mut [LegParams; 2]) -> Result<(), 
 
 const SKELETON_CLIP: Input<Arc<Clip>> = Input::optional(
     "clip",
-    "A clip whose skeleton walks (e.g. from clip.load or skeleton.scale; only its skeleton is used). Without one the built-in 1.7 m mannequin walks.",
+    "A clip whose skeleton walks (e.g. from clip.load or skeleton.scale; only its skeleton and file unit are used, its motion is not). Without one the built-in 1.7 m mannequin walks.",
 );
 const CLIP_OUT: Output<Arc<Clip>> = Output::new("clip", "The walk.");
 const CONTACTS_OUT: Output<Arc<Contacts>> =
@@ -1238,7 +1238,8 @@ impl Node for ProceduralGait {
         &PROCEDURAL_GAIT
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
-        let skeleton = match ctx.optional_input(&SKELETON_CLIP)? {
+        let source = ctx.optional_input(&SKELETON_CLIP)?;
+        let skeleton = match &source {
             Some(clip) => clip.skeleton().clone(),
             None => Arc::new(mannequin_skeleton().map_err(|e| NodeError::input("clip", e.to_string()))?),
         };
@@ -1291,7 +1292,12 @@ impl Node for ProceduralGait {
             }))),
         );
         ctx.set_output(&CONTACTS_OUT, Arc::new(gait.contacts));
-        ctx.set_output(&CLIP_OUT, Arc::new(gait.clip));
+        let mut clip = gait.clip;
+        if let Some(source) = &source {
+            // Exports write in the connected clip's file unit.
+            clip.import_scale = source.import_scale;
+        }
+        ctx.set_output(&CLIP_OUT, Arc::new(clip));
         Ok(())
     }
 }
