@@ -1,5 +1,6 @@
-//! Weighted IK solves of a 6-DOF leg to 1e-4 m, and online retargeting of a real CMU walk
-//! onto a 60 % skeleton (full body: feet and hands tracked).
+//! Weighted IK solves of a 6-DOF leg to 1e-4 m, procedural walks of the mannequin (frames
+//! made per second, legs by weighted IK), and online retargeting of a real CMU walk onto a
+//! 60 % skeleton (full body: feet and hands tracked).
 //! Run: `cargo bench -p kinegraph-nodes --bench ik`.
 
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
@@ -11,9 +12,11 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{DVec3, Quat, Vec3};
 use kinegraph_nodes::builtin::clip_edit::trim;
 use kinegraph_nodes::builtin::contacts::{ContactThresholds, detect_contacts};
+use kinegraph_nodes::builtin::ik::gait::{GaitParams, GaitPreset, procedural_gait};
 use kinegraph_nodes::builtin::ik::retarget::{Effectors, RetargetParams, retarget_clip};
 use kinegraph_nodes::builtin::ik::scale::{parse_rules, scale_clip};
 use kinegraph_nodes::builtin::ik::{IkRig, IkSolver, SolveParams};
+use kinegraph_nodes::builtin::mannequin::mannequin_skeleton;
 use kinegraph_nodes::builtin::momentum::body::find_landmarks;
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
@@ -68,6 +71,18 @@ fn bench(c: &mut Criterion) {
             }
         })
     });
+    group.finish();
+
+    let skeleton = Arc::new(mannequin_skeleton().unwrap());
+    let mut group = c.benchmark_group("gait");
+    for preset in [GaitPreset::Normal, GaitPreset::InjuredLeftLeg] {
+        let params = GaitParams { legs: preset.legs(), ..GaitParams::default() };
+        let frames = procedural_gait(&skeleton, &params).unwrap().clip.frame_count();
+        group.throughput(Throughput::Elements(frames as u64));
+        group.bench_function(format!("mannequin_{}_4s_30fps_frames", preset.name()), |b| {
+            b.iter(|| black_box(procedural_gait(&skeleton, &params).unwrap()))
+        });
+    }
     group.finish();
 
     let Some(data) = shared_data() else { return };

@@ -1,5 +1,6 @@
-//! Inverse kinematics and what is built on it: the weighted Jacobian solver (Meredith &
-//! Maddock), online retargeting (Choi & Ko 2000) and skeleton edits to make test characters.
+//! Inverse kinematics and what is built on it: the weighted Jacobian solver and the
+//! procedural walk (Meredith & Maddock), online retargeting (Choi & Ko 2000) and skeleton
+//! edits to make test characters.
 
 pub mod rig;
 pub mod solve;
@@ -7,6 +8,7 @@ pub mod solve;
 pub use rig::{Dof, DofKind, IkPose, IkRig, RigError};
 pub use solve::{IkSolver, SolveParams, SolveReport};
 pub mod foot_lock;
+pub mod gait;
 pub mod map;
 pub mod retarget;
 pub mod roles;
@@ -41,4 +43,5 @@ pub fn register(registry: &mut Registry) {
     registry.add(Box::new(foot_lock::FootLock));
     registry.add(Box::new(map::MapSkeleton));
     registry.add(Box::new(map::ExportBoneMap));
+    registry.add(Box::new(gait::ProceduralGait));
 }

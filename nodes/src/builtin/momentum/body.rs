@@ -246,6 +246,47 @@ fn limb_role_words(role: usize) -> &'static [&'static str] {
     }
 }
 
+/// The joint playing limb `role` (index into [`LIMB_ROLES`]) on `side` (0 left, 1 right).
+fn find_role(
+    joints: &[crate::model::Joint],
+    parsed: &[(Option<usize>, String)],
+    side: usize,
+    role: usize,
+) -> Option<usize> {
+    limb_role_words(role).iter().find_map(|word| {
+        (0..joints.len()).find(|&j| !joints[j].end_site && parsed[j].0 == Some(side) && parsed[j].1 == *word)
+    })
+}
+
+/// The first pair of a limb chain where a joint is not below the previous one, as a message.
+fn chain_order_problem(skeleton: &Skeleton, side: usize, chain: &[usize]) -> Option<String> {
+    let joints = skeleton.joints();
+    chain.windows(2).find(|pair| !is_ancestor(skeleton, pair[0], pair[1])).map(|pair| {
+        format!("{} chain order ({} above {})", ["left", "right"][side], joints[pair[0]].name, joints[pair[1]].name)
+    })
+}
+
+/// Finds the leg joints by name: per side (left, right) thigh, shank and foot (ankle), or
+/// lists the roles it could not find. Unlike [`find_landmarks`] it needs no arms or head.
+pub fn find_legs(skeleton: &Skeleton) -> Result<[[usize; 3]; 2], Vec<String>> {
+    let joints = skeleton.joints();
+    let parsed: Vec<(Option<usize>, String)> = joints.iter().map(|j| side_and_role(&j.name)).collect();
+    let mut missing = Vec::new();
+    let mut legs = [[0usize; 3]; 2];
+    for (side, slots) in legs.iter_mut().enumerate() {
+        for (role, slot) in slots.iter_mut().enumerate() {
+            match find_role(joints, &parsed, side, role) {
+                Some(j) => *slot = j,
+                None => missing.push(format!("{} {}", ["left", "right"][side], LIMB_ROLES[role])),
+            }
+        }
+    }
+    if missing.is_empty() {
+        missing.extend((0..2).filter_map(|side| chain_order_problem(skeleton, side, &legs[side])));
+    }
+    if missing.is_empty() { Ok(legs) } else { Err(missing) }
+}
+
 /// Finds the landmark joints by name, or lists the roles it could not find.
 pub fn find_landmarks(skeleton: &Skeleton) -> Result<Landmarks, Vec<String>> {
     let joints = skeleton.joints();
@@ -254,10 +295,7 @@ pub fn find_landmarks(skeleton: &Skeleton) -> Result<Landmarks, Vec<String>> {
     let mut limbs = [[0usize; 6]; 2];
     for (side, slots) in limbs.iter_mut().enumerate() {
         for (role, slot) in slots.iter_mut().enumerate() {
-            let found = limb_role_words(role).iter().find_map(|word| {
-                (0..joints.len()).find(|&j| !joints[j].end_site && parsed[j].0 == Some(side) && parsed[j].1 == *word)
-            });
-            match found {
+            match find_role(joints, &parsed, side, role) {
                 Some(j) => *slot = j,
                 None => missing.push(format!("{} {}", ["left", "right"][side], LIMB_ROLES[role])),
             }
@@ -273,17 +311,13 @@ pub fn find_landmarks(skeleton: &Skeleton) -> Result<Landmarks, Vec<String>> {
         missing.push("head".into());
     }
     // Each limb joint must sit below the previous one, or the names lied.
-    for (side, slots) in limbs.iter().enumerate() {
-        for chain in [&slots[0..3], &slots[3..6]] {
-            for pair in chain.windows(2) {
-                if missing.is_empty() && !is_ancestor(skeleton, pair[0], pair[1]) {
-                    missing.push(format!(
-                        "{} chain order ({} above {})",
-                        ["left", "right"][side],
-                        joints[pair[0]].name,
-                        joints[pair[1]].name
-                    ));
-                }
+    if missing.is_empty() {
+        for (side, slots) in limbs.iter().enumerate() {
+            if let Some(problem) =
+                [&slots[0..3], &slots[3..6]].iter().find_map(|c| chain_order_problem(skeleton, side, c))
+            {
+                missing.push(problem);
+                break;
             }
         }
     }
