@@ -168,6 +168,18 @@ impl Skeleton {
         self.by_name.get(name).copied()
     }
 
+    /// True when `ancestor` is a strict ancestor of `joint` (out-of-range indices are not).
+    pub fn is_ancestor(&self, ancestor: usize, joint: usize) -> bool {
+        let mut j = joint;
+        while let Some(p) = self.joints.get(j).and_then(|x| x.parent) {
+            if p == ancestor {
+                return true;
+            }
+            j = p;
+        }
+        false
+    }
+
     /// Children of joint `index`, in order.
     pub fn children(&self, index: usize) -> impl Iterator<Item = usize> + '_ {
         self.joints.iter().enumerate().filter(move |(_, j)| j.parent == Some(index)).map(|(i, _)| i)

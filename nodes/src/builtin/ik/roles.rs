@@ -90,7 +90,7 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
     let pelvis = common_ancestor(skeleton, lowest, other_foot);
     let spine = path_below(skeleton, pelvis, highest).ok_or("the head is not above the pelvis in the hierarchy")?;
     // Arms: leaves leaving the spine, farthest from where they leave it.
-    let leaves_spine_at = |l: usize| spine.iter().rev().copied().find(|&s| is_ancestor(skeleton, s, l));
+    let leaves_spine_at = |l: usize| spine.iter().rev().copied().find(|&s| skeleton.is_ancestor(s, l));
     let reach = |l: usize| leaves_spine_at(l).map_or(0.0, |s| pos_in_world[l].distance(pos_in_world[s]));
     let candidates: Vec<usize> = leaves
         .iter()
@@ -175,22 +175,11 @@ pub fn named_roles(skeleton: &Skeleton, landmarks: &Landmarks) -> Option<BodyRol
     })
 }
 
-/// True when `ancestor` is a strict ancestor of `joint`.
-fn is_ancestor(skeleton: &Skeleton, ancestor: usize, mut joint: usize) -> bool {
-    while let Some(p) = skeleton.joints()[joint].parent {
-        if p == ancestor {
-            return true;
-        }
-        joint = p;
-    }
-    false
-}
-
 /// The deepest joint that is `a` or `b` or an ancestor of both.
 fn common_ancestor(skeleton: &Skeleton, a: usize, b: usize) -> usize {
     let mut x = a;
     loop {
-        if x == b || is_ancestor(skeleton, x, b) {
+        if x == b || skeleton.is_ancestor(x, b) {
             return x;
         }
         match skeleton.joints()[x].parent {

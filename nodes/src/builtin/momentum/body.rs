@@ -261,7 +261,7 @@ fn find_role(
 /// The first pair of a limb chain where a joint is not below the previous one, as a message.
 fn chain_order_problem(skeleton: &Skeleton, side: usize, chain: &[usize]) -> Option<String> {
     let joints = skeleton.joints();
-    chain.windows(2).find(|pair| !is_ancestor(skeleton, pair[0], pair[1])).map(|pair| {
+    chain.windows(2).find(|pair| !skeleton.is_ancestor(pair[0], pair[1])).map(|pair| {
         format!("{} chain order ({} above {})", ["left", "right"][side], joints[pair[0]].name, joints[pair[1]].name)
     })
 }
@@ -327,20 +327,10 @@ pub fn find_landmarks(skeleton: &Skeleton) -> Result<Landmarks, Vec<String>> {
     }
 }
 
-fn is_ancestor(skeleton: &Skeleton, ancestor: usize, mut joint: usize) -> bool {
-    while let Some(p) = skeleton.joints()[joint].parent {
-        if p == ancestor {
-            return true;
-        }
-        joint = p;
-    }
-    false
-}
-
 /// The descendant of `joint` farthest from it in the rest pose (a limb's tip), or `joint`.
 fn farthest_descendant(skeleton: &Skeleton, rest: &[Vec3], joint: usize) -> usize {
     (joint..skeleton.len())
-        .filter(|&d| d == joint || is_ancestor(skeleton, joint, d))
+        .filter(|&d| d == joint || skeleton.is_ancestor(joint, d))
         .max_by(|&a, &b| rest[a].distance_squared(rest[joint]).total_cmp(&rest[b].distance_squared(rest[joint])))
         .unwrap_or(joint)
 }
