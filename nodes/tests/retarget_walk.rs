@@ -11,7 +11,7 @@ use glam::Vec3;
 use kinegraph_nodes::builtin::clip_edit::trim;
 use kinegraph_nodes::builtin::contacts::{ContactThresholds, detect_contacts, ground_height};
 use kinegraph_nodes::builtin::ik::foot_lock::planted_travel_m;
-use kinegraph_nodes::builtin::ik::retarget::{Effectors, Plants, RetargetParams, retarget_clip};
+use kinegraph_nodes::builtin::ik::retarget::{Effectors, PelvisTask, Plants, RetargetParams, retarget_clip};
 use kinegraph_nodes::builtin::ik::scale::{parse_rules, scale_clip};
 use kinegraph_nodes::builtin::momentum::body::{find_landmarks, limb_tip};
 use kinegraph_nodes::corpus::shared_data;
@@ -157,4 +157,52 @@ fn cmu_walk_retargets_to_a_smaller_character_without_skating() {
     );
     assert!(core_ret < 0.1 * core_copy, "retargeted {core_ret} vs copy {core_copy}");
     assert!(mean_ratio < 0.9, "the smaller character's pelvis must ride lower");
+}
+
+/// Choi & Ko's extra task: the pelvis keeps to the source pelvis's ground track beside the
+/// toe tips (which keep to the source toes'), its height left to the legs.
+#[test]
+fn a_tracked_pelvis_keeps_to_the_source_ground_track_while_the_toes_still_track() {
+    let Some(data) = shared_data() else { return };
+    let (source, _) = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value;
+    let source = Arc::new(trim(&source, 0.01, None).unwrap());
+    let rules = parse_rules("UpLeg=0.62, Leg=0.52, Foot=0.7, Spine=0.65").unwrap();
+    let copied = scale_clip(&source, 0.6, &rules).unwrap();
+    let landmarks = find_landmarks(source.skeleton()).unwrap();
+    let contacts = detect_contacts(&source, &forward_kinematics(&source), &landmarks, &ContactThresholds::default());
+    let run = |pelvis| {
+        let params = RetargetParams { pelvis, ..RetargetParams::default() };
+        retarget_clip(&source, &copied, Some(&contacts), Effectors::Feet, params).unwrap()
+    };
+    // Largest horizontal distance of the pelvis from the source pelvis, and of a swing toe
+    // from the source toe.
+    let misses = |out: &kinegraph_nodes::builtin::ik::retarget::Retargeted| {
+        let mut pelvis = 0.0f32;
+        for f in 0..source.frame_count() {
+            let want = source.frame_translations(f)[0];
+            pelvis = pelvis.max((out.clip.frame_translations(f)[0] - want).with_y(0.0).length());
+        }
+        let (sp, tp) = (forward_kinematics(&source), forward_kinematics(&out.clip));
+        let mut toe = 0.0f32;
+        for (k, &foot) in landmarks.feet().iter().enumerate() {
+            let tip = limb_tip(source.skeleton(), foot);
+            for f in 1..source.frame_count() {
+                if !contacts.feet[k].intervals.iter().any(|r| r.contains(f)) {
+                    toe = toe.max((tp.position(f, tip) - sp.position(f, tip)).length());
+                }
+            }
+        }
+        (pelvis, toe)
+    };
+    let (imitated, tracked) = (misses(&run(PelvisTask::Imitate)), misses(&run(PelvisTask::Track)));
+    println!(
+        "pelvis off the source's ground track: imitated {:.2} cm, tracked {:.3} cm; swing toe max error {:.3} / {:.3} cm",
+        imitated.0 * 100.0,
+        tracked.0 * 100.0,
+        imitated.1 * 100.0,
+        tracked.1 * 100.0
+    );
+    assert!(tracked.0 < 0.002, "tracked pelvis within 2 mm of its track: {} m", tracked.0);
+    assert!(tracked.0 < 0.2 * imitated.0);
+    assert!(tracked.1 < 0.01, "the toes still track within 1 cm: {} m", tracked.1);
 }

@@ -55,6 +55,20 @@ pub struct RetargetParams {
     pub plant_blend_secs: f64,
     /// Updates run on the first frame before the stream starts, so it begins on its goals.
     pub settle_iterations: usize,
+    /// Whether the pelvis's horizontal path is a primary task or only imitated.
+    pub pelvis: PelvisTask,
+}
+
+/// How the pelvis follows the source's pelvis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PelvisTask {
+    /// In the null space of the tips, like the joint angles (its path scaled by the ratio
+    /// of root heights): the tips win.
+    Imitate,
+    /// Its horizontal position is an extra end-effector task beside the tips (Choi & Ko's
+    /// pelvis task): on the source pelvis's ground track, as the tips are on the source
+    /// tips'; its height stays free for the legs.
+    Track,
 }
 
 impl Default for RetargetParams {
@@ -68,6 +82,7 @@ impl Default for RetargetParams {
             max_angle_step_rad: 0.2,
             extra_iterations: 0,
             settle_iterations: 100,
+            pelvis: PelvisTask::Imitate,
             plant_blend_secs: 0.05,
         }
     }
@@ -188,7 +203,10 @@ impl OnlineRetargeter {
             }
         }
         self.solver.effector_positions(&self.pose, &mut self.reached);
-        let error_m = self.reached.iter().zip(&self.goals).map(|(r, g)| (*r - *g).length()).fold(0.0, f64::max);
+        let axes = self.solver.rig().effector_axes();
+        let error_m = (0..self.goals.len())
+            .map(|e| ((self.reached[e] - self.goals[e]) * DVec3::from(axes[e].map(f64::from))).length())
+            .fold(0.0, f64::max);
         FrameReport { error_m, dexterity }
     }
 }
@@ -232,7 +250,11 @@ pub enum RetargetError {
 
 /// The retargeting rig over a target skeleton: the root translates, every joint between the
 /// root and the chosen tips turns about three axes, the tips are the effectors.
-pub fn retarget_rig(skeleton: &Arc<Skeleton>, effectors: Effectors) -> Result<IkRig, RetargetError> {
+pub fn retarget_rig(
+    skeleton: &Arc<Skeleton>,
+    effectors: Effectors,
+    pelvis: PelvisTask,
+) -> Result<IkRig, RetargetError> {
     let landmarks = find_landmarks(skeleton).map_err(|m| RetargetError::Landmarks(m.join(", ")))?;
     let mut tips: Vec<usize> = landmarks.feet().iter().map(|&f| limb_tip(skeleton, f)).collect();
     if effectors == Effectors::FeetAndHands {
@@ -249,6 +271,10 @@ pub fn retarget_rig(skeleton: &Arc<Skeleton>, effectors: Effectors) -> Result<Ik
             rig.add_joint(j, [true; 3], 1.0);
         }
         rig.add_effector(tip);
+    }
+    if pelvis == PelvisTask::Track {
+        // The root's ground-plane position (its goal, as the tips', is the source's).
+        rig.add_effector_on_axes(0, [true, false, true]);
     }
     Ok(rig.finish()?)
 }
@@ -274,7 +300,7 @@ pub fn retarget_clip(
         .iter()
         .map(|j| source.skeleton().index_of(&j.name).ok_or_else(|| RetargetError::MissingJoint(j.name.clone())))
         .collect::<Result<_, _>>()?;
-    let rig = retarget_rig(skeleton, effectors)?;
+    let rig = retarget_rig(skeleton, effectors, params.pelvis)?;
     let tips: Vec<usize> = rig.effectors().iter().map(|&e| map[e]).collect();
     let effector_joints = rig.effectors().to_vec();
     let ratio = {
@@ -319,6 +345,7 @@ pub fn retarget_clip(
                 None => here,
             };
         }
+
         if f == 0 {
             // Start on the first frame's goals: the stream's first pose is solved fully.
             for _ in 0..params.settle_iterations {
@@ -409,6 +436,12 @@ const DEXTERITY: FloatParam = FloatParam::new(
     1.0,
     "",
 );
+const PELVIS: ChoiceParam = ChoiceParam::new(
+    "pelvis",
+    "How the pelvis follows the source's: imitated where the tips leave freedom (its path scaled to the character), or kept on the source pelvis's ground track as a task of its own beside the tips (its height free).",
+    &["imitate", "track"],
+    "imitate",
+);
 const MAX_ANGLE_STEP: FloatParam = FloatParam::new(
     "max_angle_step_rad",
     "Largest change of one joint angle in one frame (update clamp).",
@@ -427,7 +460,7 @@ static RETARGET_ONLINE: NodeSchema = NodeSchema {
     doc: "Carries a captured motion onto a character of other proportions frame by frame (Choi & Ko's online retargeting): the toe tips follow the source, the joints imitate its angles, planted feet do not slide.",
     inputs: &[SOURCE.spec(), TARGET.spec(), CONTACTS.spec()],
     outputs: &[RETARGETED.spec(), REPORT.spec(), super::RESIDUAL_CURVES.spec()],
-    params: &[TRACK.0, GAIN.0, DEXTERITY.0, MAX_ANGLE_STEP.0],
+    params: &[TRACK.0, PELVIS.0, GAIN.0, DEXTERITY.0, MAX_ANGLE_STEP.0],
     writes_files: false,
 };
 
@@ -449,6 +482,7 @@ impl Node for RetargetOnline {
             secondary_gain: ctx.float(&GAIN)?,
             dexterity: ctx.float(&DEXTERITY)?,
             max_angle_step_rad: ctx.float(&MAX_ANGLE_STEP)?,
+            pelvis: if ctx.choice(&PELVIS)? == "track" { PelvisTask::Track } else { PelvisTask::Imitate },
             ..RetargetParams::default()
         };
         let out = retarget_clip(&source, &target, contacts.as_deref(), effectors, params).map_err(|e| match e {

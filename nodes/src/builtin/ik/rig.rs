@@ -76,6 +76,8 @@ pub struct IkRig {
     /// `None` for joints outside the rig.
     rig_slot: Vec<Option<usize>>,
     effectors: Vec<usize>,
+    /// Per effector, which world axes (X, Y, Z) its goal constrains.
+    effector_axes: Vec<[bool; 3]>,
     /// `moves[d * effectors + e]`: DOF `d` moves effector `e`.
     moves: Vec<bool>,
 }
@@ -84,7 +86,14 @@ impl IkRig {
     /// An empty rig over `skeleton` (add chains, then effectors).
     pub fn new(skeleton: Arc<Skeleton>) -> Self {
         let joints = skeleton.len();
-        IkRig { skeleton, dofs: Vec::new(), rig_slot: vec![None; joints], effectors: Vec::new(), moves: Vec::new() }
+        IkRig {
+            skeleton,
+            dofs: Vec::new(),
+            rig_slot: vec![None; joints],
+            effectors: Vec::new(),
+            effector_axes: Vec::new(),
+            moves: Vec::new(),
+        }
     }
 
     /// Joint index by name, as a typed error.
@@ -143,8 +152,20 @@ impl IkRig {
 
     /// Adds an end effector (its world position is a task); returns its index.
     pub fn add_effector(&mut self, joint: usize) -> usize {
+        self.add_effector_on_axes(joint, [true; 3])
+    }
+
+    /// Adds an end effector whose goal constrains only the world `axes` (X, Y, Z) given,
+    /// e.g. `[true, false, true]` for a position on the ground plane; returns its index.
+    pub fn add_effector_on_axes(&mut self, joint: usize, axes: [bool; 3]) -> usize {
         self.effectors.push(joint);
+        self.effector_axes.push(axes);
         self.effectors.len() - 1
+    }
+
+    /// Per effector, which world axes its goal constrains.
+    pub fn effector_axes(&self) -> &[[bool; 3]] {
+        &self.effector_axes
     }
 
     /// Finishes the rig: precomputes which DOF moves which effector.

@@ -168,7 +168,9 @@ impl IkSolver {
         let mut worst = 0.0f64;
         for (e, (&joint, goal)) in self.rig.effectors().iter().zip(goals).enumerate() {
             let x = self.world[joint].1;
-            let d = *goal - x;
+            // Unconstrained axes are zero rows: no error, no motion asked of them.
+            let keep = DVec3::from(self.rig.effector_axes()[e].map(f64::from));
+            let d = (*goal - x) * keep;
             worst = worst.max(d.length());
             for k in 0..3 {
                 self.dx[3 * e + k] = d[k];
@@ -180,7 +182,7 @@ impl IkSolver {
                     axis
                 } else {
                     axis.cross(x - pivot)
-                };
+                } * keep;
                 for k in 0..3 {
                     self.jt[(dof, 3 * e + k)] = col[k];
                 }
@@ -256,7 +258,8 @@ impl IkSolver {
         self.rig.forward(pose, &mut self.world, &mut self.axes);
         let mut worst = 0.0f64;
         for (e, (&joint, goal)) in self.rig.effectors().iter().zip(goals).enumerate() {
-            let d = *goal - self.world[joint].1;
+            let keep = DVec3::from(self.rig.effector_axes()[e].map(f64::from));
+            let d = (*goal - self.world[joint].1) * keep;
             worst = worst.max(d.length());
             for k in 0..3 {
                 self.trial_dx[3 * e + k] = d[k];
