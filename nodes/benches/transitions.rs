@@ -20,7 +20,7 @@ use kinegraph_nodes::model::ClipSet;
 use rand::SeedableRng;
 
 const RADIUS: f32 = 0.6;
-const LIMITS: PathLimits = PathLimits { k: 5, max_cost: f64::INFINITY, max_labels: 2_000_000, max_labels_per_node: 40 };
+const LIMITS: PathLimits = PathLimits { k: 5, max_cost: f64::INFINITY };
 
 fn bench(c: &mut Criterion) {
     let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };

@@ -41,7 +41,7 @@ fn graph_of(clips: Vec<(&str, Clip)>) -> TransitionGraph {
     build_graph(
         Arc::new(clusters),
         Direction::Directed,
-        PathLimits { k: 5, max_cost: f64::INFINITY, max_labels: 100_000, max_labels_per_node: 1000 },
+        PathLimits { k: 5, max_cost: f64::INFINITY },
     )
 }
 
@@ -145,11 +145,10 @@ fn real_corpus_statistics_and_a_sequence() {
     let g = build_graph(
         Arc::new(clusters),
         Direction::Directed,
-        PathLimits { k: 5, max_cost: f64::INFINITY, max_labels: 2_000_000, max_labels_per_node: 40 },
+        PathLimits { k: 5, max_cost: f64::INFINITY },
     );
     let t = std::time::Instant::now();
     let s = g.summary(true);
     eprintln!("{s:#} paths in {:?}", t.elapsed());
     assert!(s["clusters"].as_u64().unwrap() > 20);
-    assert_eq!(s["truncated_searches"], 0);
 }

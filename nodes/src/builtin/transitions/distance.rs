@@ -171,6 +171,14 @@ impl PoseFeatures {
     /// D between frame `i` of `self` and frame `j` of `other` (same layout).
     #[inline]
     pub fn distance_to(&self, i: usize, other: &PoseFeatures, j: usize) -> f32 {
+        self.distance_below(i, other, j, f32::INFINITY)
+    }
+
+    /// D between frame `i` of `self` and frame `j` of `other` when it is below `bound`;
+    /// otherwise some value ≥ `bound` (the sum stops as soon as it reaches the bound, which
+    /// is all a search for the nearest frame needs to know).
+    #[inline]
+    pub fn distance_below(&self, i: usize, other: &PoseFeatures, j: usize, bound: f32) -> f32 {
         let m = self.joints.len();
         let (a, b) = (&self.rotations[i * m..(i + 1) * m], &other.rotations[j * m..(j + 1) * m]);
         let (va, vb) = (&self.angular_velocity[i * m..(i + 1) * m], &other.angular_velocity[j * m..(j + 1) * m]);
@@ -181,6 +189,10 @@ impl PoseFeatures {
             let half_angle = a[k].dot(b[k]).abs().min(1.0).acos();
             pose += self.weights[k] * half_angle * half_angle;
             velocity += self.weights[k] * va[k].distance_squared(vb[k]);
+            let partial = pose + self.velocity_weight * velocity;
+            if partial >= bound {
+                return partial;
+            }
         }
         pose + self.velocity_weight * velocity
     }
@@ -270,5 +282,15 @@ mod tests {
         let f = PoseFeatures::of_clip(&clip(Quat::IDENTITY, Vec3::ZERO), &p);
         assert!((f.distance(0, 2) - 0.0104).abs() < 1e-5, "{}", f.distance(0, 2));
         assert_eq!(f.distance(1, 1), 0.0);
+    }
+
+    #[test]
+    fn a_bounded_distance_is_exact_below_the_bound_and_at_least_the_bound_above() {
+        let p = DistanceParams::lee_defaults(&skeleton(), 0.1);
+        let f = PoseFeatures::of_clip(&clip(Quat::IDENTITY, Vec3::ZERO), &p);
+        // 0.0104 from the hand computation above.
+        assert_eq!(f.distance_below(0, &f, 2, 0.02), f.distance(0, 2));
+        let stopped = f.distance_below(0, &f, 2, 0.001);
+        assert!((0.001..=0.0104 + 1e-6).contains(&stopped), "{stopped}");
     }
 }

@@ -356,14 +356,9 @@ impl Node for BuildGraph {
         let limits = PathLimits {
             k: ctx.int(&K)? as usize,
             max_cost: ctx.optional_float(&MAX_COST)?.unwrap_or(f64::INFINITY),
-            max_labels: 2_000_000,
-            max_labels_per_node: 8 * ctx.int(&K)? as usize,
         };
         let graph = graph::build_graph(clusters, direction, limits);
         let summary = graph.summary(true);
-        if summary["truncated_searches"].as_u64().unwrap_or(0) > 0 {
-            ctx.warn("some candidate path searches hit their label budget and may miss paths; set max_cost");
-        }
         ctx.set_output(&REPORT, report_of(summary));
         ctx.set_output(&GRAPH_OUT, Arc::new(graph));
         Ok(())
