@@ -7,13 +7,13 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use glam::{Quat, Vec3};
+use kinegraph_nodes::builtin::transitions::actions::find_actions;
 use kinegraph_nodes::builtin::transitions::cluster::cluster;
 use kinegraph_nodes::builtin::transitions::distance::DistanceParams;
 use kinegraph_nodes::builtin::transitions::graph::{Direction, TransitionGraph, build_graph};
-use kinegraph_nodes::builtin::transitions::actions::find_actions;
-use kinegraph_nodes::builtin::transitions::{load_clip_set, play_sequence, smoothness_against_crossfade};
 use kinegraph_nodes::builtin::transitions::paths::PathLimits;
-use kinegraph_nodes::builtin::transitions::synthesis::{Motion, SynthesisParams, append_transition};
+use kinegraph_nodes::builtin::transitions::synthesis::{Frames, Motion, SynthesisParams, append_transition};
+use kinegraph_nodes::builtin::transitions::{load_clip_set, play_sequence, smoothness_against_crossfade};
 use kinegraph_nodes::model::{Clip, ClipSet, ImportScale, Joint, NamedClip, Skeleton};
 use rand::SeedableRng;
 
@@ -40,11 +40,7 @@ fn graph_of(clips: Vec<(&str, Clip)>) -> TransitionGraph {
         .unwrap();
     let params = DistanceParams { weights: vec![1.0, 1.0], velocity_weight: 0.0 };
     let clusters = cluster(Arc::new(set), params, 0.01);
-    build_graph(
-        Arc::new(clusters),
-        Direction::Directed,
-        PathLimits { k: 5, max_cost: f64::INFINITY },
-    )
+    build_graph(Arc::new(clusters), Direction::Directed, PathLimits { k: 5, max_cost: f64::INFINITY })
 }
 
 /// "rest" holds the arm at 0; "raise" lifts it 0 → 2 rad; "hold" keeps it at 2; "lower"
@@ -74,7 +70,7 @@ fn a_transition_follows_the_clip_that_links_the_two_poses() {
     let target = sweep(&s, 2.0, 2.0, 15, -0.7);
     let mut out = Motion::of_clip(&source);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-    let info = append_transition(&g, &mut out, &Motion::of_clip(&target), &SynthesisParams::default(), &mut rng);
+    let info = append_transition(&g, &mut out, Frames::of_clip(&target), &SynthesisParams::default(), &mut rng);
     assert!(!info.fallback);
     assert!(info.candidates >= 1);
     assert!(info.path.len() >= 2, "{info:?}");
@@ -98,8 +94,8 @@ fn the_same_seed_gives_the_same_transition() {
     let run = |seed: u64| {
         let mut out = Motion::of_clip(&sweep(&s, 0.0, 0.0, 15, 0.0));
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let target = Motion::of_clip(&sweep(&s, 2.0, 2.0, 15, 0.0));
-        let info = append_transition(&g, &mut out, &target, &SynthesisParams::default(), &mut rng);
+        let target = sweep(&s, 2.0, 2.0, 15, 0.0);
+        let info = append_transition(&g, &mut out, Frames::of_clip(&target), &SynthesisParams::default(), &mut rng);
         (out, info)
     };
     assert_eq!(run(42), run(42));
@@ -116,7 +112,7 @@ fn poses_that_never_meet_are_bridged_by_the_bezier_fallback() {
     let mut out = Motion::of_clip(&source);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
     let p = SynthesisParams { sigma_per_frame: 0.05, ..SynthesisParams::default() };
-    let info = append_transition(&g, &mut out, &Motion::of_clip(&target), &p, &mut rng);
+    let info = append_transition(&g, &mut out, Frames::of_clip(&target), &p, &mut rng);
     assert!(info.fallback && info.candidates == 0 && info.cost.is_none());
     assert_eq!(info.medoid_walk, vec![1, 0]);
     // D = (2.5/2)² = 1.5625 → 1.5625 / 0.05 ≈ 31 frames, 30 of them new.
@@ -145,7 +141,7 @@ fn the_fallback_leaves_and_enters_at_the_clips_own_velocities() {
     let target = sweep(&s, 2.5, 2.68, 10, 0.0);
     let mut out = Motion::of_clip(&source);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-    let info = append_transition(&g, &mut out, &Motion::of_clip(&target), &SynthesisParams::default(), &mut rng);
+    let info = append_transition(&g, &mut out, Frames::of_clip(&target), &SynthesisParams::default(), &mut rng);
     assert!(info.fallback);
     let frames = info.frames.len() + 1;
     assert_eq!(frames, 31, "D = 1.5625 with no velocity term → 31 frames");
@@ -184,11 +180,7 @@ fn real_corpus_statistics_and_a_sequence() {
     let set = Arc::new(loaded.set);
     let params = DistanceParams::lee_defaults(set.skeleton(), 0.003);
     let clusters = cluster(set, params, 0.6);
-    let g = build_graph(
-        Arc::new(clusters),
-        Direction::Directed,
-        PathLimits { k: 5, max_cost: f64::INFINITY },
-    );
+    let g = build_graph(Arc::new(clusters), Direction::Directed, PathLimits { k: 5, max_cost: f64::INFINITY });
     let t = std::time::Instant::now();
     let s = g.summary(true);
     eprintln!("{s:#} paths in {:?}", t.elapsed());
@@ -242,7 +234,11 @@ fn real_corpus_transitions_against_a_crossfade() {
                 "| {} → {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} |",
                 names[k],
                 names[k + 1],
-                if info.fallback { format!("fallback, walk {:?}", info.medoid_walk) } else { format!("path {:?}", info.path) },
+                if info.fallback {
+                    format!("fallback, walk {:?}", info.medoid_walk)
+                } else {
+                    format!("path {:?}", info.path)
+                },
                 info.frames.len(),
                 figure("peak_ratio"),
                 figure("foot_skate_m"),

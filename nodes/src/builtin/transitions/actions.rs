@@ -141,7 +141,9 @@ mod tests {
         let s = Arc::new(Skeleton::new(vec![Joint::new("Hips", None, Vec3::Y)]).unwrap());
         let clip = |frames: usize| {
             let translations = (0..frames).map(|f| Vec3::new(0.0, f as f32, 0.0)).collect();
-            Arc::new(Clip::new(s.clone(), 10.0, vec![Quat::IDENTITY; frames], translations, ImportScale::METRES).unwrap())
+            Arc::new(
+                Clip::new(s.clone(), 10.0, vec![Quat::IDENTITY; frames], translations, ImportScale::METRES).unwrap(),
+            )
         };
         ClipSet::new(vec![
             NamedClip { name: "long".into(), clip: clip(31) },
@@ -185,7 +187,9 @@ mod tests {
         let e = bad(r#"(actions: {"kick": (clip: "lnog")})"#);
         assert!(e.contains("action 'kick'") && e.contains("did you mean 'long'"), "{e}");
         assert!(bad(r#"(actions: {"kick": (clip: "long", end_secs: 3.5)})"#).contains("after the end"));
-        assert!(bad(r#"(actions: {"kick": (clip: "long", start_secs: 2.0, end_secs: 2.0)})"#).contains("fewer than two"));
+        assert!(
+            bad(r#"(actions: {"kick": (clip: "long", start_secs: 2.0, end_secs: 2.0)})"#).contains("fewer than two")
+        );
         assert!(bad(r#"(actions: {"kick": (clip: "long", start_secs: -1.0)})"#).contains("≥ 0"));
         // A misspelt field is refused with its position.
         let e = ActionLabels::parse(r#"(actions: {"kick": (clip: "long", start: 1.0)})"#).unwrap_err();

@@ -224,11 +224,7 @@ mod tests {
         ])
         .unwrap();
         let c = cluster(Arc::new(set), DistanceParams { weights: vec![1.0], velocity_weight: 0.0 }, 0.01);
-        build_graph(
-            Arc::new(c),
-            direction,
-            PathLimits { k: 5, max_cost: f64::INFINITY },
-        )
+        build_graph(Arc::new(c), direction, PathLimits { k: 5, max_cost: f64::INFINITY })
     }
 
     #[test]

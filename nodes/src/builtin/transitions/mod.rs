@@ -26,7 +26,7 @@ use self::actions::{Action, ActionLabels, find_actions};
 use self::distance::DistanceParams;
 use self::graph::Direction;
 use self::paths::PathLimits;
-use self::synthesis::{Motion, SynthesisParams, TransitionInfo, append_transition};
+use self::synthesis::{Frames, Motion, SynthesisParams, TransitionInfo, append_transition};
 use super::clip_edit::resample;
 use super::clip_io::{ClipLoadOptions, load_clip};
 use super::momentum::analysis::{AnalysisOptions, analyse};
@@ -362,10 +362,8 @@ impl Node for BuildGraph {
         let clusters = ctx.input(&CLUSTERS_IN)?;
         let direction =
             if ctx.choice(&DIRECTION)? == "undirected" { Direction::Undirected } else { Direction::Directed };
-        let limits = PathLimits {
-            k: ctx.int(&K)? as usize,
-            max_cost: ctx.optional_float(&MAX_COST)?.unwrap_or(f64::INFINITY),
-        };
+        let limits =
+            PathLimits { k: ctx.int(&K)? as usize, max_cost: ctx.optional_float(&MAX_COST)?.unwrap_or(f64::INFINITY) };
         let graph = graph::build_graph(clusters, direction, limits);
         let summary = graph.summary(true);
         ctx.set_output(&REPORT, report_of(summary));
@@ -455,7 +453,7 @@ impl Node for Transition {
         let target = fit(&graph, ctx.input(&TARGET)?.as_ref(), "target")?;
         let params = synthesis_params(ctx, graph.clusters.clip_set.fps())?;
         let mut out = Motion::of_clip(&source);
-        let info = append_transition(&graph, &mut out, &Motion::of_clip(&target), &params, &mut rng_of(ctx)?);
+        let info = append_transition(&graph, &mut out, Frames::of_clip(&target), &params, &mut rng_of(ctx)?);
         let joined = out.into_clip(&source).map_err(|e| NodeError::Failed(e.to_string()))?;
         let transition = joined.slice(info.frames.start, info.frames.end);
         let mut report = serde_json::to_value(&info).unwrap_or_default();
@@ -501,7 +499,13 @@ pub fn play_sequence(
     rng: &mut impl rand::Rng,
 ) -> (Motion, Vec<TransitionInfo>) {
     let mut out = Motion::of_clip(&actions[0].clip);
-    let infos = actions[1..].iter().map(|next| append_transition(graph, &mut out, &Motion::of_clip(&next.clip), params, rng)).collect();
+    // Room for every action and about two seconds of transition between each two.
+    let fps = graph.clusters.clip_set.fps();
+    out.reserve(actions[1..].iter().map(|a| a.clip.frame_count() + (2.0 * fps) as usize).sum());
+    let infos = actions[1..]
+        .iter()
+        .map(|next| append_transition(graph, &mut out, Frames::of_clip(&next.clip), params, rng))
+        .collect();
     (out, infos)
 }
 

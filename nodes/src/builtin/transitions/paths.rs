@@ -13,10 +13,13 @@
 //!    the cheapest pending sub-problem's path is taken as the next best path, its own
 //!    sub-problem is split into disjoint ones (one per node of its path from the spur node
 //!    back to the source: keep the suffix from that node, forbid the edge the path
-//!    entered it by), so no path is ever produced twice and none is missed.
+//!    entered it by), so no path is ever produced twice and none is missed. A part that
+//!    cannot beat the paths still needed that are already pending (its lower bound
+//!    d(u) + suffix cost is dearer) is never solved.
 //! 3. Each sub-problem is solved by A* searching backwards from u with d as the
 //!    heuristic (a lower bound on the cost still to go, since avoiding nodes only makes
-//!    paths dearer). The search stops at the first popped node whose tree path from the
+//!    paths dearer), given up once that bound passes what could still be kept. The search
+//!    stops at the first popped node whose tree path from the
 //!    source is free of avoided nodes: that path meets the lower bound, so it is optimal.
 //!    Usually the very first node qualifies and the search costs a walk along the tree.
 //!
@@ -72,7 +75,6 @@ const NONE: u32 = u32::MAX;
 
 /// A path of a sub-problem: its nodes, the cost of the edge into each (0 for the source),
 /// where its fixed suffix starts and which predecessors of that spur node are forbidden.
-#[derive(Default)]
 struct Pending {
     nodes: Vec<u32>,
     step_costs: Vec<f64>,
@@ -211,9 +213,8 @@ impl<'a> Search<'a> {
                     nodes.push(c);
                     c = self.next[c as usize];
                 }
-                let step_costs = std::iter::once(0.0)
-                    .chain(nodes.windows(2).map(|w| edge_cost(self.preds, w[0], w[1])))
-                    .collect();
+                let step_costs =
+                    std::iter::once(0.0).chain(nodes.windows(2).map(|w| edge_cost(self.preds, w[0], w[1]))).collect();
                 return Some((nodes, step_costs));
             }
             for &(y, c) in &self.preds[x] {
@@ -241,16 +242,20 @@ impl<'a> Search<'a> {
         let nodes = self.tree_path(target);
         let step_costs = std::iter::once(0.0).chain(nodes.windows(2).map(|w| edge_cost(self.preds, w[0], w[1])));
         let root = Pending { spur: nodes.len() - 1, step_costs: step_costs.collect(), nodes, forbidden: Vec::new() };
-        let mut pending = vec![root];
-        let mut queue = BinaryHeap::from([Reverse(Key(pending[0].cost(), 0))]);
-        while let Some(Reverse(Key(cost, id))) = queue.pop() {
-            let path = std::mem::take(&mut pending[id]);
-            if found.len() + 1 == limits.k {
+        // Pending sub-problems' best paths, dearest first (of equal ones the later found
+        // first), so the cheapest is popped from the end and the n-th cheapest is at
+        // `len - n`.
+        let mut queue: Vec<(f64, Pending)> = vec![(root.cost(), root)];
+        while let Some((cost, path)) = queue.pop() {
+            let still_needed = limits.k - found.len() - 1;
+            if still_needed == 0 {
                 found.push(CandidatePath { nodes: path.nodes, cost });
                 break;
             }
             // Split the sub-problem: for spur nodes from the old spur back to the source's
             // successor, keep the suffix from there and forbid the edge the path came by.
+            // A part whose paths cannot beat the paths still needed already pending is
+            // skipped; its lower bound is d(spur) + the suffix's cost.
             self.block_stamp += 1;
             for &v in &path.nodes[path.spur + 1..] {
                 self.blocked[v as usize] = self.block_stamp;
@@ -259,19 +264,23 @@ impl<'a> Search<'a> {
             for i in (1..=path.spur).rev() {
                 let spur = path.nodes[i];
                 self.blocked[spur as usize] = self.block_stamp;
-                let mut forbidden = if i == path.spur { path.forbidden.clone() } else { Vec::new() };
-                forbidden.push(path.nodes[i - 1]);
-                if let Some((mut nodes, mut step_costs)) =
-                    self.best_prefix(spur, &forbidden, limits.max_cost - suffix_cost)
-                {
-                    let spur_index = nodes.len() - 1;
-                    nodes.extend_from_slice(&path.nodes[i + 1..]);
-                    step_costs.extend_from_slice(&path.step_costs[i + 1..]);
-                    let child = Pending { spur: spur_index, nodes, step_costs, forbidden };
-                    let cost = child.cost();
-                    if cost <= limits.max_cost {
-                        queue.push(Reverse(Key(cost, pending.len())));
-                        pending.push(child);
+                let threshold =
+                    if queue.len() >= still_needed { queue[queue.len() - still_needed].0 } else { limits.max_cost };
+                if self.dist[spur as usize] + suffix_cost <= threshold {
+                    let mut forbidden = if i == path.spur { path.forbidden.clone() } else { Vec::new() };
+                    forbidden.push(path.nodes[i - 1]);
+                    if let Some((mut nodes, mut step_costs)) =
+                        self.best_prefix(spur, &forbidden, threshold - suffix_cost)
+                    {
+                        let spur_index = nodes.len() - 1;
+                        nodes.extend_from_slice(&path.nodes[i + 1..]);
+                        step_costs.extend_from_slice(&path.step_costs[i + 1..]);
+                        let child = Pending { spur: spur_index, nodes, step_costs, forbidden };
+                        let cost = child.cost();
+                        if cost <= threshold {
+                            let at = queue.partition_point(|e| e.0 > cost);
+                            queue.insert(at, (cost, child));
+                        }
                     }
                 }
                 suffix_cost += path.step_costs[i];

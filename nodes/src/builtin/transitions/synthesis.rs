@@ -56,6 +56,47 @@ impl Default for SynthesisParams {
     }
 }
 
+/// Frame-major local transforms read in place from a clip or a motion.
+#[derive(Clone, Copy, Debug)]
+pub struct Frames<'a> {
+    joints: usize,
+    fps: f64,
+    rotations: &'a [Quat],
+    translations: &'a [Vec3],
+}
+
+impl<'a> Frames<'a> {
+    /// The frames of `clip`.
+    pub fn of_clip(clip: &'a Clip) -> Frames<'a> {
+        Frames {
+            joints: clip.joint_count(),
+            fps: clip.fps(),
+            rotations: clip.rotations(),
+            translations: clip.translations(),
+        }
+    }
+
+    /// Frame count.
+    pub fn frame_count(&self) -> usize {
+        self.rotations.len() / self.joints.max(1)
+    }
+
+    fn rot(&self, f: usize) -> &'a [Quat] {
+        &self.rotations[f * self.joints..(f + 1) * self.joints]
+    }
+
+    fn trans(&self, f: usize) -> &'a [Vec3] {
+        &self.translations[f * self.joints..(f + 1) * self.joints]
+    }
+
+    /// Features of frames `range` (velocities from neighbouring frames of these frames).
+    fn features(&self, layout: &PoseFeatures, range: std::ops::Range<usize>) -> PoseFeatures {
+        let mut f = layout.clone_empty();
+        f.push_frames(self.rotations, self.translations, self.joints, self.fps, range);
+        f
+    }
+}
+
 /// Frame-major local transforms being assembled, on the graph's skeleton.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Motion {
@@ -66,7 +107,7 @@ pub struct Motion {
 }
 
 impl Motion {
-    /// The frames of `clip`.
+    /// The frames of `clip`, copied.
     pub fn of_clip(clip: &Clip) -> Motion {
         Motion {
             joints: clip.joint_count(),
@@ -76,24 +117,20 @@ impl Motion {
         }
     }
 
+    /// Makes room for `frames` more frames.
+    pub fn reserve(&mut self, frames: usize) {
+        self.rotations.reserve(frames * self.joints);
+        self.translations.reserve(frames * self.joints);
+    }
+
+    /// The frames, read in place.
+    pub fn frames(&self) -> Frames<'_> {
+        Frames { joints: self.joints, fps: self.fps, rotations: &self.rotations, translations: &self.translations }
+    }
+
     /// Frame count.
     pub fn frame_count(&self) -> usize {
-        self.rotations.len() / self.joints.max(1)
-    }
-
-    fn rot(&self, f: usize) -> &[Quat] {
-        &self.rotations[f * self.joints..(f + 1) * self.joints]
-    }
-
-    fn trans(&self, f: usize) -> &[Vec3] {
-        &self.translations[f * self.joints..(f + 1) * self.joints]
-    }
-
-    /// Features of frames `range` (velocities from neighbouring frames of this motion).
-    fn features(&self, layout: &PoseFeatures, range: std::ops::Range<usize>) -> PoseFeatures {
-        let mut f = layout.clone_empty();
-        f.push_frames(&self.rotations, &self.translations, self.joints, self.fps, range);
-        f
+        self.frames().frame_count()
     }
 
     /// The first `frames` frames of a corpus passage in playing order (reversed when it
@@ -102,11 +139,8 @@ impl Motion {
         let source = &graph.clusters.clip_set.clips()[clip.run.clip as usize].clip;
         let count = frames.min(clip.run.len());
         let (start, end) = (clip.run.start as usize, clip.run.end as usize);
-        let order: Box<dyn Iterator<Item = usize>> = if clip.backward {
-            Box::new((end - count..end).rev())
-        } else {
-            Box::new(start..start + count)
-        };
+        let order: Box<dyn Iterator<Item = usize>> =
+            if clip.backward { Box::new((end - count..end).rev()) } else { Box::new(start..start + count) };
         let j = source.joint_count();
         let mut m = Motion {
             joints: j,
@@ -131,10 +165,10 @@ impl Motion {
 /// `window_out_frames` and `incoming`'s first `window_in_frames`, turning and moving
 /// `incoming` to match heading and floor position there and blending over the overlap.
 /// Returns the output frame where blending started.
-fn join(out: &mut Motion, incoming: &Motion, layout: &PoseFeatures, p: &SynthesisParams) -> usize {
+fn join(out: &mut Motion, incoming: Frames<'_>, layout: &PoseFeatures, p: &SynthesisParams) -> usize {
     let n = out.frame_count();
     let (m, w) = (p.window_out_frames.clamp(1, n), p.window_in_frames.clamp(1, incoming.frame_count()));
-    let tail = out.features(layout, n - m..n);
+    let tail = out.frames().features(layout, n - m..n);
     let head = incoming.features(layout, 0..w);
     let mut best = (0, 0, f32::INFINITY);
     for a in 0..m {
@@ -146,7 +180,7 @@ fn join(out: &mut Motion, incoming: &Motion, layout: &PoseFeatures, p: &Synthesi
         }
     }
     let (i, j) = (n - m + best.0, best.1);
-    let placement = Placement::new(incoming, j, out.rot(i)[0], out.trans(i)[0]);
+    let placement = Placement::new(incoming, j, out.rotations[i * out.joints], out.translations[i * out.joints]);
     let overlap = n - i;
     let last = incoming.frame_count() - 1;
     let joints = out.joints;
@@ -178,7 +212,7 @@ struct Placement {
 }
 
 impl Placement {
-    fn new(motion: &Motion, frame: usize, root_rotation: Quat, root_position_m: Vec3) -> Placement {
+    fn new(motion: Frames<'_>, frame: usize, root_rotation: Quat, root_position_m: Vec3) -> Placement {
         let pivot = motion.trans(frame)[0];
         Placement {
             turn: Quat::from_rotation_y(heading_yaw(root_rotation) - heading_yaw(motion.rot(frame)[0])),
@@ -188,14 +222,14 @@ impl Placement {
     }
 
     /// Placed root rotation and translation (metres) of frame `frame` of `motion`.
-    fn root(&self, motion: &Motion, frame: usize) -> (Quat, Vec3) {
+    fn root(&self, motion: Frames<'_>, frame: usize) -> (Quat, Vec3) {
         let (r, t) = (motion.rot(frame)[0], motion.trans(frame)[0]);
         (self.turn * r, self.turn * (t - self.pivot_m) + self.floor_m)
     }
 }
 
 /// Appends frames `from..` of `incoming` to `out`, placed.
-fn append_placed(out: &mut Motion, incoming: &Motion, from: usize, placement: &Placement) {
+fn append_placed(out: &mut Motion, incoming: Frames<'_>, from: usize, placement: &Placement) {
     let (n, joints) = (out.frame_count(), out.joints);
     out.rotations.extend_from_slice(&incoming.rotations[from * joints..]);
     out.translations.extend_from_slice(&incoming.translations[from * joints..]);
@@ -228,7 +262,7 @@ pub struct TransitionInfo {
 }
 
 /// The cluster nearest frame `frame` of `motion`.
-fn locate(graph: &TransitionGraph, motion: &Motion, frame: usize) -> u32 {
+fn locate(graph: &TransitionGraph, motion: Frames<'_>, frame: usize) -> u32 {
     let c = &graph.clusters;
     nearest_centre(&c.features, &c.centres, &motion.features(&c.features, frame..frame + 1), 0).0
 }
@@ -238,12 +272,12 @@ fn locate(graph: &TransitionGraph, motion: &Motion, frame: usize) -> u32 {
 pub fn append_transition(
     graph: &TransitionGraph,
     out: &mut Motion,
-    target: &Motion,
+    target: Frames<'_>,
     params: &SynthesisParams,
     rng: &mut impl Rng,
 ) -> TransitionInfo {
     let layout = &graph.clusters.features;
-    let s = locate(graph, out, out.frame_count() - 1);
+    let s = locate(graph, out.frames(), out.frame_count() - 1);
     let t = locate(graph, target, 0);
     let table = graph.paths_from(s);
     let candidates = &table.paths[t as usize];
@@ -288,18 +322,18 @@ pub fn append_transition(
         let Some(edge) = graph.edge(pair[0], pair[1]) else { continue };
         let short: Vec<&EdgeClip> = edge.clips.iter().filter(|c| c.run.len() <= params.max_clip_frames).collect();
         let pool: Vec<&EdgeClip> = if short.is_empty() { edge.clips.iter().collect() } else { short };
-        let last = out.features(layout, out.frame_count() - 1..out.frame_count());
+        let last = out.frames().features(layout, out.frame_count() - 1..out.frame_count());
         // The passage whose first frame (velocity from its first two) is nearest.
         let mut best: Option<(&EdgeClip, f32)> = None;
         for c in pool {
             let bound = best.map_or(f32::INFINITY, |b| b.1);
-            let d = last.distance_below(0, &Motion::of_passage(graph, c, 2).features(layout, 0..1), 0, bound);
+            let d = last.distance_below(0, &Motion::of_passage(graph, c, 2).frames().features(layout, 0..1), 0, bound);
             if d < bound {
                 best = Some((c, d));
             }
         }
         if let Some((clip, _)) = best {
-            let at = join(out, &Motion::of_passage(graph, clip, usize::MAX), layout, params);
+            let at = join(out, Motion::of_passage(graph, clip, usize::MAX).frames(), layout, params);
             first_join.get_or_insert(at);
         }
     }
@@ -344,7 +378,7 @@ fn heading_free(rotations: &[Quat], root_position_m: Vec3) -> Pose {
 }
 
 /// The pose at frame `frame` of `motion`, heading-free.
-fn pose_of(motion: &Motion, frame: usize) -> Pose {
+fn pose_of(motion: Frames<'_>, frame: usize) -> Pose {
     heading_free(motion.rot(frame), motion.trans(frame)[0])
 }
 
@@ -412,7 +446,7 @@ fn cubic(points: [&Pose; 4], s: f32, rotations: &mut [Quat]) -> f32 {
 fn bezier_fallback(
     graph: &TransitionGraph,
     out: &mut Motion,
-    target: &Motion,
+    target: Frames<'_>,
     walk: &[u32],
     p: &SynthesisParams,
 ) -> usize {
@@ -430,15 +464,15 @@ fn bezier_fallback(
         height_m: 0.5 * (c1.height_m + c2.height_m),
         rotations: c1.rotations.iter().zip(&c2.rotations).map(|(a, b)| slerp_short(*a, *b, 0.5)).collect(),
     };
-    let (p0, p3) = (pose_of(out, last), pose_of(target, 0));
+    let (p0, p3) = (pose_of(out.frames(), last), pose_of(target, 0));
     let layout = &c.features;
-    let d = out.features(layout, last..last + 1).distance_to(0, &target.features(layout, 0..1), 0);
+    let d = out.frames().features(layout, last..last + 1).distance_to(0, &target.features(layout, 0..1), 0);
     let frames = ((f64::from(d) / p.sigma_per_frame).round() as usize)
         .clamp(p.min_fallback_frames.max(2), p.max_fallback_frames);
     let lead = frames as f32 / 6.0;
-    let a = carried_on(&pose_of(out, last.saturating_sub(1)), &p0, lead);
+    let a = carried_on(&pose_of(out.frames(), last.saturating_sub(1)), &p0, lead);
     let b = carried_on(&pose_of(target, 1.min(target.frame_count() - 1)), &p3, lead);
-    let (root_rotation, root_position) = (out.rot(last)[0], out.trans(last)[0]);
+    let (root_rotation, root_position) = (out.rotations[last * out.joints], out.translations[last * out.joints]);
     let heading = Quat::from_rotation_y(heading_yaw(root_rotation));
     let joints = out.joints;
     out.rotations.reserve((frames - 1 + target.frame_count()) * joints);
