@@ -170,11 +170,16 @@ fn join(out: &mut Motion, incoming: Frames<'_>, layout: &PoseFeatures, p: &Synth
     let (m, w) = (p.window_out_frames.clamp(1, n), p.window_in_frames.clamp(1, incoming.frame_count()));
     let tail = out.frames().features(layout, n - m..n);
     let head = incoming.features(layout, 0..w);
+    // The first cell of least distance, in row order. The cell joining the motion's last
+    // frame to the incoming first frame bounds the minimum from the start, so the other
+    // comparisons can stop as soon as they pass it.
+    let corner = tail.distance_to(m - 1, &head, 0);
+    let above_corner = f32::from_bits(corner.to_bits() + 1);
     let mut best = (0, 0, f32::INFINITY);
     for a in 0..m {
         for b in 0..w {
-            let d = tail.distance_below(a, &head, b, best.2);
-            if d < best.2 {
+            let d = tail.distance_below(a, &head, b, best.2.min(above_corner));
+            if d < best.2 && d < above_corner {
                 best = (a, b, d);
             }
         }
