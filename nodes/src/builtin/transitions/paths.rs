@@ -19,9 +19,9 @@
 //! 3. Each sub-problem is solved by A* searching backwards from u with d as the
 //!    heuristic (a lower bound on the cost still to go, since avoiding nodes only makes
 //!    paths dearer), given up once that bound passes what could still be kept. The search
-//!    stops at the first popped node whose tree path from the
-//!    source is free of avoided nodes: that path meets the lower bound, so it is optimal.
-//!    Usually the very first node qualifies and the search costs a walk along the tree.
+//!    stops at the first popped node whose tree path from the source is free of avoided
+//!    nodes: that path meets the lower bound, so it is optimal. Usually the very first
+//!    node qualifies and the search costs a walk along the tree.
 //!
 //! The result is exact for edge costs > 0 (ties are broken by node order); the work per
 //! target is at most K × path length sub-problems.
