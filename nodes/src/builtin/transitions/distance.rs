@@ -97,7 +97,8 @@ fn acos_unit(x: f32) -> f32 {
         0.006_670_09,
         -0.001_262_491_1,
     ];
-    let p = A.iter().rev().fold(0.0f32, |acc, a| acc.mul_add(x, *a));
+    // Plain multiply-adds: `mul_add` is a library call on targets built without FMA.
+    let p = A.iter().rev().fold(0.0f32, |acc, a| acc * x + a);
     (1.0 - x).max(0.0).sqrt() * p
 }
 
