@@ -87,8 +87,9 @@ pub fn rotation_vector(a: Quat, b: Quat) -> Vec3 {
 /// fast as the library's `acos`, which dominated the pose distance.
 #[inline]
 fn acos_unit(x: f32) -> f32 {
+    // a₀ = 1.5707963050 is π/2 at f32 precision.
     const A: [f32; 8] = [
-        1.570_796_3,
+        std::f32::consts::FRAC_PI_2,
         -0.214_598_8,
         0.088_978_99,
         -0.050_174_3,
