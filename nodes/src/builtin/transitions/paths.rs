@@ -418,6 +418,34 @@ mod tests {
     }
 
     #[test]
+    fn k_best_matches_brute_force_on_a_real_corpus_graph() {
+        // The example's three CMU clips (walk, punches, kicks), both directions: real
+        // costs (frames × pose distance, not integers) and real structure.
+        use crate::builtin::transitions::{cluster, distance, graph, load_clip_set};
+        let Some(data) = crate::corpus::shared_data() else { return };
+        let set = load_clip_set(&data.join("bvh/cmu"), "02_01.bvh, 02_05.bvh, 144_05.bvh", 30.0, None).unwrap().set;
+        let params = distance::DistanceParams::lee_defaults(set.skeleton(), 0.003);
+        let clusters = std::sync::Arc::new(cluster::cluster(std::sync::Arc::new(set), params, 0.6));
+        let limits = PathLimits { k: 5, max_cost: f64::INFINITY };
+        for direction in [graph::Direction::Directed, graph::Direction::Undirected] {
+            let adjacency = graph::build_graph(clusters.clone(), direction, limits).adjacency();
+            let mut compared = 0;
+            for s in 0..adjacency.len() as u32 {
+                let table = k_best_paths(&adjacency, s, limits);
+                for (t, all) in brute_force(&adjacency, s).into_iter().enumerate() {
+                    let mut want = all;
+                    want.sort_by(f64::total_cmp);
+                    want.truncate(if t == s as usize { 0 } else { 5 });
+                    let got: Vec<f64> = table.paths[t].iter().map(|p| p.cost).collect();
+                    assert_eq!(got, want, "{direction:?} {s} → {t}");
+                    compared += got.len();
+                }
+            }
+            assert!(compared > 50, "{direction:?}: only {compared} paths compared");
+        }
+    }
+
+    #[test]
     fn unreachable_targets_and_the_cost_threshold() {
         // 0 → 1 → 3 (cost 2), 0 → 2 → 3 (cost 11); 4 is never reached.
         let adjacency = vec![vec![(1, 1.0), (2, 1.0)], vec![(3, 1.0)], vec![(3, 10.0)], vec![], vec![(0, 1.0)]];
