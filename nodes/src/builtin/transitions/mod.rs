@@ -490,8 +490,8 @@ static SEQUENCE: NodeSchema = NodeSchema {
     writes_files: false,
 };
 
-/// Plays `actions` one after another with a transition between each two: the motion and
-/// what each transition did.
+/// Plays `actions` (at least one, from the graph's clip set) one after another with a
+/// transition between each two: the motion and what each transition did.
 pub fn play_sequence(
     graph: &TransitionGraph,
     actions: &[Action],
