@@ -1,26 +1,29 @@
 //! Transition graph (Peng 2007) on the real CMU corpus (the largest skeleton family of
-//! `shared/data/bvh`, at 30 fps): clustering, candidate paths for every cluster pair,
+//! `shared/data/bvh`, at 30 fps): clustering, candidate paths for every cluster pair (the
+//! paper's 3,600-frame corpus size, and the whole corpus at ~160 and ~190 clusters),
 //! synthesis per output frame, and the whole corpus end to end.
 //!
 //! Run: `cargo bench -p kinegraph-nodes --bench transitions`.
 
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
+use std::collections::BTreeMap;
 use std::hint::black_box;
 use std::sync::Arc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use kinegraph_nodes::builtin::transitions::actions::{Action, ActionLabels, find_actions};
 use kinegraph_nodes::builtin::transitions::cluster::{cluster, corpus_features, two_pass};
 use kinegraph_nodes::builtin::transitions::distance::DistanceParams;
-use kinegraph_nodes::builtin::transitions::graph::{Direction, build_graph};
-use kinegraph_nodes::builtin::transitions::load_clip_set;
+use kinegraph_nodes::builtin::transitions::graph::{Direction, TransitionGraph, build_graph};
 use kinegraph_nodes::builtin::transitions::paths::{PathLimits, k_best_paths};
-use kinegraph_nodes::builtin::transitions::synthesis::{Motion, SynthesisParams, append_transition};
+use kinegraph_nodes::builtin::transitions::synthesis::SynthesisParams;
+use kinegraph_nodes::builtin::transitions::{load_clip_set, play_sequence};
 use kinegraph_nodes::model::ClipSet;
 use rand::SeedableRng;
 
 const RADIUS: f32 = 0.6;
-const LIMITS: PathLimits = PathLimits { k: 5, max_cost: f64::INFINITY, max_labels: 2_000_000, max_labels_per_node: 40 };
+const LIMITS: PathLimits = PathLimits { k: 5, max_cost: f64::INFINITY };
 
 fn bench(c: &mut Criterion) {
     let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };
@@ -41,55 +44,57 @@ fn bench(c: &mut Criterion) {
     c.bench_function("cluster_3600_frames", |b| b.iter(|| black_box(two_pass(&small_features, RADIUS))));
     c.bench_function("cluster_whole_corpus", |b| b.iter(|| black_box(two_pass(&features, RADIUS))));
 
-    let small_graph =
-        build_graph(Arc::new(cluster(Arc::new(small), params.clone(), RADIUS)), Direction::Directed, LIMITS);
-    let adjacency = small_graph.adjacency();
-    eprintln!("subset graph: {}", small_graph.summary(true));
-    c.bench_function("paths_all_pairs_subset", |b| {
-        b.iter(|| {
-            for s in 0..adjacency.len() as u32 {
-                black_box(k_best_paths(&adjacency, s, LIMITS));
-            }
-        })
-    });
-
-    let graph = build_graph(Arc::new(cluster(set.clone(), params.clone(), RADIUS)), Direction::Directed, LIMITS);
-    let adjacency = graph.adjacency();
-    eprintln!("whole graph: {}", graph.summary(true));
-    c.bench_function("paths_all_pairs_whole_corpus", |b| {
-        b.iter(|| {
-            for s in 0..adjacency.len() as u32 {
-                black_box(k_best_paths(&adjacency, s, LIMITS));
-            }
-        })
-    });
-
-    // Synthesis: walk → punch → kick with the path tables already cached; per output frame
-    // = time / frames of the transitions synthesised.
-    let names = ["02_01", "02_05", "144_05"];
-    let clips: Vec<Motion> = names.iter().map(|n| Motion::of_clip(&set.get(n).expect("in corpus").clip)).collect();
-    let run = || {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-        let mut out = clips[0].clone();
-        let mut frames = 0;
-        for next in &clips[1..] {
-            frames += append_transition(&graph, &mut out, next, &SynthesisParams::default(), &mut rng).frames.len();
-        }
-        (out, frames)
+    let all_pairs = |name: &str, radius: f32, set: Arc<ClipSet>, c: &mut Criterion| {
+        let graph = build_graph(Arc::new(cluster(set, params.clone(), radius)), Direction::Directed, LIMITS);
+        let adjacency = graph.adjacency();
+        let subproblems: usize =
+            (0..adjacency.len() as u32).map(|s| k_best_paths(&adjacency, s, LIMITS).subproblems).sum();
+        eprintln!("{name}: r = {radius}, {}, {subproblems} sub-problems", graph.summary(true));
+        c.bench_function(name, |b| {
+            b.iter(|| {
+                for s in 0..adjacency.len() as u32 {
+                    black_box(k_best_paths(&adjacency, s, LIMITS));
+                }
+            })
+        });
+        graph
     };
-    let (_, frames) = run();
-    eprintln!("synthesis: {frames} transition frames per run");
-    c.bench_function("synthesis_two_transitions", |b| b.iter(|| black_box(run())));
+    all_pairs("paths_all_pairs_subset", RADIUS, Arc::new(small), c);
+    // About the paper's 164 clusters: the whole corpus at a larger radius.
+    all_pairs("paths_all_pairs_whole_corpus_r0.7", 0.7, set.clone(), c);
+    let graph = all_pairs("paths_all_pairs_whole_corpus", RADIUS, set.clone(), c);
+
+    // Synthesis: walk → punch → kick as `motion.sequence` plays it, with the path tables
+    // already cached; per output frame = time / frames of the transitions synthesised.
+    // Once with the whole takes, once with the single strikes of the example's label file,
+    // once with every pair of clusters left without a path (the Bézier fallback).
+    let whole = find_actions(&set, &BTreeMap::new(), &["02_01", "02_05", "144_05"]).expect("clips in the corpus");
+    let label_file = concat!(env!("CARGO_MANIFEST_DIR"), "/../graphs/walk_punch_kick.actions.ron");
+    let labelled = ActionLabels::parse(&std::fs::read_to_string(label_file).expect("label file"))
+        .and_then(|l| l.resolve(&set))
+        .expect("labels fit the corpus");
+    let strikes = find_actions(&set, &labelled, &["walk", "punch", "kick"]).expect("labelled actions");
+    let no_paths = PathLimits { max_cost: 0.0, ..LIMITS };
+    let fallback_graph = build_graph(graph.clusters.clone(), Direction::Directed, no_paths);
+    let run = |g: &TransitionGraph, actions: &[Action]| {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        play_sequence(g, actions, &SynthesisParams::default(), &mut rng)
+    };
+    for (name, g, actions) in [
+        ("synthesis_two_transitions", &graph, &whole),
+        ("synthesis_two_transitions_single_strikes", &graph, &strikes),
+        ("synthesis_two_fallbacks", &fallback_graph, &whole),
+    ] {
+        let (motion, infos) = run(g, actions);
+        let frames: usize = infos.iter().map(|i| i.frames.len()).sum();
+        eprintln!("{name}: {frames} transition frames of {} output frames per run", motion.frame_count());
+        c.bench_function(name, |b| b.iter(|| black_box(run(g, actions))));
+    }
 
     c.bench_function("end_to_end_whole_corpus", |b| {
         b.iter(|| {
             let g = build_graph(Arc::new(cluster(set.clone(), params.clone(), RADIUS)), Direction::Directed, LIMITS);
-            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-            let mut out = clips[0].clone();
-            for next in &clips[1..] {
-                append_transition(&g, &mut out, next, &SynthesisParams::default(), &mut rng);
-            }
-            black_box(out)
+            black_box(run(&g, &whole))
         })
     });
 }

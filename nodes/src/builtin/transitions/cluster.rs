@@ -47,11 +47,14 @@ pub struct TwoPass {
 
 /// The nearest centre to frame `i` of `query` and its distance.
 pub fn nearest_centre(features: &PoseFeatures, centres: &[usize], query: &PoseFeatures, i: usize) -> (u32, f32) {
-    centres
-        .iter()
-        .enumerate()
-        .map(|(c, &f)| (c as u32, query.distance_to(i, features, f)))
-        .fold((0, f32::INFINITY), |best, x| if x.1 < best.1 { x } else { best })
+    let mut best = (0, f32::INFINITY);
+    for (c, &f) in centres.iter().enumerate() {
+        let d = query.distance_below(i, features, f, best.1);
+        if d < best.1 {
+            best = (c as u32, d);
+        }
+    }
+    best
 }
 
 /// The two-pass clustering of every frame of `features` with radius `radius`.

@@ -199,8 +199,6 @@ impl TransitionGraph {
             let pairs = n * n.saturating_sub(1);
             s["node_pairs_with_path"] = connected.into();
             s["share_of_pairs_with_path"] = (connected as f64 / pairs.max(1) as f64).into();
-            s["truncated_searches"] = tables.iter().filter(|t| t.truncated).count().into();
-            s["searches_with_dropped_labels"] = tables.iter().filter(|t| t.labels_dropped > 0).count().into();
         }
         s
     }
@@ -226,11 +224,7 @@ mod tests {
         ])
         .unwrap();
         let c = cluster(Arc::new(set), DistanceParams { weights: vec![1.0], velocity_weight: 0.0 }, 0.01);
-        build_graph(
-            Arc::new(c),
-            direction,
-            PathLimits { k: 5, max_cost: f64::INFINITY, max_labels: 10_000, max_labels_per_node: 10_000 },
-        )
+        build_graph(Arc::new(c), direction, PathLimits { k: 5, max_cost: f64::INFINITY })
     }
 
     #[test]

@@ -4,6 +4,7 @@
 //! — or, where the data never connects two poses, interpolated through the clusters on the
 //! way (Bézier fallback).
 
+pub mod actions;
 pub mod cluster;
 pub mod distance;
 pub mod graph;
@@ -21,10 +22,11 @@ use serde_json::json;
 pub use cluster::Clusters;
 pub use graph::TransitionGraph;
 
+use self::actions::{Action, ActionLabels, find_actions};
 use self::distance::DistanceParams;
 use self::graph::Direction;
 use self::paths::PathLimits;
-use self::synthesis::{Motion, SynthesisParams, TransitionInfo, append_transition};
+use self::synthesis::{Frames, Motion, SynthesisParams, TransitionInfo, append_transition};
 use super::clip_edit::resample;
 use super::clip_io::{ClipLoadOptions, load_clip};
 use super::momentum::analysis::{AnalysisOptions, analyse};
@@ -32,8 +34,8 @@ use super::momentum::baseline::{BaselineParams, concatenate_baseline};
 use super::momentum::concat::foot_skate_m;
 use crate::model::{Clip, ClipSet, FrameRange, NamedClip, Skeleton};
 use crate::node::{
-    ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry, Report,
-    TextParam, nearest_name,
+    ChoiceParam, FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output,
+    Registry, Report, TextParam,
 };
 
 /// Registers the transition nodes.
@@ -55,15 +57,22 @@ fn wildcard(pattern: &[u8], name: &[u8]) -> bool {
     }
 }
 
-/// Whether a motion of a captured T-pose starts the clip: cgspeed's CMU conversions put one
-/// before the first captured frame, and it would become a cluster of its own joined to
-/// every clip by a one-frame jump.
+/// Whether a captured T-pose starts the clip: cgspeed's CMU conversions put one before
+/// the first captured frame, and it would become a cluster of its own (every clip's first
+/// frame would sit in it, and transitions into a clip would all start from it). It is
+/// recognised as a pop: the joints turn on average more than 0.1 rad from frame 0 to
+/// frame 1, and more than ten times as far as from frame 1 to frame 2. (The T-pose's
+/// local rotations are not all identity: cgspeed's rest pose bends the arms and legs.)
 fn starts_with_t_pose(clip: &Clip) -> bool {
-    let mean_angle = |f: usize| {
-        let r = clip.frame_rotations(f);
-        r[1..].iter().map(|q| q.w.abs().min(1.0).acos()).sum::<f32>() / (r.len() - 1).max(1) as f32
+    let mean_turn = |a: usize, b: usize| {
+        let (ra, rb) = (clip.frame_rotations(a), clip.frame_rotations(b));
+        let turn = |(p, q): (&glam::Quat, &glam::Quat)| 2.0 * p.dot(*q).abs().min(1.0).acos();
+        ra[1..].iter().zip(&rb[1..]).map(turn).sum::<f32>() / (ra.len() - 1).max(1) as f32
     };
-    clip.frame_count() > 2 && clip.joint_count() > 1 && mean_angle(0) < 0.01 && mean_angle(1) > 0.05
+    clip.frame_count() > 2 && clip.joint_count() > 1 && {
+        let pop = mean_turn(0, 1);
+        pop > 0.1 && pop > 10.0 * mean_turn(1, 2)
+    }
 }
 
 /// `clip` on `skeleton` (same names and hierarchy): each joint keeps its own animated
@@ -353,17 +362,10 @@ impl Node for BuildGraph {
         let clusters = ctx.input(&CLUSTERS_IN)?;
         let direction =
             if ctx.choice(&DIRECTION)? == "undirected" { Direction::Undirected } else { Direction::Directed };
-        let limits = PathLimits {
-            k: ctx.int(&K)? as usize,
-            max_cost: ctx.optional_float(&MAX_COST)?.unwrap_or(f64::INFINITY),
-            max_labels: 2_000_000,
-            max_labels_per_node: 8 * ctx.int(&K)? as usize,
-        };
+        let limits =
+            PathLimits { k: ctx.int(&K)? as usize, max_cost: ctx.optional_float(&MAX_COST)?.unwrap_or(f64::INFINITY) };
         let graph = graph::build_graph(clusters, direction, limits);
         let summary = graph.summary(true);
-        if summary["truncated_searches"].as_u64().unwrap_or(0) > 0 {
-            ctx.warn("some candidate path searches hit their label budget and may miss paths; set max_cost");
-        }
         ctx.set_output(&REPORT, report_of(summary));
         ctx.set_output(&GRAPH_OUT, Arc::new(graph));
         Ok(())
@@ -451,7 +453,7 @@ impl Node for Transition {
         let target = fit(&graph, ctx.input(&TARGET)?.as_ref(), "target")?;
         let params = synthesis_params(ctx, graph.clusters.clip_set.fps())?;
         let mut out = Motion::of_clip(&source);
-        let info = append_transition(&graph, &mut out, &Motion::of_clip(&target), &params, &mut rng_of(ctx)?);
+        let info = append_transition(&graph, &mut out, Frames::of_clip(&target), &params, &mut rng_of(ctx)?);
         let joined = out.into_clip(&source).map_err(|e| NodeError::Failed(e.to_string()))?;
         let transition = joined.slice(info.frames.start, info.frames.end);
         let mut report = serde_json::to_value(&info).unwrap_or_default();
@@ -465,8 +467,13 @@ impl Node for Transition {
 
 const ACTIONS: TextParam = TextParam::new(
     "actions",
-    "The actions to play in order, by clip name, separated by commas (e.g. \"02_01, 02_05, 144_05\").",
+    "The actions to play in order, separated by commas: names from the label file, or clip names (e.g. \"walk, punch, kick\" or \"02_01, 02_05\").",
     "",
+);
+const LABELS: InputPathParam = InputPathParam::optional(
+    "labels",
+    "A RON file naming actions, each a whole clip or the stretch of one between two times, e.g. (actions: {\"punch\": (clip: \"02_05\", start_secs: 1.2, end_secs: 3.4)}).",
+    &["ron"],
 );
 const SEQUENCE_OUT: Output<Arc<Clip>> = Output::new("clip", "The actions played one after another with transitions.");
 
@@ -476,18 +483,40 @@ pub struct Sequence;
 static SEQUENCE: NodeSchema = NodeSchema {
     kind: "motion.sequence",
     category: "motion",
-    doc: "Plays a list of actions from the graph's clip set in order as one continuous clip, with a transition between each two. The report lists each transition's path, cost and whether it was interpolated, and compares its smoothness and foot sliding with a plain crossfade of the same two clips.",
+    doc: "Plays a list of actions from the graph's clip set in order as one continuous clip, with a transition between each two. Actions are clip names, or names given in a label file (whole clips or stretches of long takes). The report lists each transition's path, cost and whether it was interpolated, and compares its smoothness and foot sliding with a plain crossfade of the same two clips.",
     inputs: &[GRAPH_IN.spec()],
     outputs: &[SEQUENCE_OUT.spec(), REPORT.spec()],
-    params: &[ACTIONS.0, SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0],
+    params: &[ACTIONS.0, LABELS.0, SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0],
     writes_files: false,
 };
 
-/// Smoothness of one transition of a sequence against a crossfade of the same two clips.
-fn compare_with_crossfade(
+/// Plays `actions` (at least one, from the graph's clip set) one after another with a
+/// transition between each two: the motion and what each transition did.
+pub fn play_sequence(
+    graph: &TransitionGraph,
+    actions: &[Action],
+    params: &SynthesisParams,
+    rng: &mut impl rand::Rng,
+) -> (Motion, Vec<TransitionInfo>) {
+    let mut out = Motion::of_clip(&actions[0].clip);
+    // Room for every action and about two seconds of transition between each two.
+    let fps = graph.clusters.clip_set.fps();
+    out.reserve(actions[1..].iter().map(|a| a.clip.frame_count() + (2.0 * fps) as usize).sum());
+    let infos = actions[1..]
+        .iter()
+        .map(|next| append_transition(graph, &mut out, Frames::of_clip(&next.clip), params, rng))
+        .collect();
+    (out, infos)
+}
+
+/// Smoothness of one transition of `output` (a sequence) between clips `a` and `b`,
+/// against the crossfade of the same two clips (Motion Graphs' best-cut 0.25 s crossfade):
+/// peak joint angular acceleration of the weighted joints of `layout` inside the
+/// transition over the peak inside `a` and `b`, and foot skate (m) inside it.
+pub fn smoothness_against_crossfade(
     layout: &distance::PoseFeatures,
     output: &Arc<Clip>,
-    info: &TransitionInfo,
+    transition: FrameRange,
     a: &Arc<Clip>,
     b: &Arc<Clip>,
 ) -> Result<serde_json::Value, String> {
@@ -509,8 +538,8 @@ fn compare_with_crossfade(
     let ratio = |peak: f64| peak / source_peak.max(1e-9);
     Ok(json!({
         "source_peak_angular_acceleration": source_peak,
-        "peak_ratio": ratio(peak_angular_acceleration(output, layout, info.frames)),
-        "foot_skate_m": foot_skate_m(&ours, info.frames, options.contacts.enter_height_m),
+        "peak_ratio": ratio(peak_angular_acceleration(output, layout, transition)),
+        "foot_skate_m": foot_skate_m(&ours, transition, options.contacts.enter_height_m),
         "crossfade_peak_ratio": ratio(peak_angular_acceleration(&fade.clip, layout, window)),
         "crossfade_foot_skate_m": fade.report.get("foot_skate_in_blend_m").cloned().unwrap_or_default(),
     }))
@@ -523,44 +552,46 @@ impl Node for Sequence {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let graph = ctx.input(&GRAPH_IN)?;
         let set = &graph.clusters.clip_set;
-        let names: Vec<String> =
-            ctx.text_param(&ACTIONS)?.split(',').map(str::trim).filter(|s| !s.is_empty()).map(String::from).collect();
-        let clips: Vec<&NamedClip> = names
-            .iter()
-            .map(|n| {
-                set.get(n.as_str()).ok_or_else(|| {
-                    let hint = nearest_name(n, set.clips().iter().map(|c| c.name.as_str()))
-                        .map_or(String::new(), |s| format!(" (did you mean '{s}'?)"));
-                    NodeError::param("actions", format!("no clip called '{n}' in the set{hint}"))
-                })
-            })
-            .collect::<Result<_, _>>()?;
-        let Some(first) = clips.first() else {
-            return Err(NodeError::param("actions", "names no action"));
+        let labelled = match ctx.optional_input_path(&LABELS)? {
+            None => BTreeMap::new(),
+            Some(path) => {
+                let text = std::fs::read_to_string(&path)
+                    .map_err(|e| NodeError::param("labels", format!("cannot read {}: {e}", path.display())))?;
+                ActionLabels::parse(&text)
+                    .and_then(|labels| labels.resolve(set))
+                    .map_err(|e| NodeError::param("labels", format!("{}:{e}", path.display())))?
+            }
         };
-        let params = synthesis_params(ctx, set.fps())?;
-        let mut rng = rng_of(ctx)?;
-        let mut out = Motion::of_clip(&first.clip);
-        let mut infos = Vec::new();
-        for (k, next) in clips.iter().enumerate().skip(1) {
-            ctx.check_cancelled()?;
-            ctx.progress(k as f32 / clips.len() as f32);
-            infos.push(append_transition(&graph, &mut out, &Motion::of_clip(&next.clip), &params, &mut rng));
+        let text = ctx.text_param(&ACTIONS)?;
+        let names: Vec<&str> = text.split(',').map(str::trim).filter(|s| !s.is_empty()).collect();
+        let actions = find_actions(set, &labelled, &names).map_err(|e| NodeError::param("actions", e))?;
+        if actions.is_empty() {
+            return Err(NodeError::param("actions", "names no action"));
         }
-        let clip = Arc::new(out.into_clip(&first.clip).map_err(|e| NodeError::Failed(e.to_string()))?);
+        let params = synthesis_params(ctx, set.fps())?;
+        ctx.check_cancelled()?;
+        let (out, infos) = play_sequence(&graph, &actions, &params, &mut rng_of(ctx)?);
+        let clip = Arc::new(out.into_clip(&actions[0].clip).map_err(|e| NodeError::Failed(e.to_string()))?);
         let mut transitions = Vec::new();
         for (k, info) in infos.iter().enumerate() {
+            ctx.check_cancelled()?;
+            ctx.progress(k as f32 / infos.len() as f32);
             let mut entry = serde_json::to_value(info).unwrap_or_default();
-            entry["from"] = json!(clips[k].name);
-            entry["to"] = json!(clips[k + 1].name);
-            match compare_with_crossfade(&graph.clusters.features, &clip, info, &clips[k].clip, &clips[k + 1].clip) {
+            entry["from"] = json!(actions[k].name);
+            entry["to"] = json!(actions[k + 1].name);
+            let (a, b) = (&actions[k].clip, &actions[k + 1].clip);
+            match smoothness_against_crossfade(&graph.clusters.features, &clip, info.frames, a, b) {
                 Ok(q) => entry["smoothness"] = q,
                 Err(e) => ctx.warn(format!("transition {k}: smoothness not measured: {e}")),
             }
             transitions.push(entry);
         }
+        let played: Vec<serde_json::Value> = actions
+            .iter()
+            .map(|a| json!({"name": a.name, "clip": a.clip_name, "frames": [a.frames.start, a.frames.end]}))
+            .collect();
         let report = json!({
-            "actions": names,
+            "actions": played,
             "frames": clip.frame_count(),
             "duration_secs": clip.duration_secs(),
             "fallbacks": infos.iter().filter(|i| i.fallback).count(),
@@ -575,6 +606,29 @@ impl Node for Sequence {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_t_pose_first_frame_is_recognised_and_a_smooth_start_is_not() {
+        use glam::{Quat, Vec3};
+        let s = Arc::new(
+            Skeleton::new(vec![
+                crate::model::Joint::new("Hips", None, Vec3::Y),
+                crate::model::Joint::new("LeftArm", Some(0), Vec3::X),
+                crate::model::Joint::new("RightArm", Some(0), -Vec3::X),
+            ])
+            .unwrap(),
+        );
+        // Arms 0.14 rad in the T-pose, then captured at 1.6 rad moving 0.004 rad a frame.
+        let clip = |first: f32| {
+            let angles = [first, 1.6, 1.604, 1.608];
+            let rotations =
+                angles.iter().flat_map(|a| [Quat::IDENTITY, Quat::from_rotation_z(*a), Quat::from_rotation_z(-*a)]);
+            Clip::new(s.clone(), 120.0, rotations.collect(), vec![Vec3::Y; 12], crate::model::ImportScale::METRES)
+                .unwrap()
+        };
+        assert!(starts_with_t_pose(&clip(0.14)));
+        assert!(!starts_with_t_pose(&clip(1.596)));
+    }
 
     #[test]
     fn wildcards_match_file_names() {

@@ -12,15 +12,16 @@
 //! 4. No candidate path: a greedy walk over the cluster medoids (centre frames) from the
 //!    source's cluster to the target's, each step to the nearest medoid that is closer to
 //!    the target than the current one; its two halves are averaged into control poses C1,
-//!    C2 and the transition follows two quadratic Bézier pieces P0–C1–M and M–C2–P3
-//!    (M midway between C1 and C2, so the curve is C1-continuous), evaluated on
-//!    quaternions with de Casteljau slerps, over D(P0, P3)/σ frames (eq. 2).
+//!    C2 and the transition follows two Bézier pieces P0–A–C1–M and M–C2–B–P3 (M midway
+//!    between C1 and C2, so the curve is C1-continuous; A and B set from the source's last
+//!    and the target's first joint velocities, so it is C1 at its ends too), evaluated
+//!    on quaternions with de Casteljau slerps, over D(P0, P3)/σ frames (eq. 2).
 
 use glam::{Quat, Vec3};
 use rand::Rng;
 
 use super::cluster::nearest_centre;
-use super::distance::{PoseFeatures, heading_yaw};
+use super::distance::{PoseFeatures, heading_yaw, rotation_vector};
 use super::graph::{EdgeClip, TransitionGraph};
 use crate::math::{quat_normalize_or_identity, slerp_short};
 use crate::model::{Clip, ClipError, FrameRange};
@@ -55,6 +56,47 @@ impl Default for SynthesisParams {
     }
 }
 
+/// Frame-major local transforms read in place from a clip or a motion.
+#[derive(Clone, Copy, Debug)]
+pub struct Frames<'a> {
+    joints: usize,
+    fps: f64,
+    rotations: &'a [Quat],
+    translations: &'a [Vec3],
+}
+
+impl<'a> Frames<'a> {
+    /// The frames of `clip`.
+    pub fn of_clip(clip: &'a Clip) -> Frames<'a> {
+        Frames {
+            joints: clip.joint_count(),
+            fps: clip.fps(),
+            rotations: clip.rotations(),
+            translations: clip.translations(),
+        }
+    }
+
+    /// Frame count.
+    pub fn frame_count(&self) -> usize {
+        self.rotations.len() / self.joints.max(1)
+    }
+
+    fn rot(&self, f: usize) -> &'a [Quat] {
+        &self.rotations[f * self.joints..(f + 1) * self.joints]
+    }
+
+    fn trans(&self, f: usize) -> &'a [Vec3] {
+        &self.translations[f * self.joints..(f + 1) * self.joints]
+    }
+
+    /// Features of frames `range` (velocities from neighbouring frames of these frames).
+    fn features(&self, layout: &PoseFeatures, range: std::ops::Range<usize>) -> PoseFeatures {
+        let mut f = layout.clone_empty();
+        f.push_frames(self.rotations, self.translations, self.joints, self.fps, range);
+        f
+    }
+}
+
 /// Frame-major local transforms being assembled, on the graph's skeleton.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Motion {
@@ -65,7 +107,7 @@ pub struct Motion {
 }
 
 impl Motion {
-    /// The frames of `clip`.
+    /// The frames of `clip`, copied.
     pub fn of_clip(clip: &Clip) -> Motion {
         Motion {
             joints: clip.joint_count(),
@@ -75,40 +117,40 @@ impl Motion {
         }
     }
 
+    /// Makes room for `frames` more frames.
+    pub fn reserve(&mut self, frames: usize) {
+        self.rotations.reserve(frames * self.joints);
+        self.translations.reserve(frames * self.joints);
+    }
+
+    /// The frames, read in place.
+    pub fn frames(&self) -> Frames<'_> {
+        Frames { joints: self.joints, fps: self.fps, rotations: &self.rotations, translations: &self.translations }
+    }
+
     /// Frame count.
     pub fn frame_count(&self) -> usize {
-        self.rotations.len() / self.joints.max(1)
+        self.frames().frame_count()
     }
 
-    fn rot(&self, f: usize) -> &[Quat] {
-        &self.rotations[f * self.joints..(f + 1) * self.joints]
-    }
-
-    fn trans(&self, f: usize) -> &[Vec3] {
-        &self.translations[f * self.joints..(f + 1) * self.joints]
-    }
-
-    fn truncate(&mut self, frames: usize) {
-        self.rotations.truncate(frames * self.joints);
-        self.translations.truncate(frames * self.joints);
-    }
-
-    /// Features of frames `range` (velocities from neighbouring frames of this motion).
-    fn features(&self, layout: &PoseFeatures, range: std::ops::Range<usize>) -> PoseFeatures {
-        let mut f = layout.clone_empty();
-        f.push_frames(&self.rotations, &self.translations, self.joints, self.fps, range);
-        f
-    }
-
-    /// A corpus passage as frames, reversed when played backwards.
-    fn of_passage(graph: &TransitionGraph, clip: &EdgeClip) -> Motion {
+    /// The first `frames` frames of a corpus passage in playing order (reversed when it
+    /// plays backwards); all of them when `frames` exceeds its length.
+    fn of_passage(graph: &TransitionGraph, clip: &EdgeClip, frames: usize) -> Motion {
         let source = &graph.clusters.clip_set.clips()[clip.run.clip as usize].clip;
-        let mut m = Motion::of_clip(&source.slice(clip.run.start as usize, clip.run.end as usize));
-        if clip.backward {
-            let j = m.joints;
-            let frames = m.frame_count();
-            m.rotations = (0..frames).rev().flat_map(|f| m.rotations[f * j..(f + 1) * j].to_vec()).collect();
-            m.translations = (0..frames).rev().flat_map(|f| m.translations[f * j..(f + 1) * j].to_vec()).collect();
+        let count = frames.min(clip.run.len());
+        let (start, end) = (clip.run.start as usize, clip.run.end as usize);
+        let order: Box<dyn Iterator<Item = usize>> =
+            if clip.backward { Box::new((end - count..end).rev()) } else { Box::new(start..start + count) };
+        let j = source.joint_count();
+        let mut m = Motion {
+            joints: j,
+            fps: source.fps(),
+            rotations: Vec::with_capacity(count * j),
+            translations: Vec::with_capacity(count * j),
+        };
+        for f in order {
+            m.rotations.extend_from_slice(source.frame_rotations(f));
+            m.translations.extend_from_slice(source.frame_translations(f));
         }
         m
     }
@@ -123,55 +165,84 @@ impl Motion {
 /// `window_out_frames` and `incoming`'s first `window_in_frames`, turning and moving
 /// `incoming` to match heading and floor position there and blending over the overlap.
 /// Returns the output frame where blending started.
-fn join(out: &mut Motion, incoming: &Motion, layout: &PoseFeatures, p: &SynthesisParams) -> usize {
+fn join(out: &mut Motion, incoming: Frames<'_>, layout: &PoseFeatures, p: &SynthesisParams) -> usize {
     let n = out.frame_count();
     let (m, w) = (p.window_out_frames.clamp(1, n), p.window_in_frames.clamp(1, incoming.frame_count()));
-    let tail = out.features(layout, n - m..n);
+    let tail = out.frames().features(layout, n - m..n);
     let head = incoming.features(layout, 0..w);
+    // The first cell of least distance, in row order. The cell joining the motion's last
+    // frame to the incoming first frame bounds the minimum from the start, so the other
+    // comparisons can stop as soon as they pass it.
+    let corner = tail.distance_to(m - 1, &head, 0);
+    let above_corner = f32::from_bits(corner.to_bits() + 1);
     let mut best = (0, 0, f32::INFINITY);
     for a in 0..m {
         for b in 0..w {
-            let d = tail.distance_to(a, &head, b);
-            if d < best.2 {
+            let d = tail.distance_below(a, &head, b, best.2.min(above_corner));
+            if d < best.2 && d < above_corner {
                 best = (a, b, d);
             }
         }
     }
     let (i, j) = (n - m + best.0, best.1);
-    let placed = placed_at(incoming, j, out.rot(i)[0], out.trans(i)[0]);
+    let placement = Placement::new(incoming, j, out.rotations[i * out.joints], out.translations[i * out.joints]);
     let overlap = n - i;
-    let last = placed.frame_count() - 1;
-    let mut blended = Motion { rotations: Vec::new(), translations: Vec::new(), ..*out };
+    let last = incoming.frame_count() - 1;
+    let joints = out.joints;
     for k in 0..overlap {
         let beta = (k + 1) as f32 / (overlap + 1) as f32;
         let g = (j + k).min(last);
-        let (ra, rb) = (out.rot(i + k), placed.rot(g));
-        let (ta, tb) = (out.trans(i + k), placed.trans(g));
-        blended.rotations.extend(ra.iter().zip(rb).map(|(a, b)| slerp_short(*a, *b, beta)));
-        blended.translations.extend(ta.iter().zip(tb).map(|(a, b)| a.lerp(*b, beta)));
+        let (root_rotation, root_position) = placement.root(incoming, g);
+        let at = (i + k) * joints;
+        for joint in 0..joints {
+            let (rb, tb) = if joint == 0 {
+                (root_rotation, root_position)
+            } else {
+                (incoming.rotations[g * joints + joint], incoming.translations[g * joints + joint])
+            };
+            out.rotations[at + joint] = slerp_short(out.rotations[at + joint], rb, beta);
+            out.translations[at + joint] = out.translations[at + joint].lerp(tb, beta);
+        }
     }
-    out.truncate(i);
-    out.rotations.extend(blended.rotations);
-    out.translations.extend(blended.translations);
-    let from = (j + overlap).min(placed.frame_count());
-    out.rotations.extend_from_slice(&placed.rotations[from * out.joints..]);
-    out.translations.extend_from_slice(&placed.translations[from * out.joints..]);
+    append_placed(out, incoming, (j + overlap).min(incoming.frame_count()), &placement);
     i
 }
 
-/// `motion` turned about the vertical and moved on the floor so that its frame `frame`
-/// has the heading of `root_rotation` and the floor position of `root_position_m`.
-fn placed_at(motion: &Motion, frame: usize, root_rotation: Quat, root_position_m: Vec3) -> Motion {
-    let turn = Quat::from_rotation_y(heading_yaw(root_rotation) - heading_yaw(motion.rot(frame)[0]));
-    let pivot = motion.trans(frame)[0];
-    let mut placed = motion.clone();
-    let j = motion.joints;
-    for f in 0..motion.frame_count() {
-        placed.rotations[f * j] = turn * motion.rotations[f * j];
-        let p = turn * (motion.translations[f * j] - Vec3::new(pivot.x, 0.0, pivot.z));
-        placed.translations[f * j] = Vec3::new(p.x + root_position_m.x, p.y, p.z + root_position_m.z);
+/// The turn about the vertical and the move on the floor that give frame `frame` of a
+/// motion the heading of `root_rotation` and the floor position of `root_position_m`.
+struct Placement {
+    turn: Quat,
+    pivot_m: Vec3,
+    floor_m: Vec3,
+}
+
+impl Placement {
+    fn new(motion: Frames<'_>, frame: usize, root_rotation: Quat, root_position_m: Vec3) -> Placement {
+        let pivot = motion.trans(frame)[0];
+        Placement {
+            turn: Quat::from_rotation_y(heading_yaw(root_rotation) - heading_yaw(motion.rot(frame)[0])),
+            pivot_m: Vec3::new(pivot.x, 0.0, pivot.z),
+            floor_m: Vec3::new(root_position_m.x, 0.0, root_position_m.z),
+        }
     }
-    placed
+
+    /// Placed root rotation and translation (metres) of frame `frame` of `motion`.
+    fn root(&self, motion: Frames<'_>, frame: usize) -> (Quat, Vec3) {
+        let (r, t) = (motion.rot(frame)[0], motion.trans(frame)[0]);
+        (self.turn * r, self.turn * (t - self.pivot_m) + self.floor_m)
+    }
+}
+
+/// Appends frames `from..` of `incoming` to `out`, placed.
+fn append_placed(out: &mut Motion, incoming: Frames<'_>, from: usize, placement: &Placement) {
+    let (n, joints) = (out.frame_count(), out.joints);
+    out.rotations.extend_from_slice(&incoming.rotations[from * joints..]);
+    out.translations.extend_from_slice(&incoming.translations[from * joints..]);
+    for (k, f) in (from..incoming.frame_count()).enumerate() {
+        let (r, t) = placement.root(incoming, f);
+        out.rotations[(n + k) * joints] = r;
+        out.translations[(n + k) * joints] = t;
+    }
 }
 
 /// What one transition did.
@@ -196,7 +267,7 @@ pub struct TransitionInfo {
 }
 
 /// The cluster nearest frame `frame` of `motion`.
-fn locate(graph: &TransitionGraph, motion: &Motion, frame: usize) -> u32 {
+fn locate(graph: &TransitionGraph, motion: Frames<'_>, frame: usize) -> u32 {
     let c = &graph.clusters;
     nearest_centre(&c.features, &c.centres, &motion.features(&c.features, frame..frame + 1), 0).0
 }
@@ -206,12 +277,12 @@ fn locate(graph: &TransitionGraph, motion: &Motion, frame: usize) -> u32 {
 pub fn append_transition(
     graph: &TransitionGraph,
     out: &mut Motion,
-    target: &Motion,
+    target: Frames<'_>,
     params: &SynthesisParams,
     rng: &mut impl Rng,
 ) -> TransitionInfo {
     let layout = &graph.clusters.features;
-    let s = locate(graph, out, out.frame_count() - 1);
+    let s = locate(graph, out.frames(), out.frame_count() - 1);
     let t = locate(graph, target, 0);
     let table = graph.paths_from(s);
     let candidates = &table.paths[t as usize];
@@ -256,17 +327,18 @@ pub fn append_transition(
         let Some(edge) = graph.edge(pair[0], pair[1]) else { continue };
         let short: Vec<&EdgeClip> = edge.clips.iter().filter(|c| c.run.len() <= params.max_clip_frames).collect();
         let pool: Vec<&EdgeClip> = if short.is_empty() { edge.clips.iter().collect() } else { short };
-        let last = out.features(layout, out.frame_count() - 1..out.frame_count());
-        let best = pool
-            .into_iter()
-            .map(|c| {
-                let m = Motion::of_passage(graph, c);
-                let d = last.distance_to(0, &m.features(layout, 0..1), 0);
-                (d, m)
-            })
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-        if let Some((_, passage)) = best {
-            let at = join(out, &passage, layout, params);
+        let last = out.frames().features(layout, out.frame_count() - 1..out.frame_count());
+        // The passage whose first frame (velocity from its first two) is nearest.
+        let mut best: Option<(&EdgeClip, f32)> = None;
+        for c in pool {
+            let bound = best.map_or(f32::INFINITY, |b| b.1);
+            let d = last.distance_below(0, &Motion::of_passage(graph, c, 2).frames().features(layout, 0..1), 0, bound);
+            if d < bound {
+                best = Some((c, d));
+            }
+        }
+        if let Some((clip, _)) = best {
+            let at = join(out, Motion::of_passage(graph, clip, usize::MAX).frames(), layout, params);
             first_join.get_or_insert(at);
         }
     }
@@ -304,10 +376,15 @@ struct Pose {
     rotations: Vec<Quat>,
 }
 
-fn heading_free(motion: &Motion, frame: usize) -> Pose {
-    let mut rotations = motion.rot(frame).to_vec();
+fn heading_free(rotations: &[Quat], root_position_m: Vec3) -> Pose {
+    let mut rotations = rotations.to_vec();
     rotations[0] = Quat::from_rotation_y(-heading_yaw(rotations[0])) * rotations[0];
-    Pose { height_m: motion.trans(frame)[0].y, rotations }
+    Pose { height_m: root_position_m.y, rotations }
+}
+
+/// The pose at frame `frame` of `motion`, heading-free.
+fn pose_of(motion: Frames<'_>, frame: usize) -> Pose {
+    heading_free(motion.rot(frame), motion.trans(frame)[0])
 }
 
 /// The average of poses: mean height, per joint the normalised sum of sign-aligned
@@ -326,25 +403,55 @@ fn average(poses: &[Pose]) -> Pose {
     out
 }
 
-/// Quadratic Bézier on poses by de Casteljau with slerps.
-fn quadratic(a: &Pose, b: &Pose, c: &Pose, s: f32) -> Pose {
-    let lerp = |x: f32, y: f32| x + (y - x) * s;
-    let height_m = lerp(lerp(a.height_m, b.height_m), lerp(b.height_m, c.height_m));
-    let rotations = (0..a.rotations.len())
-        .map(|k| {
-            let (p, q, r) = (a.rotations[k], b.rotations[k], c.rotations[k]);
-            slerp_short(slerp_short(p, q, s), slerp_short(q, r, s), s)
+/// The largest rotation (radians) a velocity control point adds to a pose: keeps every
+/// de Casteljau slerp well inside the short arc.
+const MAX_LEAD_RAD: f32 = 2.0;
+
+/// `to` carried on by `frames` more frames of the motion that went from `from` to `to` in
+/// one frame (per joint the same rotation again, at most [`MAX_LEAD_RAD`]; the height
+/// likewise). As a cubic Bézier's second control point over a piece of 3 × `frames`
+/// frames it makes the curve leave `to` at the speed the motion arrived with.
+fn carried_on(from: &Pose, to: &Pose, frames: f32) -> Pose {
+    let rotations = from
+        .rotations
+        .iter()
+        .zip(&to.rotations)
+        .map(|(a, b)| {
+            let lead = rotation_vector(*a, *b) * frames;
+            *b * Quat::from_scaled_axis(lead.clamp_length_max(MAX_LEAD_RAD))
         })
         .collect();
-    Pose { height_m, rotations }
+    Pose { height_m: to.height_m + (to.height_m - from.height_m) * frames, rotations }
+}
+
+/// Cubic Bézier on poses at `s` ∈ [0, 1] by de Casteljau with slerps: writes the joint
+/// rotations into `rotations` and returns the height (m).
+fn cubic(points: [&Pose; 4], s: f32, rotations: &mut [Quat]) -> f32 {
+    let [a, b, c, d] = points;
+    let lerp = |x: f32, y: f32| x + (y - x) * s;
+    for (k, r) in rotations.iter_mut().enumerate() {
+        let (p, q, u, v) = (a.rotations[k], b.rotations[k], c.rotations[k], d.rotations[k]);
+        let (pq, qu, uv) = (slerp_short(p, q, s), slerp_short(q, u, s), slerp_short(u, v, s));
+        *r = slerp_short(slerp_short(pq, qu, s), slerp_short(qu, uv, s), s);
+    }
+    let (ab, bc, cd) = (lerp(a.height_m, b.height_m), lerp(b.height_m, c.height_m), lerp(c.height_m, d.height_m));
+    lerp(lerp(ab, bc), lerp(bc, cd))
 }
 
 /// The Bézier fallback: appends the interpolated frames, then `target` placed at the
 /// source's last heading and floor position. Returns the number of interpolated frames.
+///
+/// The curve has two cubic pieces, P0–A–C1–M and M–C2–B–P3 (P0 the source's last pose,
+/// P3 the target's first, C1 and C2 the averaged halves of the medoid walk, M midway
+/// between C1 and C2 so the pieces meet with equal velocity). A and B come from the end
+/// velocities — P0 carried on by a sixth of the transition's frames at the source's last
+/// per-frame velocity, P3 carried back likewise at the target's first — so the curve
+/// leaves the source and enters the target at their own joint angular velocities instead
+/// of with a jump (the paper's quadratic pieces start and stop at rest).
 fn bezier_fallback(
     graph: &TransitionGraph,
     out: &mut Motion,
-    target: &Motion,
+    target: Frames<'_>,
     walk: &[u32],
     p: &SynthesisParams,
 ) -> usize {
@@ -352,32 +459,43 @@ fn bezier_fallback(
     let last = out.frame_count() - 1;
     let medoid = |n: u32| {
         let (clip, frame) = c.locate(c.centres[n as usize]);
-        heading_free(&Motion::of_clip(&c.clip_set.clips()[clip].clip.slice(frame, frame + 1)), 0)
+        let clip = &c.clip_set.clips()[clip].clip;
+        heading_free(clip.frame_rotations(frame), clip.frame_translations(frame)[0])
     };
     let half = walk.len().div_ceil(2);
     let c1 = average(&walk[..half].iter().map(|&n| medoid(n)).collect::<Vec<_>>());
     let c2 = average(&walk[half..].iter().map(|&n| medoid(n)).collect::<Vec<_>>());
-    let mid = quadratic(&c1, &c1, &c2, 0.5);
-    let (p0, p3) = (heading_free(out, last), heading_free(target, 0));
+    let mid = Pose {
+        height_m: 0.5 * (c1.height_m + c2.height_m),
+        rotations: c1.rotations.iter().zip(&c2.rotations).map(|(a, b)| slerp_short(*a, *b, 0.5)).collect(),
+    };
+    let (p0, p3) = (pose_of(out.frames(), last), pose_of(target, 0));
     let layout = &c.features;
-    let d = out.features(layout, last..last + 1).distance_to(0, &target.features(layout, 0..1), 0);
+    let d = out.frames().features(layout, last..last + 1).distance_to(0, &target.features(layout, 0..1), 0);
     let frames = ((f64::from(d) / p.sigma_per_frame).round() as usize)
         .clamp(p.min_fallback_frames.max(2), p.max_fallback_frames);
-    let (root_rotation, root_position) = (out.rot(last)[0], out.trans(last)[0]);
+    let lead = frames as f32 / 6.0;
+    let a = carried_on(&pose_of(out.frames(), last.saturating_sub(1)), &p0, lead);
+    let b = carried_on(&pose_of(target, 1.min(target.frame_count() - 1)), &p3, lead);
+    let (root_rotation, root_position) = (out.rotations[last * out.joints], out.translations[last * out.joints]);
     let heading = Quat::from_rotation_y(heading_yaw(root_rotation));
-    let offsets = out.trans(last).to_vec();
+    let joints = out.joints;
+    out.rotations.reserve((frames - 1 + target.frame_count()) * joints);
+    out.translations.reserve((frames - 1 + target.frame_count()) * joints);
     for k in 1..frames {
         let u = k as f32 / frames as f32;
-        let pose = if u < 0.5 { quadratic(&p0, &c1, &mid, 2.0 * u) } else { quadratic(&mid, &c2, &p3, 2.0 * u - 1.0) };
-        let mut rotations = pose.rotations;
+        let at = out.rotations.len();
+        out.rotations.extend_from_within(last * joints..(last + 1) * joints);
+        out.translations.extend_from_within(last * joints..(last + 1) * joints);
+        let rotations = &mut out.rotations[at..];
+        let height_m = if u < 0.5 {
+            cubic([&p0, &a, &c1, &mid], 2.0 * u, rotations)
+        } else {
+            cubic([&mid, &c2, &b, &p3], 2.0 * u - 1.0, rotations)
+        };
         rotations[0] = heading * rotations[0];
-        out.rotations.extend(rotations);
-        let mut translations = offsets.clone();
-        translations[0] = Vec3::new(root_position.x, pose.height_m, root_position.z);
-        out.translations.extend(translations);
+        out.translations[at] = Vec3::new(root_position.x, height_m, root_position.z);
     }
-    let placed = placed_at(target, 0, root_rotation, root_position);
-    out.rotations.extend_from_slice(&placed.rotations);
-    out.translations.extend_from_slice(&placed.translations);
+    append_placed(out, target, 0, &Placement::new(target, 0, root_rotation, root_position));
     frames - 1
 }
