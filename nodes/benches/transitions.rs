@@ -69,7 +69,7 @@ fn bench(c: &mut Criterion) {
     // Once with the whole takes, once with the single strikes of the example's label file,
     // once with every pair of clusters left without a path (the Bézier fallback).
     let whole = find_actions(&set, &BTreeMap::new(), &["02_01", "02_05", "144_05"]).expect("clips in the corpus");
-    let label_file = concat!(env!("CARGO_MANIFEST_DIR"), "/../graphs/walk_punch_kick.actions.ron");
+    let label_file = concat!(env!("CARGO_MANIFEST_DIR"), "/../graphs/labels/walk_punch_kick.ron");
     let labelled = ActionLabels::parse(&std::fs::read_to_string(label_file).expect("label file"))
         .and_then(|l| l.resolve(&set))
         .expect("labels fit the corpus");
