@@ -206,3 +206,20 @@ fn a_tracked_pelvis_keeps_to_the_source_ground_track_while_the_toes_still_track(
     assert!(tracked.0 < 0.2 * imitated.0);
     assert!(tracked.1 < 0.01, "the toes still track within 1 cm: {} m", tracked.1);
 }
+
+/// Contacts are matched to the feet by joint name: listing the feet the other way round
+/// changes nothing.
+#[test]
+fn contacts_listed_in_either_order_plant_the_same_feet() {
+    let Some(data) = shared_data() else { return };
+    let (source, _) = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value;
+    let source = Arc::new(trim(&source, 0.01, None).unwrap());
+    let copied = scale_clip(&source, 0.6, &parse_rules("Leg=0.52").unwrap()).unwrap();
+    let landmarks = find_landmarks(source.skeleton()).unwrap();
+    let contacts = detect_contacts(&source, &forward_kinematics(&source), &landmarks, &ContactThresholds::default());
+    let mut swapped = contacts.clone();
+    swapped.feet.reverse();
+    let run =
+        |c: &Contacts| retarget_clip(&source, &copied, Some(c), Effectors::Feet, RetargetParams::default()).unwrap();
+    assert_eq!(run(&contacts).clip, run(&swapped).clip);
+}

@@ -30,7 +30,7 @@ use super::solve::IkSolver;
 use crate::builtin::momentum::body::{find_landmarks, limb_tip};
 use crate::builtin::momentum::into_report;
 use crate::model::fk::pose_world;
-use crate::model::{Clip, Contacts, FrameRange, Skeleton, Transform};
+use crate::model::{Clip, Contacts, FootContacts, FrameRange, Skeleton, Transform};
 use crate::node::{ChoiceParam, FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Report};
 use serde_json::json;
 
@@ -320,13 +320,22 @@ pub fn retarget_clip(
     let mut out_rot = Vec::with_capacity(frames * skeleton.len());
     let mut out_tr = Vec::with_capacity(frames * skeleton.len());
     let mut reports = Vec::with_capacity(frames);
+    // Each toe tip (the first two effectors) takes the contacts of the foot it lies under,
+    // matched by the foot's joint name, whatever order the contacts list the feet in.
     let plants: Vec<Plants> = match contacts {
-        Some(c) => c
-            .feet
+        Some(c) => tips
             .iter()
-            .zip(&tips)
             .take(2)
-            .map(|(foot, &tip)| Plants::new(source, tip, &foot.intervals, blend_frames))
+            .map(|&tip| {
+                let under = |f: &&FootContacts| {
+                    source
+                        .skeleton()
+                        .index_of(&f.foot)
+                        .is_some_and(|a| a == tip || source.skeleton().is_ancestor(a, tip))
+                };
+                let intervals = c.feet.iter().find(under).map_or(&[][..], |f| f.intervals.as_slice());
+                Plants::new(source, tip, intervals, blend_frames)
+            })
             .collect(),
         None => Vec::new(),
     };
