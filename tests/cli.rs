@@ -335,5 +335,5 @@ fn a_saved_bone_map_is_edited_and_reused_and_bad_ones_are_located() {
     let out = run("misspelt.ron", graph("misspelt_map.ron"));
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     let err = node_error(&out);
-    assert!(err.contains("map_file") && err.contains("did you mean `LeftForeArm`?"), "{err}");
+    assert!(err.contains("map_file") && err.contains("did you mean 'LeftForeArm'?"), "{err}");
 }

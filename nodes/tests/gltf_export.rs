@@ -195,16 +195,17 @@ fn corpus_samples_re_exported_pass_the_validator() {
 /// the character keeps its feet near the floor it stands on.
 #[test]
 fn a_cmu_walk_on_cesium_man_passes_the_validator() {
-    use kinegraph_nodes::builtin::ik::map::{clip_roles, map_by_roles, transfer};
+    use kinegraph_nodes::builtin::ik::map::{Bodies, map_by_roles, transfer};
     use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
     let Some(data) = shared_data() else { return };
     let walk = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value.0;
     let walk = walk.slice(1, walk.frame_count());
     let asset = read_gltf_file(&data.join("gltf/CesiumMan.glb"), &GltfReadOptions::default()).unwrap().value;
     let man = &asset.clips[0].clip;
-    let (t, s) = (clip_roles(man, "target").unwrap(), clip_roles(&walk, "source").unwrap());
-    let map = map_by_roles(man.skeleton(), &t, walk.skeleton(), &s);
-    let out = transfer(&walk, man, &map, None).unwrap();
+    let bodies = Bodies::of(man, &walk).unwrap();
+    let (t, s) = (&bodies.target, &bodies.source);
+    let map = map_by_roles(man.skeleton(), t, walk.skeleton(), s);
+    let out = transfer(&walk, man, &map, Some(&bodies), None).unwrap();
     println!("CesiumMan: {} pairs, unmapped {:?}, root scale {:.3}", map.joints.len(), out.unmapped, out.root_scale);
     assert!(out.clip.rotations().iter().all(|q| q.is_finite()));
     // Lowest point of the feet over the walk against the CesiumMan's own first frame.
@@ -237,7 +238,7 @@ fn a_cmu_walk_on_cesium_man_passes_the_validator() {
         }
         ahead
     };
-    let (man_ahead, cmu_ahead) = (knees_ahead(man, &t), knees_ahead(&walk, &s));
+    let (man_ahead, cmu_ahead) = (knees_ahead(man, t), knees_ahead(&walk, s));
     println!(
         "knees ahead of the hip–ankle line toward the leaf below the ankle: CesiumMan {man_ahead:.3} m, CMU {cmu_ahead:.3} m"
     );

@@ -138,13 +138,14 @@ fn cmu_walk_retargets_to_a_smaller_character_without_skating() {
     // The core of each contact (the planted goal at full weight, edges excluded): there the
     // retargeted toe must stand still, unlike the angle copy's.
     let core = |c: &Clip| -> f64 {
+        let poses = forward_kinematics(c);
         landmarks
             .feet()
             .iter()
             .enumerate()
             .map(|(k, &foot)| {
                 let tip = limb_tip(c.skeleton(), foot);
-                planted_travel_m(c, tip, &Plants::new(&source, tip, &contacts.feet[k].intervals, 6))
+                planted_travel_m(&poses, tip, &Plants::new(&source, tip, &contacts.feet[k].intervals, 6))
             })
             .sum()
     };

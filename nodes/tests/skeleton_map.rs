@@ -5,7 +5,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use kinegraph_nodes::builtin::ik::map::{clip_roles, map_by_roles, reference, shape_roles, transfer};
+use kinegraph_nodes::builtin::ik::map::{Bodies, map_by_roles, reference, shape_roles, transfer};
 use kinegraph_nodes::builtin::momentum::body::find_landmarks;
 use kinegraph_nodes::corpus::{files_with_extension, shared_data};
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
@@ -63,12 +63,13 @@ fn the_daz_copy_of_a_take_maps_onto_the_motionbuilder_copy() {
     let Some(data) = shared_data() else { return };
     let daz = load(&data.join("bvh/cmu_daz/02_02.bvh"));
     let cmu = load(&data.join("bvh/cmu/02_02.bvh"));
-    let (t, s) = (clip_roles(&cmu, "target").unwrap(), clip_roles(&daz, "source").unwrap());
-    let map = map_by_roles(cmu.skeleton(), &t, daz.skeleton(), &s);
+    let bodies = Bodies::of(&cmu, &daz).unwrap();
+    let t = &bodies.target;
+    let map = map_by_roles(cmu.skeleton(), t, daz.skeleton(), &bodies.source);
     for (target, source) in [("LeftUpLeg", "lThigh"), ("RightLeg", "rShin"), ("LeftForeArm", "lForeArm")] {
         assert_eq!(map.joints.get(target).map(String::as_str), Some(source), "{map:?}");
     }
-    let out = transfer(&daz, &cmu, &map, None).unwrap();
+    let out = transfer(&daz, &cmu, &map, Some(&bodies), None).unwrap();
     assert_eq!(out.clip.frame_count(), cmu.frame_count());
     // Each limb bone's world direction, every frame: the carried motion against the DAZ
     // source it came from (the same bone, through the map), and against the real

@@ -10,12 +10,13 @@
 //! playing; 3. each frame projects every bone through the camera and draws it, after the
 //! mesh: its triangles shaded by their facing to the camera and drawn far to near.
 
+use std::borrow::Cow;
 use std::sync::Arc;
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, Ui, Vec2};
 use glam::Vec3;
 use kinegraph_nodes::builtin::contacts::{ContactThresholds, contacts_of};
-use kinegraph_nodes::builtin::skin::{check_skin, lbs_frame, rest_normals, skinning_matrices};
+use kinegraph_nodes::builtin::skin::{blend_matrices, check_skin, skinning_matrices};
 use kinegraph_nodes::model::{Clip, ClipPoses, Contacts, Mesh, MeshSequence, forward_kinematics};
 
 /// Vertical field of view of the camera (radians).
@@ -41,21 +42,39 @@ pub(crate) enum ShownMesh {
 }
 
 impl ShownMesh {
-    /// The mesh's vertex positions (metres) at `frame` of the clip posed as `poses`, or `None`
-    /// when it does not fit the clip (another skeleton, too few frames).
-    fn positions(&self, clip: &Clip, poses: &ClipPoses, frame: usize) -> Option<(Vec<Vec3>, &Mesh)> {
+    /// Whether the mesh can move with `clip`: a sequence of that clip's frames, or a skin
+    /// bound to its skeleton. Checked once, when the mesh is put on show.
+    fn fits(&self, clip: &Clip) -> bool {
         match self {
-            ShownMesh::Baked(seq) => {
-                (frame < seq.frame_count()).then(|| (seq.frame_positions(frame).to_vec(), seq.rest.as_ref()))
-            }
+            ShownMesh::Baked(seq) => seq.frame_count() >= clip.frame_count(),
             ShownMesh::Skinned(mesh) => {
-                let skin = mesh.skin.as_ref()?;
-                check_skin(skin, clip.skeleton(), mesh.positions.len()).ok()?;
+                mesh.skin.as_ref().is_some_and(|skin| check_skin(skin, clip.skeleton(), mesh.positions.len()).is_ok())
+            }
+        }
+    }
+
+    /// The same mesh (the same shared data).
+    fn is(&self, other: &ShownMesh) -> bool {
+        match (self, other) {
+            (ShownMesh::Baked(a), ShownMesh::Baked(b)) => Arc::ptr_eq(a, b),
+            (ShownMesh::Skinned(a), ShownMesh::Skinned(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        }
+    }
+
+    /// The mesh's vertex positions (metres) at `frame` of its clip posed as `poses` (the mesh
+    /// fits the clip), with the mesh whose triangles they fill.
+    fn positions(&self, poses: &ClipPoses, frame: usize) -> (Cow<'_, [Vec3]>, &Mesh) {
+        match self {
+            ShownMesh::Baked(seq) => (Cow::Borrowed(seq.frame_positions(frame)), seq.rest.as_ref()),
+            ShownMesh::Skinned(mesh) => {
+                let Some(skin) = &mesh.skin else { return (Cow::Borrowed(&mesh.positions), mesh.as_ref()) };
+                // Positions only: the drawing shades by face normals.
                 let matrices = skinning_matrices(poses.frame(frame), &skin.inverse_bind_matrices);
-                let n = mesh.positions.len();
-                let (mut positions, mut normals) = (vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]);
-                lbs_frame(&mesh.positions, &rest_normals(mesh), skin, &matrices, &mut positions, &mut normals);
-                Some((positions, mesh.as_ref()))
+                let posed = (mesh.positions.iter().zip(&skin.joints).zip(&skin.weights))
+                    .map(|((p, joints), weights)| blend_matrices(&matrices, joints, weights).transform_point3(*p))
+                    .collect();
+                (Cow::Owned(posed), mesh.as_ref())
             }
         }
     }
@@ -151,8 +170,9 @@ struct Shown {
     contacts: Option<Contacts>,
     /// Joint indices of the feet (left, right), matching `contacts.feet`.
     feet: Vec<usize>,
-    /// The mesh drawn with the skeleton.
+    /// The mesh offered with the clip, and whether it fits it (drawn only then).
     mesh: Option<ShownMesh>,
+    mesh_fits: bool,
 }
 
 impl Shown {
@@ -179,6 +199,7 @@ impl Shown {
             contacts: found.map(|(c, _)| c),
             feet,
             mesh: None,
+            mesh_fits: false,
         }
     }
 
@@ -251,7 +272,14 @@ impl Viewport {
             None => self.shown = None,
         }
         if let Some(shown) = &mut self.shown {
-            shown.mesh = mesh;
+            let same = match (&shown.mesh, &mesh) {
+                (Some(a), Some(b)) => a.is(b),
+                (a, b) => a.is_none() && b.is_none(),
+            };
+            if !same {
+                shown.mesh_fits = mesh.as_ref().is_some_and(|m| m.fits(&shown.clip));
+                shown.mesh = mesh;
+            }
         }
         if self.shown.is_none() && self.compared.is_none() {
             ui.centered_and_justified(|ui| {
@@ -352,7 +380,7 @@ impl Viewport {
                 self.reframe = true;
             }
             ui.separator();
-            if self.shown.as_ref().is_some_and(|s| s.mesh.is_some()) {
+            if self.shown.as_ref().is_some_and(|s| s.mesh_fits) {
                 ui.checkbox(&mut self.overlays.mesh, "mesh");
             }
             ui.checkbox(&mut self.overlays.grid, "grid");
@@ -484,11 +512,11 @@ fn draw_trajectories(
 /// The shown clip's mesh at `frame`: triangles drawn far to near (painter's order), each
 /// shaded by how squarely it faces the camera at `eye`.
 fn draw_mesh(painter: &egui::Painter, project: &impl Fn(Vec3) -> Option<Pos2>, eye: Vec3, shown: &Shown, frame: usize) {
-    let Some(mesh) = &shown.mesh else { return };
+    let Some(mesh) = shown.mesh.as_ref().filter(|_| shown.mesh_fits) else { return };
     if shown.poses.frame_count() == 0 {
         return;
     }
-    let Some((positions, rest)) = mesh.positions(&shown.clip, &shown.poses, frame) else { return };
+    let (positions, rest) = mesh.positions(&shown.poses, frame);
     let screen: Vec<Option<Pos2>> = positions.iter().map(|p| project(*p)).collect();
     let mut faces: Vec<(f32, [usize; 3], f32)> = rest
         .triangles

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::path::PathBuf;
 
-use kinegraph_nodes::node::{Node, ParamKind, ParamValue, Registry, nearest_name};
+use kinegraph_nodes::node::{Node, ParamKind, ParamValue, Registry, did_you_mean, hint_for};
 use petgraph::graph::{DiGraph, NodeIndex};
 
 use crate::document::{GraphDoc, SourceMap, split_endpoint};
@@ -140,15 +140,6 @@ impl Checker<'_> {
     }
 }
 
-/// `" (did you mean 'x'?)"` for the nearest candidate, or nothing.
-fn did_you_mean(name: Option<&str>) -> String {
-    name.map(|c| format!(" (did you mean '{c}'?)")).unwrap_or_default()
-}
-
-fn nearest<'a>(name: &str, candidates: impl Iterator<Item = &'a str>) -> String {
-    did_you_mean(nearest_name(name, candidates))
-}
-
 /// Validates `doc` against `registry`. `path` and `source` only serve the messages.
 pub fn compile<'r>(
     doc: &GraphDoc,
@@ -165,7 +156,7 @@ pub fn compile<'r>(
             check.node(id, "node ids must be non-empty and contain no spaces".into());
         }
         let Some(node) = registry.get(&node_doc.kind) else {
-            let hint = did_you_mean(registry.nearest_kind(&node_doc.kind));
+            let hint = hint_for(registry.nearest_kind(&node_doc.kind));
             check.node(id, format!("unknown node kind '{}'{hint}; `kg nodes` lists them", node_doc.kind));
             continue;
         };
@@ -174,7 +165,7 @@ pub fn compile<'r>(
         for (name, value) in &node_doc.params {
             match schema.param(name) {
                 None => {
-                    let hint = nearest(name, schema.params.iter().map(|p| p.name));
+                    let hint = did_you_mean(name, schema.params.iter().map(|p| p.name));
                     check.param(id, name, format!("'{}' has no parameter '{name}'{hint}", schema.kind));
                 }
                 Some(spec) => match spec.check(value) {
@@ -222,7 +213,7 @@ pub fn compile<'r>(
         let mut endpoint = |node: &str, endpoint: &str| -> Option<usize> {
             let found = known.get(node).copied();
             if found.is_none() && !doc.nodes.contains_key(node) {
-                let hint = nearest(node, doc.nodes.keys().map(String::as_str));
+                let hint = did_you_mean(node, doc.nodes.keys().map(String::as_str));
                 check.edge(
                     endpoint,
                     Some(node),
@@ -235,7 +226,7 @@ pub fn compile<'r>(
         let (Some(src), Some(dst)) = (endpoint(from_node, &edge.from), endpoint(to_node, &edge.to)) else { continue };
         let (src_schema, dst_schema) = (nodes[src].node.schema(), nodes[dst].node.schema());
         let Some(out_index) = src_schema.outputs.iter().position(|p| p.name == from_port) else {
-            let hint = nearest(from_port, src_schema.outputs.iter().map(|p| p.name));
+            let hint = did_you_mean(from_port, src_schema.outputs.iter().map(|p| p.name));
             check.edge(
                 &edge.from,
                 Some(from_node),
@@ -245,7 +236,7 @@ pub fn compile<'r>(
             continue;
         };
         let Some(in_index) = dst_schema.inputs.iter().position(|p| p.name == to_port) else {
-            let hint = nearest(to_port, dst_schema.inputs.iter().map(|p| p.name));
+            let hint = did_you_mean(to_port, dst_schema.inputs.iter().map(|p| p.name));
             check.edge(
                 &edge.to,
                 Some(to_node),

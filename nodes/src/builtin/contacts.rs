@@ -9,9 +9,9 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use crate::builtin::ik::roles::body_roles;
+use crate::builtin::ik::roles::roles_of;
 use crate::builtin::momentum::angular::central_difference;
-use crate::builtin::momentum::body::{Landmarks, find_landmarks, limb_tip};
+use crate::builtin::momentum::body::{Landmarks, limb_tip};
 use crate::model::{Clip, ClipPoses, Contacts, FootContacts, FrameRange, forward_kinematics, intervals::intersect_all};
 use crate::node::{FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Registry};
 
@@ -123,26 +123,17 @@ fn feet_contacts(clip: &Clip, poses: &ClipPoses, feet: [usize; 2], thresholds: &
 }
 
 /// Contacts of both feet of `clip` with the feet's joint indices (left, right). The feet
-/// are found by joint name, or else from the body's shape in the first frame (any rig that
-/// stands on two legs, e.g. a glTF character with generic joint names); otherwise the
-/// joint names not found.
+/// are the body roles' ankles ([`roles_of`]: by joint name, or else from the body's shape
+/// in the first frame, e.g. a glTF character with generic joint names); otherwise why they
+/// could not be found.
 pub fn contacts_of(
     clip: &Clip,
     poses: &ClipPoses,
     thresholds: &ContactThresholds,
-) -> Result<(Contacts, [usize; 2]), Vec<String>> {
-    let feet = match find_landmarks(clip.skeleton()) {
-        Ok(landmarks) => landmarks.feet(),
-        Err(missing) => {
-            let first: Vec<glam::Vec3> = if poses.frame_count() > 0 {
-                poses.frame(0).iter().map(|t| t.translation).collect()
-            } else {
-                Vec::new()
-            };
-            let roles = body_roles(clip.skeleton(), &first).map_err(|_| missing)?;
-            roles.legs.map(|l| l.joints()[2])
-        }
-    };
+) -> Result<(Contacts, [usize; 2]), String> {
+    let first: Vec<glam::Vec3> =
+        if poses.frame_count() > 0 { poses.frame(0).iter().map(|t| t.translation).collect() } else { Vec::new() };
+    let feet = roles_of(clip.skeleton(), &first)?.legs.map(|l| l.joints()[2]);
     Ok((feet_contacts(clip, poses, feet, thresholds), feet))
 }
 
@@ -209,15 +200,8 @@ impl Node for DetectContacts {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
         let thresholds = thresholds_from(ctx)?;
-        let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &thresholds).map_err(|missing| {
-            NodeError::input(
-                "clip",
-                format!(
-                    "the feet could not be found, by joint name (missing: {}) or by the body's shape",
-                    missing.join(", ")
-                ),
-            )
-        })?;
+        let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &thresholds)
+            .map_err(|why| NodeError::input("clip", format!("the feet could not be found: {why}")))?;
         ctx.set_output(&CONTACTS, Arc::new(contacts));
         Ok(())
     }

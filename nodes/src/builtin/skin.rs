@@ -85,8 +85,10 @@ pub fn check_skin(skin: &Skin, skeleton: &Skeleton, vertices: usize) -> Result<(
 /// The index of the joint called `name`, or a message naming the nearest joint.
 pub fn joint_named(skeleton: &Skeleton, name: &str) -> Result<usize, String> {
     skeleton.index_of(name).ok_or_else(|| {
-        let hint = crate::node::nearest_name(name, skeleton.joints().iter().map(|j| j.name.as_str()));
-        format!("no joint '{name}'{}", hint.map(|h| format!(" (did you mean '{h}'?)")).unwrap_or_default())
+        format!(
+            "no joint '{name}'{}",
+            crate::node::did_you_mean(name, skeleton.joints().iter().map(|j| j.name.as_str()))
+        )
     })
 }
 

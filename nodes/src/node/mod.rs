@@ -154,6 +154,17 @@ pub fn nearest_name<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str
         .map(|(_, c)| c)
 }
 
+/// `" (did you mean 'x'?)"` for the candidate nearest `name` ([`nearest_name`]), or nothing:
+/// the one way every message suggests a name.
+pub fn did_you_mean<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str>) -> String {
+    hint_for(nearest_name(name, candidates))
+}
+
+/// `" (did you mean 'x'?)"` for a suggestion already found, or nothing.
+pub fn hint_for(suggestion: Option<&str>) -> String {
+    suggestion.map(|c| format!(" (did you mean '{c}'?)")).unwrap_or_default()
+}
+
 /// Levenshtein distance between two short names.
 pub fn edit_distance(a: &str, b: &str) -> usize {
     let b: Vec<char> = b.chars().collect();

@@ -18,7 +18,7 @@
 
 use std::sync::Arc;
 
-use glam::{DVec3, Quat, Vec3};
+use glam::{DVec3, Quat};
 use serde_json::json;
 
 use super::retarget::Plants;
@@ -27,7 +27,7 @@ use super::solve::{IkSolver, SolveParams, SolveReport, parse_weights};
 use crate::builtin::momentum::body::limb_tip;
 use crate::builtin::momentum::into_report;
 use crate::model::fk::pose_world;
-use crate::model::{Clip, ClipError, Contacts, Transform};
+use crate::model::{Clip, ClipError, ClipPoses, Contacts, Transform, forward_kinematics};
 use crate::node::{FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Report, TextParam};
 
 /// Controls of a foot lock.
@@ -126,6 +126,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
         contacts.feet.iter().zip(&tips).map(|(foot, &tip)| Plants::new(clip, tip, &foot.intervals, blend)).collect();
 
     let n = skeleton.len();
+    let before = forward_kinematics(clip);
     let mut solver = IkSolver::new(rig);
     let mut world = vec![Transform::IDENTITY; n];
     let mut goals = vec![DVec3::ZERO; ankles.len()];
@@ -134,15 +135,15 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     let mut frames = Vec::with_capacity(clip.frame_count());
     let mut pose = solver.rig().pose_from(clip.frame_rotations(0), clip.frame_translations(0));
     for f in 0..clip.frame_count() {
-        pose_world(skeleton, clip.frame_rotations(f), clip.frame_translations(f), &mut world);
+        let original = before.frame(f);
         for (k, &ankle) in ankles.iter().enumerate() {
-            let toe = world[tips[k]].translation.as_dvec3();
+            let toe = original[tips[k]].translation.as_dvec3();
             let correction = match plants[k].at(f) {
                 Some((place, w)) => w * (place - toe).with_y(0.0),
                 None => DVec3::ZERO,
             };
-            goals[k] = world[ankle].translation.as_dvec3() + correction;
-            foot_in_world[k] = world[ankle].rotation;
+            goals[k] = original[ankle].translation.as_dvec3() + correction;
+            foot_in_world[k] = original[ankle].rotation;
         }
         solver.rig().fill_pose(clip.frame_rotations(f), clip.frame_translations(f), &mut pose);
         frames.push(solver.solve(&mut pose, &goals, &params.solve));
@@ -157,6 +158,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
         }
     }
     let locked = Clip::new(skeleton.clone(), clip.fps(), rotations, clip.translations().to_vec(), clip.import_scale)?;
+    let after = forward_kinematics(&locked);
     let feet = contacts
         .feet
         .iter()
@@ -165,33 +167,21 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
         .map(|((foot, plant), &tip)| FootReport {
             foot: foot.foot.clone(),
             plants: foot.intervals.iter().filter(|r| !r.is_empty()).count(),
-            skate_before_m: planted_travel_m(clip, tip, plant),
-            skate_after_m: planted_travel_m(&locked, tip, plant),
+            skate_before_m: planted_travel_m(&before, tip, plant),
+            skate_after_m: planted_travel_m(&after, tip, plant),
         })
         .collect();
     Ok(FootLocked { clip: locked, feet, frames })
 }
 
 /// Horizontal travel of joint `point` between consecutive frames that are both fully
-/// planted (weight 1), in metres: how far a foot slides where it should stand still.
-pub fn planted_travel_m(clip: &Clip, point: usize, plants: &Plants) -> f64 {
-    let mut world = vec![Transform::IDENTITY; clip.joint_count()];
-    let mut previous: Option<Vec3> = None;
-    let mut travel = 0.0;
-    for f in 0..clip.frame_count() {
-        let planted = plants.at(f).is_some_and(|(_, w)| w >= 1.0);
-        if !planted {
-            previous = None;
-            continue;
-        }
-        pose_world(clip.skeleton(), clip.frame_rotations(f), clip.frame_translations(f), &mut world);
-        let here = world[point].translation;
-        if let Some(p) = previous {
-            travel += f64::from((here - p).with_y(0.0).length());
-        }
-        previous = Some(here);
-    }
-    travel
+/// planted (weight 1) in `poses`, in metres: how far a foot slides where it should stand still.
+pub fn planted_travel_m(poses: &ClipPoses, point: usize, plants: &Plants) -> f64 {
+    let planted = |f: usize| plants.at(f).is_some_and(|(_, w)| w >= 1.0);
+    (1..poses.frame_count())
+        .filter(|&f| planted(f) && planted(f - 1))
+        .map(|f| f64::from((poses.position(f, point) - poses.position(f - 1, point)).with_y(0.0).length()))
+        .sum()
 }
 
 const CLIP: Input<Arc<Clip>> = Input::required("clip", "The motion whose feet slide.");
@@ -298,6 +288,8 @@ impl Node for FootLock {
 
 #[cfg(test)]
 mod tests {
+    use glam::Vec3;
+
     use super::*;
     use crate::builtin::mannequin::mannequin_skeleton;
     use crate::model::{FootContacts, FrameRange, forward_kinematics};

@@ -442,6 +442,8 @@ struct Body {
     /// Ankle, heel, toe in the rest pose, world.
     foot_rest: [[DVec3; 3]; 2],
     foot_length_m: [f64; 2],
+    /// World transforms of every joint in the rest pose.
+    rest: Vec<Transform>,
 }
 
 fn body_of(skeleton: &Skeleton) -> Result<Body, GaitError> {
@@ -491,6 +493,7 @@ fn body_of(skeleton: &Skeleton) -> Result<Body, GaitError> {
         foot: feet,
         foot_rest: feet_rest,
         foot_length_m,
+        rest,
     })
 }
 
@@ -760,8 +763,8 @@ fn path_below(path: &[usize], knee: usize, joint: usize) -> bool {
 
 /// The knee's hinge: the Euler axis (0 X, 1 Y, 2 Z) of its rest frame nearest the body's
 /// left-right axis, and the sign of the angle that bends the shank backward.
-fn knee_hinge(skeleton: &Skeleton, body: &Body, leg: &LegJoints) -> (usize, f64) {
-    let rest = rest_world(skeleton);
+fn knee_hinge(body: &Body, leg: &LegJoints) -> (usize, f64) {
+    let rest = &body.rest;
     let knee_frame = rest[leg.knee].rotation.as_dquat();
     let lateral = body.face.inverse() * DVec3::X;
     let facing = body.face.inverse() * DVec3::Z;
@@ -876,7 +879,7 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     let rest_offsets: Vec<Vec3> = ik_skeleton.joints().iter().map(|j| j.rest_offset).collect();
     for side in 0..2 {
         let leg = &body.legs[side];
-        let hinge = knee_hinge(skeleton, &body, leg);
+        let hinge = knee_hinge(&body, leg);
         let (rig, knee_dof) = leg_rig(&ik_skeleton, leg, n + side, &params.legs[side], hinge, true)?;
         let (toe_rig, _) = leg_rig(&ik_skeleton, leg, n + side, &params.legs[side], hinge, false)?;
         let mut pose = rig.pose_from(&rest_rotations, &rest_offsets);
@@ -897,10 +900,7 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
         poses.push(pose);
     }
     let foot_rest = body.foot_rest;
-    let ankle_rest_rotation: Vec<DQuat> = {
-        let rest = rest_world(skeleton);
-        body.legs.iter().map(|l| rest[l.ankle].rotation.as_dquat()).collect()
-    };
+    let ankle_rest_rotation: Vec<DQuat> = body.legs.iter().map(|l| body.rest[l.ankle].rotation.as_dquat()).collect();
 
     let mut rotations = Vec::with_capacity(frames * n);
     let mut translations = Vec::with_capacity(frames * n);
@@ -1042,7 +1042,7 @@ fn measure(clip: &Clip, body: &Body, plan: &Plan, params: &GaitParams, walking: 
             })
             .collect();
         let leg = &body.legs[side];
-        let rest_angle = knee_angle(&rest_world(clip.skeleton()), leg);
+        let rest_angle = knee_angle(&body.rest, leg);
         let bend = |f: usize| knee_angle(poses.frame(f), leg) - rest_angle;
         let flexion = (0..clip.frame_count()).map(bend).fold(0.0f64, f64::max);
         let ranges: Vec<f64> = plan.footfalls[side]

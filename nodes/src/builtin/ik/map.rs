@@ -3,7 +3,7 @@
 //!
 //! Mapping: the body roles of both skeletons (by joint name where the names say, else by
 //! shape: [`super::roles`]) are paired — pelvis, the
-//! spine by relative height between pelvis, chest and head, and per leg and arm the joints
+//! spine by relative rest length between pelvis, chest and head, and per leg and arm the joints
 //! above the limb (clavicle, hip joint) counted back from it, the upper, lower and end
 //! joints, and the joints below the end (toes, fingers) counted on. A RON bone-map file
 //! adds to or overrides the pairs.
@@ -26,8 +26,7 @@ use glam::{Mat3, Quat, Vec3};
 use nalgebra::Matrix3;
 use serde_json::json;
 
-use super::roles::{BodyRoles, Limb, body_roles, named_roles};
-use crate::builtin::momentum::body::find_landmarks;
+use super::roles::{BodyRoles, Limb, body_roles, roles_of};
 use crate::builtin::momentum::into_report;
 use crate::formats::FormatError;
 use crate::model::bone_map::BoneMap;
@@ -35,7 +34,7 @@ use crate::model::fk::pose_world;
 use crate::model::{Clip, ClipError, Skeleton, Transform};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputPathParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
-    Report, nearest_name,
+    Report, did_you_mean,
 };
 
 /// Why a bone map or a transfer failed.
@@ -62,6 +61,9 @@ pub enum MapError {
     /// Nothing maps.
     #[error("no joint of the target is mapped")]
     Empty,
+    /// No leg lengths to scale the pelvis path by.
+    #[error("the legs of the skeletons are not known: set root_scale")]
+    NoRootScale,
     /// A clip without frames.
     #[error("the {0} clip has no frames")]
     NoFrames(&'static str),
@@ -81,9 +83,9 @@ pub fn map_by_roles(target: &Skeleton, t: &BodyRoles, source: &Skeleton, s: &Bod
     };
     let (t_lower, t_upper) = split(target, t);
     let (s_lower, s_upper) = split(source, s);
-    let (t_lower_from, s_lower_from) = (t.pelvis, s.pelvis);
-    pairs.extend(by_height(target, t_lower_from, &t_lower, source, s_lower_from, &s_lower));
-    pairs.extend(by_height(target, t.chest, &t_upper, source, s.chest, &s_upper));
+    let (t_rest, s_rest) = (target.rest_positions(), source.rest_positions());
+    pairs.extend(by_length((&t_rest, t.pelvis, &t_lower), (&s_rest, s.pelvis, &s_lower)));
+    pairs.extend(by_length((&t_rest, t.chest, &t_upper), (&s_rest, s.chest, &s_upper)));
     for (tl, sl) in t.legs.iter().zip(&s.legs).chain(t.arms.iter().zip(&s.arms)) {
         pairs.extend(limb_pairs(tl, sl));
     }
@@ -96,17 +98,13 @@ pub fn map_by_roles(target: &Skeleton, t: &BodyRoles, source: &Skeleton, s: &Bod
     BoneMap { joints }
 }
 
-/// Pairs the joints of two chains by their relative distance along the chain from `from`.
-fn by_height(
-    target: &Skeleton,
-    t_from: usize,
-    t_chain: &[usize],
-    source: &Skeleton,
-    s_from: usize,
-    s_chain: &[usize],
-) -> Vec<(usize, usize)> {
-    let fractions = |sk: &Skeleton, from: usize, chain: &[usize]| {
-        let rest = sk.rest_positions();
+/// A chain of joints below a joint `from`, with the skeleton's rest positions.
+type Chain<'a> = (&'a [Vec3], usize, &'a [usize]);
+
+/// Pairs the joints of two chains by their relative rest length along the chain from its
+/// top joint.
+fn by_length(target: Chain<'_>, source: Chain<'_>) -> Vec<(usize, usize)> {
+    let fractions = |(rest, from, chain): Chain<'_>| {
         let mut along = Vec::with_capacity(chain.len());
         let (mut total, mut previous) = (0.0f32, from);
         for &j in chain {
@@ -116,7 +114,8 @@ fn by_height(
         }
         along.iter().map(|a| if total > 0.0 { a / total } else { 1.0 }).collect::<Vec<f32>>()
     };
-    let (tf, sf) = (fractions(target, t_from, t_chain), fractions(source, s_from, s_chain));
+    let (tf, sf) = (fractions(target), fractions(source));
+    let (t_chain, s_chain) = (target.2, source.2);
     t_chain
         .iter()
         .zip(&tf)
@@ -141,9 +140,7 @@ fn resolve(map: &BoneMap, target: &Skeleton, source: &Skeleton) -> Result<Vec<(u
         sk.index_of(name).ok_or_else(|| MapError::UnknownJoint {
             which,
             name: name.to_owned(),
-            hint: nearest_name(name, sk.joints().iter().map(|j| j.name.as_str()))
-                .map(|n| format!(" (did you mean `{n}`?)"))
-                .unwrap_or_default(),
+            hint: did_you_mean(name, sk.joints().iter().map(|j| j.name.as_str())),
         })
     };
     let mut pairs = map
@@ -168,21 +165,35 @@ pub fn reference(clip: &Clip, which: &'static str) -> Result<Vec<Transform>, Map
     Ok(world)
 }
 
-/// The body roles of a clip's skeleton: from its joint names when they name every limb
-/// (CMU, DAZ, 3ds Max, HumanIK, Mixamo, Blender styles), else from its shape in the first
-/// frame (any naming).
+/// The body roles of a clip's skeleton ([`roles_of`]: by name, else by its shape in the
+/// first frame).
 pub fn clip_roles(clip: &Clip, which: &'static str) -> Result<BodyRoles, MapError> {
-    let world = reference(clip, which)?;
-    if let Some(roles) = find_landmarks(clip.skeleton()).ok().and_then(|l| named_roles(clip.skeleton(), &l)) {
-        return Ok(roles);
-    }
-    shape_roles(clip.skeleton(), &world, which)
+    roles_of(clip.skeleton(), &positions(&reference(clip, which)?)).map_err(|why| MapError::Roles { which, why })
 }
 
 /// The body roles of a skeleton posed at `world`, read from its shape only.
 pub fn shape_roles(skeleton: &Skeleton, world: &[Transform], which: &'static str) -> Result<BodyRoles, MapError> {
-    let pos: Vec<Vec3> = world.iter().map(|t| t.translation).collect();
-    body_roles(skeleton, &pos).map_err(|why| MapError::Roles { which, why })
+    body_roles(skeleton, &positions(world)).map_err(|why| MapError::Roles { which, why })
+}
+
+fn positions(world: &[Transform]) -> Vec<Vec3> {
+    world.iter().map(|t| t.translation).collect()
+}
+
+/// The body roles of both skeletons of a transfer, read once.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Bodies {
+    /// The character receiving the motion.
+    pub target: BodyRoles,
+    /// The motion's skeleton.
+    pub source: BodyRoles,
+}
+
+impl Bodies {
+    /// The body roles of `target`'s and `source`'s skeletons ([`clip_roles`]).
+    pub fn of(target: &Clip, source: &Clip) -> Result<Bodies, MapError> {
+        Ok(Bodies { target: clip_roles(target, "target")?, source: clip_roles(source, "source")? })
+    }
 }
 
 /// Mean leg length (hip to knee to ankle, metres) of a skeleton in a reference pose.
@@ -232,25 +243,28 @@ pub struct Transferred {
 }
 
 /// Carries `source`'s motion onto `target`'s skeleton through `map` (see the module doc).
-/// `root_scale` replaces the leg-length ratio; without it both skeletons need legs.
-pub fn transfer(source: &Clip, target: &Clip, map: &BoneMap, root_scale: Option<f64>) -> Result<Transferred, MapError> {
+/// `bodies` give the pelvis pair and the leg-length ratio; `root_scale` replaces the ratio.
+/// Without bodies the topmost mapped pair carries the path, and `root_scale` is needed.
+pub fn transfer(
+    source: &Clip,
+    target: &Clip,
+    map: &BoneMap,
+    bodies: Option<&Bodies>,
+    root_scale: Option<f64>,
+) -> Result<Transferred, MapError> {
     let (t_sk, s_sk) = (target.skeleton(), source.skeleton());
     let pairs = resolve(map, t_sk, s_sk)?;
     let (s_ref, t_ref) = (reference(source, "source")?, reference(target, "target")?);
-    let roles = clip_roles(target, "target").and_then(|t| Ok((t, clip_roles(source, "source")?)));
-    let scale = match (root_scale, &roles) {
+    let scale = match (root_scale, bodies) {
         (Some(s), _) => s,
-        (None, Ok((t, s))) => {
-            let s_len = leg_length(s, &s_ref);
-            if s_len > 1e-6 { f64::from(leg_length(t, &t_ref) / s_len) } else { 1.0 }
+        (None, Some(b)) => {
+            let s_len = leg_length(&b.source, &s_ref);
+            if s_len > 1e-6 { f64::from(leg_length(&b.target, &t_ref) / s_len) } else { 1.0 }
         }
-        (None, Err(e)) => return Err(e.clone()),
+        (None, None) => return Err(MapError::NoRootScale),
     };
     // The pelvis pair carries the path: from the body roles, or else the topmost mapped joint.
-    let pelvis = match &roles {
-        Ok((t, s)) => (t.pelvis, s.pelvis),
-        Err(_) => pairs[0],
-    };
+    let pelvis = bodies.map_or(pairs[0], |b| (b.target.pelvis, b.source.pelvis));
     let n = t_sk.len();
     let mut driver: Vec<Option<usize>> = vec![None; n];
     for &(t, s) in &pairs {
@@ -369,22 +383,31 @@ impl Node for MapSkeleton {
                 NodeError::input("source", e.to_string())
             }
             MapError::UnknownJoint { .. } | MapError::Empty => NodeError::param("map_file", e.to_string()),
+            MapError::NoRootScale => NodeError::param("root_scale", e.to_string()),
             e => NodeError::input("target", e.to_string()),
+        };
+        let root_scale = ctx.optional_float(&ROOT_SCALE)?;
+        let auto = ctx.choice(&AUTO)? == "body";
+        // The body roles are read once: for the automatic pairs, the pelvis and the scale.
+        let bodies = match Bodies::of(&target, &source) {
+            Ok(b) => Some(b),
+            Err(e) if auto || root_scale.is_none() => return Err(failed(e)),
+            Err(_) => None,
         };
         let mut map = BoneMap::default();
         let mut roles = BTreeMap::new();
-        if ctx.choice(&AUTO)? == "body" {
-            let (t, s) =
-                (clip_roles(&target, "target").map_err(failed)?, clip_roles(&source, "source").map_err(failed)?);
-            map = map_by_roles(target.skeleton(), &t, source.skeleton(), &s);
-            roles.insert("target", roles_json(target.skeleton(), &t));
-            roles.insert("source", roles_json(source.skeleton(), &s));
+        if let Some(b) = &bodies {
+            if auto {
+                map = map_by_roles(target.skeleton(), &b.target, source.skeleton(), &b.source);
+            }
+            roles.insert("target", roles_json(target.skeleton(), &b.target));
+            roles.insert("source", roles_json(source.skeleton(), &b.source));
         }
         if let Some(path) = ctx.optional_input_path(&MAP_FILE)? {
             let text = std::fs::read_to_string(&path).map_err(|e| FormatError::io(&path, &e))?;
             map.joints.extend(BoneMap::from_ron(&text, &path)?.joints);
         }
-        let out = transfer(&source, &target, &map, ctx.optional_float(&ROOT_SCALE)?).map_err(failed)?;
+        let out = transfer(&source, &target, &map, bodies.as_ref(), root_scale).map_err(failed)?;
         if !out.unmapped.is_empty() {
             ctx.warn(format!(
                 "{} target joints have no source joint and keep their reference angles: {}",
@@ -470,12 +493,12 @@ mod tests {
     #[test]
     fn a_clip_mapped_onto_its_own_skeleton_is_unchanged() {
         let clip = mannequin_clip(40, 30.0, 1.0, 1.2).unwrap();
-        let roles = clip_roles(&clip, "source").unwrap();
-        let map = map_by_roles(clip.skeleton(), &roles, clip.skeleton(), &roles);
+        let bodies = Bodies::of(&clip, &clip).unwrap();
+        let map = map_by_roles(clip.skeleton(), &bodies.target, clip.skeleton(), &bodies.source);
         // Every joint maps to itself (end sites aside, the mannequin has none).
         assert_eq!(map.joints.len(), clip.joint_count());
         assert!(map.joints.iter().all(|(t, s)| t == s));
-        let out = transfer(&clip, &clip, &map, None).unwrap();
+        let out = transfer(&clip, &clip, &map, Some(&bodies), None).unwrap();
         assert!((out.root_scale - 1.0).abs() < 1e-6);
         let (a, b) = (forward_kinematics(&clip), forward_kinematics(&out.clip));
         for f in 0..clip.frame_count() {
@@ -499,9 +522,9 @@ mod tests {
         }
         let tr: Vec<Vec3> = big.joints().iter().map(|j| j.rest_offset).collect();
         let target = Clip::new(big, 30.0, rot, tr, crate::model::ImportScale::METRES).unwrap();
-        let (t, s) = (clip_roles(&target, "target").unwrap(), clip_roles(&source, "source").unwrap());
-        let map = map_by_roles(target.skeleton(), &t, source.skeleton(), &s);
-        let out = transfer(&source, &target, &map, None).unwrap();
+        let bodies = Bodies::of(&target, &source).unwrap();
+        let map = map_by_roles(target.skeleton(), &bodies.target, source.skeleton(), &bodies.source);
+        let out = transfer(&source, &target, &map, Some(&bodies), None).unwrap();
         assert!((out.root_scale - 1.3).abs() < 1e-4, "{}", out.root_scale);
         let (a, b) = (forward_kinematics(&source), forward_kinematics(&out.clip));
         let sk = source.skeleton();
@@ -521,8 +544,8 @@ mod tests {
     fn map_entries_naming_missing_joints_are_refused_with_a_hint() {
         let clip = mannequin_clip(5, 30.0, 1.0, 1.0).unwrap();
         let map = BoneMap { joints: [("LeftLeg".to_owned(), "LeftLegg".to_owned())].into_iter().collect() };
-        let e = transfer(&clip, &clip, &map, Some(1.0)).unwrap_err();
-        assert!(e.to_string().contains("did you mean `LeftLeg`"), "{e}");
-        assert_eq!(transfer(&clip, &clip, &BoneMap::default(), Some(1.0)).unwrap_err(), MapError::Empty);
+        let e = transfer(&clip, &clip, &map, None, Some(1.0)).unwrap_err();
+        assert!(e.to_string().contains("did you mean 'LeftLeg'"), "{e}");
+        assert_eq!(transfer(&clip, &clip, &BoneMap::default(), None, Some(1.0)).unwrap_err(), MapError::Empty);
     }
 }

@@ -203,10 +203,9 @@ impl OnlineRetargeter {
             }
         }
         self.solver.effector_positions(&self.pose, &mut self.reached);
-        let axes = self.solver.rig().effector_axes();
-        let error_m = (0..self.goals.len())
-            .map(|e| ((self.reached[e] - self.goals[e]) * DVec3::from(axes[e].map(f64::from))).length())
-            .fold(0.0, f64::max);
+        let masks = self.solver.rig().effector_masks();
+        let error_m =
+            (0..self.goals.len()).map(|e| ((self.reached[e] - self.goals[e]) * masks[e]).length()).fold(0.0, f64::max);
         FrameReport { error_m, dexterity }
     }
 }

@@ -76,8 +76,9 @@ pub struct IkRig {
     /// `None` for joints outside the rig.
     rig_slot: Vec<Option<usize>>,
     effectors: Vec<usize>,
-    /// Per effector, which world axes (X, Y, Z) its goal constrains.
-    effector_axes: Vec<[bool; 3]>,
+    /// Per effector, 1 on each world axis (X, Y, Z) its goal constrains and 0 on the others:
+    /// multiplied into its error and its Jacobian rows.
+    effector_masks: Vec<DVec3>,
     /// `moves[d * effectors + e]`: DOF `d` moves effector `e`.
     moves: Vec<bool>,
 }
@@ -91,7 +92,7 @@ impl IkRig {
             dofs: Vec::new(),
             rig_slot: vec![None; joints],
             effectors: Vec::new(),
-            effector_axes: Vec::new(),
+            effector_masks: Vec::new(),
             moves: Vec::new(),
         }
     }
@@ -159,13 +160,13 @@ impl IkRig {
     /// e.g. `[true, false, true]` for a position on the ground plane; returns its index.
     pub fn add_effector_on_axes(&mut self, joint: usize, axes: [bool; 3]) -> usize {
         self.effectors.push(joint);
-        self.effector_axes.push(axes);
+        self.effector_masks.push(DVec3::from(axes.map(f64::from)));
         self.effectors.len() - 1
     }
 
-    /// Per effector, which world axes its goal constrains.
-    pub fn effector_axes(&self) -> &[[bool; 3]] {
-        &self.effector_axes
+    /// Per effector, 1 on the world axes its goal constrains and 0 on the others.
+    pub fn effector_masks(&self) -> &[DVec3] {
+        &self.effector_masks
     }
 
     /// Finishes the rig: precomputes which DOF moves which effector.

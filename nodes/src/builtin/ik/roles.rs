@@ -21,7 +21,7 @@
 
 use glam::Vec3;
 
-use crate::builtin::momentum::body::{Landmarks, limb_tip};
+use crate::builtin::momentum::body::{Landmarks, find_landmarks, limb_tip};
 use crate::model::Skeleton;
 
 /// One leg or arm: its joints from the spine (or pelvis) out to its tip.
@@ -154,10 +154,24 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
     Ok(BodyRoles { pelvis, chest, spine, legs: sided(legs), arms: sided(arms) })
 }
 
+/// The body roles of `skeleton` from its joint names when they name every limb (CMU, DAZ,
+/// 3ds Max, HumanIK, Mixamo, Blender styles), else from its shape posed at `pos_in_world`
+/// (any naming); or why neither works.
+pub fn roles_of(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRoles, String> {
+    let missing = match find_landmarks(skeleton) {
+        Ok(landmarks) => match named_roles(skeleton, &landmarks) {
+            Some(roles) => return Ok(roles),
+            None => "the named limbs do not hang from one body".to_owned(),
+        },
+        Err(missing) => format!("by joint name, missing {}", missing.join(", ")),
+    };
+    body_roles(skeleton, pos_in_world).map_err(|why| format!("{missing}; by shape, {why}"))
+}
+
 /// The body roles from joints found by name ([`crate::builtin::momentum::body::find_landmarks`]):
 /// the pelvis splits the thighs, the chest the upper arms, the spine runs to the head's tip,
 /// each limb from its split to the tip below its end joint.
-pub fn named_roles(skeleton: &Skeleton, landmarks: &Landmarks) -> Option<BodyRoles> {
+fn named_roles(skeleton: &Skeleton, landmarks: &Landmarks) -> Option<BodyRoles> {
     let [left, right] = landmarks.limbs;
     let pelvis = common_ancestor(skeleton, left[0], right[0]);
     let chest = common_ancestor(skeleton, left[3], right[3]);

@@ -169,7 +169,7 @@ impl IkSolver {
         for (e, (&joint, goal)) in self.rig.effectors().iter().zip(goals).enumerate() {
             let x = self.world[joint].1;
             // Unconstrained axes are zero rows: no error, no motion asked of them.
-            let keep = DVec3::from(self.rig.effector_axes()[e].map(f64::from));
+            let keep = self.rig.effector_masks()[e];
             let d = (*goal - x) * keep;
             worst = worst.max(d.length());
             for k in 0..3 {
@@ -258,8 +258,7 @@ impl IkSolver {
         self.rig.forward(pose, &mut self.world, &mut self.axes);
         let mut worst = 0.0f64;
         for (e, (&joint, goal)) in self.rig.effectors().iter().zip(goals).enumerate() {
-            let keep = DVec3::from(self.rig.effector_axes()[e].map(f64::from));
-            let d = (*goal - self.world[joint].1) * keep;
+            let d = (*goal - self.world[joint].1) * self.rig.effector_masks()[e];
             worst = worst.max(d.length());
             for k in 0..3 {
                 self.trial_dx[3 * e + k] = d[k];

@@ -20,7 +20,7 @@ use std::sync::Arc;
 use serde::Deserialize;
 
 use crate::model::{Clip, ClipSet, FrameRange};
-use crate::node::nearest_name;
+use crate::node::did_you_mean;
 
 /// What one label names.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -73,8 +73,7 @@ impl ActionLabels {
         let mut out = BTreeMap::new();
         for (name, span) in &self.actions {
             let named = set.get(&span.clip).ok_or_else(|| {
-                let hint = nearest_name(&span.clip, set.clips().iter().map(|c| c.name.as_str()))
-                    .map_or(String::new(), |s| format!(" (did you mean '{s}'?)"));
+                let hint = did_you_mean(&span.clip, set.clips().iter().map(|c| c.name.as_str()));
                 format!("action '{name}': no clip called '{}' in the set{hint}", span.clip)
             })?;
             let clip = &named.clip;
@@ -123,7 +122,7 @@ pub fn find_actions(set: &ClipSet, labelled: &BTreeMap<String, Action>, names: &
                 return Ok(Action { name: name.into(), clip_name: name.into(), frames, clip: c.clip.clone() });
             }
             let known = labelled.keys().map(String::as_str).chain(set.clips().iter().map(|c| c.name.as_str()));
-            let hint = nearest_name(name, known).map_or(String::new(), |s| format!(" (did you mean '{s}'?)"));
+            let hint = did_you_mean(name, known);
             Err(format!("no action or clip called '{name}'{hint}"))
         })
         .collect()
