@@ -1,6 +1,7 @@
 //! kinegraph: a typed dataflow engine for character-animation node graphs.
 //!
 //! - [`document`]: the RON graph file (versioned on-disk structs and migrations).
+//! - [`graph`]: the graph in memory (typed ids, edits, the validation rules, overrides).
 //! - [`engine`]: validation into a compiled graph, and the parallel, caching evaluator
 //!   that both `kg` and the editor call.
 //! - [`editor`]: the editor's command reducer and undo history; with the `editor`
@@ -13,5 +14,6 @@ pub mod document;
 pub mod editor;
 pub mod engine;
 pub mod farm;
+pub mod graph;
 
 pub use kinegraph_nodes as nodes;

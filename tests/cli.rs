@@ -27,7 +27,7 @@ fn every_bad_graph_is_refused_with_a_located_message_and_exit_code_2() {
         ("param_out_of_range.ron", Some(6), "-5 is outside 1..=1000 fps"),
         ("same_output_file.ron", Some(7), "writes './walk.bvh', which node 'a' also writes"),
         ("syntax_error.ron", Some(6), "Expected identifier"),
-        ("type_mismatch.ron", Some(8), "type mismatch: mesh.mesh is a mesh, but trim.clip takes a clip"),
+        ("type_mismatch.ron", Some(8), "type mismatch: mesh.mesh gives a mesh, but trim.clip takes a clip"),
         ("unknown_kind.ron", Some(5), "did you mean 'clip.load'?"),
         ("unknown_param.ron", Some(5), "did you mean 'metres_per_unit'?"),
         ("unknown_port.ron", Some(8), "has no output 'clips' (did you mean 'clip'?)"),
@@ -336,4 +336,43 @@ fn a_saved_bone_map_is_edited_and_reused_and_bad_ones_are_located() {
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     let err = node_error(&out);
     assert!(err.contains("map_file") && err.contains("did you mean 'LeftForeArm'?"), "{err}");
+}
+
+#[test]
+fn kg_test_runs_from_anywhere_on_graphs_only_and_honours_kg_shared_data() {
+    let Some(corpus) = shared_data() else { return };
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = tempfile::tempdir().unwrap();
+    let graphs = dir.path().join("project/graphs");
+    std::fs::create_dir_all(&graphs).unwrap();
+    for file in ["one_two_punch.ron", "one_two_punch.expect.ron"] {
+        std::fs::copy(root.join("graphs").join(file), graphs.join(file)).unwrap();
+    }
+    // The graph's "../../shared/data/…" paths lead nowhere from here; the corpus is linked in
+    // under another name and given by KG_SHARED_DATA.
+    let elsewhere = dir.path().join("corpus-copy");
+    std::os::unix::fs::symlink(std::fs::canonicalize(&corpus).unwrap(), &elsewhere).unwrap();
+    let kg_test = |args: &[&str], shared: Option<&Path>| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_kg"));
+        cmd.arg("test").args(args).current_dir(dir.path()).env_remove("CI").env_remove("KG_SHARED_DATA");
+        if let Some(shared) = shared {
+            cmd.env("KG_SHARED_DATA", shared);
+        }
+        cmd.output().unwrap()
+    };
+    let root_arg = graphs.to_str().unwrap();
+    let found = kg_test(&["--root", root_arg], Some(&elsewhere));
+    assert_eq!(found.status.code(), Some(0), "{}", stderr(&found));
+    assert!(String::from_utf8_lossy(&found.stdout).contains("1 passed, 0 failed, 0 skipped"), "{}", stderr(&found));
+    let missing = kg_test(&["--root", root_arg], None);
+    assert!(String::from_utf8_lossy(&missing.stdout).contains("0 passed, 0 failed, 1 skipped"), "{}", stderr(&missing));
+    // A shell glob hands over the expectation too: it is not run as a graph.
+    let both: Vec<String> = ["one_two_punch.ron", "one_two_punch.expect.ron"]
+        .iter()
+        .map(|f| graphs.join(f).to_string_lossy().into_owned())
+        .collect();
+    let globbed = kg_test(&[&both[0], &both[1]], Some(&elsewhere));
+    assert!(String::from_utf8_lossy(&globbed.stdout).contains("1 passed, 0 failed"), "{}", stderr(&globbed));
+    // A folder that is not there is a usage error, not "0 passed".
+    assert_eq!(kg_test(&["--root", "no/such/folder"], None).status.code(), Some(2));
 }

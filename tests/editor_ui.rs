@@ -10,6 +10,7 @@ use egui_kittest::kittest::Queryable;
 use kinegraph::document;
 use kinegraph::editor::EditorApp;
 use kinegraph::editor::commands::{EditError, EditorCommand};
+use kinegraph::graph::{GraphError, ParamPath, PortRef};
 use kinegraph::nodes::node::ParamValue;
 
 fn demo_path() -> PathBuf {
@@ -92,7 +93,7 @@ fn a_clip_pinned_for_comparison_stays_on_show_under_another_selection() {
 #[test]
 fn a_param_edit_goes_through_the_reducer_and_undo_restores_it() {
     let mut harness = harness(Some(&demo_path()));
-    let before = document::to_string(harness.state().doc());
+    let before = document::to_string(&harness.state().doc());
     harness.state_mut().select(Some("trim"));
     harness.run_steps(2);
     harness.get_by_label("Parameters");
@@ -108,7 +109,7 @@ fn a_param_edit_goes_through_the_reducer_and_undo_restores_it() {
 
     harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
     harness.run_steps(2);
-    assert_eq!(document::to_string(harness.state().doc()), before);
+    assert_eq!(document::to_string(&harness.state().doc()), before);
     assert!(!harness.state().is_dirty());
 
     harness.key_press_modifiers(egui::Modifiers::COMMAND | egui::Modifiers::SHIFT, egui::Key::Z);
@@ -120,11 +121,13 @@ fn a_param_edit_goes_through_the_reducer_and_undo_restores_it() {
 fn a_bad_connection_is_refused_with_the_reason_shown() {
     let mut harness = harness(Some(&demo_path()));
     let before = harness.state().doc().clone();
-    let result = harness.state_mut().edit(EditorCommand::Connect { from: "mesh.mesh".into(), to: "trim.clip".into() });
-    assert!(matches!(result, Err(EditError::TypeMismatch { .. })), "{result:?}");
+    let connect =
+        EditorCommand::Connect { from: PortRef::parse("mesh.mesh").unwrap(), to: PortRef::parse("trim.clip").unwrap() };
+    let result = harness.state_mut().edit(connect);
+    assert!(matches!(result, Err(EditError::Graph(GraphError::TypeMismatch { .. }))), "{result:?}");
     harness.run_steps(2);
     harness.get_by_label_contains("mesh.mesh gives a mesh, but trim.clip takes a clip");
-    assert_eq!(harness.state().doc(), &before);
+    assert_eq!(harness.state().doc(), before);
     assert!(!harness.state().is_dirty());
 }
 
@@ -144,15 +147,15 @@ fn dragging_a_wire_between_different_types_is_refused_by_the_connect_hook() {
     harness.drop_at(to);
     harness.run_steps(2);
     let message = harness.state().message().map(|(m, _)| m.to_string()).unwrap_or_default();
-    assert_eq!(message, "connection refused: mesh.mesh gives a mesh, but trim.clip takes a clip");
-    harness.get_by_label_contains("Cannot connect: mesh.mesh gives a mesh");
-    assert_eq!(harness.state().doc(), &before);
+    assert_eq!(message, "connection refused: type mismatch: mesh.mesh gives a mesh, but trim.clip takes a clip");
+    harness.get_by_label_contains("Cannot connect: type mismatch: mesh.mesh gives a mesh");
+    assert_eq!(harness.state().doc(), before);
 }
 
 #[test]
 fn dragging_a_wire_into_an_occupied_input_replaces_it_in_one_undo_step() {
     let mut harness = harness(Some(&demo_path()));
-    let before = document::to_string(harness.state().doc());
+    let before = document::to_string(&harness.state().doc());
     // `clip`'s output pin to `resample`'s input pin, which `trim` feeds.
     let (from, to) = (egui::pos2(291.0, 292.0), egui::pos2(668.0, 292.0));
     harness.drag_at(from);
@@ -168,7 +171,7 @@ fn dragging_a_wire_into_an_occupied_input_replaces_it_in_one_undo_step() {
     assert_eq!(into, ["clip.clip"]);
     harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
     harness.run_steps(2);
-    assert_eq!(document::to_string(harness.state().doc()), before);
+    assert_eq!(document::to_string(&harness.state().doc()), before);
 }
 
 #[test]
@@ -200,14 +203,14 @@ fn save_and_reload_and_saving_without_edits_changes_no_byte() {
 
     let copy = dir.path().join("copy.ron");
     let app = harness.state_mut();
-    app.edit(EditorCommand::SetParam { node: "resample".into(), param: "fps".into(), value: ParamValue::Int(12) })
+    app.edit(EditorCommand::SetParam { param: ParamPath::parse("resample.fps").unwrap(), value: ParamValue::Int(12) })
         .unwrap();
     app.save_as(&copy);
     assert!(!app.is_dirty());
-    let saved = document::to_string(app.doc());
+    let saved = document::to_string(&app.doc());
     assert_eq!(std::fs::read_to_string(&copy).unwrap(), saved);
     let reloaded = EditorApp::with_settings_dir(&egui::Context::default(), Some(&copy), fresh_settings_dir());
-    assert_eq!(document::to_string(reloaded.doc()), saved);
+    assert_eq!(document::to_string(&reloaded.doc()), saved);
     assert!(!reloaded.is_dirty());
 }
 
@@ -234,7 +237,7 @@ fn a_concat_report_and_momentum_curves_are_readable_in_the_panel() {
 #[test]
 fn copy_and_paste_carry_a_fragment_with_its_inner_wire_in_one_undo_step() {
     let mut harness = harness(Some(&demo_path()));
-    let before = document::to_string(harness.state().doc());
+    let before = document::to_string(&harness.state().doc());
     harness.get_by_label("trim").click_accesskit();
     harness.run_steps(2);
     let text = harness.state_mut().copy_selection().expect("a node is selected");
@@ -246,13 +249,13 @@ fn copy_and_paste_carry_a_fragment_with_its_inner_wire_in_one_undo_step() {
     assert_eq!(harness.state().selected(), Some("trim_2"));
     harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
     harness.run_steps(2);
-    assert_eq!(document::to_string(harness.state().doc()), before);
+    assert_eq!(document::to_string(&harness.state().doc()), before);
     // Text that is no graph is refused with a message and changes nothing.
     harness.event(egui::Event::Paste("not a graph".into()));
     harness.run_steps(2);
     let (message, is_error) = harness.state().message().unwrap();
     assert!(is_error && message.starts_with("the clipboard holds no graph fragment"), "{message}");
-    assert_eq!(document::to_string(harness.state().doc()), before);
+    assert_eq!(document::to_string(&harness.state().doc()), before);
 }
 
 #[test]
@@ -278,11 +281,13 @@ fn unsaved_edits_survive_a_crash_through_the_autosave() {
     let settings = dir.path().join("settings");
     let edited = {
         let mut harness = harness_in(Some(&graph), settings.clone());
-        let cmd =
-            EditorCommand::SetParam { node: "trim".into(), param: "end_secs".into(), value: ParamValue::Float(0.75) };
+        let cmd = EditorCommand::SetParam {
+            param: ParamPath::parse("trim.end_secs").unwrap(),
+            value: ParamValue::Float(0.75),
+        };
         harness.state_mut().edit(cmd).unwrap();
         harness.state_mut().autosave_now();
-        document::to_string(harness.state().doc())
+        document::to_string(&harness.state().doc())
         // Dropped without saving: the editor "crashed".
     };
     let file_before = std::fs::read(&graph).unwrap();
@@ -290,7 +295,7 @@ fn unsaved_edits_survive_a_crash_through_the_autosave() {
     harness.get_by_label("Recover unsaved work");
     harness.get_by_label("Restore").click();
     harness.run_steps(2);
-    assert_eq!(document::to_string(harness.state().doc()), edited);
+    assert_eq!(document::to_string(&harness.state().doc()), edited);
     assert!(harness.state().is_dirty(), "restored work is unsaved until the user saves");
     assert_eq!(std::fs::read(&graph).unwrap(), file_before, "restoring writes nothing");
     harness.state_mut().save();

@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use kinegraph::document::{self, EdgeDoc, GraphDoc, NodeDoc, SourceMap};
 use kinegraph::engine::{Engine, NodeStatus, RunOptions, compile};
+use kinegraph::graph::Graph;
 use kinegraph_nodes::node::{
     FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, ParamValue, Registry, Value,
 };
@@ -45,14 +46,16 @@ fn rerun_after_one_param_change_recomputes_only_its_downstream() {
     let engine = Engine::new(Registry::builtin());
     let options = RunOptions::new(PathBuf::from("."));
     let doc = chain_doc(1.0);
-    let g = compile(&doc, engine.registry(), Path::new("chain"), &SourceMap::default()).unwrap();
+    let g =
+        compile(&Graph::from_doc(&doc).unwrap(), engine.registry(), Path::new("chain"), &SourceMap::default()).unwrap();
     let first = engine.run(&g, &options);
     assert_eq!(first.count(NodeStatus::Ok), 5);
     assert_eq!(scalar(&first, "a3"), 4.0); // 1 + 1 + 1 + 1
     assert_eq!(scalar(&first, "b1"), 11.0);
 
     let changed = chain_doc(5.0);
-    let g = compile(&changed, engine.registry(), Path::new("chain"), &SourceMap::default()).unwrap();
+    let g = compile(&Graph::from_doc(&changed).unwrap(), engine.registry(), Path::new("chain"), &SourceMap::default())
+        .unwrap();
     let second = engine.run(&g, &options);
     let ran: Vec<&str> =
         second.nodes.iter().filter(|(_, n)| n.status == NodeStatus::Ok).map(|(id, _)| id.as_str()).collect();
@@ -110,7 +113,7 @@ fn a_failure_blocks_its_downstream_while_other_branches_finish() {
     doc.nodes.insert("good".into(), node("test.probe", &[]));
     doc.nodes.insert("after_good".into(), node("test.probe", &[]));
     doc.edges = vec![edge("bad.y", "after_bad.x"), edge("good.y", "after_good.x")];
-    let g = compile(&doc, engine.registry(), Path::new("g"), &SourceMap::default()).unwrap();
+    let g = compile(&Graph::from_doc(&doc).unwrap(), engine.registry(), Path::new("g"), &SourceMap::default()).unwrap();
     let report = engine.run(&g, &RunOptions::new(PathBuf::from(".")));
     assert_eq!(report.nodes["bad"].status, NodeStatus::Error);
     assert!(report.nodes["bad"].error.as_deref().unwrap().contains("refusing 0"));
@@ -134,7 +137,7 @@ fn cancelling_stops_the_run_and_leaves_no_export() {
     doc.nodes.insert("gate".into(), node("scalar.add", &[]));
     doc.nodes.insert("out".into(), node("export.bvh", &[]));
     doc.edges = vec![edge("probe.y", "gate.a"), edge("m.clip", "out.clip")];
-    let g = compile(&doc, engine.registry(), Path::new("g"), &SourceMap::default()).unwrap();
+    let g = compile(&Graph::from_doc(&doc).unwrap(), engine.registry(), Path::new("g"), &SourceMap::default()).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let mut options = RunOptions::new(PathBuf::from("."));
     options.out_dir = Some(dir.path().to_path_buf());
@@ -183,7 +186,7 @@ fn independent_branches_run_in_parallel() {
     let mut doc = GraphDoc::new();
     doc.nodes.insert("a".into(), node("test.sleepy", &[]));
     doc.nodes.insert("b".into(), node("test.sleepy", &[]));
-    let g = compile(&doc, engine.registry(), Path::new("g"), &SourceMap::default()).unwrap();
+    let g = compile(&Graph::from_doc(&doc).unwrap(), engine.registry(), Path::new("g"), &SourceMap::default()).unwrap();
     let mut options = RunOptions::new(PathBuf::from("."));
     options.threads = Some(2);
     let report = engine.run(&g, &options);
@@ -219,7 +222,7 @@ fn version_1_fixture_migrates_and_runs() {
     assert!(!load.params.contains_key("scale"));
     assert_eq!(loaded.doc.edges, vec![edge("load.clip", "trim.clip"), edge("trim.clip", "export.clip")]);
     let engine = Engine::new(Registry::builtin());
-    let g = compile(&loaded.doc, engine.registry(), path, &loaded.source).unwrap();
+    let g = compile(&Graph::from_doc(&loaded.doc).unwrap(), engine.registry(), path, &loaded.source).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let mut options = RunOptions::new(loaded.base_dir());
     options.out_dir = Some(dir.path().to_path_buf());
@@ -247,7 +250,8 @@ fn phase_curves_agree_with_the_phases() {
     doc.nodes.insert("clip".into(), node("clip.load", &[("path", ParamValue::Text(walk))]));
     doc.nodes.insert("phases".into(), node("motion.segment_phases", &[]));
     doc.edges = vec![edge("clip.clip", "phases.clip")];
-    let g = compile(&doc, engine.registry(), Path::new("phases"), &SourceMap::default()).unwrap();
+    let g = compile(&Graph::from_doc(&doc).unwrap(), engine.registry(), Path::new("phases"), &SourceMap::default())
+        .unwrap();
     let report = engine.run(&g, &RunOptions::new(root.to_path_buf()));
     let outputs = &report.outputs["phases"];
     let (Some(Value::Phases(phases)), Some(Value::Curves(curves))) = (&outputs[0], &outputs[1]) else {

@@ -123,8 +123,8 @@ pub(super) fn batch_command(
 ) -> u8 {
     let engine = Engine::new(Registry::builtin());
     // Validate the graph and the input name once, before any work.
-    if let Err(e) =
-        load_graph(graph, settings, engine.registry()).and_then(|l| l.doc.resolve_setting(&input.name).map(|_| ()))
+    if let Err(e) = load_graph(graph, settings, engine.registry())
+        .and_then(|l| l.graph.resolve(&input.name).map(|_| ()).map_err(|e| format!("--input {}: {e}", input.name)))
     {
         eprintln!("{e}");
         return EXIT_INVALID;

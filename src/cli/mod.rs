@@ -12,13 +12,14 @@ mod plan;
 mod regression;
 mod run;
 mod task;
+mod watch;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-pub use run::{Setting, apply_settings, convert_graph, load_graph};
+pub use run::{Setting, convert_graph, load_graph};
 
 /// Exit code: a node failed.
 pub const EXIT_FAILED: u8 = 1;
@@ -182,10 +183,31 @@ enum Command {
         /// The graph file (.ron).
         graph: Option<PathBuf>,
     },
+    /// Run a graph, then again on every change to it or to the files it reads (only what
+    /// the change reaches is recomputed); Ctrl-C stops.
+    Watch {
+        /// The graph file.
+        graph: PathBuf,
+        /// Override a graph input or a node parameter: NAME=VALUE or node.param=VALUE.
+        #[arg(long = "set", value_name = "NAME=VALUE")]
+        set: Vec<Setting>,
+        /// Output folder for exports.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Print one JSON report object per run on stdout.
+        #[arg(long)]
+        json: bool,
+        /// Worker threads (default: one per core).
+        #[arg(long)]
+        threads: Option<usize>,
+    },
     /// Regression-test saved graphs against their NAME.expect.ron files.
     Test {
-        /// Graph files (default: every graph in ./graphs).
+        /// Graph files (default: every graph in --root); expectation files are skipped.
         graphs: Vec<PathBuf>,
+        /// The folder of graphs to test when none are named (default: ./graphs).
+        #[arg(long)]
+        root: Option<PathBuf>,
         /// Rewrite the expectations from this run instead of comparing.
         #[arg(long)]
         bless: bool,
@@ -217,7 +239,8 @@ pub fn main() -> ExitCode {
             batch::batch_command(&graph, &input, &out, jobs, &set, json)
         }
         Command::Fmt { graphs, check } => run::fmt_command(&graphs, check),
-        Command::Test { graphs, bless } => regression::test_command(graphs, bless),
+        Command::Watch { graph, set, out, json, threads } => watch::watch_command(&graph, &set, &out, json, threads),
+        Command::Test { graphs, root, bless } => regression::test_command(graphs, root.as_deref(), bless),
         #[cfg(feature = "editor")]
         Command::Edit { graph } => match crate::editor::run(graph) {
             Ok(()) => 0,

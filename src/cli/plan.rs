@@ -6,12 +6,12 @@ use std::path::{Path, PathBuf};
 use kinegraph_nodes::node::Registry;
 
 use super::batch::{expand_glob, run_folder_names};
-use super::run::{Setting, apply_settings, load_graph, names_input_file};
+use super::run::{Setting, load_graph};
 use super::{EXIT_INVALID, save_file};
-use crate::document::LoadedGraph;
-use crate::engine::compile;
+use crate::engine::compile_file;
 use crate::farm::plan::{PLAN_FORMAT, PLAN_VERSION, plan_dir, relative_to, sha256_file};
 use crate::farm::{Dependency, HashedFile, Plan, Task};
+use crate::graph::{GraphFile, Overrides, is_input_file};
 
 /// A file bound to a graph input, and the upstream task that makes it, if any.
 #[derive(Clone)]
@@ -102,13 +102,18 @@ pub fn make_plan(
 ) -> Result<Plan, String> {
     let loaded = load_graph(graph, &[], registry)?;
     for input in inputs {
-        loaded.doc.resolve_setting(&input.name).map_err(|e| format!("{}: --input: {e}", graph.display()))?;
+        loaded.graph.resolve(&input.name).map_err(|e| format!("{}: --input {}: {e}", graph.display(), input.name))?;
     }
     let base = plan_dir(plan_path);
     let mut file_settings: BTreeMap<String, HashedFile> = BTreeMap::new();
     let mut set: BTreeMap<String, String> = BTreeMap::new();
     for s in settings {
-        if names_input_file(&loaded.doc, &s.name, registry).map_err(|e| format!("{}: --set: {e}", graph.display()))? {
+        let is_file = loaded
+            .graph
+            .resolve(&s.name)
+            .and_then(|path| is_input_file(&loaded.graph, registry, &path))
+            .map_err(|e| format!("{}: --set {}: {e}", graph.display(), s.name))?;
+        if is_file {
             file_settings.insert(s.name.clone(), hashed(Path::new(&s.value), &base)?);
         } else {
             set.insert(s.name.clone(), s.value.clone());
@@ -151,10 +156,12 @@ pub fn make_plan(
 
 /// The files a run of the graph with `settings` writes, relative to its output folder,
 /// sorted; a validation error of the graph is returned as its printed text.
-fn expected_outputs(loaded: &LoadedGraph, settings: &[Setting], registry: &Registry) -> Result<Vec<String>, String> {
-    let mut doc = loaded.doc.clone();
-    apply_settings(&mut doc, settings, registry).map_err(|e| format!("{}: --set: {e}", loaded.path.display()))?;
-    let compiled = compile(&doc, registry, &loaded.path, &loaded.source).map_err(|e| e.to_string())?;
+fn expected_outputs(loaded: &GraphFile, settings: &[Setting], registry: &Registry) -> Result<Vec<String>, String> {
+    let mut file = loaded.clone();
+    Overrides(settings.to_vec())
+        .apply(&mut file.graph, registry)
+        .map_err(|e| format!("{}: --set {e}", loaded.path.display()))?;
+    let compiled = compile_file(&file, registry).map_err(|e| e.to_string())?;
     let mut files: Vec<String> =
         compiled.output_files().iter().map(|o| o.file.to_string_lossy().replace('\\', "/")).collect();
     files.sort();

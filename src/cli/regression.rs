@@ -180,15 +180,12 @@ pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
 }
 
 /// Facts of every output of a run, by `node.port`.
-pub fn run_facts(
-    report: &RunReport,
-    engine: &Engine,
-    kinds: &BTreeMap<String, String>,
-    out_dir: &Path,
-) -> BTreeMap<String, Facts> {
+pub fn run_facts(report: &RunReport, engine: &Engine, out_dir: &Path) -> BTreeMap<String, Facts> {
     let mut facts = BTreeMap::new();
+    // Kinds from the report: it names every node that ran, subgraphs' inner nodes included.
     for (id, outputs) in &report.outputs {
-        let Some(schema) = kinds.get(id).and_then(|k| engine.registry().get(k)).map(|n| n.schema()) else { continue };
+        let kind = report.nodes.get(id).map(|n| n.kind.as_str());
+        let Some(schema) = kind.and_then(|k| engine.registry().get(k)).map(|n| n.schema()) else { continue };
         for (spec, value) in schema.outputs.iter().zip(outputs) {
             if let Some(v) = value {
                 facts.insert(format!("{id}.{}", spec.name), facts_of(v, out_dir));
@@ -359,10 +356,26 @@ fn read_expectation(graph: &Path) -> Option<Result<Expectation, String>> {
         .map(|t| ron::from_str::<Expectation>(&t).map_err(|e| format!("{}:{e}", path.display())))
 }
 
+/// `text` (a path in a graph or expectation, relative to `base`) with the part up to the
+/// shared corpus (`…/shared/data/`) replaced by `$KG_SHARED_DATA` when that is set, so the
+/// same graphs test against a corpus kept anywhere.
+pub fn corpus_path(base: &Path, text: &str) -> PathBuf {
+    let corpus = std::env::var_os("KG_SHARED_DATA").filter(|v| !v.is_empty());
+    let normalised = text.replace('\\', "/");
+    match (corpus, normalised.find("shared/data")) {
+        (Some(dir), Some(at)) => {
+            let rest = normalised[at + "shared/data".len()..].trim_start_matches('/');
+            PathBuf::from(dir).join(rest)
+        }
+        _ => base.join(text),
+    }
+}
+
 /// When data the expectation requires is absent: a skip, or under CI a failure.
 fn missing_data(graph: &Path, expected: &Expectation, ci: bool) -> Option<GraphTest> {
     let base = graph.parent().unwrap_or(Path::new("."));
-    let missing: Vec<&str> = expected.requires.iter().filter(|r| !base.join(r).exists()).map(String::as_str).collect();
+    let missing: Vec<&str> =
+        expected.requires.iter().filter(|r| !corpus_path(base, r).exists()).map(String::as_str).collect();
     if missing.is_empty() {
         return None;
     }
@@ -394,10 +407,13 @@ fn run_and_compare(
     bless: bool,
     existing: Option<Result<Expectation, String>>,
 ) -> Vec<String> {
-    let loaded = match load_graph(graph, &[], engine.registry()) {
+    let mut loaded = match load_graph(graph, &[], engine.registry()) {
         Ok(l) => l,
         Err(e) => return vec![e],
     };
+    if let Err(e) = use_corpus_dir(&mut loaded, engine.registry()) {
+        return vec![e];
+    }
     let out_dir = match tempfile::tempdir() {
         Ok(d) => d,
         Err(e) => return vec![format!("cannot create a temporary folder: {e}")],
@@ -414,8 +430,7 @@ fn run_and_compare(
     if !problems.is_empty() {
         return problems;
     }
-    let kinds = loaded.doc.nodes.iter().map(|(id, n)| (id.clone(), n.kind.clone())).collect();
-    let actual = run_facts(&report, engine, &kinds, out_dir.path());
+    let actual = run_facts(&report, engine, out_dir.path());
     let path = expectation_path(graph);
     if bless {
         let (tolerance, requires) = match existing {
@@ -437,8 +452,61 @@ fn run_and_compare(
     }
 }
 
-pub(super) fn test_command(graphs: Vec<PathBuf>, bless: bool) -> u8 {
-    let graphs = if graphs.is_empty() { graphs_in(Path::new("graphs")) } else { graphs };
+/// Points the graph's input files inside the shared corpus at `$KG_SHARED_DATA` (see
+/// [`corpus_path`]); a no-op when it is not set.
+fn use_corpus_dir(loaded: &mut crate::graph::GraphFile, registry: &Registry) -> Result<(), String> {
+    if std::env::var_os("KG_SHARED_DATA").is_none() {
+        return Ok(());
+    }
+    let base = loaded.base_dir();
+    let mut moved = Vec::new();
+    for (id, node) in loaded.graph.nodes() {
+        for (name, value) in &node.params {
+            let path = crate::graph::ParamPath::new(id.clone(), name.as_str());
+            if let kinegraph_nodes::node::ParamValue::Text(text) = value
+                && text.contains("shared/data")
+                && crate::graph::is_input_file(&loaded.graph, registry, &path).unwrap_or(false)
+            {
+                moved.push((path, corpus_path(&base, text).to_string_lossy().into_owned()));
+            }
+        }
+    }
+    for (path, file) in moved {
+        let value = kinegraph_nodes::node::ParamValue::Text(file);
+        loaded.graph.set_param(registry, &path, &value).map_err(|e| format!("{path}: {e}"))?;
+    }
+    Ok(())
+}
+
+/// The first screen of a failure: per output, how many facts differ, before the detail.
+fn summary(problems: &[String]) -> Vec<String> {
+    let mut per_output: BTreeMap<&str, usize> = BTreeMap::new();
+    for p in problems {
+        let key = p.split([':', '.', '[']).next().unwrap_or(p);
+        *per_output.entry(key).or_default() += 1;
+    }
+    let mut lines: Vec<String> = per_output.iter().map(|(k, n)| format!("{k}: {n} fact(s) differ")).collect();
+    if lines.len() > 20 {
+        let more = lines.len() - 20;
+        lines.truncate(20);
+        lines.push(format!("… and {more} more outputs"));
+    }
+    lines
+}
+
+pub(super) fn test_command(graphs: Vec<PathBuf>, root: Option<&Path>, bless: bool) -> u8 {
+    let explicit = !graphs.is_empty();
+    let graphs: Vec<PathBuf> = if explicit {
+        // A shell glob over a folder brings the expectation files too: they are not graphs.
+        graphs.into_iter().filter(|g| !g.to_string_lossy().ends_with(".expect.ron")).collect()
+    } else {
+        let dir = root.unwrap_or(Path::new("graphs"));
+        if !dir.is_dir() {
+            eprintln!("kg test: {} is not a folder of graphs (give --root DIR or graph files)", dir.display());
+            return super::EXIT_INVALID;
+        }
+        graphs_in(dir)
+    };
     let engine = Engine::new(Registry::builtin());
     let (mut passed, mut failed, mut skipped) = (0, 0, 0);
     for graph in &graphs {
@@ -453,7 +521,13 @@ pub(super) fn test_command(graphs: Vec<PathBuf>, bless: bool) -> u8 {
             }
             GraphTest::Failed(problems) => {
                 failed += 1;
-                eprintln!("FAILED  {}", graph.display());
+                eprintln!("FAILED  {}: {} difference(s)", graph.display(), problems.len());
+                if problems.len() > 1 {
+                    for line in summary(&problems) {
+                        eprintln!("        {line}");
+                    }
+                    eprintln!("        detail:");
+                }
                 for p in problems {
                     eprintln!("        {p}");
                 }

@@ -2,59 +2,16 @@
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::str::FromStr;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 
-use kinegraph_nodes::node::{ParamKind, ParamValue, Registry};
+use kinegraph_nodes::node::{ParamValue, Registry};
 
 use super::{EXIT_FAILED, EXIT_INVALID};
-use crate::document::{self, EdgeDoc, GraphDoc, LoadedGraph, NodeDoc, SourceMap};
-use crate::engine::{Engine, NodeStatus, RunEvent, RunOptions, RunReport, compile};
-
-/// A `NAME=VALUE` override from the command line.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Setting {
-    /// Graph input name or `node.param`.
-    pub name: String,
-    /// The raw value text.
-    pub value: String,
-}
-
-impl FromStr for Setting {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        let (name, value) = s.split_once('=').ok_or_else(|| format!("'{s}' is not NAME=VALUE"))?;
-        if name.is_empty() {
-            return Err(format!("'{s}' has an empty name"));
-        }
-        Ok(Setting { name: name.to_string(), value: value.to_string() })
-    }
-}
-
-/// Applies `--set` overrides. Values for input-file parameters given as relative paths are
-/// taken relative to the current directory (where the user typed them), not the graph's.
-pub fn apply_settings(doc: &mut GraphDoc, settings: &[Setting], registry: &Registry) -> Result<(), String> {
-    for setting in settings {
-        let value = if names_input_file(doc, &setting.name, registry)? {
-            ParamValue::Text(absolute(Path::new(&setting.value)).to_string_lossy().into_owned())
-        } else {
-            document::parse_param_value(&setting.value)
-        };
-        doc.set_param(&setting.name, value)?;
-    }
-    Ok(())
-}
-
-/// True when the `--set` name (graph input or `node.param`) is an input-file parameter.
-pub fn names_input_file(doc: &GraphDoc, name: &str, registry: &Registry) -> Result<bool, String> {
-    let (node, param) = doc.resolve_setting(name)?;
-    let kind = doc.nodes.get(&node).map(|n| n.kind.as_str()).unwrap_or_default();
-    Ok(registry
-        .get(kind)
-        .and_then(|n| n.schema().param(&param))
-        .is_some_and(|p| matches!(p.kind, ParamKind::InputPath { .. })))
-}
+use crate::document;
+use crate::engine::{Engine, NodeStatus, RunEvent, RunOptions, RunReport, compile_file};
+pub use crate::graph::Setting;
+use crate::graph::{Graph, GraphFile, LoadError, NodeId, Overrides, ParamPath, PortRef};
 
 /// `path` made absolute against the current directory.
 pub fn absolute(path: &Path) -> PathBuf {
@@ -62,9 +19,11 @@ pub fn absolute(path: &Path) -> PathBuf {
 }
 
 /// Loads a graph file and applies overrides; the error text is ready to print.
-pub fn load_graph(path: &Path, settings: &[Setting], registry: &Registry) -> Result<LoadedGraph, String> {
-    let mut loaded = document::load_file(path).map_err(|e| e.to_string())?;
-    apply_settings(&mut loaded.doc, settings, registry).map_err(|e| format!("{}: --set: {e}", path.display()))?;
+pub fn load_graph(path: &Path, settings: &[Setting], registry: &Registry) -> Result<GraphFile, String> {
+    let mut loaded = GraphFile::load(path).map_err(|e| e.to_string())?;
+    Overrides(settings.to_vec())
+        .apply(&mut loaded.graph, registry)
+        .map_err(|e| format!("{}: --set {e}", path.display()))?;
     Ok(loaded)
 }
 
@@ -86,13 +45,13 @@ pub fn cancel_flag() -> Arc<AtomicBool> {
 /// graph (after printing why).
 pub fn execute(
     engine: &Engine,
-    loaded: &LoadedGraph,
+    loaded: &GraphFile,
     out: Option<&Path>,
     threads: Option<usize>,
     targets: Option<Vec<String>>,
     progress: bool,
 ) -> Result<RunReport, u8> {
-    let compiled = compile(&loaded.doc, engine.registry(), &loaded.path, &loaded.source).map_err(|e| {
+    let compiled = compile_file(loaded, engine.registry()).map_err(|e| {
         eprint!("{e}");
         EXIT_INVALID
     })?;
@@ -226,11 +185,15 @@ pub(super) fn check_command(graphs: &[PathBuf], json: bool) -> u8 {
     let mut worst = 0;
     let mut results = Vec::new();
     for path in graphs {
-        let outcome = document::load_file(path).map_err(|e| vec![e.to_string()]).and_then(|loaded| {
-            compile(&loaded.doc, &registry, path, &loaded.source)
-                .map(|_| ())
-                .map_err(|e| e.diagnostics.iter().map(|d| format!("{}:{d}", path.display())).collect())
-        });
+        // Problems inside a subgraph name the subgraph's file.
+        let located = |e: crate::graph::GraphErrors| -> Vec<String> {
+            e.diagnostics.iter().map(|d| format!("{}:{d}", e.path.display())).collect()
+        };
+        let outcome = match GraphFile::load(path) {
+            Err(LoadError::Document(e)) => Err(vec![e.to_string()]),
+            Err(LoadError::Structure(e)) => Err(located(e)),
+            Ok(loaded) => compile_file(&loaded, &registry).map(|_| ()).map_err(located),
+        };
         match &outcome {
             Ok(()) => {
                 if !json {
@@ -257,7 +220,7 @@ pub(super) fn check_command(graphs: &[PathBuf], json: bool) -> u8 {
 }
 
 /// The built-in load → export graph `kg convert` runs.
-pub fn convert_graph(input: &Path, output: &Path) -> Result<GraphDoc, String> {
+pub fn convert_graph(input: &Path, output: &Path, registry: &Registry) -> Result<Graph, String> {
     let ext = kinegraph_nodes::formats::extension(output);
     let export = match ext.as_str() {
         "bvh" => "export.bvh",
@@ -265,20 +228,26 @@ pub fn convert_graph(input: &Path, output: &Path) -> Result<GraphDoc, String> {
         _ => return Err(format!("{}: the output must end in .bvh or .glb", output.display())),
     };
     let file_name = output.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let mut doc = GraphDoc::new();
-    doc.description = "kg convert".into();
-    let load_params = [("path".to_string(), ParamValue::Text(absolute(input).to_string_lossy().into_owned()))];
-    doc.nodes.insert("load".into(), NodeDoc { kind: "clip.load".into(), params: load_params.into_iter().collect() });
-    let export_params = [("file".to_string(), ParamValue::Text(file_name))];
-    doc.nodes.insert("export".into(), NodeDoc { kind: export.into(), params: export_params.into_iter().collect() });
-    doc.edges.push(EdgeDoc { from: "load.clip".into(), to: "export.clip".into() });
-    Ok(doc)
+    let (load, save) = (NodeId::from("load"), NodeId::from("export"));
+    let mut graph = Graph::new();
+    graph.set_description("kg convert");
+    let build = |graph: &mut Graph| -> Result<(), crate::graph::GraphError> {
+        graph.add_node(registry, load.clone(), "clip.load", (0.0, 0.0))?;
+        graph.add_node(registry, save.clone(), export, (240.0, 0.0))?;
+        let input = ParamValue::Text(absolute(input).to_string_lossy().into_owned());
+        graph.set_param(registry, &ParamPath::new(load.clone(), "path"), &input)?;
+        graph.set_param(registry, &ParamPath::new(save.clone(), "file"), &ParamValue::Text(file_name))?;
+        graph.connect(registry, &PortRef::new(load.clone(), "clip"), &PortRef::new(save.clone(), "clip"))?;
+        Ok(())
+    };
+    build(&mut graph).map_err(|e| format!("{}: {e}", output.display()))?;
+    Ok(graph)
 }
 
 pub(super) fn convert_command(input: &Path, output: &Path, settings: &[Setting]) -> u8 {
     let engine = Engine::new(Registry::builtin());
-    let mut doc = match convert_graph(input, output) {
-        Ok(d) => d,
+    let mut graph = match convert_graph(input, output, engine.registry()) {
+        Ok(g) => g,
         Err(e) => {
             eprintln!("{e}");
             return EXIT_INVALID;
@@ -286,13 +255,12 @@ pub(super) fn convert_command(input: &Path, output: &Path, settings: &[Setting])
     };
     let prefixed: Vec<Setting> =
         settings.iter().map(|s| Setting { name: format!("load.{}", s.name), value: s.value.clone() }).collect();
-    if let Err(e) = apply_settings(&mut doc, &prefixed, engine.registry()) {
-        eprintln!("--set: {e}");
+    if let Err(e) = Overrides(prefixed).apply(&mut graph, engine.registry()) {
+        eprintln!("--set {e}");
         return EXIT_INVALID;
     }
     let out_dir = output.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let loaded =
-        LoadedGraph { doc, source: SourceMap::default(), path: PathBuf::from("<kg convert>"), file_version: 2 };
+    let loaded = GraphFile::in_memory(graph, Path::new("<kg convert>"));
     let report = match execute(&engine, &loaded, Some(out_dir), None, None, true) {
         Ok(r) => r,
         Err(code) => return code,
@@ -321,6 +289,12 @@ pub(super) fn fmt_command(graphs: &[PathBuf], check: bool) -> u8 {
         if check {
             eprintln!("{}: not in canonical form (run kg fmt)", path.display());
             code = code.max(EXIT_FAILED);
+        } else if loaded.source.has_comments() {
+            eprintln!(
+                "{}: not rewritten: it has comments, which the canonical form cannot keep (remove them to format it)",
+                path.display()
+            );
+            code = code.max(EXIT_FAILED);
         } else if let Err(e) = document::save_file(&loaded.doc, path) {
             eprintln!("{e}");
             code = EXIT_INVALID;
@@ -328,7 +302,7 @@ pub(super) fn fmt_command(graphs: &[PathBuf], check: bool) -> u8 {
             eprintln!(
                 "{}: rewritten{}",
                 path.display(),
-                if loaded.file_version < document::CURRENT_VERSION { " (migrated)" } else { "" }
+                if loaded.file_version < document::written_version(&loaded.doc) { " (migrated)" } else { "" }
             );
         }
     }

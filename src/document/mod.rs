@@ -32,8 +32,16 @@ pub use locate::SourceMap;
 
 /// The `format` string every graph file carries.
 pub const FORMAT: &str = "kinegraph.graph";
-/// The version this build writes.
-pub const CURRENT_VERSION: u32 = 2;
+/// The newest version this build reads. Files are written at the oldest version that can
+/// hold them ([`written_version`]): a graph without subgraphs stays version 2, so older
+/// builds keep reading it; one with subgraphs is version 3, which they refuse by version.
+pub const CURRENT_VERSION: u32 = 3;
+
+/// The node kind of a subgraph node (version 3): its `file` parameter names the graph file.
+pub const SUBGRAPH_KIND: &str = "graph.subgraph";
+
+/// The parameter of a subgraph node that names its graph file.
+pub const SUBGRAPH_FILE_PARAM: &str = "file";
 
 /// A graph file (current version).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -47,17 +55,46 @@ pub struct GraphDoc {
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub description: String,
     /// Graph inputs: promoted parameters, by public name, as `"node.param"`.
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty", deserialize_with = "unique_input_names")]
     pub inputs: BTreeMap<String, String>,
     /// Nodes by id (a repeated id is a parse error, not a silent overwrite).
-    #[serde(deserialize_with = "unique_keys")]
+    #[serde(deserialize_with = "unique_node_ids")]
     pub nodes: BTreeMap<String, NodeDoc>,
     /// Connections.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub edges: Vec<EdgeDoc>,
     /// Editor positions of nodes, by id (canvas units).
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty", deserialize_with = "unique_layout_ids")]
     pub layout: BTreeMap<String, (f32, f32)>,
+    /// The ports this graph shows when used as a subgraph (version 3).
+    #[serde(default, skip_serializing_if = "PortsDoc::is_empty")]
+    pub ports: PortsDoc,
+}
+
+/// A graph's ports as a subgraph: each public input feeds one or more inner inputs, each
+/// public output is one inner output.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PortsDoc {
+    /// Public input name → the inner `"node.input"`s it feeds.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty", deserialize_with = "unique_port_names")]
+    pub inputs: BTreeMap<String, Vec<String>>,
+    /// Public output name → the inner `"node.output"` it gives.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty", deserialize_with = "unique_port_names")]
+    pub outputs: BTreeMap<String, String>,
+}
+
+impl PortsDoc {
+    /// True when the graph shows no ports.
+    pub fn is_empty(&self) -> bool {
+        self.inputs.is_empty() && self.outputs.is_empty()
+    }
+}
+
+/// The version a document is written at: 3 when it uses subgraphs or shows ports, else 2.
+pub fn written_version(doc: &GraphDoc) -> u32 {
+    let subgraphs = !doc.ports.is_empty() || doc.nodes.values().any(|n| n.kind == SUBGRAPH_KIND);
+    if subgraphs { 3 } else { 2 }
 }
 
 /// One node of a graph file.
@@ -67,7 +104,7 @@ pub struct NodeDoc {
     /// Node kind, e.g. `"clip.load"`.
     pub kind: String,
     /// Parameter values by name; unset ones take the schema default.
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty", deserialize_with = "unique_param_names")]
     pub params: BTreeMap<String, ParamValue>,
 }
 
@@ -81,35 +118,59 @@ pub struct EdgeDoc {
     pub to: String,
 }
 
-/// Deserialises a map, refusing repeated keys (serde's default keeps the last silently).
-fn unique_keys<'de, D, V>(deserializer: D) -> Result<BTreeMap<String, V>, D::Error>
+/// Deserialises a map, refusing repeated keys (serde's default keeps the last silently);
+/// `what` names a key in the message ("node id").
+fn unique_keys<'de, D, V>(deserializer: D, what: &'static str) -> Result<BTreeMap<String, V>, D::Error>
 where
     D: serde::Deserializer<'de>,
     V: Deserialize<'de>,
 {
-    struct Visitor<V>(std::marker::PhantomData<V>);
+    struct Visitor<V>(&'static str, std::marker::PhantomData<V>);
     impl<'de, V: Deserialize<'de>> serde::de::Visitor<'de> for Visitor<V> {
         type Value = BTreeMap<String, V>;
         fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-            f.write_str("a map of node ids to nodes")
+            write!(f, "a map by {}", self.0)
         }
         fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Self::Value, A::Error> {
             let mut out = BTreeMap::new();
             while let Some((key, value)) = map.next_entry::<String, V>()? {
                 if out.contains_key(&key) {
-                    return Err(serde::de::Error::custom(format!("duplicate node id '{key}'")));
+                    let shown: String = key.chars().take(80).collect::<String>().escape_debug().to_string();
+                    return Err(serde::de::Error::custom(format!(
+                        "duplicate {} '{shown}': each may appear once (keep one of the two)",
+                        self.0
+                    )));
                 }
                 out.insert(key, value);
             }
             Ok(out)
         }
     }
-    deserializer.deserialize_map(Visitor(std::marker::PhantomData))
+    deserializer.deserialize_map(Visitor(what, std::marker::PhantomData))
 }
 
-/// Splits `"node.port"` at its last dot (node ids may contain dots; port names do not).
-pub fn split_endpoint(s: &str) -> Option<(&str, &str)> {
-    s.rsplit_once('.').filter(|(n, p)| !n.is_empty() && !p.is_empty())
+fn unique_node_ids<'de, D: serde::Deserializer<'de>>(d: D) -> Result<BTreeMap<String, NodeDoc>, D::Error> {
+    unique_keys(d, "node id")
+}
+
+fn unique_input_names<'de, D: serde::Deserializer<'de>>(d: D) -> Result<BTreeMap<String, String>, D::Error> {
+    unique_keys(d, "graph input")
+}
+
+pub(crate) fn unique_param_names<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> Result<BTreeMap<String, ParamValue>, D::Error> {
+    unique_keys(d, "parameter")
+}
+
+fn unique_port_names<'de, D: serde::Deserializer<'de>, V: Deserialize<'de>>(
+    d: D,
+) -> Result<BTreeMap<String, V>, D::Error> {
+    unique_keys(d, "port")
+}
+
+fn unique_layout_ids<'de, D: serde::Deserializer<'de>>(d: D) -> Result<BTreeMap<String, (f32, f32)>, D::Error> {
+    unique_keys(d, "layout entry")
 }
 
 /// Why a graph file could not be loaded.
@@ -186,8 +247,31 @@ fn parse_error(path: &Path, e: ron::error::SpannedError) -> DocumentError {
         path: path.to_path_buf(),
         line: e.span.start.line,
         column: e.span.start.col,
-        message: e.code.to_string(),
+        message: readable(&e.code),
     }
+}
+
+/// The parser's message in the words of a graph file: no serde internals, no value echoed
+/// past a screenful.
+fn readable(code: &ron::Error) -> String {
+    let text = match code {
+        ron::Error::ExceededRecursionLimit => "brackets nest too deeply for a graph file".to_string(),
+        other if other.to_string().contains("untagged enum ParamValue") => {
+            "a parameter value must be a number, true/false or \"text\"".to_string()
+        }
+        other => other.to_string(),
+    };
+    shorten(&text, 200)
+}
+
+/// `text` cut to `max` characters, saying how much was left out.
+pub fn shorten(text: &str, max: usize) -> String {
+    let count = text.chars().count();
+    if count <= max {
+        return text.to_string();
+    }
+    let kept: String = text.chars().take(max).collect();
+    format!("{kept}… ({} more characters)", count - max)
 }
 
 /// Parses graph text; `path` names the file in errors and anchors relative paths.
@@ -208,8 +292,9 @@ pub fn parse(text: &str, path: &Path) -> Result<LoadedGraph, DocumentError> {
         return Err(version_error("no 'version' field (or version 0)".into()));
     }
     let doc = match file_version {
-        CURRENT_VERSION => ron::from_str::<GraphDoc>(text).map_err(|e| parse_error(path, e))?,
-        1 => v1::migrate(ron::from_str::<v1::GraphDocV1>(text).map_err(|e| parse_error(path, e))?),
+        2 | 3 => ron::from_str::<GraphDoc>(text).map_err(|e| parse_error(path, e))?,
+        1 => v1::migrate(ron::from_str::<v1::GraphDocV1>(text).map_err(|e| parse_error(path, e))?)
+            .map_err(|message| version_error(format!("cannot migrate this version-1 graph: {message}")))?,
         v if v > CURRENT_VERSION => {
             return Err(version_error(format!(
                 "graph version {v} is newer than this kinegraph understands (up to {CURRENT_VERSION}): upgrade kinegraph"
@@ -217,7 +302,8 @@ pub fn parse(text: &str, path: &Path) -> Result<LoadedGraph, DocumentError> {
         }
         v => return Err(version_error(format!("graph version {v} is not a known version (1..={CURRENT_VERSION})"))),
     };
-    let source = if file_version == CURRENT_VERSION { SourceMap::new(text) } else { SourceMap::default() };
+    // Version-1 files index too: their keys sit elsewhere (lookups find none), but comments count.
+    let source = SourceMap::new(text);
     Ok(LoadedGraph { doc, source, path: path.to_path_buf(), file_version })
 }
 
@@ -227,7 +313,7 @@ pub fn to_string(doc: &GraphDoc) -> String {
     doc.edges.sort();
     doc.edges.dedup();
     doc.format = FORMAT.to_string();
-    doc.version = CURRENT_VERSION;
+    doc.version = written_version(&doc);
     let config = ron::ser::PrettyConfig::new().indentor("    ").struct_names(false);
     let mut text =
         ron::ser::to_string_pretty(&doc, config).unwrap_or_else(|e| format!("// serialisation failed: {e}\n"));
@@ -252,45 +338,13 @@ impl GraphDoc {
             nodes: BTreeMap::new(),
             edges: Vec::new(),
             layout: BTreeMap::new(),
+            ports: PortsDoc::default(),
         }
-    }
-
-    /// Resolves a `--set` name (a graph input, or `node.param`) to `(node, param)`.
-    pub fn resolve_setting(&self, name: &str) -> Result<(String, String), String> {
-        let target = self.inputs.get(name).map(String::as_str).unwrap_or(name);
-        let (node, param) = split_endpoint(target).ok_or_else(|| {
-            let inputs: Vec<&str> = self.inputs.keys().map(String::as_str).collect();
-            format!(
-                "'{name}' is neither a graph input ({}) nor node.param",
-                if inputs.is_empty() { "none".into() } else { inputs.join(", ") }
-            )
-        })?;
-        if !self.nodes.contains_key(node) {
-            return Err(format!("'{name}' names node '{node}', which the graph does not have"));
-        }
-        Ok((node.to_string(), param.to_string()))
-    }
-
-    /// Sets a parameter by graph-input name or `node.param`.
-    pub fn set_param(&mut self, name: &str, value: ParamValue) -> Result<(), String> {
-        let (node, param) = self.resolve_setting(name)?;
-        if let Some(n) = self.nodes.get_mut(&node) {
-            n.params.insert(param, value);
-        }
-        Ok(())
     }
 }
 
 impl Default for GraphDoc {
     fn default() -> Self {
         Self::new()
-    }
-}
-
-/// Parses a `--set` value: a RON number, bool or quoted string, else the raw text.
-pub fn parse_param_value(text: &str) -> ParamValue {
-    match ron::from_str::<ParamValue>(text) {
-        Ok(v) => v,
-        Err(_) => ParamValue::Text(text.to_string()),
     }
 }

@@ -32,27 +32,35 @@ pub struct NodeV1 {
     pub id: String,
     /// Node kind.
     pub kind: String,
-    /// Parameters.
-    #[serde(default)]
+    /// Parameters (a repeated name is an error, as in the current version).
+    #[serde(default, deserialize_with = "super::unique_param_names")]
     pub params: BTreeMap<String, ParamValue>,
 }
 
-/// Brings a version-1 document to the current version.
-pub fn migrate(old: GraphDocV1) -> GraphDoc {
-    let nodes = old
-        .nodes
-        .into_iter()
-        .map(|n| {
-            let mut params = n.params;
-            if n.kind == "clip.load"
-                && let Some(scale) = params.remove("scale")
-            {
-                params.insert("metres_per_unit".to_string(), scale);
+/// Brings a version-1 document to the current version. Refused, saying what to keep,
+/// where the old file is ambiguous: two nodes with one id (version 1 listed nodes, so
+/// nothing stopped it), or a loader setting both `scale` and its new name.
+pub fn migrate(old: GraphDocV1) -> Result<GraphDoc, String> {
+    let mut nodes = BTreeMap::new();
+    for n in old.nodes {
+        let mut params = n.params;
+        if n.kind == "clip.load"
+            && let Some(scale) = params.remove("scale")
+        {
+            if let Some(new) = params.get("metres_per_unit") {
+                return Err(format!(
+                    "node '{}' sets both 'scale' ({scale}, the version-1 name) and 'metres_per_unit' ({new}): \
+                     delete one of them",
+                    n.id.escape_debug()
+                ));
             }
-            (n.id, NodeDoc { kind: n.kind, params })
-        })
-        .collect();
-    GraphDoc {
+            params.insert("metres_per_unit".to_string(), scale);
+        }
+        if nodes.insert(n.id.clone(), NodeDoc { kind: n.kind, params }).is_some() {
+            return Err(format!("two nodes have the id '{}': rename or delete one of them", n.id.escape_debug()));
+        }
+    }
+    Ok(GraphDoc {
         format: FORMAT.to_string(),
         version: CURRENT_VERSION,
         description: String::new(),
@@ -60,5 +68,6 @@ pub fn migrate(old: GraphDocV1) -> GraphDoc {
         nodes,
         edges: old.edges.into_iter().map(|(from, to)| EdgeDoc { from, to }).collect(),
         layout: BTreeMap::new(),
-    }
+        ports: Default::default(),
+    })
 }

@@ -18,8 +18,9 @@ use super::panel::{self, PanelState};
 use super::results::{self, ResultsState};
 use super::viewport::{ShownMesh, Viewport};
 use super::worker::{Worker, WorkerMessage};
-use crate::document::{self, GraphDoc};
+use crate::document;
 use crate::engine::{NodeStatus, RunReport};
+use crate::graph::{Graph, GraphFile, NodeId};
 
 /// What the file dialog is open for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -34,7 +35,7 @@ const AUTOSAVE_SECS: f64 = 30.0;
 /// The editor: one document, its history, views and the evaluation worker.
 pub struct EditorApp {
     registry: Registry,
-    doc: GraphDoc,
+    graph: Graph,
     path: Option<PathBuf>,
     /// `to_string` of the document as last opened or saved: dirty is "differs from this".
     clean_text: String,
@@ -83,9 +84,9 @@ impl EditorApp {
         let worker = Worker::spawn(Registry::builtin(), Arc::new(move || wake_ctx.request_repaint()));
         let mut app = EditorApp {
             registry: Registry::builtin(),
-            doc: GraphDoc::new(),
+            graph: Graph::new(),
             path: None,
-            clean_text: document::to_string(&GraphDoc::new()),
+            clean_text: document::to_string(&Graph::new().to_doc()),
             dirty: false,
             history: History::new(),
             canvas: Canvas::default(),
@@ -124,9 +125,14 @@ impl EditorApp {
         app
     }
 
-    /// The document being edited.
-    pub fn doc(&self) -> &GraphDoc {
-        &self.doc
+    /// The graph being edited.
+    pub fn graph(&self) -> &Graph {
+        &self.graph
+    }
+
+    /// The graph being edited in its file form, as Save would write it.
+    pub fn doc(&self) -> document::GraphDoc {
+        self.graph.to_doc()
     }
 
     /// The file the document is saved to, if any.
@@ -146,7 +152,7 @@ impl EditorApp {
 
     /// Shows node `id`'s panel (as clicking it on the canvas does).
     pub fn select(&mut self, id: Option<&str>) {
-        self.selected = id.filter(|id| self.doc.nodes.contains_key(*id)).map(str::to_string);
+        self.selected = id.filter(|id| self.graph.contains(id)).map(str::to_string);
     }
 
     /// The state badge text of node `id` (`"ok"`, `"error"`, …).
@@ -165,7 +171,7 @@ impl EditorApp {
     }
 
     fn edit_coalescing(&mut self, cmd: EditorCommand, coalesce: bool) -> Result<bool, EditError> {
-        let result = self.history.apply_coalescing(&mut self.doc, &self.registry, cmd, coalesce);
+        let result = self.history.apply_coalescing(&mut self.graph, &self.registry, cmd, coalesce);
         match &result {
             Ok(true) => self.document_changed(),
             Ok(false) => {}
@@ -186,7 +192,7 @@ impl EditorApp {
 
     /// Copies the selection as a graph fragment (see [`fragment`]); returns its text.
     pub fn copy_selection(&mut self) -> Option<String> {
-        let text = fragment::copy(&self.doc, &self.selection())?;
+        let text = fragment::copy(&self.graph, &self.selection())?;
         self.message = Some((format!("copied {}", self.selection().join(", ")), false));
         self.clipboard = Some(text.clone());
         Some(text)
@@ -194,11 +200,12 @@ impl EditorApp {
 
     /// Pastes a graph fragment as one undoable edit and shows the first pasted node.
     pub fn paste_text(&mut self, text: &str) {
-        match fragment::paste(&self.doc, &self.registry, text) {
+        match fragment::paste(&self.graph, &self.registry, text) {
             Ok((cmd, ids)) => {
                 if self.edit(cmd).is_ok() {
-                    self.message = Some((format!("pasted {}", ids.join(", ")), false));
-                    self.selected = ids.into_iter().next();
+                    let names: Vec<String> = ids.iter().map(ToString::to_string).collect();
+                    self.message = Some((format!("pasted {}", names.join(", ")), false));
+                    self.selected = ids.into_iter().next().map(|id| id.as_str().to_string());
                 }
             }
             Err(e) => self.message = Some((e.to_string(), true)),
@@ -207,7 +214,7 @@ impl EditorApp {
 
     /// Pastes a copy of the selection beside it (the system clipboard is left alone).
     pub fn duplicate_selection(&mut self) {
-        if let Some(text) = fragment::copy(&self.doc, &self.selection()) {
+        if let Some(text) = fragment::copy(&self.graph, &self.selection()) {
             self.paste_text(&text);
         }
     }
@@ -216,13 +223,13 @@ impl EditorApp {
     pub fn delete_selection(&mut self) {
         let ids = self.selection();
         if !ids.is_empty() {
-            let _ = self.edit(EditorCommand::RemoveNodes { ids });
+            let _ = self.edit(EditorCommand::RemoveNodes { ids: ids.into_iter().map(NodeId::from).collect() });
         }
     }
 
     /// Undoes the latest edit.
     pub fn undo(&mut self) {
-        match self.history.undo(&mut self.doc, &self.registry) {
+        match self.history.undo(&mut self.graph, &self.registry) {
             Ok(()) => self.document_changed(),
             Err(e) => self.message = Some((e.to_string(), false)),
         }
@@ -230,7 +237,7 @@ impl EditorApp {
 
     /// Redoes the latest undone edit.
     pub fn redo(&mut self) {
-        match self.history.redo(&mut self.doc, &self.registry) {
+        match self.history.redo(&mut self.graph, &self.registry) {
             Ok(()) => self.document_changed(),
             Err(e) => self.message = Some((e.to_string(), false)),
         }
@@ -238,11 +245,11 @@ impl EditorApp {
 
     /// Opens a graph file, replacing the document (and forgetting the history).
     pub fn open(&mut self, path: &Path) {
-        match document::load_file(path) {
+        match GraphFile::load(path) {
             Ok(loaded) => {
-                self.doc = loaded.doc;
+                self.graph = loaded.graph;
                 self.path = Some(path.to_path_buf());
-                self.clean_text = document::to_string(&self.doc);
+                self.clean_text = document::to_string(&self.graph.to_doc());
                 self.history.clear();
                 self.message = Some((format!("opened {}", path.display()), false));
                 self.document_replaced();
@@ -265,11 +272,11 @@ impl EditorApp {
 
     /// Saves to `path` (atomically) and makes it the current file.
     pub fn save_as(&mut self, path: &Path) {
-        match document::save_file(&self.doc, path) {
+        match document::save_file(&self.graph.to_doc(), path) {
             Ok(()) => {
                 files::discard_autosave(&self.settings_dir, self.path.as_deref());
                 self.path = Some(path.to_path_buf());
-                self.clean_text = document::to_string(&self.doc);
+                self.clean_text = document::to_string(&self.graph.to_doc());
                 self.dirty = false;
                 self.message = Some((format!("saved {}", path.display()), false));
                 self.remember(path);
@@ -292,7 +299,7 @@ impl EditorApp {
         if !self.dirty {
             return;
         }
-        let text = document::to_string(&self.doc);
+        let text = document::to_string(&self.graph.to_doc());
         if text == self.autosaved.1 {
             return;
         }
@@ -361,9 +368,9 @@ impl EditorApp {
             files::discard_autosave(&self.settings_dir, self.path.as_deref());
             return;
         }
-        match document::parse(&save.text, &files::autosave_path(&self.settings_dir, self.path.as_deref())) {
+        match GraphFile::parse(&save.text, &files::autosave_path(&self.settings_dir, self.path.as_deref())) {
             Ok(loaded) => {
-                self.doc = loaded.doc;
+                self.graph = loaded.graph;
                 self.history.clear();
                 self.document_replaced();
                 self.message = Some(("restored unsaved work: save to keep it".into(), false));
@@ -381,12 +388,12 @@ impl EditorApp {
     }
 
     fn document_changed(&mut self) {
-        self.dirty = document::to_string(&self.doc) != self.clean_text;
-        self.canvas.sync(&self.doc, &self.registry);
-        if self.selected.as_ref().is_some_and(|id| !self.doc.nodes.contains_key(id)) {
+        self.dirty = document::to_string(&self.graph.to_doc()) != self.clean_text;
+        self.canvas.sync(&self.graph, &self.registry);
+        if self.selected.as_ref().is_some_and(|id| !self.graph.contains(id)) {
             self.selected = None;
         }
-        self.badges.retain(|id, _| self.doc.nodes.contains_key(id));
+        self.badges.retain(|id, _| self.graph.contains(id));
         let base_dir = self
             .path
             .as_deref()
@@ -394,7 +401,7 @@ impl EditorApp {
             .map(Path::to_path_buf)
             .or_else(|| std::env::current_dir().ok())
             .unwrap_or_default();
-        self.worker.submit(self.doc.clone(), base_dir);
+        self.worker.submit(self.graph.clone(), base_dir);
     }
 
     /// Takes in what the worker reported since the last frame.
@@ -491,14 +498,13 @@ impl EditorApp {
     /// The values arriving at node `id`'s inputs from the last evaluation.
     fn input_values(&self, id: &str) -> Vec<&Value> {
         let Some(report) = &self.report else { return Vec::new() };
-        self.doc
-            .edges
-            .iter()
-            .filter(|e| e.to.split_once('.').is_some_and(|(node, _)| node == id))
+        self.graph
+            .edges()
+            .filter(|e| e.to.node.as_str() == id)
             .filter_map(|e| {
-                let (from, port) = e.from.split_once('.')?;
-                let schema = self.registry.get(&self.doc.nodes.get(from)?.kind)?.schema();
-                let index = schema.outputs.iter().position(|p| p.name == port)?;
+                let from = e.from.node.as_str();
+                let schema = self.registry.get(&self.graph.node(from)?.kind)?.schema();
+                let index = schema.outputs.iter().position(|p| p.name == e.from.port)?;
                 report.outputs.get(from)?.get(index)?.as_ref()
             })
             .collect()
@@ -601,9 +607,9 @@ impl EditorApp {
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
                 if ui.button("New").clicked() {
-                    self.doc = GraphDoc::new();
+                    self.graph = Graph::new();
                     self.path = None;
-                    self.clean_text = document::to_string(&self.doc);
+                    self.clean_text = document::to_string(&self.graph.to_doc());
                     self.history.clear();
                     self.document_replaced();
                     ui.close();
@@ -671,10 +677,10 @@ impl EditorApp {
             ui.menu_button("Add", |ui| {
                 if let Some(kind) = super::canvas::catalogue_menu(ui, &self.registry, &mut self.canvas.search, |_| true)
                 {
-                    let id = super::commands::fresh_node_id(&self.doc, kind);
-                    let y = self.doc.layout.values().map(|p| p.1).fold(0.0_f32, f32::max) + 140.0;
+                    let id = super::commands::fresh_node_id(&self.graph, kind);
+                    let y = self.graph.layout().values().map(|p| p.1).fold(0.0_f32, f32::max) + 140.0;
                     let _ = self.edit(EditorCommand::AddNode { id: id.clone(), kind: kind.into(), pos: (0.0, y) });
-                    self.selected = Some(id);
+                    self.selected = Some(id.as_str().to_string());
                     self.canvas.search.clear();
                     ui.close();
                 }
@@ -715,20 +721,20 @@ impl EditorApp {
                  Ctrl+V and Ctrl+D copy, paste and duplicate them as graph-file text. \
                  Double-click the canvas to fit the graph in view.",
             );
-            if !self.doc.description.is_empty() {
+            if !self.graph.description().is_empty() {
                 ui.separator();
-                ui.label(&self.doc.description);
+                ui.label(self.graph.description());
             }
             return;
         };
         let badge = self.badges.get(&id).cloned().unwrap_or(Badge::Idle);
         let report = self.report.as_ref().and_then(|r| r.nodes.get(&id)).cloned();
-        let edits = panel::show(ui, &mut self.panel, &self.doc, &self.registry, &id, &badge, report.as_ref());
+        let edits = panel::show(ui, &mut self.panel, &self.graph, &self.registry, &id, &badge, report.as_ref());
         for e in edits {
             let _ = self.edit_coalescing(e.command, e.coalesce);
         }
         let outputs = self.report.as_ref().and_then(|r| r.outputs.get(&id));
-        let schema = self.doc.nodes.get(&id).and_then(|n| self.registry.get(&n.kind)).map(|n| n.schema());
+        let schema = self.graph.node(&id).and_then(|n| self.registry.get(&n.kind)).map(|n| n.schema());
         if let (Some(outputs), Some(schema)) = (outputs, schema) {
             ui.separator();
             results::show(ui, &mut self.results, &id, schema.outputs, outputs);
@@ -736,7 +742,7 @@ impl EditorApp {
     }
 
     fn canvas(&mut self, ui: &mut Ui) {
-        let out = self.canvas.show(ui, &self.doc, &self.registry, &self.badges);
+        let out = self.canvas.show(ui, &self.graph, &self.registry, &self.badges);
         if let Some(reason) = out.refused {
             self.message = Some((format!("connection refused: {reason}"), true));
             self.refusal = Some((reason, ui.input(|i| i.time)));

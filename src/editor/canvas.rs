@@ -13,8 +13,8 @@ use egui_snarl::ui::{AnyPins, PinInfo, SnarlStyle, SnarlViewer, SnarlWidget};
 use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 use kinegraph_nodes::node::{NodeSchema, PortSpec, PortType, Registry};
 
-use super::commands::{EditorCommand, check_connect, fresh_node_id};
-use crate::document::{GraphDoc, split_endpoint};
+use super::commands::{EditorCommand, fresh_node_id};
+use crate::graph::{Graph, PortRef, rules};
 
 /// The canvas' egui id (snarl keeps selection under it).
 pub(crate) const CANVAS_ID: &str = "kg_canvas";
@@ -106,16 +106,18 @@ pub(crate) struct Canvas {
 }
 
 impl Canvas {
-    /// Brings the view in line with `doc`: nodes added and removed, positions and wires reset.
-    pub(crate) fn sync(&mut self, doc: &GraphDoc, registry: &Registry) {
+    /// Brings the view in line with `graph`: nodes added and removed, positions and wires reset.
+    pub(crate) fn sync(&mut self, graph: &Graph, registry: &Registry) {
         let gone: Vec<(String, NodeId)> =
-            self.ids.iter().filter(|(id, _)| !doc.nodes.contains_key(*id)).map(|(i, n)| (i.clone(), *n)).collect();
+            self.ids.iter().filter(|(id, _)| !graph.contains(id)).map(|(i, n)| (i.clone(), *n)).collect();
         for (id, nid) in gone {
             self.snarl.remove_node(nid);
             self.ids.remove(&id);
         }
-        for (row, id) in doc.nodes.keys().enumerate() {
-            let pos = doc.layout.get(id).map(|&(x, y)| Pos2::new(x, y)).unwrap_or(Pos2::new(0.0, row as f32 * 120.0));
+        for (row, id) in graph.nodes().keys().enumerate() {
+            let pos =
+                graph.layout().get(id).map(|&(x, y)| Pos2::new(x, y)).unwrap_or(Pos2::new(0.0, row as f32 * 120.0));
+            let id = id.as_str();
             match self.ids.get(id) {
                 Some(&nid) => {
                     if let Some(info) = self.snarl.get_node_info_mut(nid) {
@@ -123,8 +125,8 @@ impl Canvas {
                     }
                 }
                 None => {
-                    let nid = self.snarl.insert_node(pos, id.clone());
-                    self.ids.insert(id.clone(), nid);
+                    let nid = self.snarl.insert_node(pos, id.to_string());
+                    self.ids.insert(id.to_string(), nid);
                 }
             }
         }
@@ -133,26 +135,24 @@ impl Canvas {
         for (out, inp) in wires {
             self.snarl.disconnect(out, inp);
         }
-        for edge in &doc.edges {
+        for edge in graph.edges() {
             if let (Some(out), Some(inp)) =
-                (self.out_pin(doc, registry, &edge.from), self.in_pin(doc, registry, &edge.to))
+                (self.out_pin(graph, registry, &edge.from), self.in_pin(graph, registry, &edge.to))
             {
                 self.snarl.connect(out, inp);
             }
         }
     }
 
-    fn out_pin(&self, doc: &GraphDoc, registry: &Registry, endpoint: &str) -> Option<OutPinId> {
-        let (node, port) = split_endpoint(endpoint)?;
-        let schema = schema(doc, registry, node)?;
-        let output = schema.outputs.iter().position(|p| p.name == port)?;
+    fn out_pin(&self, graph: &Graph, registry: &Registry, port: &PortRef) -> Option<OutPinId> {
+        let node = port.node.as_str();
+        let output = schema(graph, registry, node)?.outputs.iter().position(|p| p.name == port.port)?;
         Some(OutPinId { node: *self.ids.get(node)?, output })
     }
 
-    fn in_pin(&self, doc: &GraphDoc, registry: &Registry, endpoint: &str) -> Option<InPinId> {
-        let (node, port) = split_endpoint(endpoint)?;
-        let schema = schema(doc, registry, node)?;
-        let input = schema.inputs.iter().position(|p| p.name == port)?;
+    fn in_pin(&self, graph: &Graph, registry: &Registry, port: &PortRef) -> Option<InPinId> {
+        let node = port.node.as_str();
+        let input = schema(graph, registry, node)?.inputs.iter().position(|p| p.name == port.port)?;
         Some(InPinId { node: *self.ids.get(node)?, input })
     }
 
@@ -161,12 +161,12 @@ impl Canvas {
     pub(crate) fn show(
         &mut self,
         ui: &mut Ui,
-        doc: &GraphDoc,
+        graph: &Graph,
         registry: &Registry,
         badges: &BTreeMap<String, Badge>,
     ) -> CanvasOutput {
         self.level_of_detail(ui.max_rect());
-        let mut viewer = Viewer { doc, registry, badges, search: &mut self.search, out: CanvasOutput::default() };
+        let mut viewer = Viewer { graph, registry, badges, search: &mut self.search, out: CanvasOutput::default() };
         let mut style = SnarlStyle::new();
         style.collapsible = Some(false);
         style.centering = Some(true);
@@ -174,7 +174,7 @@ impl Canvas {
         SnarlWidget::new().id(egui::Id::new(CANVAS_ID)).style(style).show(&mut self.snarl, &mut viewer, ui);
         let mut out = viewer.out;
         self.to_screen = out.to_screen;
-        self.tab_menu(ui, doc, registry, &mut out);
+        self.tab_menu(ui, graph, registry, &mut out);
         out.selected = egui_snarl::ui::get_selected_nodes(egui::Id::new(CANVAS_ID), ui.ctx())
             .into_iter()
             .filter_map(|nid| self.snarl.get_node(nid).cloned())
@@ -182,11 +182,11 @@ impl Canvas {
         out.selected.sort();
         // A finished drag becomes one MoveNodes command.
         if !ui.input(|i| i.pointer.primary_down()) {
-            let moves: Vec<(String, Option<(f32, f32)>)> = self
+            let moves: Vec<(crate::graph::NodeId, Option<(f32, f32)>)> = self
                 .snarl
                 .nodes_pos_ids()
                 .filter(|(nid, pos, _)| self.synced.get(nid).is_none_or(|s| (*s - *pos).length() > 0.01))
-                .map(|(_, pos, id)| (id.clone(), Some((pos.x.round(), pos.y.round()))))
+                .map(|(_, pos, id)| (id.as_str().into(), Some((pos.x.round(), pos.y.round()))))
                 .collect();
             if !moves.is_empty() {
                 out.commands.push(EditorCommand::MoveNodes { moves });
@@ -226,7 +226,7 @@ impl Canvas {
     }
 
     /// The add-node menu opened by [`Canvas::open_add_menu`]; the node lands where it opened.
-    fn tab_menu(&mut self, ui: &mut Ui, doc: &GraphDoc, registry: &Registry, out: &mut CanvasOutput) {
+    fn tab_menu(&mut self, ui: &mut Ui, graph: &Graph, registry: &Registry, out: &mut CanvasOutput) {
         let Some(at) = self.add_at else { return };
         let area = egui::Area::new(egui::Id::new("kg_tab_add")).fixed_pos(at).order(egui::Order::Foreground).show(
             ui.ctx(),
@@ -246,7 +246,7 @@ impl Canvas {
         if let Some(kind) = area.inner {
             let pos = self.to_screen.inverse() * at;
             out.commands.push(EditorCommand::AddNode {
-                id: fresh_node_id(doc, kind),
+                id: fresh_node_id(graph, kind),
                 kind: kind.into(),
                 pos: (pos.x, pos.y),
             });
@@ -273,12 +273,12 @@ pub(crate) struct CanvasOutput {
     pub(crate) to_screen: TSTransform,
 }
 
-fn schema(doc: &GraphDoc, registry: &Registry, id: &str) -> Option<&'static NodeSchema> {
-    doc.nodes.get(id).and_then(|n| registry.get(&n.kind)).map(|n| n.schema())
+fn schema(graph: &Graph, registry: &Registry, id: &str) -> Option<&'static NodeSchema> {
+    graph.node(id).and_then(|n| registry.get(&n.kind)).map(|n| n.schema())
 }
 
 struct Viewer<'a> {
-    doc: &'a GraphDoc,
+    graph: &'a Graph,
     registry: &'a Registry,
     badges: &'a BTreeMap<String, Badge>,
     search: &'a mut String,
@@ -286,22 +286,22 @@ struct Viewer<'a> {
 }
 
 impl Viewer<'_> {
-    fn endpoint_out(&self, pin: &OutPin, snarl: &Snarl<String>) -> Option<String> {
+    fn endpoint_out(&self, pin: &OutPin, snarl: &Snarl<String>) -> Option<PortRef> {
         let id = snarl.get_node(pin.id.node)?;
-        let port = schema(self.doc, self.registry, id)?.outputs.get(pin.id.output)?;
-        Some(format!("{id}.{}", port.name))
+        let port = schema(self.graph, self.registry, id)?.outputs.get(pin.id.output)?;
+        Some(PortRef::new(id.as_str(), port.name))
     }
 
-    fn endpoint_in(&self, pin: &InPin, snarl: &Snarl<String>) -> Option<String> {
+    fn endpoint_in(&self, pin: &InPin, snarl: &Snarl<String>) -> Option<PortRef> {
         let id = snarl.get_node(pin.id.node)?;
-        let port = schema(self.doc, self.registry, id)?.inputs.get(pin.id.input)?;
-        Some(format!("{id}.{}", port.name))
+        let port = schema(self.graph, self.registry, id)?.inputs.get(pin.id.input)?;
+        Some(PortRef::new(id.as_str(), port.name))
     }
 }
 
 impl SnarlViewer<String> for Viewer<'_> {
     fn title(&mut self, node: &String) -> String {
-        let kind = self.doc.nodes.get(node).map(|n| n.kind.as_str()).unwrap_or("?");
+        let kind = self.graph.node(node).map(|n| n.kind.as_str()).unwrap_or("?");
         format!("{node} · {kind}")
     }
 
@@ -324,7 +324,7 @@ impl SnarlViewer<String> for Viewer<'_> {
             }
             // A collapsed node (off screen, or zoomed out) shows its id and state colour only.
             if open {
-                ui.label(RichText::new(self.doc.nodes.get(id).map_or("", |n| n.kind.as_str())).weak());
+                ui.label(RichText::new(self.graph.node(id).map_or("", |n| n.kind.as_str())).weak());
             }
             dot(ui, color);
             if open {
@@ -334,11 +334,11 @@ impl SnarlViewer<String> for Viewer<'_> {
     }
 
     fn inputs(&mut self, node: &String) -> usize {
-        schema(self.doc, self.registry, node).map_or(0, |s| s.inputs.len())
+        schema(self.graph, self.registry, node).map_or(0, |s| s.inputs.len())
     }
 
     fn outputs(&mut self, node: &String) -> usize {
-        schema(self.doc, self.registry, node).map_or(0, |s| s.outputs.len())
+        schema(self.graph, self.registry, node).map_or(0, |s| s.outputs.len())
     }
 
     fn show_input(
@@ -349,7 +349,7 @@ impl SnarlViewer<String> for Viewer<'_> {
     ) -> impl egui_snarl::ui::SnarlPin + 'static {
         let port = snarl
             .get_node(pin.id.node)
-            .and_then(|id| schema(self.doc, self.registry, id))
+            .and_then(|id| schema(self.graph, self.registry, id))
             .and_then(|s| s.inputs.get(pin.id.input));
         port_pin(ui, port, |p| if p.required { p.name.to_string() } else { format!("{} (optional)", p.name) })
     }
@@ -362,7 +362,7 @@ impl SnarlViewer<String> for Viewer<'_> {
     ) -> impl egui_snarl::ui::SnarlPin + 'static {
         let port = snarl
             .get_node(pin.id.node)
-            .and_then(|id| schema(self.doc, self.registry, id))
+            .and_then(|id| schema(self.graph, self.registry, id))
             .and_then(|s| s.outputs.get(pin.id.output));
         port_pin(ui, port, |p| p.name.to_string())
     }
@@ -390,7 +390,7 @@ impl SnarlViewer<String> for Viewer<'_> {
 
     fn connect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<String>) {
         let (Some(from), Some(to)) = (self.endpoint_out(from, snarl), self.endpoint_in(to, snarl)) else { return };
-        match check_connect(self.doc, self.registry, &from, &to) {
+        match rules::check_connect(self.graph, self.registry, &from, &to) {
             Ok(()) => self.out.commands.push(EditorCommand::Connect { from, to }),
             Err(e) => self.out.refused = Some(e.to_string()),
         }
@@ -405,9 +405,8 @@ impl SnarlViewer<String> for Viewer<'_> {
     fn drop_inputs(&mut self, pin: &InPin, snarl: &mut Snarl<String>) {
         let Some(to) = self.endpoint_in(pin, snarl) else { return };
         let cmds: Vec<EditorCommand> = self
-            .doc
-            .edges
-            .iter()
+            .graph
+            .edges()
             .filter(|e| e.to == to)
             .map(|e| EditorCommand::Disconnect { from: e.from.clone(), to: e.to.clone() })
             .collect();
@@ -419,9 +418,8 @@ impl SnarlViewer<String> for Viewer<'_> {
     fn drop_outputs(&mut self, pin: &OutPin, snarl: &mut Snarl<String>) {
         let Some(from) = self.endpoint_out(pin, snarl) else { return };
         let cmds: Vec<EditorCommand> = self
-            .doc
-            .edges
-            .iter()
+            .graph
+            .edges()
             .filter(|e| e.from == from)
             .map(|e| EditorCommand::Disconnect { from: e.from.clone(), to: e.to.clone() })
             .collect();
@@ -437,7 +435,7 @@ impl SnarlViewer<String> for Viewer<'_> {
     fn show_graph_menu(&mut self, pos: Pos2, ui: &mut Ui, _snarl: &mut Snarl<String>) {
         ui.label("Add node");
         if let Some(kind) = catalogue_menu(ui, self.registry, self.search, |_| true) {
-            let id = fresh_node_id(self.doc, kind);
+            let id = fresh_node_id(self.graph, kind);
             self.out.commands.push(EditorCommand::AddNode { id, kind: kind.to_string(), pos: (pos.x, pos.y) });
             self.search.clear();
             ui.close();
@@ -455,24 +453,24 @@ impl SnarlViewer<String> for Viewer<'_> {
             AnyPins::Out(pins) => {
                 let Some(pin) = pins.first() else { return };
                 let Some(id) = snarl.get_node(pin.node) else { return };
-                let Some(port) = schema(self.doc, self.registry, id).and_then(|s| s.outputs.get(pin.output)) else {
+                let Some(port) = schema(self.graph, self.registry, id).and_then(|s| s.outputs.get(pin.output)) else {
                     return;
                 };
-                (format!("{id}.{}", port.name), port.ty, true)
+                (PortRef::new(id.as_str(), port.name), port.ty, true)
             }
             AnyPins::In(pins) => {
                 let Some(pin) = pins.first() else { return };
                 let Some(id) = snarl.get_node(pin.node) else { return };
-                let Some(port) = schema(self.doc, self.registry, id).and_then(|s| s.inputs.get(pin.input)) else {
+                let Some(port) = schema(self.graph, self.registry, id).and_then(|s| s.inputs.get(pin.input)) else {
                     return;
                 };
-                (format!("{id}.{}", port.name), port.ty, false)
+                (PortRef::new(id.as_str(), port.name), port.ty, false)
             }
         };
         ui.label(format!("Add a node that {} a {}", if from_output { "takes" } else { "gives" }, ty.name()));
         let picked = catalogue_menu(ui, self.registry, self.search, |s| facing_port(s, ty, from_output).is_some());
         if let Some(cmd) =
-            picked.and_then(|kind| add_connected(self.doc, self.registry, &endpoint, from_output, kind, pos))
+            picked.and_then(|kind| add_connected(self.graph, self.registry, &endpoint, from_output, kind, pos))
         {
             self.out.commands.push(cmd);
             self.search.clear();
@@ -498,7 +496,7 @@ impl SnarlViewer<String> for Viewer<'_> {
     ) {
         if ui.button("Delete").clicked() {
             if let Some(id) = snarl.get_node(node) {
-                self.out.commands.push(EditorCommand::RemoveNodes { ids: vec![id.clone()] });
+                self.out.commands.push(EditorCommand::RemoveNodes { ids: vec![id.as_str().into()] });
             }
             ui.close();
         }
@@ -549,21 +547,20 @@ fn facing_port(schema: &NodeSchema, ty: PortType, from_output: bool) -> Option<&
 /// One undo step that adds a node of `kind` at `pos` and wires it to `endpoint`, the port
 /// a wire was dragged from (an output when `from_output`).
 fn add_connected(
-    doc: &GraphDoc,
+    graph: &Graph,
     registry: &Registry,
-    endpoint: &str,
+    endpoint: &PortRef,
     from_output: bool,
     kind: &str,
     pos: Pos2,
 ) -> Option<EditorCommand> {
-    let (node, port) = split_endpoint(endpoint)?;
-    let dragged = schema(doc, registry, node)?;
+    let dragged = schema(graph, registry, endpoint.node.as_str())?;
     let ports = if from_output { dragged.outputs } else { dragged.inputs };
-    let ty = ports.iter().find(|p| p.name == port)?.ty;
+    let ty = ports.iter().find(|p| p.name == endpoint.port)?.ty;
     let facing = facing_port(registry.get(kind)?.schema(), ty, from_output)?;
-    let id = fresh_node_id(doc, kind);
-    let new_end = format!("{id}.{facing}");
-    let (from, to) = if from_output { (endpoint.to_string(), new_end) } else { (new_end, endpoint.to_string()) };
+    let id = fresh_node_id(graph, kind);
+    let new_end = PortRef::new(id.clone(), facing);
+    let (from, to) = if from_output { (endpoint.clone(), new_end) } else { (new_end, endpoint.clone()) };
     Some(EditorCommand::Batch(vec![
         EditorCommand::AddNode { id, kind: kind.to_string(), pos: (pos.x, pos.y) },
         EditorCommand::Connect { from, to },
@@ -587,35 +584,40 @@ fn port_pin(ui: &mut Ui, port: Option<&PortSpec>, label: impl Fn(&PortSpec) -> S
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use crate::document;
     use crate::editor::commands::apply;
+    use crate::graph::GraphFile;
+
+    fn port(text: &str) -> PortRef {
+        PortRef::parse(text).unwrap()
+    }
 
     #[test]
     fn a_dropped_wire_adds_a_node_wired_on_the_matching_side() {
         let registry = Registry::builtin();
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron");
-        let mut doc = document::load_file(&path).unwrap().doc;
+        let mut doc = GraphFile::load(&path).unwrap().graph;
         // From an output: the new node's clip input takes it.
-        let cmd = add_connected(&doc, &registry, "clip.clip", true, "motion.contacts", Pos2::new(5.0, 6.0)).unwrap();
+        let cmd =
+            add_connected(&doc, &registry, &port("clip.clip"), true, "motion.contacts", Pos2::new(5.0, 6.0)).unwrap();
         apply(&mut doc, &registry, &cmd).unwrap();
-        assert_eq!(doc.nodes["contacts"].kind, "motion.contacts");
-        assert_eq!(doc.layout["contacts"], (5.0, 6.0));
-        assert!(doc.edges.iter().any(|e| e.from == "clip.clip" && e.to == "contacts.clip"));
+        assert_eq!(doc.node("contacts").unwrap().kind, "motion.contacts");
+        assert_eq!(doc.layout()["contacts"], (5.0, 6.0));
+        assert!(doc.has_edge(&port("clip.clip"), &port("contacts.clip")));
         // From an input: the new node's output feeds it (replacing what fed it).
-        let cmd = add_connected(&doc, &registry, "resample.clip", false, "clip.trim", Pos2::ZERO).unwrap();
+        let cmd = add_connected(&doc, &registry, &port("resample.clip"), false, "clip.trim", Pos2::ZERO).unwrap();
         apply(&mut doc, &registry, &cmd).unwrap();
-        assert!(doc.edges.iter().any(|e| e.from == "trim_2.clip" && e.to == "resample.clip"));
+        assert!(doc.has_edge(&port("trim_2.clip"), &port("resample.clip")));
         // A kind with no port of the wire's type is neither offered nor wired.
         let load_mesh = registry.get("mesh.load").unwrap().schema();
         assert!(facing_port(load_mesh, PortType::Clip, true).is_none());
-        assert!(add_connected(&doc, &registry, "clip.clip", true, "mesh.load", Pos2::ZERO).is_none());
+        assert!(add_connected(&doc, &registry, &port("clip.clip"), true, "mesh.load", Pos2::ZERO).is_none());
     }
 
     #[test]
     fn only_nodes_on_screen_at_a_readable_zoom_are_open() {
         let registry = Registry::builtin();
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron");
-        let doc = document::load_file(&path).unwrap().doc;
+        let doc = GraphFile::load(&path).unwrap().graph;
         let mut canvas = Canvas::default();
         canvas.sync(&doc, &registry);
         let open = |c: &Canvas, id: &str| c.snarl.get_node_info(c.ids[id]).unwrap().open;
@@ -635,6 +637,6 @@ mod tests {
         // Zoomed out below the readable zoom: everything is collapsed, wherever it is.
         canvas.to_screen = TSTransform::from_scaling(0.3);
         canvas.level_of_detail(screen);
-        assert!(doc.nodes.keys().all(|id| !open(&canvas, id)));
+        assert!(doc.nodes().keys().all(|id| !open(&canvas, id.as_str())));
     }
 }

@@ -1,6 +1,6 @@
 //! The node editor.
 //!
-//! - [`commands`]: the pure command reducer over [`GraphDoc`](crate::document::GraphDoc)
+//! - [`commands`]: the pure command reducer over the [`Graph`](crate::graph::Graph)
 //!   with undo/redo; widgets only ever emit its commands.
 //! - [`fragment`]: copy and paste of graph fragments as graph-file text.
 //! - [`worker`]: the evaluation thread that owns the engine; stale results are dropped by

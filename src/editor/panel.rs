@@ -6,8 +6,8 @@ use kinegraph_nodes::node::{ParamKind, ParamValue, Registry};
 
 use super::canvas::{Badge, dot, type_color};
 use super::commands::EditorCommand;
-use crate::document::GraphDoc;
 use crate::engine::NodeReport;
+use crate::graph::{Graph, ParamPath};
 
 /// A parameter edit and whether it continues the previous one (a drag in progress), so
 /// a whole drag is one undo step.
@@ -30,14 +30,14 @@ pub(crate) struct PanelState {
 pub(crate) fn show(
     ui: &mut Ui,
     state: &mut PanelState,
-    doc: &GraphDoc,
+    graph: &Graph,
     registry: &Registry,
     id: &str,
     badge: &Badge,
     report: Option<&NodeReport>,
 ) -> Vec<PanelEdit> {
     let mut edits = Vec::new();
-    let Some(node) = doc.nodes.get(id) else { return edits };
+    let Some(node) = graph.node(id) else { return edits };
     ui.heading(id);
     let Some(schema) = registry.get(&node.kind).map(|n| n.schema()) else {
         ui.colored_label(egui::Color32::RED, format!("unknown node kind '{}'", node.kind));
@@ -69,11 +69,7 @@ pub(crate) fn show(
         for spec in schema.params {
             let set = node.params.get(spec.name);
             let name_label = ui.label(spec.name).on_hover_text(spec.doc);
-            let set_cmd = |value: ParamValue| EditorCommand::SetParam {
-                node: id.to_string(),
-                param: spec.name.to_string(),
-                value,
-            };
+            let set_cmd = |value: ParamValue| EditorCommand::SetParam { param: ParamPath::new(id, spec.name), value };
             match spec.kind {
                 ParamKind::Float { default, min, max, unit } => {
                     let current = set.and_then(ParamValue::as_f64).or(default);
@@ -168,7 +164,7 @@ pub(crate) fn show(
             if set.is_some() {
                 if ui.small_button("reset").on_hover_text("reset to the default").clicked() {
                     edits.push(PanelEdit {
-                        command: EditorCommand::ResetParam { node: id.to_string(), param: spec.name.to_string() },
+                        command: EditorCommand::ResetParam { param: ParamPath::new(id, spec.name) },
                         coalesce: false,
                     });
                 }

@@ -15,8 +15,8 @@ use std::thread::JoinHandle;
 
 use kinegraph_nodes::node::Registry;
 
-use crate::document::{GraphDoc, SourceMap};
-use crate::engine::{Engine, GraphErrors, NodeStatus, RunEvent, RunOptions, RunReport, compile};
+use crate::engine::{Engine, GraphErrors, NodeStatus, RunEvent, RunOptions, RunReport, compile_file};
+use crate::graph::{Graph, GraphFile};
 
 /// Called from the worker thread whenever it has news (the editor asks for a repaint).
 pub type Waker = Arc<dyn Fn() + Send + Sync>;
@@ -45,7 +45,7 @@ pub enum WorkerMessage {
 /// One evaluation request.
 struct Job {
     request: u64,
-    doc: GraphDoc,
+    graph: Graph,
     base_dir: PathBuf,
     cancel: Arc<AtomicBool>,
 }
@@ -72,13 +72,13 @@ impl Worker {
         Worker { jobs: Some(jobs), messages, latest: 0, finished: 0, cancel: Arc::new(AtomicBool::new(false)), thread }
     }
 
-    /// Asks for an evaluation of `doc` (relative paths resolve against `base_dir`),
+    /// Asks for an evaluation of `graph` (relative paths resolve against `base_dir`),
     /// cancelling the one in flight. Returns the new request id.
-    pub fn submit(&mut self, doc: GraphDoc, base_dir: PathBuf) -> u64 {
+    pub fn submit(&mut self, graph: Graph, base_dir: PathBuf) -> u64 {
         self.cancel.store(true, Ordering::Relaxed);
         self.cancel = Arc::new(AtomicBool::new(false));
         self.latest += 1;
-        let job = Job { request: self.latest, doc, base_dir, cancel: self.cancel.clone() };
+        let job = Job { request: self.latest, graph, base_dir, cancel: self.cancel.clone() };
         if let Some(jobs) = &self.jobs {
             // A closed channel means the thread is gone; `running` then stays true and the
             // editor shows the graph as not evaluated, which is the honest state.
@@ -149,8 +149,9 @@ fn worker_loop(engine: Engine, jobs: &Receiver<Job>, messages: &Sender<(u64, Wor
             let _ = messages.send((job.request, message));
             wake();
         };
-        let path = PathBuf::from("(editor)");
-        let compiled = match compile(&job.doc, engine.registry(), &path, &SourceMap::default()) {
+        // Relative paths (subgraph files among them) resolve against the graph's folder.
+        let file = GraphFile::in_memory(job.graph.clone(), &job.base_dir.join("(editor)"));
+        let compiled = match compile_file(&file, engine.registry()) {
             Ok(compiled) => compiled,
             Err(errors) => {
                 send(WorkerMessage::Invalid(errors));
@@ -179,13 +180,13 @@ fn worker_loop(engine: Engine, jobs: &Receiver<Job>, messages: &Sender<(u64, Wor
 mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
-    use crate::document;
+    use crate::graph::{GraphFile, ParamPath, PortRef};
 
-    fn demo() -> (GraphDoc, PathBuf) {
+    fn demo() -> (Graph, PathBuf) {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron");
-        let loaded = document::load_file(&path).unwrap();
+        let loaded = GraphFile::load(&path).unwrap();
         let base = loaded.base_dir();
-        (loaded.doc, base)
+        (loaded.graph, base)
     }
 
     #[test]
@@ -198,7 +199,8 @@ mod tests {
         assert!(!report.nodes.contains_key("glb") && !report.nodes.contains_key("bvh"));
         assert_eq!(report.nodes["resample"].status, NodeStatus::Ok);
 
-        doc.set_param("resample.fps", kinegraph_nodes::node::ParamValue::Float(12.0)).unwrap();
+        let fps = ParamPath::parse("resample.fps").unwrap();
+        doc.set_param(&Registry::builtin(), &fps, &kinegraph_nodes::node::ParamValue::Float(12.0)).unwrap();
         worker.submit(doc, base);
         let Some(WorkerMessage::Done(report)) = worker.wait() else { panic!("no report") };
         assert_eq!(report.nodes["trim"].status, NodeStatus::Cached);
@@ -211,7 +213,7 @@ mod tests {
         let mut worker = Worker::spawn(Registry::builtin(), Arc::new(|| {}));
         let first = worker.submit(doc.clone(), base.clone());
         let mut broken = doc;
-        broken.edges.clear();
+        broken.disconnect(&PortRef::parse("clip.clip").unwrap(), &PortRef::parse("trim.clip").unwrap()).unwrap();
         let second = worker.submit(broken, base);
         assert!(second > first);
         // Whatever the first request produced is never seen: only the invalid second one.

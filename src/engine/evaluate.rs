@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 
-use kinegraph_nodes::node::{NodeContext, NodeError, NodeOutcome, ParamKind, ParamValue, Registry, RunServices, Value};
+use kinegraph_nodes::node::{NodeContext, NodeError, NodeOutcome, Registry, RunServices, Value};
 
 use super::compile::CompiledGraph;
 use super::report::{NodeReport, NodeStatus, RunReport};
@@ -331,12 +331,12 @@ fn fingerprints(graph: &CompiledGraph<'_>, base_dir: &std::path::Path) -> Vec<u6
         for (name, value) in &node.params {
             name.hash(&mut h);
             format!("{value:?}").hash(&mut h);
-            let is_input_file = schema.param(name).is_some_and(|p| matches!(p.kind, ParamKind::InputPath { .. }));
-            if let (true, ParamValue::Text(path)) = (is_input_file, value) {
-                let meta = std::fs::metadata(base_dir.join(path)).ok();
-                meta.as_ref().map(|m| m.len()).hash(&mut h);
-                meta.and_then(|m| m.modified().ok()).hash(&mut h);
-            }
+        }
+        // A file changed (or gone) since the last run is a new input.
+        for path in node.input_files() {
+            let meta = std::fs::metadata(base_dir.join(path)).ok();
+            meta.as_ref().map(|m| m.len()).hash(&mut h);
+            meta.and_then(|m| m.modified().ok()).hash(&mut h);
         }
         for input in &node.inputs {
             input.map(|(src, port)| (out[src], port)).hash(&mut h);

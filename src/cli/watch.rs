@@ -1,0 +1,111 @@
+//! `kg watch`: runs a graph, then again whenever the graph file, one of its subgraph files
+//! or one of the files it reads changes. One engine lives across runs, so only what a change reaches is
+//! recomputed (its cache keys on parameters and on input files' size and modification
+//! time: a changed or deleted input is never served stale). Ctrl-C stops it.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
+use std::sync::mpsc::{RecvTimeoutError, channel};
+use std::time::{Duration, Instant};
+
+use kinegraph_nodes::node::Registry;
+use notify::{RecursiveMode, Watcher};
+
+use super::EXIT_FAILED;
+use super::run::{Setting, absolute, cancel_flag, execute, json_report, load_graph, print_report};
+use crate::engine::{Engine, compile_file};
+
+/// How long to let a burst of file events (an editor's write, rename, chmod) settle.
+const SETTLE: Duration = Duration::from_millis(25);
+
+pub(super) fn watch_command(graph: &Path, settings: &[Setting], out: &Path, json: bool, threads: Option<usize>) -> u8 {
+    let engine = Engine::new(Registry::builtin());
+    let cancel = cancel_flag();
+    let (tx, rx) = channel();
+    let mut watcher = match notify::recommended_watcher(tx) {
+        Ok(w) => w,
+        Err(e) => {
+            eprintln!("kg watch: cannot watch files here: {e}");
+            return EXIT_FAILED;
+        }
+    };
+    let mut folders: BTreeSet<PathBuf> = BTreeSet::new();
+    loop {
+        let started = Instant::now();
+        let files = run_once(&engine, graph, settings, out, json, threads);
+        // Folders are watched, not files: editors save by writing a new file and renaming it.
+        for folder in files.iter().filter_map(|f| f.parent()) {
+            if !folders.contains(folder) && folder.is_dir() {
+                match watcher.watch(folder, RecursiveMode::NonRecursive) {
+                    Ok(()) => {
+                        folders.insert(folder.to_path_buf());
+                    }
+                    Err(e) => eprintln!("warning: {} will not be watched: {e}", folder.display()),
+                }
+            }
+        }
+        eprintln!(
+            "kg watch: ran in {:.0} ms; watching {} file(s) — Ctrl-C stops",
+            started.elapsed().as_secs_f64() * 1e3,
+            files.len()
+        );
+        let changed = loop {
+            if cancel.load(Ordering::Relaxed) {
+                eprintln!("kg watch: stopped");
+                return 0;
+            }
+            match rx.recv_timeout(Duration::from_millis(50)) {
+                Ok(Ok(event)) => {
+                    if let Some(path) = event.paths.iter().find(|p| files.contains(&absolute(p))) {
+                        break path.clone();
+                    }
+                }
+                Ok(Err(e)) => eprintln!("warning: file watching: {e}"),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => return EXIT_FAILED,
+            }
+        };
+        std::thread::sleep(SETTLE);
+        while rx.try_recv().is_ok() {}
+        eprintln!("kg watch: {} changed", changed.display());
+    }
+}
+
+/// Runs the graph once and prints its report; returns the files to watch: the graph and
+/// every file it reads (all absolute). An invalid graph prints why and watches the graph.
+fn run_once(
+    engine: &Engine,
+    graph: &Path,
+    settings: &[Setting],
+    out: &Path,
+    json: bool,
+    threads: Option<usize>,
+) -> BTreeSet<PathBuf> {
+    let mut files = BTreeSet::from([absolute(graph)]);
+    let loaded = match load_graph(graph, settings, engine.registry()) {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("{e}");
+            return files;
+        }
+    };
+    if let Ok(compiled) = compile_file(&loaded, engine.registry()) {
+        let base = loaded.base_dir();
+        files.extend(compiled.input_files().map(|f| absolute(&base.join(f))));
+        files.extend(compiled.includes.iter().cloned());
+    }
+    match execute(engine, &loaded, Some(out), threads, None, false) {
+        Ok(report) => {
+            let code = if report.succeeded() { 0 } else { EXIT_FAILED };
+            if json {
+                println!("{}", json_report(graph, &report, code));
+            } else {
+                print_report(graph, &report);
+            }
+        }
+        Err(code) if json => println!("{}", serde_json::json!({ "graph": graph, "exit_code": code, "ok": false })),
+        Err(_) => {}
+    }
+    files
+}
