@@ -29,6 +29,7 @@ use serde_json::json;
 use super::roles::{BodyRoles, Limb, body_roles, roles_of};
 use crate::builtin::momentum::into_report;
 use crate::formats::FormatError;
+use crate::formats::bone_map::{bone_map_from_ron, bone_map_to_ron};
 use crate::model::bone_map::BoneMap;
 use crate::model::fk::pose_world;
 use crate::model::{Clip, ClipError, Skeleton, Transform};
@@ -405,7 +406,7 @@ impl Node for MapSkeleton {
         }
         if let Some(path) = ctx.optional_input_path(&MAP_FILE)? {
             let text = std::fs::read_to_string(&path).map_err(|e| FormatError::io(&path, &e))?;
-            map.joints.extend(BoneMap::from_ron(&text, &path)?.joints);
+            map.joints.extend(bone_map_from_ron(&text, &path)?.joints);
         }
         let out = transfer(&source, &target, &map, bodies.as_ref(), root_scale).map_err(failed)?;
         if !out.unmapped.is_empty() {
@@ -467,7 +468,7 @@ impl Node for ExportBoneMap {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let map = ctx.input(&MAP_IN)?;
-        let relative = ctx.write_output(&MAP_FILE_OUT, map.to_ron().as_bytes())?;
+        let relative = ctx.write_output(&MAP_FILE_OUT, bone_map_to_ron(&map).as_bytes())?;
         ctx.set_output(&FILE_OUT, Arc::new(relative));
         Ok(())
     }
