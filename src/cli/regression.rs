@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use kinegraph_nodes::model::forward_kinematics;
-use kinegraph_nodes::node::{Registry, Value};
+use kinegraph_nodes::node::Value;
 use serde::{Deserialize, Serialize};
 use sha2::Digest;
 
@@ -439,7 +439,7 @@ fn run_and_compare(
 
 pub(super) fn test_command(graphs: Vec<PathBuf>, bless: bool) -> u8 {
     let graphs = if graphs.is_empty() { graphs_in(Path::new("graphs")) } else { graphs };
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let (mut passed, mut failed, mut skipped) = (0, 0, 0);
     for graph in &graphs {
         match test_graph(&engine, graph, bless) {

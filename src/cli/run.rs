@@ -199,7 +199,7 @@ pub(super) fn run_command(
     threads: Option<usize>,
     targets: Vec<String>,
 ) -> u8 {
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let loaded = match load_graph(graph, settings, engine.registry()) {
         Ok(l) => l,
         Err(e) => {
@@ -222,7 +222,7 @@ pub(super) fn run_command(
 }
 
 pub(super) fn check_command(graphs: &[PathBuf], json: bool) -> u8 {
-    let registry = Registry::builtin();
+    let registry = kinegraph_nodes::builtin::registry();
     let mut worst = 0;
     let mut results = Vec::new();
     for path in graphs {
@@ -276,7 +276,7 @@ pub fn convert_graph(input: &Path, output: &Path) -> Result<GraphDoc, String> {
 }
 
 pub(super) fn convert_command(input: &Path, output: &Path, settings: &[Setting]) -> u8 {
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let mut doc = match convert_graph(input, output) {
         Ok(d) => d,
         Err(e) => {

@@ -591,7 +591,7 @@ mod tests {
         let mut doc = demo();
         assert_eq!(fresh_node_id(&doc, "clip.trim"), "trim_2");
         assert_eq!(fresh_node_id(&doc, "scalar.constant"), "constant");
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         apply(&mut doc, &r, &EditorCommand::AddNode { id: "trim_2".into(), kind: "clip.trim".into(), pos: (0.0, 0.0) })
             .unwrap();
         assert_eq!(fresh_node_id(&doc, "clip.trim"), "trim_3");
@@ -599,7 +599,7 @@ mod tests {
 
     #[test]
     fn every_command_undoes_to_identical_bytes() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut doc = demo();
         let original = to_string(&doc);
         let mut history = History::new();
@@ -637,7 +637,7 @@ mod tests {
 
     #[test]
     fn replacing_a_connection_is_one_step() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut doc = demo();
         let before = to_string(&doc);
         let mut history = History::new();
@@ -651,7 +651,7 @@ mod tests {
 
     #[test]
     fn refused_connections_say_why_and_change_nothing() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut doc = demo();
         let before = doc.clone();
         let mut history = History::new();
@@ -673,7 +673,7 @@ mod tests {
 
     #[test]
     fn params_are_checked_and_canonicalised() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut doc = demo();
         let set = |v: ParamValue| EditorCommand::SetParam { node: "resample".into(), param: "fps".into(), value: v };
         let err = apply(&mut doc, &r, &set(ParamValue::Float(-1.0))).unwrap_err();
@@ -688,7 +688,7 @@ mod tests {
 
     #[test]
     fn no_op_edits_are_not_recorded_and_redo_clears_on_new_edit() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut doc = demo();
         let mut history = History::new();
         let same = EditorCommand::SetParam { node: "resample".into(), param: "fps".into(), value: ParamValue::Int(24) };
@@ -703,7 +703,7 @@ mod tests {
 
     #[test]
     fn a_drag_is_one_undo_step() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut doc = demo();
         let before = to_string(&doc);
         let mut history = History::new();
@@ -726,7 +726,7 @@ mod tests {
 
     #[test]
     fn a_failing_batch_leaves_the_document_untouched() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut doc = demo();
         let before = doc.clone();
         let batch = EditorCommand::Batch(vec![
@@ -739,7 +739,7 @@ mod tests {
 
     #[test]
     fn bad_ids_and_kinds_are_refused() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut doc = demo();
         let add = |id: &str, kind: &str| EditorCommand::AddNode { id: id.into(), kind: kind.into(), pos: (0.0, 0.0) };
         assert!(matches!(apply(&mut doc, &r, &add("trim", "clip.trim")), Err(EditError::DuplicateId(_))));

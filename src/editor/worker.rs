@@ -191,7 +191,7 @@ mod tests {
     #[test]
     fn runs_the_demo_without_exports_then_reuses_the_cache() {
         let (mut doc, base) = demo();
-        let mut worker = Worker::spawn(Registry::builtin(), Arc::new(|| {}));
+        let mut worker = Worker::spawn(kinegraph_nodes::builtin::registry(), Arc::new(|| {}));
         worker.submit(doc.clone(), base.clone());
         let Some(WorkerMessage::Done(report)) = worker.wait() else { panic!("no report") };
         assert!(report.succeeded(), "{report:?}");
@@ -208,7 +208,7 @@ mod tests {
     #[test]
     fn stale_requests_are_dropped() {
         let (doc, base) = demo();
-        let mut worker = Worker::spawn(Registry::builtin(), Arc::new(|| {}));
+        let mut worker = Worker::spawn(kinegraph_nodes::builtin::registry(), Arc::new(|| {}));
         let first = worker.submit(doc.clone(), base.clone());
         let mut broken = doc;
         broken.edges.clear();

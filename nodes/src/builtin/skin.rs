@@ -87,7 +87,7 @@ pub fn joint_named(skeleton: &Skeleton, name: &str) -> Result<usize, String> {
     skeleton.index_of(name).ok_or_else(|| {
         format!(
             "no joint '{name}'{}",
-            crate::node::did_you_mean(name, skeleton.joints().iter().map(|j| j.name.as_str()))
+            crate::model::names::did_you_mean(name, skeleton.joints().iter().map(|j| j.name.as_str()))
         )
     })
 }

@@ -25,7 +25,7 @@ use super::retarget::Plants;
 use super::rig::{IkRig, RigError};
 use super::solve::{IkSolver, SolveParams, SolveReport, parse_weights};
 use crate::builtin::momentum::body::limb_tip;
-use crate::builtin::momentum::into_report;
+use crate::node::into_report;
 use crate::model::fk::pose_world;
 use crate::model::{Clip, ClipError, ClipPoses, Contacts, Transform, forward_kinematics};
 use crate::node::{FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Report, TextParam};

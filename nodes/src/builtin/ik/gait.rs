@@ -66,7 +66,7 @@ use super::rig::{DofKind, IkRig, RigError};
 use super::solve::{IkSolver, SolveParams};
 use crate::builtin::mannequin::mannequin_skeleton;
 use crate::builtin::momentum::body::{find_legs, limb_tip};
-use crate::builtin::momentum::into_report;
+use crate::node::into_report;
 use crate::model::fk::{forward_kinematics, rest_world};
 use crate::model::intervals::intersect_all;
 use crate::model::{

@@ -27,7 +27,7 @@ use nalgebra::Matrix3;
 use serde_json::json;
 
 use super::roles::{BodyRoles, Limb, body_roles, roles_of};
-use crate::builtin::momentum::into_report;
+use crate::node::into_report;
 use crate::formats::FormatError;
 use crate::formats::bone_map::{bone_map_from_ron, bone_map_to_ron};
 use crate::model::bone_map::BoneMap;

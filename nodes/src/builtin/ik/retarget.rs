@@ -28,7 +28,7 @@ use super::rig::{DofKind, IkPose, IkRig};
 use super::scale;
 use super::solve::IkSolver;
 use crate::builtin::momentum::body::{find_landmarks, limb_tip};
-use crate::builtin::momentum::into_report;
+use crate::node::into_report;
 use crate::model::fk::pose_world;
 use crate::model::{Clip, Contacts, FootContacts, FrameRange, Skeleton, Transform};
 use crate::node::{ChoiceParam, FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Report};

@@ -12,7 +12,7 @@ use serde_json::json;
 use super::align::{place, torso_facing};
 use super::analysis::{Analysis, AnalysisOptions};
 use super::concat::{ConcatError, Concatenated, foot_skate_m, same_skeleton, splice};
-use crate::model::{ClipPoses, FrameRange};
+use crate::model::{ClipPoses, FrameRange, into_report};
 
 /// Settings of the baseline join.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -106,5 +106,5 @@ pub fn concatenate_baseline(
         "peak_momentum_in_blend": peak,
         "foot_skate_in_blend_m": foot_skate_m(&result, window, options.contacts.enter_height_m),
     });
-    Ok(Concatenated { clip: Arc::unwrap_or_clone(out), report: super::into_report(report) })
+    Ok(Concatenated { clip: Arc::unwrap_or_clone(out), report: into_report(report) })
 }

@@ -491,7 +491,7 @@ fn from_override(skeleton: &Skeleton, o: &MassOverride) -> Result<BodyModel, Bod
         skeleton.index_of(joint).ok_or_else(|| BodyError::UnknownJoint {
             segment: segment.into(),
             joint: joint.into(),
-            hint: crate::node::did_you_mean(joint, skeleton.joints().iter().map(|j| j.name.as_str())),
+            hint: crate::model::names::did_you_mean(joint, skeleton.joints().iter().map(|j| j.name.as_str())),
         })
     };
     if o.segments.is_empty() {

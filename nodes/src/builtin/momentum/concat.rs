@@ -31,8 +31,7 @@ use super::analysis::{Analysis, AnalysisOptions, analyse};
 use crate::builtin::clip_edit::resample;
 use crate::builtin::contacts::ground_height;
 use crate::math::slerp_short;
-use crate::model::{Clip, ClipError, FrameRange, Phases};
-use crate::node::Report;
+use crate::model::{Clip, ClipError, FrameRange, Phases, Report, into_report};
 
 /// Which frames of the blendable periods may be blended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -615,7 +614,7 @@ pub fn concatenate(
         "peak_momentum_in_blend": peak_in(&result, window_out),
         "foot_skate_in_blend_m": skate,
     });
-    Ok(Concatenated { clip: Arc::unwrap_or_clone(out), report: super::into_report(report) })
+    Ok(Concatenated { clip: Arc::unwrap_or_clone(out), report: into_report(report) })
 }
 
 /// Convenience for tests and benches: analyse both clips with `options` and concatenate.

@@ -25,7 +25,7 @@ use crate::builtin::clip_edit::resample;
 use crate::model::{Clip, Contacts, Curves, Phases};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputPathParam, Node, NodeContext, NodeError, NodeSchema, Output, ParamSpec,
-    Registry, Report,
+    Registry, Report, report_of,
 };
 
 /// Registers the momentum nodes.
@@ -135,18 +135,6 @@ fn analysed(
     }
     analyse(clip, options, phases.map(Arc::unwrap_or_clone), contacts.map(Arc::unwrap_or_clone))
         .map_err(|e| NodeError::input(port, e.to_string()))
-}
-
-/// A report from a `json!` object (anything else becomes an empty report).
-pub(crate) fn into_report(value: serde_json::Value) -> Report {
-    match value {
-        serde_json::Value::Object(map) => map,
-        _ => Report::new(),
-    }
-}
-
-fn report_of(value: serde_json::Value) -> Arc<Report> {
-    Arc::new(into_report(value))
 }
 
 const CLIP: Input<Arc<Clip>> = Input::required("clip", "The motion to analyse.");

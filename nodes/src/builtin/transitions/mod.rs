@@ -35,7 +35,7 @@ use super::momentum::concat::foot_skate_m;
 use crate::model::{Clip, ClipSet, FrameRange, NamedClip, Skeleton};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output,
-    Registry, Report, TextParam,
+    Registry, Report, TextParam, report_of,
 };
 
 /// Registers the transition nodes.
@@ -193,13 +193,6 @@ pub fn load_clip_set(folder: &Path, patterns: &str, fps: f64, family: Option<&st
     }
     let set = ClipSet::new(named).map_err(|e| e.to_string())?;
     Ok(LoadedClipSet { set, left_out, warnings })
-}
-
-fn report_of(value: serde_json::Value) -> Arc<Report> {
-    Arc::new(match value {
-        serde_json::Value::Object(map) => map,
-        _ => Report::new(),
-    })
 }
 
 const FOLDER: TextParam = TextParam::new(
