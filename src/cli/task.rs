@@ -11,7 +11,6 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-
 use super::batch::{BatchRun, run_once};
 use super::run::Setting;
 use super::{EXIT_FAILED, EXIT_INVALID};

@@ -17,8 +17,8 @@ use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMat, Triplet};
 use glam::{Vec3, Vec3A};
 
-use super::pose_space::pose_vector;
-use super::skin::{
+use crate::kernels::pose_vector::pose_vector;
+use crate::kernels::skinning::{
     SkinError, blend_matrices, check_skin, clip_skinning_matrices, joint_named, lbs_frame, rest_normals,
 };
 use crate::model::{BarNet, BarNetError, Clip, Mesh, MeshSequence};
@@ -644,8 +644,8 @@ impl Node for Wrap {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)]
     use super::*;
-    use crate::builtin::arm::{SAMPLE_POSES, arm_clip, arm_flex_clip, arm_mesh};
-    use crate::builtin::skin::{AutoWeightParams, BindMode, bind, deform_lbs};
+    use crate::kernels::arm::{SAMPLE_POSES, arm_clip, arm_flex_clip, arm_mesh};
+    use crate::kernels::skinning::{AutoWeightParams, BindMode, bind, deform_lbs};
 
     /// A net from explicit nodes and bars (no triangles needed by the solver).
     fn net(positions: Vec<Vec3>, bars: Vec<[u32; 2]>, q: Vec<f64>, free: Vec<bool>) -> BarNet {

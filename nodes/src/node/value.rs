@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use crate::builtin::transitions::{Clusters, TransitionGraph};
+use crate::kernels::transition_graph::{Clusters, TransitionGraph};
 use crate::model::{BarNet, BoneMap, Clip, ClipSet, Contacts, Curves, Mesh, MeshSequence, Phases};
 
 pub use crate::model::report::{Report, into_report};

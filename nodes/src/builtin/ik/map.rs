@@ -26,13 +26,13 @@ use glam::{Mat3, Quat, Vec3};
 use nalgebra::Matrix3;
 use serde_json::json;
 
-use super::roles::{BodyRoles, Limb, body_roles, roles_of};
-use crate::node::into_report;
 use crate::formats::FormatError;
 use crate::formats::bone_map::{bone_map_from_ron, bone_map_to_ron};
+use crate::kernels::roles::{BodyRoles, Limb, body_roles, roles_of};
 use crate::model::bone_map::BoneMap;
 use crate::model::fk::pose_world;
 use crate::model::{Clip, ClipError, Skeleton, Transform};
+use crate::node::into_report;
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputPathParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
     Report, did_you_mean,
@@ -477,7 +477,7 @@ impl Node for ExportBoneMap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::builtin::mannequin::mannequin_clip;
+    use crate::kernels::mannequin::mannequin_clip;
     use crate::model::forward_kinematics;
 
     #[test]
