@@ -41,8 +41,8 @@ impl Node for Arm {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let fps = ctx.float(&FPS)?;
-        let clip = arm_flex_clip(ctx.int(&FRAMES)? as usize, fps).map_err(NodeError::Failed)?;
-        let poses = arm_clip(&SAMPLE_POSES, fps).map_err(NodeError::Failed)?;
+        let clip = arm_flex_clip(ctx.int(&FRAMES)? as usize, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let poses = arm_clip(&SAMPLE_POSES, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
         let mesh = arm_mesh(ctx.int(&RINGS)? as usize, ctx.int(&SEGMENTS)? as usize);
         ctx.set_output(&CLIP_OUT, Arc::new(clip));
         ctx.set_output(&POSES_OUT, Arc::new(poses));

@@ -257,7 +257,7 @@ impl Selection {
         match self {
             Selection::Joint(name) => {
                 let skin = mesh.skin.as_ref().ok_or("selecting by joint needs a skinned control mesh")?;
-                let j = joint_named(&skin.skeleton, name)?;
+                let j = joint_named(&skin.skeleton, name).map_err(|e| e.to_string())?;
                 Ok((0..n)
                     .map(|v| {
                         let (js, ws) = (&skin.joints[v], &skin.weights[v]);
@@ -590,7 +590,7 @@ impl Node for DeformNet {
         let driver = if name.is_empty() {
             None
         } else {
-            Some(joint_named(clip.skeleton(), &name).map_err(|m| NodeError::param(DRIVER.0.name, m))?)
+            Some(joint_named(clip.skeleton(), &name).map_err(|e| NodeError::param(DRIVER.0.name, e.to_string()))?)
         };
         let loads = LoadParams {
             driver,

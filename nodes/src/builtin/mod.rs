@@ -1,5 +1,7 @@
-//! The built-in nodes, one file per family; each file holds the pure kernels and the thin
-//! node adapters over them.
+//! The built-in nodes, one module per family; each holds its own pure kernels and the thin
+//! node adapters over them. What several families share lives one layer down, in
+//! [`crate::kernels`]: a family imports kernels, the model, the formats and the contract,
+//! never another family. Adding a family is one file here, registered in [`register`].
 
 pub mod arm;
 pub mod barnet;

@@ -30,7 +30,7 @@ pub fn register(registry: &mut Registry) {
     registry.add(Box::new(FitWeights));
 }
 
-/// Vertices per rayon task (see `skin::VERTEX_CHUNK`; WPSD does more work per vertex).
+/// Vertices per rayon task (see `kernels::skinning::VERTEX_CHUNK`; WPSD does more work per vertex).
 const VERTEX_CHUNK: usize = 512;
 
 /// Ridge added to the RBF system so nearly coincident samples cannot make it singular;

@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use glam::{Quat, Vec3};
 
-use crate::model::{Clip, ImportScale, Joint, Mesh, Skeleton};
+use crate::model::{Clip, ClipError, ImportScale, Joint, Mesh, Skeleton};
 
 /// Shoulder height of the arm (metres).
 pub const SHOULDER_HEIGHT_M: f32 = 1.4;
@@ -52,17 +52,17 @@ pub fn arm_pose(shoulder_rad: f32, elbow_rad: f32, wrist_rad: f32) -> [Quat; 5] 
 }
 
 /// A clip of the given `(shoulder, elbow, wrist)` poses (radians), one per frame.
-pub fn arm_clip(poses: &[(f32, f32, f32)], fps: f64) -> Result<Clip, String> {
-    let skeleton = Arc::new(arm_skeleton().map_err(|e| e.to_string())?);
+pub fn arm_clip(poses: &[(f32, f32, f32)], fps: f64) -> Result<Clip, ClipError> {
+    let skeleton = Arc::new(arm_skeleton()?);
     let offsets: Vec<Vec3> = skeleton.joints().iter().map(|j| j.rest_offset).collect();
     let rotations = poses.iter().flat_map(|&(s, e, w)| arm_pose(s, e, w)).collect();
     let translations = poses.iter().flat_map(|_| offsets.iter().copied()).collect();
-    Clip::new(skeleton, fps, rotations, translations, ImportScale::METRES).map_err(|e| e.to_string())
+    Clip::new(skeleton, fps, rotations, translations, ImportScale::METRES)
 }
 
 /// The flexing motion: the elbow bends from straight to 2.4 rad and back once, the
 /// shoulder lifts and lowers, the wrist twists twice.
-pub fn arm_flex_clip(frames: usize, fps: f64) -> Result<Clip, String> {
+pub fn arm_flex_clip(frames: usize, fps: f64) -> Result<Clip, ClipError> {
     let poses: Vec<(f32, f32, f32)> = (0..frames)
         .map(|f| {
             let phase = TAU * f as f32 / frames.max(2).saturating_sub(1) as f32;

@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use glam::{Mat4, Quat, Vec2, Vec3};
 
-use crate::model::{Clip, ImportScale, Joint, Mesh, Skeleton, Skin};
+use crate::model::{Clip, ClipError, ImportScale, Joint, Mesh, Skeleton, Skin};
 
 /// (name, parent name, rest offset from the parent in metres; +Z forward, +X left).
 const BONES: [(&str, &str, [f32; 3]); 20] = [
@@ -50,8 +50,8 @@ pub fn mannequin_skeleton() -> Result<Skeleton, crate::model::SkeletonError> {
 
 /// `cycles` swing cycles over `frames` frames at `fps`, travelling forward (+Z) at
 /// `speed_m_per_s`.
-pub fn mannequin_clip(frames: usize, fps: f64, cycles: f32, speed_m_per_s: f32) -> Result<Clip, String> {
-    let skeleton = Arc::new(mannequin_skeleton().map_err(|e| e.to_string())?);
+pub fn mannequin_clip(frames: usize, fps: f64, cycles: f32, speed_m_per_s: f32) -> Result<Clip, ClipError> {
+    let skeleton = Arc::new(mannequin_skeleton()?);
     let index = |name: &str| skeleton.index_of(name).unwrap_or(0);
     let (l_up, r_up, l_knee, r_knee) = (index("LeftUpLeg"), index("RightUpLeg"), index("LeftLeg"), index("RightLeg"));
     let (l_arm, r_arm, l_elbow, r_elbow) =
@@ -79,7 +79,7 @@ pub fn mannequin_clip(frames: usize, fps: f64, cycles: f32, speed_m_per_s: f32) 
         rotations.extend(frame_rotations);
         translations.extend(frame_translations);
     }
-    Clip::new(skeleton, fps, rotations, translations, ImportScale::METRES).map_err(|e| e.to_string())
+    Clip::new(skeleton, fps, rotations, translations, ImportScale::METRES)
 }
 
 /// A box of half-width `radius` (metres) around every bone (joint to child), each rigidly

@@ -77,13 +77,21 @@ pub fn check_skin(skin: &Skin, skeleton: &Skeleton, vertices: usize) -> Result<(
     Ok(())
 }
 
-/// The index of the joint called `name`, or a message naming the nearest joint.
-pub fn joint_named(skeleton: &Skeleton, name: &str) -> Result<usize, String> {
-    skeleton.index_of(name).ok_or_else(|| {
-        format!(
-            "no joint '{name}'{}",
-            crate::model::names::did_you_mean(name, skeleton.joints().iter().map(|j| j.name.as_str()))
-        )
+/// A joint name the skeleton does not have.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("no joint '{name}'{hint}")]
+pub struct UnknownJoint {
+    /// The name asked for.
+    pub name: String,
+    /// `" (did you mean 'x'?)"` for the nearest joint name, or empty.
+    pub hint: String,
+}
+
+/// The index of the joint called `name`, or an error naming the nearest joint.
+pub fn joint_named(skeleton: &Skeleton, name: &str) -> Result<usize, UnknownJoint> {
+    skeleton.index_of(name).ok_or_else(|| UnknownJoint {
+        name: name.to_owned(),
+        hint: crate::model::names::did_you_mean(name, skeleton.joints().iter().map(|j| j.name.as_str())),
     })
 }
 

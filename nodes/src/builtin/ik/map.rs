@@ -2,7 +2,7 @@
 //! poses (a CMU capture onto a glTF character).
 //!
 //! Mapping: the body roles of both skeletons (by joint name where the names say, else by
-//! shape: [`super::roles`]) are paired — pelvis, the
+//! shape: [`crate::kernels::roles`]) are paired — pelvis, the
 //! spine by relative rest length between pelvis, chest and head, and per leg and arm the joints
 //! above the limb (clavicle, hip joint) counted back from it, the upper, lower and end
 //! joints, and the joints below the end (toes, fingers) counted on. A RON bone-map file
