@@ -203,7 +203,7 @@ fn timed(iters: u64, samples: &Mutex<Vec<f64>>, mut f: impl FnMut()) -> Duration
 
 /// 1. Per-node overhead: uncached and all-cached runs of the 1,000-node chain.
 fn overhead(c: &mut Criterion) {
-    let registry = Registry::builtin();
+    let registry = kinegraph_nodes::builtin::registry();
     let doc = chain_graph(CHAIN_LEN);
     let graph = compiled(&doc, &registry);
     let run_options = options(None);
@@ -256,7 +256,7 @@ fn overhead(c: &mut Criterion) {
 /// 2. Parallel speed-up: two chains of four 50 ms spin nodes on 1 and 2 threads.
 fn parallel(c: &mut Criterion) {
     calibrate_spin();
-    let mut registry = Registry::builtin();
+    let mut registry = kinegraph_nodes::builtin::registry();
     registry.add(Box::new(Spin));
     let doc = spin_graph();
     let graph = compiled(&doc, &registry);
@@ -302,7 +302,7 @@ fn parallel(c: &mut Criterion) {
 
 /// 3. Incremental re-run: change one parameter mid-chain, recompile and re-run.
 fn incremental(c: &mut Criterion) {
-    let registry = Registry::builtin();
+    let registry = kinegraph_nodes::builtin::registry();
     let doc = incremental_graph();
     assert_eq!(doc.nodes.len(), 1 + INCR_CHAIN + INCR_BRANCH);
     let mut changed = doc.clone();

@@ -43,7 +43,7 @@ fn scalar(report: &kinegraph::engine::RunReport, id: &str) -> f64 {
 
 #[test]
 fn rerun_after_one_param_change_recomputes_only_its_downstream() {
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let options = RunOptions::new(PathBuf::from("."));
     let doc = chain_doc(1.0);
     let g =
@@ -104,7 +104,7 @@ impl Node for Probe {
 #[test]
 fn a_failure_blocks_its_downstream_while_other_branches_finish() {
     let runs = Arc::new(AtomicUsize::new(0));
-    let mut registry = Registry::builtin();
+    let mut registry = kinegraph_nodes::builtin::registry();
     registry.add(Box::new(Probe { runs: runs.clone(), cancel: None }));
     let engine = Engine::new(registry);
     let mut doc = GraphDoc::new();
@@ -127,7 +127,7 @@ fn a_failure_blocks_its_downstream_while_other_branches_finish() {
 #[test]
 fn cancelling_stops_the_run_and_leaves_no_export() {
     let cancel = Arc::new(AtomicBool::new(false));
-    let mut registry = Registry::builtin();
+    let mut registry = kinegraph_nodes::builtin::registry();
     registry.add(Box::new(Probe { runs: Arc::new(AtomicUsize::new(0)), cancel: Some(cancel.clone()) }));
     let engine = Engine::new(registry);
     // mannequin → export, with the probe (which cancels the run) on the way.
@@ -221,7 +221,7 @@ fn version_1_fixture_migrates_and_runs() {
     assert_eq!(load.params.get("metres_per_unit"), Some(&ParamValue::Float(1.0)));
     assert!(!load.params.contains_key("scale"));
     assert_eq!(loaded.doc.edges, vec![edge("load.clip", "trim.clip"), edge("trim.clip", "export.clip")]);
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let g = compile(&Graph::from_doc(&loaded.doc).unwrap(), engine.registry(), path, &loaded.source).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let mut options = RunOptions::new(loaded.base_dir());
@@ -233,7 +233,7 @@ fn version_1_fixture_migrates_and_runs() {
 
 #[test]
 fn node_catalogue_snapshot() {
-    let registry = Registry::builtin();
+    let registry = kinegraph_nodes::builtin::registry();
     let schemas: Vec<_> = registry.iter().map(|n| n.schema()).collect();
     insta::assert_json_snapshot!("node_catalogue", schemas);
 }
@@ -243,7 +243,7 @@ fn node_catalogue_snapshot() {
 /// phase (the sign test of Shum et al. read back from the other output).
 #[test]
 fn phase_curves_agree_with_the_phases() {
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut doc = GraphDoc::new();
     let walk = root.join("assets/mannequin_walk.bvh").display().to_string();

@@ -9,7 +9,6 @@ use std::process::{Command, Output};
 
 use kinegraph::editor::commands::{EditError, EditorCommand, apply};
 use kinegraph::graph::{Graph, GraphFile, NodeId, PortRef};
-use kinegraph_nodes::node::Registry;
 
 fn kg(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_kg")).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().unwrap()
@@ -100,7 +99,7 @@ fn a_description_that_mentions_nodes_moves_no_location() {
 /// edit carry the same words.
 #[test]
 fn kg_check_and_the_editor_refuse_with_the_same_words() {
-    let registry = Registry::builtin();
+    let registry = kinegraph_nodes::builtin::registry();
     let dir = tempfile::tempdir().unwrap();
     let cases: [(&str, &str, EditorCommand); 3] = [
         (

@@ -20,7 +20,6 @@
 use std::path::{Path, PathBuf};
 
 use kinegraph::engine::{Engine, NodeStatus, RunOptions, compile};
-use kinegraph_nodes::node::Registry;
 use libfuzzer_sys::fuzz_target;
 
 /// The valid graphs the structured mode edits.
@@ -116,7 +115,7 @@ fn exercise(text: &str) {
     let Ok(loaded) = kinegraph::document::parse(text, path) else {
         return;
     };
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let Ok(compiled) = compile(&loaded.doc, engine.registry(), path, &loaded.source) else {
         return;
     };

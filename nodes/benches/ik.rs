@@ -11,15 +11,15 @@ use std::sync::Arc;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{DVec3, Quat, Vec3};
 use kinegraph_nodes::builtin::clip_edit::trim;
-use kinegraph_nodes::builtin::contacts::{ContactThresholds, detect_contacts};
 use kinegraph_nodes::builtin::ik::gait::{GaitParams, GaitPreset, procedural_gait};
 use kinegraph_nodes::builtin::ik::retarget::{Effectors, RetargetParams, retarget_clip};
 use kinegraph_nodes::builtin::ik::scale::{parse_rules, scale_clip};
 use kinegraph_nodes::builtin::ik::{IkRig, IkSolver, SolveParams};
-use kinegraph_nodes::builtin::mannequin::mannequin_skeleton;
-use kinegraph_nodes::builtin::momentum::body::find_landmarks;
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
+use kinegraph_nodes::kernels::body::find_landmarks;
+use kinegraph_nodes::kernels::contacts::{ContactThresholds, detect_contacts};
+use kinegraph_nodes::kernels::mannequin::mannequin_skeleton;
 use kinegraph_nodes::model::{Joint, Skeleton, forward_kinematics};
 
 /// Hip (3 DOFs), knee (1), ankle (2): a 6-DOF leg.

@@ -9,10 +9,10 @@ use std::sync::Arc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use kinegraph_nodes::builtin::clip_edit::trim;
-use kinegraph_nodes::builtin::momentum::analysis::{Analysis, AnalysisOptions, analyse};
 use kinegraph_nodes::builtin::momentum::concat::{TimingSearch, TimingSide};
 use kinegraph_nodes::corpus::{files_with_extension, shared_data};
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
+use kinegraph_nodes::kernels::analysis::{Analysis, AnalysisOptions, analyse};
 
 fn load(path: &std::path::Path, from: f64, to: f64) -> Option<Analysis> {
     let (clip, _) = read_bvh_file(path, BvhReadOptions::default()).ok()?.value;

@@ -10,10 +10,11 @@ use std::sync::Arc;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Affine3A, Mat4, Vec3};
-use kinegraph_nodes::builtin::arm::{SAMPLE_POSES, arm_clip, arm_flex_clip, arm_mesh};
 use kinegraph_nodes::builtin::barnet::{LoadParams, Selection, build, deform_net};
-use kinegraph_nodes::builtin::pose_space::{PoseSpaceModel, PoseSpaceParams, pose_vector};
-use kinegraph_nodes::builtin::skin::{AutoWeightParams, BindMode, bind, clip_skinning_matrices, lbs_frame};
+use kinegraph_nodes::builtin::pose_space::{PoseSpaceModel, PoseSpaceParams};
+use kinegraph_nodes::kernels::arm::{SAMPLE_POSES, arm_clip, arm_flex_clip, arm_mesh};
+use kinegraph_nodes::kernels::pose_vector::pose_vector;
+use kinegraph_nodes::kernels::skinning::{AutoWeightParams, BindMode, bind, clip_skinning_matrices, lbs_frame};
 use kinegraph_nodes::model::{Mesh, Skin};
 
 /// 363 rings × 32 segments + 2 caps = 11,618 vertices.

@@ -13,12 +13,13 @@ use std::sync::Arc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use kinegraph_nodes::builtin::transitions::actions::{Action, ActionLabels, find_actions};
-use kinegraph_nodes::builtin::transitions::cluster::{cluster, corpus_features, two_pass};
-use kinegraph_nodes::builtin::transitions::distance::DistanceParams;
-use kinegraph_nodes::builtin::transitions::graph::{Direction, TransitionGraph, build_graph};
-use kinegraph_nodes::builtin::transitions::paths::{PathLimits, k_best_paths};
+use kinegraph_nodes::builtin::transitions::play_sequence;
 use kinegraph_nodes::builtin::transitions::synthesis::SynthesisParams;
-use kinegraph_nodes::builtin::transitions::{load_clip_set, play_sequence};
+use kinegraph_nodes::kernels::clip_set::load_clip_set;
+use kinegraph_nodes::kernels::transition_graph::cluster::{cluster, corpus_features, two_pass};
+use kinegraph_nodes::kernels::transition_graph::distance::DistanceParams;
+use kinegraph_nodes::kernels::transition_graph::graph::{Direction, TransitionGraph, build_graph};
+use kinegraph_nodes::kernels::transition_graph::paths::{PathLimits, k_best_paths};
 use kinegraph_nodes::model::ClipSet;
 use rand::SeedableRng;
 

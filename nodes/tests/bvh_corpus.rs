@@ -130,7 +130,7 @@ fn write_then_read_reproduces_every_world_position_on_every_file() {
 
 #[test]
 fn z_up_files_are_flagged_and_converted_on_request() {
-    use kinegraph_nodes::builtin::clip_io::{ClipLoadOptions, UpAxis, load_clip};
+    use kinegraph_nodes::kernels::load::{ClipLoadOptions, UpAxis, load_clip};
     let Some(data) = shared_data() else { return };
     let path = data.join("bvh/makehuman/tpose.bvh");
     let as_is = load_clip(&path, ClipLoadOptions::default()).unwrap();

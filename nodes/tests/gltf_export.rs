@@ -222,7 +222,7 @@ fn a_cmu_walk_on_cesium_man_passes_the_validator() {
     // CesiumMan's only joints below the ankles are heels: by them alone its front would be
     // its back and its sides swapped. Independently of the roles: over its own walk, the
     // knees sit behind the hip–ankle line as seen from the heels, ahead as seen on CMU's toes.
-    let knees_ahead = |clip: &Clip, roles: &kinegraph_nodes::builtin::ik::roles::BodyRoles| {
+    let knees_ahead = |clip: &Clip, roles: &kinegraph_nodes::kernels::roles::BodyRoles| {
         let poses = forward_kinematics(clip);
         let tip = |l: usize| *roles.legs[l].chain.last().unwrap();
         let toward_tip: Vec3 = (0..2)

@@ -7,12 +7,13 @@ use std::path::Path;
 use std::sync::Arc;
 
 use kinegraph_nodes::builtin::clip_edit::trim;
-use kinegraph_nodes::builtin::momentum::align::Rule;
-use kinegraph_nodes::builtin::momentum::analysis::{AnalysisOptions, analyse};
-use kinegraph_nodes::builtin::momentum::baseline::{BaselineParams, concatenate_baseline};
-use kinegraph_nodes::builtin::momentum::concat::{ConcatError, ConcatParams, Concatenated, Support, concatenate};
+use kinegraph_nodes::builtin::momentum::concat::{ConcatParams, Support, concatenate};
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
+use kinegraph_nodes::kernels::align::Rule;
+use kinegraph_nodes::kernels::analysis::{AnalysisOptions, analyse};
+use kinegraph_nodes::kernels::baseline::{BaselineParams, concatenate_baseline};
+use kinegraph_nodes::kernels::join::{ConcatError, Concatenated};
 use kinegraph_nodes::model::Clip;
 
 fn clip(data: &Path, name: &str, from_secs: f64, to_secs: f64) -> Arc<Clip> {

@@ -6,9 +6,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use kinegraph_nodes::builtin::ik::map::{Bodies, map_by_roles, reference, shape_roles, transfer};
-use kinegraph_nodes::builtin::momentum::body::find_landmarks;
 use kinegraph_nodes::corpus::{files_with_extension, shared_data};
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
+use kinegraph_nodes::kernels::body::find_landmarks;
 use kinegraph_nodes::model::{Clip, forward_kinematics};
 
 fn load(path: &std::path::Path) -> Clip {

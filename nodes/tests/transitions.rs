@@ -8,12 +8,13 @@ use std::sync::Arc;
 
 use glam::{Quat, Vec3};
 use kinegraph_nodes::builtin::transitions::actions::find_actions;
-use kinegraph_nodes::builtin::transitions::cluster::cluster;
-use kinegraph_nodes::builtin::transitions::distance::DistanceParams;
-use kinegraph_nodes::builtin::transitions::graph::{Direction, TransitionGraph, build_graph};
-use kinegraph_nodes::builtin::transitions::paths::PathLimits;
 use kinegraph_nodes::builtin::transitions::synthesis::{Frames, Motion, SynthesisParams, append_transition};
-use kinegraph_nodes::builtin::transitions::{load_clip_set, play_sequence, smoothness_against_crossfade};
+use kinegraph_nodes::builtin::transitions::{play_sequence, smoothness_against_crossfade};
+use kinegraph_nodes::kernels::clip_set::load_clip_set;
+use kinegraph_nodes::kernels::transition_graph::cluster::cluster;
+use kinegraph_nodes::kernels::transition_graph::distance::DistanceParams;
+use kinegraph_nodes::kernels::transition_graph::graph::{Direction, TransitionGraph, build_graph};
+use kinegraph_nodes::kernels::transition_graph::paths::PathLimits;
 use kinegraph_nodes::model::{Clip, ClipSet, ImportScale, Joint, NamedClip, Skeleton};
 use rand::SeedableRng;
 
@@ -83,7 +84,7 @@ fn a_transition_follows_the_clip_that_links_the_two_poses() {
     // Heading stays the source's (1.5 rad) through the whole clip: every join turned the
     // incoming frames to match.
     for f in 0..clip.frame_count() {
-        let yaw = kinegraph_nodes::builtin::transitions::distance::heading_yaw(clip.frame_rotations(f)[0]);
+        let yaw = kinegraph_nodes::kernels::transition_graph::distance::heading_yaw(clip.frame_rotations(f)[0]);
         assert!((yaw - 1.5).abs() < 1e-3, "frame {f}: heading {yaw}");
     }
 }

@@ -6,7 +6,6 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use kinegraph_nodes::node::Registry;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -121,7 +120,7 @@ pub(super) fn batch_command(
     settings: &[Setting],
     json: bool,
 ) -> u8 {
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     // Validate the graph and the input name once, before any work.
     if let Err(e) = load_graph(graph, settings, engine.registry())
         .and_then(|l| l.graph.resolve(&input.name).map(|_| ()).map_err(|e| format!("--input {}: {e}", input.name)))

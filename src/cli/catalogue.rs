@@ -51,7 +51,7 @@ fn markdown(schema: &NodeSchema) -> String {
 }
 
 pub(super) fn nodes_command(json: bool, as_markdown: bool) -> u8 {
-    let registry = Registry::builtin();
+    let registry = kinegraph_nodes::builtin::registry();
     if json {
         println!("{}", serde_json::to_string_pretty(&catalogue_json(&registry)).unwrap_or_default());
     } else if as_markdown {

@@ -175,7 +175,7 @@ pub(super) fn plan_command(
     upstream_out: &Path,
     out: &Path,
 ) -> u8 {
-    let registry = Registry::builtin();
+    let registry = kinegraph_nodes::builtin::registry();
     let plan = match make_plan(graph, inputs, settings, upstream_out, out, &registry) {
         Ok(plan) => plan,
         Err(e) => {

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use kinegraph_nodes::model::forward_kinematics;
-use kinegraph_nodes::node::{Registry, Value};
+use kinegraph_nodes::node::Value;
 use serde::{Deserialize, Serialize};
 use sha2::Digest;
 
@@ -454,7 +454,10 @@ fn run_and_compare(
 
 /// Points the graph's input files inside the shared corpus at `$KG_SHARED_DATA` (see
 /// [`corpus_path`]); a no-op when it is not set.
-fn use_corpus_dir(loaded: &mut crate::graph::GraphFile, registry: &Registry) -> Result<(), String> {
+fn use_corpus_dir(
+    loaded: &mut crate::graph::GraphFile,
+    registry: &kinegraph_nodes::node::Registry,
+) -> Result<(), String> {
     if std::env::var_os("KG_SHARED_DATA").is_none() {
         return Ok(());
     }
@@ -507,7 +510,7 @@ pub(super) fn test_command(graphs: Vec<PathBuf>, root: Option<&Path>, bless: boo
         }
         graphs_in(dir)
     };
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let (mut passed, mut failed, mut skipped) = (0, 0, 0);
     for graph in &graphs {
         match test_graph(&engine, graph, bless) {

@@ -158,7 +158,7 @@ pub(super) fn run_command(
     threads: Option<usize>,
     targets: Vec<String>,
 ) -> u8 {
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let loaded = match load_graph(graph, settings, engine.registry()) {
         Ok(l) => l,
         Err(e) => {
@@ -181,7 +181,7 @@ pub(super) fn run_command(
 }
 
 pub(super) fn check_command(graphs: &[PathBuf], json: bool) -> u8 {
-    let registry = Registry::builtin();
+    let registry = kinegraph_nodes::builtin::registry();
     let mut worst = 0;
     let mut results = Vec::new();
     for path in graphs {
@@ -245,7 +245,7 @@ pub fn convert_graph(input: &Path, output: &Path, registry: &Registry) -> Result
 }
 
 pub(super) fn convert_command(input: &Path, output: &Path, settings: &[Setting]) -> u8 {
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let mut graph = match convert_graph(input, output, engine.registry()) {
         Ok(g) => g,
         Err(e) => {

@@ -11,8 +11,6 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use kinegraph_nodes::node::Registry;
-
 use super::batch::{BatchRun, run_once};
 use super::run::Setting;
 use super::{EXIT_FAILED, EXIT_INVALID};
@@ -166,7 +164,7 @@ pub(super) fn task_command(
         name: name.clone(),
         value: normalised_absolute(&base.join(&file.path)).to_string_lossy().into_owned(),
     }));
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let label = PathBuf::from(&task.id);
     let mut run: BatchRun = run_once(&engine, &graph_path, &settings, &label, &staging, threads);
     let outputs = if run.exit_code == 0 {

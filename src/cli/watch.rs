@@ -9,7 +9,6 @@ use std::sync::atomic::Ordering;
 use std::sync::mpsc::{RecvTimeoutError, channel};
 use std::time::{Duration, Instant};
 
-use kinegraph_nodes::node::Registry;
 use notify::{RecursiveMode, Watcher};
 
 use super::EXIT_FAILED;
@@ -20,7 +19,7 @@ use crate::engine::{Engine, compile_file};
 const SETTLE: Duration = Duration::from_millis(25);
 
 pub(super) fn watch_command(graph: &Path, settings: &[Setting], out: &Path, json: bool, threads: Option<usize>) -> u8 {
-    let engine = Engine::new(Registry::builtin());
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
     let cancel = cancel_flag();
     let (tx, rx) = channel();
     let mut watcher = match notify::recommended_watcher(tx) {

@@ -81,9 +81,9 @@ impl EditorApp {
     /// An editor keeping recent files and autosaves in `settings_dir`.
     pub fn with_settings_dir(ctx: &egui::Context, path: Option<&Path>, settings_dir: PathBuf) -> Self {
         let wake_ctx = ctx.clone();
-        let worker = Worker::spawn(Registry::builtin(), Arc::new(move || wake_ctx.request_repaint()));
+        let worker = Worker::spawn(kinegraph_nodes::builtin::registry(), Arc::new(move || wake_ctx.request_repaint()));
         let mut app = EditorApp {
-            registry: Registry::builtin(),
+            registry: kinegraph_nodes::builtin::registry(),
             graph: Graph::new(),
             path: None,
             clean_text: document::to_string(&Graph::new().to_doc()),

@@ -593,7 +593,7 @@ mod tests {
 
     #[test]
     fn a_dropped_wire_adds_a_node_wired_on_the_matching_side() {
-        let registry = Registry::builtin();
+        let registry = kinegraph_nodes::builtin::registry();
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron");
         let mut doc = GraphFile::load(&path).unwrap().graph;
         // From an output: the new node's clip input takes it.
@@ -615,7 +615,7 @@ mod tests {
 
     #[test]
     fn only_nodes_on_screen_at_a_readable_zoom_are_open() {
-        let registry = Registry::builtin();
+        let registry = kinegraph_nodes::builtin::registry();
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron");
         let doc = GraphFile::load(&path).unwrap().graph;
         let mut canvas = Canvas::default();

@@ -346,7 +346,7 @@ mod tests {
         let mut graph = demo();
         assert_eq!(fresh_node_id(&graph, "clip.trim").as_str(), "trim_2");
         assert_eq!(fresh_node_id(&graph, "scalar.constant").as_str(), "constant");
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         apply(
             &mut graph,
             &r,
@@ -358,7 +358,7 @@ mod tests {
 
     #[test]
     fn every_command_undoes_to_identical_bytes() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut graph = demo();
         let original = text(&graph);
         let mut history = History::new();
@@ -396,7 +396,7 @@ mod tests {
 
     #[test]
     fn replacing_a_connection_is_one_step() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut graph = demo();
         let before = text(&graph);
         let mut history = History::new();
@@ -410,7 +410,7 @@ mod tests {
 
     #[test]
     fn refused_connections_say_why_and_change_nothing() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut graph = demo();
         let before = graph.clone();
         let mut history = History::new();
@@ -432,7 +432,7 @@ mod tests {
 
     #[test]
     fn params_are_checked_and_canonicalised() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut graph = demo();
         let set = |v: ParamValue| EditorCommand::SetParam { param: param("resample.fps"), value: v };
         let err = graph_error(apply(&mut graph, &r, &set(ParamValue::Float(-1.0))));
@@ -447,7 +447,7 @@ mod tests {
 
     #[test]
     fn no_op_edits_are_not_recorded_and_redo_clears_on_new_edit() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut graph = demo();
         let mut history = History::new();
         let same = EditorCommand::SetParam { param: param("resample.fps"), value: ParamValue::Int(24) };
@@ -462,7 +462,7 @@ mod tests {
 
     #[test]
     fn a_drag_is_one_undo_step() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut graph = demo();
         let before = text(&graph);
         let mut history = History::new();
@@ -481,7 +481,7 @@ mod tests {
 
     #[test]
     fn a_failing_batch_leaves_the_graph_untouched() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut graph = demo();
         let before = graph.clone();
         let batch = EditorCommand::Batch(vec![
@@ -494,7 +494,7 @@ mod tests {
 
     #[test]
     fn bad_ids_and_kinds_are_refused_by_the_id_rule_kg_check_uses() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut graph = demo();
         let add = |id: &str, kind: &str| EditorCommand::AddNode { id: id.into(), kind: kind.into(), pos: (0.0, 0.0) };
         assert!(matches!(graph_error(apply(&mut graph, &r, &add("trim", "clip.trim"))), GraphError::DuplicateId(_)));
@@ -508,7 +508,7 @@ mod tests {
 
     #[test]
     fn a_dotted_node_id_is_edited_like_any_other() {
-        let r = Registry::builtin();
+        let r = kinegraph_nodes::builtin::registry();
         let mut graph = demo();
         apply(
             &mut graph,

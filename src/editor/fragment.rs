@@ -108,7 +108,7 @@ mod tests {
 
     #[test]
     fn a_copied_pair_pastes_with_fresh_ids_its_inner_wire_and_an_offset() {
-        let (registry, mut graph) = (Registry::builtin(), demo());
+        let (registry, mut graph) = (kinegraph_nodes::builtin::registry(), demo());
         let text = copy(&graph, &["trim".into(), "resample".into(), "nonexistent".into()]).unwrap();
         // The fragment is a graph file of its own with the wire between the two and no other.
         let fragment = document::parse(&text, Path::new("f.ron")).unwrap().doc;
@@ -133,7 +133,7 @@ mod tests {
 
     #[test]
     fn pasting_twice_keeps_ids_unique() {
-        let (registry, mut graph) = (Registry::builtin(), demo());
+        let (registry, mut graph) = (kinegraph_nodes::builtin::registry(), demo());
         let text = copy(&graph, &["trim".into()]).unwrap();
         for expected in ["trim_2", "trim_3"] {
             let (cmd, ids) = paste(&graph, &registry, &text).unwrap();
@@ -147,7 +147,7 @@ mod tests {
 
     #[test]
     fn text_that_is_no_fragment_is_refused_and_changes_nothing() {
-        let (registry, graph) = (Registry::builtin(), demo());
+        let (registry, graph) = (kinegraph_nodes::builtin::registry(), demo());
         assert!(copy(&graph, &["nope".into()]).is_none());
         let empty = format!("(format: \"{}\", version: {}, nodes: {{}})", document::FORMAT, document::CURRENT_VERSION);
         for text in ["hello", empty.as_str()] {

@@ -15,8 +15,8 @@ use std::sync::Arc;
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, Ui, Vec2};
 use glam::Vec3;
-use kinegraph_nodes::builtin::contacts::{ContactThresholds, contacts_of};
-use kinegraph_nodes::builtin::skin::{blend_matrices, check_skin, skinning_matrices};
+use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
+use kinegraph_nodes::kernels::skinning::{blend_matrices, check_skin, skinning_matrices};
 use kinegraph_nodes::model::{Clip, ClipPoses, Contacts, Mesh, MeshSequence, forward_kinematics};
 
 /// Vertical field of view of the camera (radians).

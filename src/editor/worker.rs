@@ -192,7 +192,7 @@ mod tests {
     #[test]
     fn runs_the_demo_without_exports_then_reuses_the_cache() {
         let (mut doc, base) = demo();
-        let mut worker = Worker::spawn(Registry::builtin(), Arc::new(|| {}));
+        let mut worker = Worker::spawn(kinegraph_nodes::builtin::registry(), Arc::new(|| {}));
         worker.submit(doc.clone(), base.clone());
         let Some(WorkerMessage::Done(report)) = worker.wait() else { panic!("no report") };
         assert!(report.succeeded(), "{report:?}");
@@ -200,7 +200,8 @@ mod tests {
         assert_eq!(report.nodes["resample"].status, NodeStatus::Ok);
 
         let fps = ParamPath::parse("resample.fps").unwrap();
-        doc.set_param(&Registry::builtin(), &fps, &kinegraph_nodes::node::ParamValue::Float(12.0)).unwrap();
+        doc.set_param(&kinegraph_nodes::builtin::registry(), &fps, &kinegraph_nodes::node::ParamValue::Float(12.0))
+            .unwrap();
         worker.submit(doc, base);
         let Some(WorkerMessage::Done(report)) = worker.wait() else { panic!("no report") };
         assert_eq!(report.nodes["trim"].status, NodeStatus::Cached);
@@ -210,7 +211,7 @@ mod tests {
     #[test]
     fn stale_requests_are_dropped() {
         let (doc, base) = demo();
-        let mut worker = Worker::spawn(Registry::builtin(), Arc::new(|| {}));
+        let mut worker = Worker::spawn(kinegraph_nodes::builtin::registry(), Arc::new(|| {}));
         let first = worker.submit(doc.clone(), base.clone());
         let mut broken = doc;
         broken.disconnect(&PortRef::parse("clip.clip").unwrap(), &PortRef::parse("trim.clip").unwrap()).unwrap();

@@ -94,7 +94,7 @@ mod tests {
 
     #[test]
     fn names_values_and_files() {
-        let registry = kinegraph_nodes::node::Registry::builtin();
+        let registry = kinegraph_nodes::builtin::registry();
         let mut graph = demo();
         set("resample.fps", "30").apply(&mut graph, &registry).unwrap();
         assert_eq!(graph.node("resample").unwrap().params["fps"], ParamValue::Float(30.0));

@@ -17,8 +17,8 @@ use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{SparseColMat, Triplet};
 use glam::{Vec3, Vec3A};
 
-use super::pose_space::pose_vector;
-use super::skin::{
+use crate::kernels::pose_vector::pose_vector;
+use crate::kernels::skinning::{
     SkinError, blend_matrices, check_skin, clip_skinning_matrices, joint_named, lbs_frame, rest_normals,
 };
 use crate::model::{BarNet, BarNetError, Clip, Mesh, MeshSequence};
@@ -257,7 +257,7 @@ impl Selection {
         match self {
             Selection::Joint(name) => {
                 let skin = mesh.skin.as_ref().ok_or("selecting by joint needs a skinned control mesh")?;
-                let j = joint_named(&skin.skeleton, name)?;
+                let j = joint_named(&skin.skeleton, name).map_err(|e| e.to_string())?;
                 Ok((0..n)
                     .map(|v| {
                         let (js, ws) = (&skin.joints[v], &skin.weights[v]);
@@ -590,7 +590,7 @@ impl Node for DeformNet {
         let driver = if name.is_empty() {
             None
         } else {
-            Some(joint_named(clip.skeleton(), &name).map_err(|m| NodeError::param(DRIVER.0.name, m))?)
+            Some(joint_named(clip.skeleton(), &name).map_err(|e| NodeError::param(DRIVER.0.name, e.to_string()))?)
         };
         let loads = LoadParams {
             driver,
@@ -644,8 +644,8 @@ impl Node for Wrap {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)]
     use super::*;
-    use crate::builtin::arm::{SAMPLE_POSES, arm_clip, arm_flex_clip, arm_mesh};
-    use crate::builtin::skin::{AutoWeightParams, BindMode, bind, deform_lbs};
+    use crate::kernels::arm::{SAMPLE_POSES, arm_clip, arm_flex_clip, arm_mesh};
+    use crate::kernels::skinning::{AutoWeightParams, BindMode, bind, deform_lbs};
 
     /// A net from explicit nodes and bars (no triangles needed by the solver).
     fn net(positions: Vec<Vec3>, bars: Vec<[u32; 2]>, q: Vec<f64>, free: Vec<bool>) -> BarNet {

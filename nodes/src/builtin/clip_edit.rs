@@ -2,10 +2,8 @@
 
 use std::sync::Arc;
 
-use glam::{Quat, Vec3};
-
-use crate::math::slerp_short;
-use crate::model::{Clip, ClipError};
+use crate::kernels::resample::resample;
+use crate::model::Clip;
 use crate::node::{FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Registry};
 
 /// Registers the clip editing nodes.
@@ -28,31 +26,6 @@ pub fn trim(clip: &Clip, start_secs: f64, end_secs: Option<f64>) -> Result<Clip,
         return Err(format!("the range starts at {start_secs} s, after the clip ends ({:.3} s)", clip.duration_secs()));
     }
     Ok(clip.slice(first, end))
-}
-
-/// Resamples to `fps` frames per second over the same duration: rotations by spherical
-/// interpolation (short arc), translations linearly. The last frame lands on the
-/// original's last frame when the duration is a whole number of new frames, otherwise
-/// just before it.
-pub fn resample(clip: &Clip, fps: f64) -> Result<Clip, ClipError> {
-    if !(fps.is_finite() && fps > 0.0) {
-        return Err(ClipError::BadFrameRate { fps });
-    }
-    let joints = clip.joint_count();
-    let frames = if clip.frame_count() == 0 { 0 } else { (clip.duration_secs() * fps + 1e-9).floor() as usize + 1 };
-    let mut rotations = Vec::with_capacity(frames * joints);
-    let mut translations = Vec::with_capacity(frames * joints);
-    for i in 0..frames {
-        let source = (i as f64 / fps * clip.fps()).min(clip.frame_count().saturating_sub(1) as f64);
-        let lo = source.floor() as usize;
-        let hi = (lo + 1).min(clip.frame_count() - 1);
-        let t = (source - lo as f64) as f32;
-        let (ra, rb) = (clip.frame_rotations(lo), clip.frame_rotations(hi));
-        let (ta, tb) = (clip.frame_translations(lo), clip.frame_translations(hi));
-        rotations.extend(ra.iter().zip(rb).map(|(a, b): (&Quat, &Quat)| slerp_short(*a, *b, t)));
-        translations.extend(ta.iter().zip(tb).map(|(a, b): (&Vec3, &Vec3)| a.lerp(*b, t)));
-    }
-    Clip::new(clip.skeleton().clone(), fps, rotations, translations, clip.import_scale)
 }
 
 const CLIP: Input<Arc<Clip>> = Input::required("clip", "The clip to edit.");
@@ -123,6 +96,7 @@ impl Node for Resample {
 mod tests {
     use super::*;
     use crate::model::{ImportScale, Joint, Skeleton};
+    use glam::{Quat, Vec3};
 
     /// One joint turning about Y at 1 rad/s and moving along X at 1 m/s, sampled at `fps`.
     fn turning(fps: f64, frames: usize) -> Clip {

@@ -2,9 +2,9 @@
 
 use std::sync::Arc;
 
-use super::clip_io::load_meshes;
 use crate::formats::gltf::write_sequence_glb;
 use crate::formats::{FormatError, FormatErrorKind, Loaded};
+use crate::kernels::load::load_meshes;
 use crate::model::{Mesh, MeshSequence};
 use crate::node::{
     FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,

@@ -1,5 +1,7 @@
-//! The built-in nodes, one file per family; each file holds the pure kernels and the thin
-//! node adapters over them.
+//! The built-in nodes, one module per family; each holds its own pure kernels and the thin
+//! node adapters over them. What several families share lives one layer down, in
+//! [`crate::kernels`]: a family imports kernels, the model, the formats and the contract,
+//! never another family. Adding a family is one file here, registered in [`register`].
 
 pub mod arm;
 pub mod barnet;
@@ -17,7 +19,14 @@ pub mod transitions;
 
 use crate::node::Registry;
 
-/// Adds every built-in node to `registry`.
+/// A registry holding every built-in node: the catalogue `kg`, the editor and the tests use.
+pub fn registry() -> Registry {
+    let mut r = Registry::empty();
+    register(&mut r);
+    r
+}
+
+/// Adds every built-in node to `registry`. Adding a node family is one line here.
 pub fn register(registry: &mut Registry) {
     clip_io::register(registry);
     mesh_io::register(registry);
@@ -32,4 +41,14 @@ pub fn register(registry: &mut Registry) {
     pose_space::register(registry);
     barnet::register(registry);
     transitions::register(registry);
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn nearest_kind_suggests_typos_only() {
+        let r = super::registry();
+        assert_eq!(r.nearest_kind("clip.lod"), Some("clip.load"));
+        assert_eq!(r.nearest_kind("completely.different.thing"), None);
+    }
 }

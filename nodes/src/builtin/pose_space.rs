@@ -14,7 +14,10 @@ use glam::{Affine3A, Vec3, Vec3A};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
-use super::skin::{SkinError, blend_matrices, check_skin, clip_skinning_matrices, deform_lbs, rest_normals, top_four};
+use crate::kernels::pose_vector::pose_vector;
+use crate::kernels::skinning::{
+    SkinError, blend_matrices, check_skin, clip_skinning_matrices, deform_lbs, rest_normals, top_four,
+};
 use crate::math::nnls::nnls;
 use crate::model::{Clip, Mesh, MeshSequence, Skeleton, Skin};
 use crate::node::{
@@ -27,7 +30,7 @@ pub fn register(registry: &mut Registry) {
     registry.add(Box::new(FitWeights));
 }
 
-/// Vertices per rayon task (see `skin::VERTEX_CHUNK`; WPSD does more work per vertex).
+/// Vertices per rayon task (see `kernels::skinning::VERTEX_CHUNK`; WPSD does more work per vertex).
 const VERTEX_CHUNK: usize = 512;
 
 /// Ridge added to the RBF system so nearly coincident samples cannot make it singular;
@@ -76,26 +79,6 @@ impl Default for PoseSpaceParams {
     fn default() -> Self {
         PoseSpaceParams { distance: PoseDistance::JointAndChildren, width_scale: 1.0, principal_poses: 0 }
     }
-}
-
-/// A pose as one rotation vector per joint (axis × angle, radians) of the joint's local
-/// rotation relative to its rest rotation. Roots count as zero: turning the whole body
-/// does not change its shape.
-pub fn pose_vector(skeleton: &Skeleton, rotations: &[glam::Quat]) -> Vec<Vec3> {
-    skeleton
-        .joints()
-        .iter()
-        .zip(rotations)
-        .map(|(joint, q)| {
-            if joint.parent.is_none() {
-                return Vec3::ZERO;
-            }
-            let relative = joint.rest_rotation.inverse() * *q;
-            let relative = if relative.w < 0.0 { -relative } else { relative };
-            let (axis, angle) = relative.to_axis_angle();
-            if angle.is_finite() && axis.is_finite() { axis * angle } else { Vec3::ZERO }
-        })
-        .collect()
 }
 
 /// Per vertex RBF data: the sparse joint weighting of its distance, its Gaussian width and
@@ -618,78 +601,8 @@ impl Node for FitWeights {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)]
     use super::*;
-    use crate::builtin::arm::{SAMPLE_POSES, arm_clip, arm_flex_clip, arm_mesh};
-    use crate::builtin::barnet::{LoadParams, Selection, build, deform_net};
-    use crate::builtin::skin::{AutoWeightParams, BindMode, bind};
-    use glam::{Mat4, Quat};
-
-    /// The bound arm, bar-net ground truth at the sample poses and along the flex clip.
-    fn arm_truth() -> (Arc<Mesh>, MeshSequence, MeshSequence) {
-        let flex = Arc::new(arm_flex_clip(40, 24.0).unwrap());
-        let mesh = Arc::new(
-            bind(&arm_mesh(24, 12), flex.skeleton(), BindMode::Automatic, AutoWeightParams::default()).unwrap(),
-        );
-        let biceps = Selection::Box(Vec3::new(0.11, 1.34, 0.012), Vec3::new(0.31, 1.46, 0.1));
-        let net = build(mesh.clone(), &biceps, 1.0, 1.0).unwrap();
-        let loads =
-            LoadParams { driver: Some(2), ramp_start_rad: 0.2, ramp_full_rad: 2.0, bulge_n: 0.05, pressure_n: 0.0 };
-        let samples = deform_net(&net, &Arc::new(arm_clip(&SAMPLE_POSES, 24.0).unwrap()), &loads).unwrap();
-        let truth = deform_net(&net, &flex, &loads).unwrap();
-        (mesh, samples, truth)
-    }
-
-    fn max_error(a: &MeshSequence, b: &MeshSequence) -> f32 {
-        a.positions_m().iter().zip(b.positions_m()).map(|(p, q)| (*p - *q).length()).fold(0.0, f32::max)
-    }
-
-    fn rms_error(a: &MeshSequence, b: &MeshSequence) -> f64 {
-        let sum: f64 =
-            a.positions_m().iter().zip(b.positions_m()).map(|(p, q)| f64::from((*p - *q).length_squared())).sum();
-        (sum / a.positions_m().len() as f64).sqrt()
-    }
-
-    fn method(distance: PoseDistance) -> DeformMethod {
-        DeformMethod::PoseSpace(PoseSpaceParams { distance, ..PoseSpaceParams::default() })
-    }
-
-    #[test]
-    fn psd_and_wpsd_reproduce_their_sample_poses() {
-        let (mesh, samples, _) = arm_truth();
-        for distance in [PoseDistance::Uniform, PoseDistance::JointWeight, PoseDistance::JointAndChildren] {
-            let out = deform(&mesh, &samples.clip, Some(&samples), method(distance)).unwrap();
-            let err = max_error(&out, &samples);
-            assert!(err < 1e-4, "{distance:?}: {err} m");
-        }
-        // PCA keeping K − 1 components spans the centred displacements: still exact.
-        let params = PoseSpaceParams { principal_poses: SAMPLE_POSES.len() - 1, ..PoseSpaceParams::default() };
-        let out = deform(&mesh, &samples.clip, Some(&samples), DeformMethod::PoseSpace(params)).unwrap();
-        assert!(max_error(&out, &samples) < 1e-4);
-    }
-
-    #[test]
-    fn wpsd_generalises_better_than_psd_at_held_out_poses() {
-        let (mesh, samples, truth) = arm_truth();
-        let lbs = deform(&mesh, &truth.clip, None, DeformMethod::Lbs).unwrap();
-        let psd = deform(&mesh, &truth.clip, Some(&samples), method(PoseDistance::Uniform)).unwrap();
-        let wpsd = deform(&mesh, &truth.clip, Some(&samples), method(PoseDistance::JointAndChildren)).unwrap();
-        let (e_lbs, e_psd, e_wpsd) = (rms_error(&lbs, &truth), rms_error(&psd, &truth), rms_error(&wpsd, &truth));
-        eprintln!("held-out RMS error: LBS {e_lbs:.5} m, PSD {e_psd:.5} m, WPSD {e_wpsd:.5} m");
-        assert!(e_wpsd < e_psd, "WPSD {e_wpsd} vs PSD {e_psd}");
-        assert!(e_psd < e_lbs, "PSD {e_psd} vs LBS {e_lbs}");
-    }
-
-    #[test]
-    fn pose_space_refuses_mismatched_samples() {
-        let (mesh, samples, _) = arm_truth();
-        let small = Arc::new(
-            bind(&arm_mesh(4, 4), samples.clip.skeleton(), BindMode::Automatic, AutoWeightParams::default()).unwrap(),
-        );
-        assert!(matches!(
-            deform(&small, &samples.clip, Some(&samples), method(PoseDistance::Uniform)),
-            Err(PoseSpaceError::Samples(_))
-        ));
-        assert!(deform(&mesh, &samples.clip, None, method(PoseDistance::Uniform)).is_err());
-    }
+    use crate::kernels::arm::arm_clip;
+    use glam::Mat4;
 
     /// Known weights over three joints, sample shapes made by a plain LBS sum written here;
     /// the fit must find the weights again.
@@ -749,19 +662,5 @@ mod tests {
                 assert!((got - want).abs() < 2e-3, "vertex {v} joint {j}: {got} vs {want}");
             }
         }
-    }
-
-    #[test]
-    fn pose_vectors_ignore_the_root_and_measure_bends_in_radians() {
-        let clip = arm_clip(&[(0.3, 1.1, -0.2)], 24.0).unwrap();
-        let mut rotations = clip.frame_rotations(0).to_vec();
-        rotations[0] = Quat::from_rotation_y(2.0);
-        let p = pose_vector(clip.skeleton(), &rotations);
-        assert_eq!(p[0], Vec3::ZERO);
-        assert!(
-            (p[1].length() - 0.3).abs() < 1e-5
-                && (p[2].length() - 1.1).abs() < 1e-5
-                && (p[3].length() - 0.2).abs() < 1e-5
-        );
     }
 }

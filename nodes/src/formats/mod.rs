@@ -1,6 +1,7 @@
 //! Reading and writing the files users have: BVH, glTF/GLB and OBJ.
 
 pub mod atomic;
+pub mod bone_map;
 pub mod bvh;
 pub mod error;
 pub mod gltf;

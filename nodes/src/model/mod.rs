@@ -9,6 +9,8 @@ pub mod fk;
 pub mod intervals;
 pub mod mesh;
 pub mod mesh_sequence;
+pub mod names;
+pub mod report;
 pub mod skeleton;
 pub mod units;
 
@@ -31,5 +33,6 @@ pub use fk::{ClipPoses, Transform, forward_kinematics};
 pub use intervals::{Contacts, FootContacts, FrameRange, Phases};
 pub use mesh::{Mesh, Skin};
 pub use mesh_sequence::{MeshSequence, MeshSequenceError};
+pub use report::{Report, into_report};
 pub use skeleton::{Channel, Joint, JointLimits, Skeleton, SkeletonError};
 pub use units::{ImportScale, LengthUnit};

@@ -1,5 +1,6 @@
 //! The node contract: schemas with typed ports and parameters, the [`Node`] trait, errors,
-//! and the explicit registry of built-in nodes.
+//! and the registry nodes are added to. The contract names no built-in node: the built-in
+//! catalogue is `crate::builtin::registry()`, one layer up.
 
 mod context;
 mod param;
@@ -13,7 +14,9 @@ pub use param::{
     ChoiceParam, FloatParam, InputPathParam, IntParam, OutputPathParam, ParamKind, ParamSpec, ParamValue, TextParam,
 };
 pub use port::{Input, Output, PortSpec};
-pub use value::{PortType, PortValue, Report, Value};
+pub use value::{PortType, PortValue, Report, Value, into_report, report_of};
+
+pub use crate::model::names::{did_you_mean, edit_distance, hint_for, nearest_name};
 
 use crate::formats::FormatError;
 
@@ -104,7 +107,7 @@ pub trait Node: Send + Sync {
 }
 
 /// The node kinds a graph may use, by kind name. Built explicitly: no inventory magic, so
-/// the catalogue is exactly what [`Registry::builtin`] lists.
+/// the catalogue is exactly what is added (the built-in one: `kinegraph_nodes::builtin::registry()`).
 pub struct Registry {
     nodes: BTreeMap<&'static str, Box<dyn Node>>,
 }
@@ -113,13 +116,6 @@ impl Registry {
     /// An empty registry (tests add their own nodes).
     pub fn empty() -> Self {
         Registry { nodes: BTreeMap::new() }
-    }
-
-    /// Every built-in node.
-    pub fn builtin() -> Self {
-        let mut r = Registry::empty();
-        crate::builtin::register(&mut r);
-        r
     }
 
     /// Adds a node kind, replacing one of the same kind.
@@ -140,62 +136,5 @@ impl Registry {
     /// The registered kind closest to `kind` by edit distance, for "did you mean" hints.
     pub fn nearest_kind(&self, kind: &str) -> Option<&'static str> {
         nearest_name(kind, self.nodes.keys().copied())
-    }
-}
-
-/// The candidate closest to `name` by edit distance, if it is close enough to be a typo
-/// (at most about half its length away): the "did you mean" of every validation message.
-pub fn nearest_name<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
-    candidates
-        .into_iter()
-        .map(|c| (edit_distance(c, name), c))
-        .filter(|(d, c)| *d <= c.len() / 2 + 1)
-        .min()
-        .map(|(_, c)| c)
-}
-
-/// `" (did you mean 'x'?)"` for the candidate nearest `name` ([`nearest_name`]), or nothing:
-/// the one way every message suggests a name.
-pub fn did_you_mean<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str>) -> String {
-    hint_for(nearest_name(name, candidates))
-}
-
-/// `" (did you mean 'x'?)"` for a suggestion already found, or nothing.
-pub fn hint_for(suggestion: Option<&str>) -> String {
-    suggestion.map(|c| format!(" (did you mean '{c}'?)")).unwrap_or_default()
-}
-
-/// Levenshtein distance between two short names.
-pub fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut prev = row[0];
-        row[0] = i + 1;
-        for (j, cb) in b.iter().enumerate() {
-            let cur = row[j + 1];
-            row[j + 1] = (prev + usize::from(ca != *cb)).min(row[j] + 1).min(cur + 1);
-            prev = cur;
-        }
-    }
-    row[b.len()]
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn edit_distance_hand_cases() {
-        assert_eq!(edit_distance("kitten", "sitting"), 3);
-        assert_eq!(edit_distance("", "abc"), 3);
-        assert_eq!(edit_distance("clip.load", "clip.load"), 0);
-    }
-
-    #[test]
-    fn nearest_kind_suggests_typos_only() {
-        let r = Registry::builtin();
-        assert_eq!(r.nearest_kind("clip.lod"), Some("clip.load"));
-        assert_eq!(r.nearest_kind("completely.different.thing"), None);
     }
 }

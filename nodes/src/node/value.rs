@@ -2,12 +2,15 @@
 
 use std::sync::Arc;
 
-use crate::builtin::transitions::{Clusters, TransitionGraph};
+use crate::kernels::transition_graph::{Clusters, TransitionGraph};
 use crate::model::{BarNet, BoneMap, Clip, ClipSet, Contacts, Curves, Mesh, MeshSequence, Phases};
 
-/// A node's structured account of what it decided (chosen parameters, measured errors):
-/// shown by `kg run --json` and the editor, compared by `kg test`.
-pub type Report = serde_json::Map<String, serde_json::Value>;
+pub use crate::model::report::{Report, into_report};
+
+/// A report output from a `json!` object (anything else becomes an empty report).
+pub fn report_of(value: serde_json::Value) -> Arc<Report> {
+    Arc::new(into_report(value))
+}
 
 /// The type of a port. Closed: an edge is valid only between ports of the same type.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]

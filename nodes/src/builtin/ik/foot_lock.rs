@@ -24,10 +24,10 @@ use serde_json::json;
 use super::retarget::Plants;
 use super::rig::{IkRig, RigError};
 use super::solve::{IkSolver, SolveParams, SolveReport, parse_weights};
-use crate::builtin::momentum::body::limb_tip;
-use crate::builtin::momentum::into_report;
+use crate::kernels::body::limb_tip;
 use crate::model::fk::pose_world;
 use crate::model::{Clip, ClipError, ClipPoses, Contacts, Transform, forward_kinematics};
+use crate::node::into_report;
 use crate::node::{FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Report, TextParam};
 
 /// Controls of a foot lock.
@@ -291,7 +291,7 @@ mod tests {
     use glam::Vec3;
 
     use super::*;
-    use crate::builtin::mannequin::mannequin_skeleton;
+    use crate::kernels::mannequin::mannequin_skeleton;
     use crate::model::{FootContacts, FrameRange, forward_kinematics};
 
     /// The mannequin gliding forward at `speed` m/s with its legs frozen: both feet slide.

@@ -64,14 +64,14 @@ use serde_json::json;
 
 use super::rig::{DofKind, IkRig, RigError};
 use super::solve::{IkSolver, SolveParams};
-use crate::builtin::mannequin::mannequin_skeleton;
-use crate::builtin::momentum::body::{find_legs, limb_tip};
-use crate::builtin::momentum::into_report;
+use crate::kernels::body::{find_legs, limb_tip};
+use crate::kernels::mannequin::mannequin_skeleton;
 use crate::model::fk::{forward_kinematics, rest_world};
 use crate::model::intervals::intersect_all;
 use crate::model::{
     Clip, ClipError, Contacts, FootContacts, FrameRange, ImportScale, Joint, Skeleton, SkeletonError, Transform,
 };
+use crate::node::into_report;
 use crate::node::{
     ChoiceParam, FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Report, TextParam,
 };

@@ -2,7 +2,7 @@
 //! poses (a CMU capture onto a glTF character).
 //!
 //! Mapping: the body roles of both skeletons (by joint name where the names say, else by
-//! shape: [`super::roles`]) are paired — pelvis, the
+//! shape: [`crate::kernels::roles`]) are paired — pelvis, the
 //! spine by relative rest length between pelvis, chest and head, and per leg and arm the joints
 //! above the limb (clavicle, hip joint) counted back from it, the upper, lower and end
 //! joints, and the joints below the end (toes, fingers) counted on. A RON bone-map file
@@ -26,12 +26,13 @@ use glam::{Mat3, Quat, Vec3};
 use nalgebra::Matrix3;
 use serde_json::json;
 
-use super::roles::{BodyRoles, Limb, body_roles, roles_of};
-use crate::builtin::momentum::into_report;
 use crate::formats::FormatError;
+use crate::formats::bone_map::{bone_map_from_ron, bone_map_to_ron};
+use crate::kernels::roles::{BodyRoles, Limb, body_roles, roles_of};
 use crate::model::bone_map::BoneMap;
 use crate::model::fk::pose_world;
 use crate::model::{Clip, ClipError, Skeleton, Transform};
+use crate::node::into_report;
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputPathParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
     Report, did_you_mean,
@@ -405,7 +406,7 @@ impl Node for MapSkeleton {
         }
         if let Some(path) = ctx.optional_input_path(&MAP_FILE)? {
             let text = std::fs::read_to_string(&path).map_err(|e| FormatError::io(&path, &e))?;
-            map.joints.extend(BoneMap::from_ron(&text, &path)?.joints);
+            map.joints.extend(bone_map_from_ron(&text, &path)?.joints);
         }
         let out = transfer(&source, &target, &map, bodies.as_ref(), root_scale).map_err(failed)?;
         if !out.unmapped.is_empty() {
@@ -467,7 +468,7 @@ impl Node for ExportBoneMap {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let map = ctx.input(&MAP_IN)?;
-        let relative = ctx.write_output(&MAP_FILE_OUT, map.to_ron().as_bytes())?;
+        let relative = ctx.write_output(&MAP_FILE_OUT, bone_map_to_ron(&map).as_bytes())?;
         ctx.set_output(&FILE_OUT, Arc::new(relative));
         Ok(())
     }
@@ -476,7 +477,7 @@ impl Node for ExportBoneMap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::builtin::mannequin::mannequin_clip;
+    use crate::kernels::mannequin::mannequin_clip;
     use crate::model::forward_kinematics;
 
     #[test]

@@ -11,7 +11,6 @@ pub mod foot_lock;
 pub mod gait;
 pub mod map;
 pub mod retarget;
-pub mod roles;
 pub mod scale;
 
 use std::sync::Arc;

@@ -27,10 +27,10 @@ use std::f64::consts::PI;
 use super::rig::{DofKind, IkPose, IkRig};
 use super::scale;
 use super::solve::IkSolver;
-use crate::builtin::momentum::body::{find_landmarks, limb_tip};
-use crate::builtin::momentum::into_report;
+use crate::kernels::body::{find_landmarks, limb_tip};
 use crate::model::fk::pose_world;
 use crate::model::{Clip, Contacts, FootContacts, FrameRange, Skeleton, Transform};
+use crate::node::into_report;
 use crate::node::{ChoiceParam, FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Report};
 use serde_json::json;
 

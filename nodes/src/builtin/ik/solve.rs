@@ -30,8 +30,8 @@ use std::sync::Arc;
 use serde_json::json;
 
 use super::rig::{DofKind, IkPose, IkRig, RigError};
-use crate::builtin::momentum::into_report;
 use crate::model::{Clip, ClipError, Curves, Skeleton};
+use crate::node::into_report;
 use crate::node::{FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Report, TextParam};
 
 /// Stopping and stepping controls of a solve.

@@ -23,16 +23,14 @@
 
 use std::sync::Arc;
 
-use glam::{DVec3, Quat, Vec3};
+use glam::{DVec3, Vec3};
 use serde_json::json;
 
-use super::align::{Rule, facing_difference, feet_centre, place, torso_facing, yaw_rotation};
-use super::analysis::{Analysis, AnalysisOptions, analyse};
-use crate::builtin::clip_edit::resample;
-use crate::builtin::contacts::ground_height;
-use crate::math::slerp_short;
-use crate::model::{Clip, ClipError, FrameRange, Phases};
-use crate::node::Report;
+use crate::kernels::align::{Rule, alignment_yaw, facing_difference, feet_centre, place, torso_facing, yaw_rotation};
+use crate::kernels::analysis::{Analysis, AnalysisOptions, analyse};
+use crate::kernels::join::{ConcatError, Concatenated, foot_skate_m, same_skeleton, splice};
+use crate::kernels::resample::resample;
+use crate::model::{Clip, ClipError, FrameRange, Phases, into_report};
 
 /// Which frames of the blendable periods may be blended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -103,53 +101,6 @@ impl Default for ConcatParams {
             min_peak_gap_secs: 0.0,
         }
     }
-}
-
-/// Why two clips were not concatenated.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum ConcatError {
-    /// Blending needs one skeleton.
-    #[error("the clips use different skeletons ({0}); retarget one onto the other first")]
-    DifferentSkeletons(String),
-    /// No blendable period under the rule.
-    #[error("no blendable period under the {rule} rule: {why}")]
-    NoBlendablePeriod {
-        /// `"forward"` or `"reverse"`.
-        rule: &'static str,
-        /// What is missing.
-        why: String,
-    },
-    /// The best timing still costs too much.
-    #[error(
-        "the motions are too different to blend: best relative cost {relative_cost:.3} exceeds {threshold} \
-         (F_dm {f_dm:.3}, F_inertia {f_inertia:.3}, F_time {f_time:.3}); raise max_relative_cost or try the other rule"
-    )]
-    TooDifferent {
-        /// F over the squared peak momenta.
-        relative_cost: f64,
-        /// The limit.
-        threshold: f64,
-        /// Momentum difference term.
-        f_dm: f64,
-        /// Inertia term.
-        f_inertia: f64,
-        /// Timing term.
-        f_time: f64,
-    },
-    /// The torsos face too differently.
-    #[error(
-        "after alignment the torsos are turned {angle_deg:.1}° apart where the blend starts, more than {max_deg:.1}°: \
-         these motions do not chain in this order"
-    )]
-    Facing {
-        /// Angle found, degrees.
-        angle_deg: f64,
-        /// Limit, degrees.
-        max_deg: f64,
-    },
-    /// Building a clip failed.
-    #[error(transparent)]
-    Clip(#[from] ClipError),
 }
 
 /// One way to pair the clips' blendable periods.
@@ -335,44 +286,6 @@ fn min_offset(params: &ConcatParams, a: &Analysis, b: &Analysis) -> isize {
     (a.phases.main_frame as isize - b.phases.main_frame as isize + gap).max(0)
 }
 
-/// Concatenation result: the clip and the report of every decision.
-#[derive(Clone, Debug)]
-pub struct Concatenated {
-    /// The joined clip, at the first clip's frame rate.
-    pub clip: Clip,
-    /// What was decided and measured.
-    pub report: Report,
-}
-
-/// Blends `first` frames `f0..=ff` with `second` frames `f0−T..=ff−T` (α falling linearly
-/// from 1 to 0 over the window, eq. 8) and splices: `first[..f0]`, the blend,
-/// `second[ff−T+1..]`. `second` must already be placed and on the same skeleton and rate.
-pub fn splice(first: &Clip, second: &Clip, f0: usize, ff: usize, offset: isize) -> Result<Clip, ClipError> {
-    let joints = first.joint_count();
-    let tail_start = (ff as isize - offset + 1).max(0) as usize;
-    let frames = f0 + (ff - f0 + 1) + second.frame_count().saturating_sub(tail_start);
-    let mut rotations: Vec<Quat> = Vec::with_capacity(frames * joints);
-    let mut translations: Vec<Vec3> = Vec::with_capacity(frames * joints);
-    for f in 0..f0 {
-        rotations.extend_from_slice(first.frame_rotations(f));
-        translations.extend_from_slice(first.frame_translations(f));
-    }
-    let last_second = second.frame_count().saturating_sub(1);
-    for f in f0..=ff {
-        let alpha = if ff > f0 { 1.0 - (f - f0) as f32 / (ff - f0) as f32 } else { 0.0 };
-        let g = ((f as isize - offset).max(0) as usize).min(last_second);
-        let (ra, rb) = (first.frame_rotations(f), second.frame_rotations(g));
-        let (ta, tb) = (first.frame_translations(f), second.frame_translations(g));
-        rotations.extend(ra.iter().zip(rb).map(|(a, b)| slerp_short(*b, *a, alpha)));
-        translations.extend(ta.iter().zip(tb).map(|(a, b)| b.lerp(*a, alpha)));
-    }
-    for g in tail_start..second.frame_count() {
-        rotations.extend_from_slice(second.frame_rotations(g));
-        translations.extend_from_slice(second.frame_translations(g));
-    }
-    Clip::new(first.skeleton().clone(), first.fps(), rotations, translations, first.import_scale)
-}
-
 /// Replaces frames `f0..=ff` of `clip` by the same stretch resampled to `new_len + 1`
 /// frames (slerp between neighbouring frames): the time scaling of eq. 9.
 pub fn rescale_window(clip: &Clip, f0: usize, ff: usize, new_len: usize) -> Result<Clip, ClipError> {
@@ -393,37 +306,6 @@ pub fn rescale_window(clip: &Clip, f0: usize, ff: usize, new_len: usize) -> Resu
     Clip::new(clip.skeleton().clone(), clip.fps(), rotations, translations, clip.import_scale)
 }
 
-/// Checks that two clips share a skeleton (names and hierarchy).
-pub fn same_skeleton(a: &Clip, b: &Clip) -> Result<(), ConcatError> {
-    let (ja, jb) = (a.skeleton().joints(), b.skeleton().joints());
-    if ja.len() != jb.len() {
-        return Err(ConcatError::DifferentSkeletons(format!("{} joints vs {}", ja.len(), jb.len())));
-    }
-    match ja.iter().zip(jb).find(|(x, y)| x.name != y.name || x.parent != y.parent) {
-        Some((x, y)) => Err(ConcatError::DifferentSkeletons(format!("joint '{}' vs '{}'", x.name, y.name))),
-        None => Ok(()),
-    }
-}
-
-/// Horizontal sliding of planted feet over `frames` of `analysis`: for each ankle, the
-/// horizontal distance travelled while it is within `height_m` of its rest height, metres
-/// (summed over both feet).
-pub fn foot_skate_m(analysis: &Analysis, frames: FrameRange, height_m: f64) -> f64 {
-    let poses = &analysis.poses;
-    let mut total = 0.0;
-    for ankle in analysis.landmarks.feet() {
-        let track: Vec<DVec3> = (0..poses.frame_count()).map(|f| poses.position(f, ankle).as_dvec3()).collect();
-        let ground = ground_height(&track);
-        for f in frames.start.max(1)..frames.end.min(track.len()) {
-            if track[f].y - ground < height_m {
-                let d = track[f] - track[f - 1];
-                total += DVec3::new(d.x, 0.0, d.z).length();
-            }
-        }
-    }
-    total
-}
-
 /// Peak of the smoothed |L| inside `frames`.
 fn peak_in(analysis: &Analysis, frames: FrameRange) -> f64 {
     (frames.start..frames.end.min(analysis.smoothed.len())).map(|f| analysis.smoothed[f].length()).fold(0.0, f64::max)
@@ -439,7 +321,7 @@ pub fn alignment(a: &Analysis, b: &Analysis, ranges: (FrameRange, FrameRange), r
     let (la, lb) = (a.mean_momentum(ranges.0), b.mean_momentum(ranges.1));
     let horizontal = |l: DVec3| (l.x * l.x + l.z * l.z).sqrt();
     if horizontal(la) * horizontal(lb) >= 0.2 * la.length() * lb.length() {
-        return (super::align::alignment_yaw(la, lb, rule), "momentum");
+        return (alignment_yaw(la, lb, rule), "momentum");
     }
     let facing = |an: &Analysis| torso_facing(&an.poses, an.phases.main_frame, &an.landmarks);
     match (facing(a), facing(b)) {
@@ -447,7 +329,7 @@ pub fn alignment(a: &Analysis, b: &Analysis, ranges: (FrameRange, FrameRange), r
             let yaw = f64::from(fb.z * fa.x - fb.x * fa.z).atan2(f64::from(fb.dot(fa)));
             (yaw, "facing (the mean momenta are nearly vertical)")
         }
-        _ => (super::align::alignment_yaw(la, lb, rule), "momentum"),
+        _ => (alignment_yaw(la, lb, rule), "momentum"),
     }
 }
 
@@ -615,7 +497,7 @@ pub fn concatenate(
         "peak_momentum_in_blend": peak_in(&result, window_out),
         "foot_skate_in_blend_m": skate,
     });
-    Ok(Concatenated { clip: Arc::unwrap_or_clone(out), report: super::into_report(report) })
+    Ok(Concatenated { clip: Arc::unwrap_or_clone(out), report: into_report(report) })
 }
 
 /// Convenience for tests and benches: analyse both clips with `options` and concatenate.
@@ -634,6 +516,7 @@ pub fn concatenate_clips(
 mod tests {
     use super::*;
     use crate::model::{ImportScale, Joint, Skeleton};
+    use glam::Quat;
 
     /// A triangle of momentum about Z peaking at frame 10 (height 10, slope 1).
     fn triangle() -> Vec<DVec3> {

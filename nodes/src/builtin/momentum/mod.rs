@@ -2,30 +2,26 @@
 //! mass model, angular momentum curves, phase segmentation, alignment, the full
 //! concatenation and the Motion-Graphs baseline it is compared with.
 
-pub mod align;
-pub mod analysis;
-pub mod angular;
-pub mod baseline;
-pub mod body;
 pub mod concat;
-pub mod phases;
 
 use std::sync::Arc;
 
 use glam::DVec3;
 use serde_json::json;
 
-use self::align::{Rule, facing_difference, feet_centre, place, yaw_rotation};
-use self::analysis::{Analysis, AnalysisOptions, analyse};
-use self::baseline::{BaselineParams, concatenate_baseline};
-use self::body::{MassOverride, MassTable};
-use self::concat::{ConcatParams, Concatenated, Support, concatenate};
-use self::phases::{PhaseOptions, segment_phases};
-use crate::builtin::clip_edit::resample;
+use self::concat::{ConcatParams, Support, concatenate};
+use crate::kernels::align::{Rule, facing_difference, feet_centre, place, yaw_rotation};
+use crate::kernels::analysis::{Analysis, AnalysisOptions, analyse, kinematics};
+use crate::kernels::angular::MomentumTrack;
+use crate::kernels::baseline::{BaselineParams, concatenate_baseline};
+use crate::kernels::body::{BodyModel, MassOverride, MassTable, body_model};
+use crate::kernels::join::Concatenated;
+use crate::kernels::phases::{PhaseOptions, segment_phases};
+use crate::kernels::resample::resample;
 use crate::model::{Clip, Contacts, Curves, Phases};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputPathParam, Node, NodeContext, NodeError, NodeSchema, Output, ParamSpec,
-    Registry, Report,
+    Registry, Report, report_of,
 };
 
 /// Registers the momentum nodes.
@@ -90,14 +86,14 @@ fn analysis_options(ctx: &NodeContext<'_>) -> Result<AnalysisOptions, NodeError>
 fn momentum_of(
     ctx: &mut NodeContext<'_>,
     clip: &Clip,
-) -> Result<(body::BodyModel, angular::MomentumTrack, Vec<glam::DVec3>), NodeError> {
+) -> Result<(BodyModel, MomentumTrack, Vec<glam::DVec3>), NodeError> {
     let options = analysis_options(ctx)?;
-    let model = body::body_model(clip.skeleton(), options.total_mass_kg, options.table, options.mass_override.as_ref())
+    let model = body_model(clip.skeleton(), options.total_mass_kg, options.table, options.mass_override.as_ref())
         .map_err(|e| NodeError::Failed(e.to_string()))?;
     if model.method.starts_with("bone_length (") {
         ctx.warn(format!("mass model: {}", model.method));
     }
-    let (_, track, smoothed) = analysis::kinematics(clip, &model, options.smoothing_secs);
+    let (_, track, smoothed) = kinematics(clip, &model, options.smoothing_secs);
     Ok((model, track, smoothed))
 }
 
@@ -135,18 +131,6 @@ fn analysed(
     }
     analyse(clip, options, phases.map(Arc::unwrap_or_clone), contacts.map(Arc::unwrap_or_clone))
         .map_err(|e| NodeError::input(port, e.to_string()))
-}
-
-/// A report from a `json!` object (anything else becomes an empty report).
-pub(crate) fn into_report(value: serde_json::Value) -> Report {
-    match value {
-        serde_json::Value::Object(map) => map,
-        _ => Report::new(),
-    }
-}
-
-fn report_of(value: serde_json::Value) -> Arc<Report> {
-    Arc::new(into_report(value))
 }
 
 const CLIP: Input<Arc<Clip>> = Input::required("clip", "The motion to analyse.");
@@ -345,7 +329,7 @@ impl Node for Align {
             facing_difference((&a.poses, &a.landmarks, f), (&b.poses, &b.landmarks, g), turn);
         let max = ctx.float(&MAX_FACING)?;
         if facing.to_degrees() > max {
-            let refusal = concat::ConcatError::Facing { angle_deg: facing.to_degrees(), max_deg: max };
+            let refusal = crate::kernels::join::ConcatError::Facing { angle_deg: facing.to_degrees(), max_deg: max };
             return Err(NodeError::Failed(refusal.to_string()));
         }
         let offset = feet_centre(&a.poses, f, &a.landmarks) - turn * feet_centre(&b.poses, g, &b.landmarks);

@@ -5,37 +5,30 @@
 //! way (Bézier fallback).
 
 pub mod actions;
-pub mod cluster;
-pub mod distance;
-pub mod graph;
-pub mod paths;
 pub mod quality;
 pub mod synthesis;
 
 use std::collections::BTreeMap;
-use std::path::Path;
 use std::sync::Arc;
 
 use rand::SeedableRng;
 use serde_json::json;
 
-pub use cluster::Clusters;
-pub use graph::TransitionGraph;
-
 use self::actions::{Action, ActionLabels, find_actions};
-use self::distance::DistanceParams;
-use self::graph::Direction;
-use self::paths::PathLimits;
 use self::synthesis::{Frames, Motion, SynthesisParams, TransitionInfo, append_transition};
-use super::clip_edit::resample;
-use super::clip_io::{ClipLoadOptions, load_clip};
-use super::momentum::analysis::{AnalysisOptions, analyse};
-use super::momentum::baseline::{BaselineParams, concatenate_baseline};
-use super::momentum::concat::foot_skate_m;
-use crate::model::{Clip, ClipSet, FrameRange, NamedClip, Skeleton};
+use crate::kernels::analysis::{AnalysisOptions, analyse};
+use crate::kernels::baseline::{BaselineParams, concatenate_baseline};
+use crate::kernels::clip_set::{conform, load_clip_set};
+use crate::kernels::join::foot_skate_m;
+use crate::kernels::transition_graph::distance::{self, DistanceParams};
+use crate::kernels::transition_graph::graph::Direction;
+use crate::kernels::transition_graph::paths::PathLimits;
+use crate::kernels::transition_graph::{Clusters, TransitionGraph};
+use crate::kernels::transition_graph::{cluster, graph};
+use crate::model::{Clip, ClipSet, FrameRange};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output,
-    Registry, Report, TextParam,
+    Registry, Report, TextParam, report_of,
 };
 
 /// Registers the transition nodes.
@@ -45,161 +38,6 @@ pub fn register(registry: &mut Registry) {
     registry.add(Box::new(BuildGraph));
     registry.add(Box::new(Transition));
     registry.add(Box::new(Sequence));
-}
-
-/// Case-insensitive wildcard match (`*` any run, `?` one character).
-fn wildcard(pattern: &[u8], name: &[u8]) -> bool {
-    match (pattern.first(), name.first()) {
-        (None, None) => true,
-        (Some(b'*'), _) => wildcard(&pattern[1..], name) || (!name.is_empty() && wildcard(pattern, &name[1..])),
-        (Some(p), Some(n)) if *p == b'?' || p.eq_ignore_ascii_case(n) => wildcard(&pattern[1..], &name[1..]),
-        _ => false,
-    }
-}
-
-/// Whether a captured T-pose starts the clip: cgspeed's CMU conversions put one before
-/// the first captured frame, and it would become a cluster of its own (every clip's first
-/// frame would sit in it, and transitions into a clip would all start from it). It is
-/// recognised as a pop: the joints turn on average more than 0.1 rad from frame 0 to
-/// frame 1, and more than ten times as far as from frame 1 to frame 2. (The T-pose's
-/// local rotations are not all identity: cgspeed's rest pose bends the arms and legs.)
-fn starts_with_t_pose(clip: &Clip) -> bool {
-    let mean_turn = |a: usize, b: usize| {
-        let (ra, rb) = (clip.frame_rotations(a), clip.frame_rotations(b));
-        let turn = |(p, q): (&glam::Quat, &glam::Quat)| 2.0 * p.dot(*q).abs().min(1.0).acos();
-        ra[1..].iter().zip(&rb[1..]).map(turn).sum::<f32>() / (ra.len() - 1).max(1) as f32
-    };
-    clip.frame_count() > 2 && clip.joint_count() > 1 && {
-        let pop = mean_turn(0, 1);
-        pop > 0.1 && pop > 10.0 * mean_turn(1, 2)
-    }
-}
-
-/// `clip` on `skeleton` (same names and hierarchy): each joint keeps its own animated
-/// translation relative to its rest offset, on the reference skeleton's rest offsets.
-fn onto_skeleton(clip: &Clip, skeleton: &Arc<Skeleton>) -> Result<Clip, String> {
-    if Arc::ptr_eq(clip.skeleton(), skeleton) {
-        return Ok(clip.clone());
-    }
-    let (own, reference) = (clip.skeleton().joints(), skeleton.joints());
-    if own.len() != reference.len() || own.iter().zip(reference).any(|(a, b)| a.name != b.name || a.parent != b.parent)
-    {
-        return Err("is on a skeleton with other joints than the graph's".into());
-    }
-    let n = own.len();
-    let translations = clip
-        .translations()
-        .iter()
-        .enumerate()
-        .map(|(i, t)| {
-            let j = i % n;
-            if j == 0 { *t } else { reference[j].rest_offset + (*t - own[j].rest_offset) }
-        })
-        .collect();
-    Clip::new(skeleton.clone(), clip.fps(), clip.rotations().to_vec(), translations, clip.import_scale)
-        .map_err(|e| e.to_string())
-}
-
-/// `clip` at `fps` on `skeleton`.
-fn conform(clip: &Clip, skeleton: &Arc<Skeleton>, fps: f64) -> Result<Clip, String> {
-    let at_rate = if (clip.fps() - fps).abs() > 1e-6 * fps {
-        resample(clip, fps).map_err(|e| e.to_string())?
-    } else {
-        clip.clone()
-    };
-    onto_skeleton(&at_rate, skeleton)
-}
-
-/// Identity of a skeleton family: joint names and parents.
-fn family_key(skeleton: &Skeleton) -> Vec<(String, Option<usize>)> {
-    skeleton.joints().iter().map(|j| (j.name.clone(), j.parent)).collect()
-}
-
-/// A loaded clip set and what was left out or changed.
-#[derive(Debug)]
-pub struct LoadedClipSet {
-    /// The set.
-    pub set: ClipSet,
-    /// Clips of other skeleton families, by path.
-    pub left_out: Vec<String>,
-    /// Oddities met (units detected, T-poses dropped).
-    pub warnings: Vec<String>,
-}
-
-/// Loads every file under `folder` (recursively) whose name matches one of `patterns`
-/// (comma-separated wildcards), groups them by skeleton family, keeps the family of the
-/// clip named `family` (else the largest family, ties to the first file), drops cgspeed
-/// T-pose first frames, resamples to `fps` and puts every clip on the first clip's skeleton.
-/// Actions are named by file stem, or by their path under `folder` when two stems clash.
-pub fn load_clip_set(folder: &Path, patterns: &str, fps: f64, family: Option<&str>) -> Result<LoadedClipSet, String> {
-    let patterns: Vec<&str> = patterns.split(',').map(str::trim).filter(|p| !p.is_empty()).collect();
-    let mut files: Vec<_> = ["bvh", "glb", "gltf"]
-        .iter()
-        .flat_map(|ext| crate::corpus::files_with_extension(folder, ext))
-        .filter(|p| {
-            let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-            patterns.iter().any(|pat| wildcard(pat.as_bytes(), name.as_bytes()))
-        })
-        .collect();
-    files.sort();
-    if files.is_empty() {
-        return Err(format!("no file in {} matches '{}'", folder.display(), patterns.join(", ")));
-    }
-    let mut warnings = Vec::new();
-    let mut clips = Vec::new();
-    for path in &files {
-        let loaded = load_clip(path, ClipLoadOptions::default()).map_err(|e| e.to_string())?;
-        warnings.extend(loaded.warnings);
-        let relative = path.strip_prefix(folder).unwrap_or(path).with_extension("");
-        clips.push((relative.to_string_lossy().replace('\\', "/"), loaded.value));
-    }
-    let mut families: BTreeMap<Vec<(String, Option<usize>)>, Vec<usize>> = BTreeMap::new();
-    for (i, (_, clip)) in clips.iter().enumerate() {
-        families.entry(family_key(clip.skeleton())).or_default().push(i);
-    }
-    let stem = |relative: &str| relative.rsplit('/').next().unwrap_or(relative).to_string();
-    let chosen: Vec<usize> = match family {
-        Some(name) => {
-            let index = clips
-                .iter()
-                .position(|(r, _)| r == name || stem(r) == name)
-                .ok_or_else(|| format!("no clip called '{name}' to pick the skeleton family from"))?;
-            families.values().find(|f| f.contains(&index)).cloned().unwrap_or_default()
-        }
-        None => families.values().max_by_key(|f| (f.len(), std::cmp::Reverse(f[0]))).cloned().unwrap_or_default(),
-    };
-    let left_out: Vec<String> = (0..clips.len()).filter(|i| !chosen.contains(i)).map(|i| clips[i].0.clone()).collect();
-    let skeleton = clips[chosen[0]].1.skeleton().clone();
-    let mut stems: BTreeMap<String, usize> = BTreeMap::new();
-    for &i in &chosen {
-        *stems.entry(stem(&clips[i].0)).or_default() += 1;
-    }
-    let mut named = Vec::new();
-    for &i in &chosen {
-        let (relative, clip) = &clips[i];
-        let clip = if starts_with_t_pose(clip) {
-            warnings.push(format!("{relative}: dropped a T-pose first frame"));
-            clip.slice(1, clip.frame_count())
-        } else {
-            clip.clone()
-        };
-        let clip = conform(&clip, &skeleton, fps).map_err(|e| format!("{relative} {e}"))?;
-        if clip.frame_count() < 2 {
-            warnings.push(format!("{relative}: left out, fewer than 2 frames"));
-            continue;
-        }
-        let name = if stems[&stem(relative)] > 1 { relative.clone() } else { stem(relative) };
-        named.push(NamedClip { name, clip: Arc::new(clip) });
-    }
-    let set = ClipSet::new(named).map_err(|e| e.to_string())?;
-    Ok(LoadedClipSet { set, left_out, warnings })
-}
-
-fn report_of(value: serde_json::Value) -> Arc<Report> {
-    Arc::new(match value {
-        serde_json::Value::Object(map) => map,
-        _ => Report::new(),
-    })
 }
 
 const FOLDER: TextParam = TextParam::new(
@@ -600,41 +438,5 @@ impl Node for Sequence {
         ctx.set_output(&SEQUENCE_OUT, clip);
         ctx.set_output(&REPORT, report_of(report));
         Ok(())
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_t_pose_first_frame_is_recognised_and_a_smooth_start_is_not() {
-        use glam::{Quat, Vec3};
-        let s = Arc::new(
-            Skeleton::new(vec![
-                crate::model::Joint::new("Hips", None, Vec3::Y),
-                crate::model::Joint::new("LeftArm", Some(0), Vec3::X),
-                crate::model::Joint::new("RightArm", Some(0), -Vec3::X),
-            ])
-            .unwrap(),
-        );
-        // Arms 0.14 rad in the T-pose, then captured at 1.6 rad moving 0.004 rad a frame.
-        let clip = |first: f32| {
-            let angles = [first, 1.6, 1.604, 1.608];
-            let rotations =
-                angles.iter().flat_map(|a| [Quat::IDENTITY, Quat::from_rotation_z(*a), Quat::from_rotation_z(-*a)]);
-            Clip::new(s.clone(), 120.0, rotations.collect(), vec![Vec3::Y; 12], crate::model::ImportScale::METRES)
-                .unwrap()
-        };
-        assert!(starts_with_t_pose(&clip(0.14)));
-        assert!(!starts_with_t_pose(&clip(1.596)));
-    }
-
-    #[test]
-    fn wildcards_match_file_names() {
-        assert!(wildcard(b"*.bvh", b"02_01.BVH"));
-        assert!(wildcard(b"02_0?.bvh", b"02_05.bvh"));
-        assert!(!wildcard(b"02_*.bvh", b"144_05.bvh"));
-        assert!(wildcard(b"*", b""));
     }
 }

@@ -2,7 +2,7 @@
 //! peak inside the clips it joins (a ratio near or below 1 means the transition is no
 //! jerkier than the captured motion), measured on the joints the pose distance weighs.
 
-use super::distance::{PoseFeatures, rotation_vector};
+use crate::kernels::transition_graph::distance::{PoseFeatures, rotation_vector};
 use crate::model::{Clip, FrameRange};
 
 /// Largest angular acceleration (rad/s²) of any weighted joint of `layout` over the frames
@@ -27,7 +27,7 @@ mod tests {
     use glam::{Quat, Vec3};
 
     use super::*;
-    use crate::builtin::transitions::distance::DistanceParams;
+    use crate::kernels::transition_graph::distance::DistanceParams;
     use crate::model::{ImportScale, Joint, Skeleton};
 
     #[test]

@@ -20,9 +20,9 @@
 use glam::{Quat, Vec3};
 use rand::Rng;
 
-use super::cluster::nearest_centre;
-use super::distance::{PoseFeatures, heading_yaw, rotation_vector};
-use super::graph::{EdgeClip, TransitionGraph};
+use crate::kernels::transition_graph::cluster::nearest_centre;
+use crate::kernels::transition_graph::distance::{PoseFeatures, heading_yaw, rotation_vector};
+use crate::kernels::transition_graph::graph::{EdgeClip, TransitionGraph};
 use crate::math::{quat_normalize_or_identity, slerp_short};
 use crate::model::{Clip, ClipError, FrameRange};
 

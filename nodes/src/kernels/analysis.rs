@@ -1,5 +1,7 @@
 //! Everything the concatenation methods need to know about one clip, computed once:
 //! world poses, landmarks, the body mass model, angular momentum, phases and contacts.
+//!
+//! A kernel: the momentum nodes and the transitions' crossfade comparison both analyse clips.
 
 use std::sync::Arc;
 
@@ -7,8 +9,8 @@ use glam::DVec3;
 
 use super::angular::{MomentumTrack, momentum_of_poses, smooth};
 use super::body::{BodyError, BodyModel, Landmarks, MassOverride, MassTable, body_model, find_landmarks};
+use super::contacts::{ContactThresholds, detect_contacts};
 use super::phases::{PhaseOptions, segment_phases};
-use crate::builtin::contacts::{ContactThresholds, detect_contacts};
 use crate::model::{Clip, ClipPoses, Contacts, FrameRange, Phases, forward_kinematics};
 
 /// How to analyse a clip.

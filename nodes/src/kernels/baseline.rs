@@ -3,6 +3,9 @@
 //! clip's heading and position to the first there, and crossfade briefly. Poses are
 //! compared as joint positions in each body's own heading frame (invariant to where the
 //! character stands and which way it faces) at the start, middle and end of the crossfade.
+//!
+//! A kernel: the `motion.concat_baseline` node runs it, and the transitions compare their
+//! smoothness against it.
 
 use std::sync::Arc;
 
@@ -11,8 +14,8 @@ use serde_json::json;
 
 use super::align::{place, torso_facing};
 use super::analysis::{Analysis, AnalysisOptions};
-use super::concat::{ConcatError, Concatenated, foot_skate_m, same_skeleton, splice};
-use crate::model::{ClipPoses, FrameRange};
+use super::join::{ConcatError, Concatenated, foot_skate_m, same_skeleton, splice};
+use crate::model::{ClipPoses, FrameRange, into_report};
 
 /// Settings of the baseline join.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -106,5 +109,5 @@ pub fn concatenate_baseline(
         "peak_momentum_in_blend": peak,
         "foot_skate_in_blend_m": foot_skate_m(&result, window, options.contacts.enter_height_m),
     });
-    Ok(Concatenated { clip: Arc::unwrap_or_clone(out), report: super::into_report(report) })
+    Ok(Concatenated { clip: Arc::unwrap_or_clone(out), report: into_report(report) })
 }

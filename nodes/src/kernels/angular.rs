@@ -2,6 +2,8 @@
 //! L(t) = Σ_j m_j r_j(t) × v_j(t), with r_j from the body's centre of mass to segment j's,
 //! and v_j segment j's velocity by central differences at the clip's frame rate.
 //! Segments' spin about their own centres is left out, as in the paper.
+//!
+//! A kernel: the clip analysis uses it, and foot contacts share its central difference.
 
 use glam::{DVec3, Vec3};
 
@@ -141,7 +143,7 @@ mod tests {
     use glam::Quat;
 
     use super::*;
-    use crate::builtin::momentum::body::{MassOverride, MassTable, body_model};
+    use crate::kernels::body::{MassOverride, MassTable, body_model};
     use crate::model::{Clip, ImportScale, Joint, Skeleton};
 
     /// Two point masses on a rigid rod spinning about Y at ω rad/s: L = I ω with

@@ -18,10 +18,12 @@
 //!    consecutive bones (thigh and shin, upper arm and forearm).
 //! 5. Forward is where the leaves below the ankles (toes) point, unless the knees are
 //!    clearly bent the other way (the leaf is a heel, as in CesiumMan); left is up × forward.
+//!
+//! A kernel: skeleton mapping, foot contacts and retargeting all find the feet with it.
 
 use glam::Vec3;
 
-use crate::builtin::momentum::body::{Landmarks, find_landmarks, limb_tip};
+use crate::kernels::body::{Landmarks, find_landmarks, limb_tip};
 use crate::model::Skeleton;
 
 /// One leg or arm: its joints from the spine (or pelvis) out to its tip.
@@ -168,7 +170,7 @@ pub fn roles_of(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRoles,
     body_roles(skeleton, pos_in_world).map_err(|why| format!("{missing}; by shape, {why}"))
 }
 
-/// The body roles from joints found by name ([`crate::builtin::momentum::body::find_landmarks`]):
+/// The body roles from joints found by name ([`crate::kernels::body::find_landmarks`]):
 /// the pelvis splits the thighs, the chest the upper arms, the spine runs to the head's tip,
 /// each limb from its split to the tip below its end joint.
 fn named_roles(skeleton: &Skeleton, landmarks: &Landmarks) -> Option<BodyRoles> {
@@ -219,7 +221,7 @@ fn path_below(skeleton: &Skeleton, top: usize, leaf: usize) -> Option<Vec<usize>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::builtin::mannequin::mannequin_skeleton;
+    use crate::kernels::mannequin::mannequin_skeleton;
 
     #[test]
     fn the_mannequin_roles_match_its_names() {

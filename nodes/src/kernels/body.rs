@@ -10,6 +10,8 @@
 //!
 //! Every centre of mass is a fixed weighted sum of joint world positions, because bones are
 //! rigid: evaluating the model per frame is a handful of multiply-adds.
+//!
+//! A kernel: the momentum analysis, foot contacts, body roles and retargeting all read it.
 
 use std::collections::BTreeMap;
 
@@ -491,7 +493,7 @@ fn from_override(skeleton: &Skeleton, o: &MassOverride) -> Result<BodyModel, Bod
         skeleton.index_of(joint).ok_or_else(|| BodyError::UnknownJoint {
             segment: segment.into(),
             joint: joint.into(),
-            hint: crate::node::did_you_mean(joint, skeleton.joints().iter().map(|j| j.name.as_str())),
+            hint: crate::model::names::did_you_mean(joint, skeleton.joints().iter().map(|j| j.name.as_str())),
         })
     };
     if o.segments.is_empty() {

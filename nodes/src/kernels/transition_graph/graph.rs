@@ -207,8 +207,8 @@ impl TransitionGraph {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::builtin::transitions::cluster::{cluster, tests::tilts};
-    use crate::builtin::transitions::distance::DistanceParams;
+    use crate::kernels::transition_graph::cluster::{cluster, tests::tilts};
+    use crate::kernels::transition_graph::distance::DistanceParams;
     use crate::model::{ClipSet, Joint, NamedClip, Skeleton};
     use glam::Vec3;
 

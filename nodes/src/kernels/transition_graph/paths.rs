@@ -421,7 +421,8 @@ mod tests {
     fn k_best_matches_brute_force_on_a_real_corpus_graph() {
         // The example's three CMU clips (walk, punches, kicks), both directions: real
         // costs (frames × pose distance, not integers) and real structure.
-        use crate::builtin::transitions::{cluster, distance, graph, load_clip_set};
+        use crate::kernels::clip_set::load_clip_set;
+        use crate::kernels::transition_graph::{cluster, distance, graph};
         let Some(data) = crate::corpus::shared_data() else { return };
         let set = load_clip_set(&data.join("bvh/cmu"), "02_01.bvh, 02_05.bvh, 144_05.bvh", 30.0, None).unwrap().set;
         let params = distance::DistanceParams::lee_defaults(set.skeleton(), 0.003);

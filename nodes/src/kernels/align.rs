@@ -1,6 +1,8 @@
 //! Spatial alignment of a second motion to a first (Shum et al. 2009, eq. 2): turn it about
 //! the vertical axis so the mean angular momenta agree (forward rule) or oppose (reverse
 //! rule), then slide it so the centres of the feet coincide where the blend starts.
+//!
+//! A kernel: both joins (the momentum method and the baseline crossfade) align with it.
 
 use glam::{DVec3, Quat, Vec3};
 

@@ -2,6 +2,8 @@
 //! inside the main phase, the main phase runs back and forth until the first frames whose
 //! momentum points against L(t_m), i.e. L(t)·L(t_m) < 0. The runs of opposing momentum
 //! just before and after are the preparatory and posterior phases; either may be missing.
+//!
+//! A kernel: part of the clip analysis both concatenation joins and the transitions use.
 
 use glam::DVec3;
 

@@ -1,0 +1,172 @@
+//! Foot contacts: when each foot rests on the ground, and when both do (double support).
+//!
+//! A foot is in contact while its ankle or its toe tip is near the height that point rests
+//! at in the clip and moves slowly. Thresholds have hysteresis (stricter to enter than
+//! to stay), so a foot that rests does not flicker in and out of contact on capture noise.
+//! The rest height is taken per point from the clip itself: flat ground, any rig.
+//!
+//! A kernel: the `motion.contacts` node, the clip analysis, foot locking and the editor's
+//! viewport all detect contacts with it.
+
+use glam::DVec3;
+
+use super::angular::central_difference;
+use super::body::{Landmarks, limb_tip};
+use super::roles::roles_of;
+use crate::model::{Clip, ClipPoses, Contacts, FootContacts, FrameRange, intervals::intersect_all};
+
+/// Thresholds of contact detection (metres above the point's rest height, m/s).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactThresholds {
+    /// A point enters contact below this height…
+    pub enter_height_m: f64,
+    /// …and moving slower than this.
+    pub enter_speed_mps: f64,
+    /// It leaves contact above this height…
+    pub leave_height_m: f64,
+    /// …or moving faster than this.
+    pub leave_speed_mps: f64,
+    /// Contacts shorter than this are dropped (seconds).
+    pub min_duration_secs: f64,
+}
+
+impl Default for ContactThresholds {
+    fn default() -> Self {
+        ContactThresholds {
+            enter_height_m: 0.05,
+            enter_speed_mps: 0.5,
+            leave_height_m: 0.08,
+            leave_speed_mps: 0.9,
+            min_duration_secs: 0.05,
+        }
+    }
+}
+
+/// The height a point rests at: the 10th percentile of its heights over the clip, so that
+/// a few frames of capture noise or a foot poking through the floor do not set it.
+pub fn ground_height(track: &[DVec3]) -> f64 {
+    let mut heights: Vec<f64> = track.iter().map(|p| p.y).collect();
+    heights.sort_by(f64::total_cmp);
+    heights.get(heights.len() / 10).copied().unwrap_or(0.0)
+}
+
+/// Contact intervals of one point's track (world positions per frame).
+fn point_contacts(track: &[DVec3], fps: f64, t: &ContactThresholds) -> Vec<FrameRange> {
+    let ground = ground_height(track);
+    let min_frames = (t.min_duration_secs * fps).ceil() as usize;
+    let (mut out, mut start) = (Vec::new(), None);
+    for f in 0..track.len() {
+        let speed = central_difference(track, f, fps).length();
+        let height = track[f].y - ground;
+        match start {
+            None if height < t.enter_height_m && speed < t.enter_speed_mps => start = Some(f),
+            Some(s) if height > t.leave_height_m || speed > t.leave_speed_mps => {
+                out.push(FrameRange::new(s, f));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(s) = start {
+        out.push(FrameRange::new(s, track.len()));
+    }
+    out.retain(|r| r.len() >= min_frames.max(1));
+    out
+}
+
+/// Union of two sorted, disjoint interval lists.
+fn union(a: &[FrameRange], b: &[FrameRange]) -> Vec<FrameRange> {
+    let mut all: Vec<FrameRange> = a.iter().chain(b).copied().collect();
+    all.sort();
+    let mut out: Vec<FrameRange> = Vec::new();
+    for r in all {
+        match out.last_mut() {
+            Some(last) if r.start <= last.end => last.end = last.end.max(r.end),
+            _ => out.push(r),
+        }
+    }
+    out
+}
+
+/// Contacts of both feet of `clip` from precomputed world `poses`.
+pub fn detect_contacts(
+    clip: &Clip,
+    poses: &ClipPoses,
+    landmarks: &Landmarks,
+    thresholds: &ContactThresholds,
+) -> Contacts {
+    feet_contacts(clip, poses, landmarks.feet(), thresholds)
+}
+
+/// Contacts of the two ankle joints `feet` (left, right) of `clip`.
+fn feet_contacts(clip: &Clip, poses: &ClipPoses, feet: [usize; 2], thresholds: &ContactThresholds) -> Contacts {
+    let skeleton = clip.skeleton();
+    let track = |j: usize| (0..poses.frame_count()).map(|f| poses.position(f, j).as_dvec3()).collect::<Vec<DVec3>>();
+    let feet: Vec<FootContacts> = feet
+        .iter()
+        .map(|&ankle| {
+            let toe = limb_tip(skeleton, ankle);
+            let ankle_contacts = point_contacts(&track(ankle), clip.fps(), thresholds);
+            let intervals = if toe == ankle {
+                ankle_contacts
+            } else {
+                union(&ankle_contacts, &point_contacts(&track(toe), clip.fps(), thresholds))
+            };
+            FootContacts { foot: skeleton.joints()[ankle].name.clone(), intervals }
+        })
+        .collect();
+    let double_support = match feet.as_slice() {
+        [left, right] => intersect_all(&left.intervals, &right.intervals),
+        _ => Vec::new(),
+    };
+    Contacts { fps: clip.fps(), frame_count: clip.frame_count(), feet, double_support }
+}
+
+/// Contacts of both feet of `clip` with the feet's joint indices (left, right). The feet
+/// are the body roles' ankles ([`roles_of`]: by joint name, or else from the body's shape
+/// in the first frame, e.g. a glTF character with generic joint names); otherwise why they
+/// could not be found.
+pub fn contacts_of(
+    clip: &Clip,
+    poses: &ClipPoses,
+    thresholds: &ContactThresholds,
+) -> Result<(Contacts, [usize; 2]), String> {
+    let first: Vec<glam::Vec3> =
+        if poses.frame_count() > 0 { poses.frame(0).iter().map(|t| t.translation).collect() } else { Vec::new() };
+    let feet = roles_of(clip.skeleton(), &first)?.legs.map(|l| l.joints()[2]);
+    Ok((feet_contacts(clip, poses, feet, thresholds), feet))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hysteresis_keeps_a_noisy_rest_in_one_contact() {
+        // Rest on the ground with ±1 cm noise, lift off to 30 cm, come back down.
+        let fps = 100.0;
+        let mut track = Vec::new();
+        for f in 0..300 {
+            let noise = if f % 2 == 0 { 0.01 } else { 0.0 };
+            let lift = if (100..200).contains(&f) {
+                0.3 * ((f - 100) as f32 / 100.0 * std::f32::consts::PI).sin()
+            } else {
+                0.0
+            };
+            track.push(DVec3::new(0.0, f64::from(noise + lift), 0.0));
+        }
+        let t = ContactThresholds { enter_speed_mps: 2.0, leave_speed_mps: 3.0, ..Default::default() };
+        let got = point_contacts(&track, fps, &t);
+        assert_eq!(got.len(), 2, "{got:?}");
+        assert_eq!(got[0].start, 0);
+        assert!((100..125).contains(&got[0].end), "{got:?}");
+        assert!((175..200).contains(&got[1].start) && got[1].end == 300, "{got:?}");
+    }
+
+    #[test]
+    fn union_merges_overlaps() {
+        let a = [FrameRange::new(0, 5), FrameRange::new(10, 12)];
+        let b = [FrameRange::new(4, 8), FrameRange::new(20, 21)];
+        assert_eq!(union(&a, &b), vec![FrameRange::new(0, 8), FrameRange::new(10, 12), FrameRange::new(20, 21)]);
+    }
+}

@@ -1,0 +1,42 @@
+//! Kernels: the motion operations several node families share, below the node contract.
+//!
+//! Pure functions over the model's types (skeletons, clips, meshes) that return new data.
+//! A kernel imports only `math`, `model`, `formats` and other kernels, never the node
+//! contract (`node`) or a node family (`builtin`); a family imports kernels, never another
+//! family. `nodes/tests/layers.rs` checks both.
+//!
+//! | concept | module |
+//! |---|---|
+//! | body mass model, landmarks, limb tips (de Leva) | [`body`] |
+//! | body roles of a humanoid by name or shape | [`roles`] |
+//! | foot contacts and ground height | [`contacts`] |
+//! | angular momentum, central differences | [`angular`] |
+//! | momentum phases | [`phases`] |
+//! | a clip analysed once for joining | [`analysis`] |
+//! | heading alignment of two motions | [`align`] |
+//! | blend-and-splice, foot skate, join result | [`join`] |
+//! | the Motion-Graphs crossfade baseline | [`baseline`] |
+//! | resampling | [`resample`] |
+//! | skinning matrices, LBS, automatic weights | [`skinning`] |
+//! | pose vectors | [`pose_vector`] |
+//! | generated figures (arm, mannequin) | [`arm`], [`mannequin`] |
+//! | loading clips, meshes and clip sets | [`load`], [`clip_set`] |
+//! | transition-graph types and search | [`transition_graph`] |
+
+pub mod align;
+pub mod analysis;
+pub mod angular;
+pub mod arm;
+pub mod baseline;
+pub mod body;
+pub mod clip_set;
+pub mod contacts;
+pub mod join;
+pub mod load;
+pub mod mannequin;
+pub mod phases;
+pub mod pose_vector;
+pub mod resample;
+pub mod roles;
+pub mod skinning;
+pub mod transition_graph;
