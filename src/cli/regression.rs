@@ -460,7 +460,7 @@ pub(super) fn test_command(graphs: Vec<PathBuf>, bless: bool) -> u8 {
             }
         }
     }
-    println!("kg test: {passed} passed, {failed} failed, {skipped} skipped");
+    outln!("kg test: {passed} passed, {failed} failed, {skipped} skipped");
     if failed > 0 { EXIT_FAILED } else { 0 }
 }
 
