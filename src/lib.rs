@@ -7,6 +7,8 @@
 //! - [`editor`]: the editor's command reducer and undo history; with the `editor`
 //!   feature, the egui node editor behind `kg edit`.
 //! - [`farm`]: plans, per-task reports and farm submission files (`kg plan`, `kg emit`).
+//! - [`output`]: how kg writes into an output folder: safe atomic writes, the folder's
+//!   lock, task leases, and the removal of temporary files of runs that died.
 //! - [`cli`]: the `kg` command line.
 
 pub mod cli;
@@ -15,5 +17,6 @@ pub mod editor;
 pub mod engine;
 pub mod farm;
 pub mod graph;
+pub mod output;
 
 pub use kinegraph_nodes as nodes;

@@ -165,7 +165,10 @@ fn a_failing_task_leaves_nothing_and_does_not_block_the_others() {
     assert_eq!(merged.status.code(), Some(1), "a failed task fails the merge: {}", stderr(&merged));
     let summary: serde_json::Value = serde_json::from_slice(&merged.stdout).unwrap();
     assert_eq!(summary["tasks"], 3);
-    assert_eq!(summary["counts"], serde_json::json!({"failed": 1, "invalid": 0, "missing": 0, "ok": 2, "skipped": 0}));
+    assert_eq!(
+        summary["counts"],
+        serde_json::json!({"cancelled": 0, "failed": 1, "invalid": 0, "missing": 0, "ok": 2, "skipped": 0})
+    );
     let statuses: Vec<&str> =
         summary["per_task"].as_array().unwrap().iter().map(|t| t["status"].as_str().unwrap()).collect();
     assert_eq!(statuses, ["ok", "ok", "failed"]);
@@ -289,7 +292,7 @@ fn snapshot_plan() -> (Plan, EmitOptions) {
         id: id.into(),
         inputs: [(
             "clip".to_string(),
-            farm::HashedFile { path: format!("../clips/{id}.bvh"), sha256: format!("{index:064}") },
+            farm::HashedFile { path: format!("../clips/{id}.bvh"), sha256: format!("{index:064}"), size: None },
         )]
         .into_iter()
         .collect(),
@@ -300,7 +303,7 @@ fn snapshot_plan() -> (Plan, EmitOptions) {
     let plan = Plan {
         format: farm::plan::PLAN_FORMAT.into(),
         version: farm::plan::PLAN_VERSION,
-        graph: farm::HashedFile { path: "../to_glb.ron".into(), sha256: "ab".repeat(32) },
+        graph: farm::HashedFile { path: "../to_glb.ron".into(), sha256: "ab".repeat(32), size: None },
         after: Vec::new(),
         tasks: vec![task(0, "01_01"), task(1, "02_01"), task(2, "walk's end")],
     };

@@ -4,20 +4,53 @@
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::sync::atomic::Ordering;
+use std::time::{Instant, SystemTime};
 
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::run::{Setting, absolute, execute, load_graph};
-use super::{EXIT_FAILED, EXIT_INVALID};
+use super::run::{Setting, absolute, cancel_flag, execute, exit_code, load_graph};
+use super::{EXIT_BUSY, EXIT_CANCELLED, EXIT_FAILED, EXIT_INVALID};
 use crate::engine::{Engine, NodeReport, NodeStatus};
+use crate::output::{OutLock, folder_within, remove_own_temps, remove_stale_temps, safe_unique_names, save_within};
+
+/// The batch report's name at the top of `--out`.
+pub const BATCH_REPORT: &str = "batch_report.json";
+
+/// How one input file's run ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunStatus {
+    /// Every node ran (or was cached).
+    Ok,
+    /// A node failed, or the graph or its folder was refused.
+    Failed,
+    /// A signal stopped it while it ran.
+    Cancelled,
+    /// A signal stopped the batch before it started.
+    NotRun,
+}
+
+impl RunStatus {
+    /// The word the summary table shows.
+    pub fn label(self) -> &'static str {
+        match self {
+            RunStatus::Ok => "ok",
+            RunStatus::Failed => "FAILED",
+            RunStatus::Cancelled => "cancelled",
+            RunStatus::NotRun => "not run",
+        }
+    }
+}
 
 /// One input file's run.
 #[derive(Debug, Serialize)]
 pub struct BatchRun {
     /// The input file.
     pub input: PathBuf,
+    /// How it ended.
+    pub status: RunStatus,
     /// Where its exports went.
     pub out_dir: PathBuf,
     /// Exit code this run alone would have had.
@@ -31,6 +64,22 @@ pub struct BatchRun {
     /// First error, for the summary.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+}
+
+impl BatchRun {
+    /// A run that did not evaluate the graph, with its exit code and why.
+    pub fn refused(input: &Path, out_dir: &Path, exit_code: u8, error: String) -> BatchRun {
+        BatchRun {
+            input: input.to_path_buf(),
+            status: if exit_code == EXIT_CANCELLED { RunStatus::NotRun } else { RunStatus::Failed },
+            out_dir: absolute(out_dir),
+            exit_code,
+            seconds: 0.0,
+            nodes: BTreeMap::new(),
+            files_written: Vec::new(),
+            error: Some(error),
+        }
+    }
 }
 
 /// The files a `NAME=GLOB` binding matches, sorted; an error naming the glob when it is
@@ -66,12 +115,19 @@ pub fn run_once(
             let error = report.nodes.iter().find_map(|(id, n)| {
                 n.error.as_ref().filter(|_| n.status == NodeStatus::Error).map(|e| format!("{id}: {e}"))
             });
-            (if report.succeeded() { 0 } else { EXIT_FAILED }, report.nodes, report.files_written, error)
+            (exit_code(&report), report.nodes, report.files_written, error)
         }
         Err((code, error)) => (code, BTreeMap::new(), Vec::new(), Some(error)),
     };
+    let error = error.or_else(|| (exit_code == EXIT_CANCELLED).then(|| "cancelled by a signal".to_string()));
+    let status = match exit_code {
+        0 => RunStatus::Ok,
+        EXIT_CANCELLED => RunStatus::Cancelled,
+        _ => RunStatus::Failed,
+    };
     BatchRun {
         input: input.to_path_buf(),
+        status,
         out_dir: absolute(out_dir),
         exit_code,
         seconds: t.elapsed().as_secs_f64(),
@@ -121,6 +177,7 @@ pub(super) fn batch_command(
     json: bool,
 ) -> u8 {
     let engine = Engine::new(kinegraph_nodes::builtin::registry());
+    let cancel = cancel_flag();
     // Validate the graph and the input name once, before any work.
     if let Err(e) = load_graph(graph, settings, engine.registry())
         .and_then(|l| l.graph.resolve(&input.name).map(|_| ()).map_err(|e| format!("--input {}: {e}", input.name)))
@@ -135,13 +192,27 @@ pub(super) fn batch_command(
             return EXIT_INVALID;
         }
     };
-    let names = run_folder_names(&inputs);
+    let names = safe_unique_names(&run_folder_names(&inputs));
+    let _lock = match OutLock::exclusive(out) {
+        Ok(lock) => lock,
+        Err(e) => {
+            eprintln!("{e}");
+            return EXIT_BUSY;
+        }
+    };
     let bar = (!json && std::io::stderr().is_terminal()).then(|| indicatif::ProgressBar::new(inputs.len() as u64));
     let started = Instant::now();
+    remove_stale_temps(out, SystemTime::now());
     let run_one = |(path, name): (&PathBuf, &String)| -> BatchRun {
+        if cancel.load(Ordering::Relaxed) {
+            return BatchRun::refused(path, &out.join(name), EXIT_CANCELLED, "not run: the batch was cancelled".into());
+        }
         let mut all = settings.to_vec();
         all.push(Setting { name: input.name.clone(), value: path.to_string_lossy().into_owned() });
-        let run = run_once(&engine, graph, &all, path, &out.join(name), None);
+        let run = match folder_within(out, Path::new(name)) {
+            Ok(run_dir) => run_once(&engine, graph, &all, path, &run_dir, None),
+            Err(e) => BatchRun::refused(path, &out.join(name), EXIT_FAILED, e),
+        };
         if let Some(bar) = &bar {
             bar.inc(1);
         }
@@ -155,41 +226,51 @@ pub(super) fn batch_command(
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
-    let failed = runs.iter().filter(|r| r.exit_code != 0).count();
+    let count = |status: RunStatus| runs.iter().filter(|r| r.status == status).count();
+    let (ok, failed, cancelled, not_run) =
+        (count(RunStatus::Ok), count(RunStatus::Failed), count(RunStatus::Cancelled), count(RunStatus::NotRun));
+    if cancel.load(Ordering::Relaxed) {
+        remove_own_temps(out);
+    }
     let report = serde_json::json!({
         "graph": graph,
         "input": input.name,
         "pattern": input.value,
-        "ok": runs.len() - failed,
+        "ok": ok,
         "failed": failed,
+        "cancelled": cancelled,
+        "not_run": not_run,
         "seconds": started.elapsed().as_secs_f64(),
         "runs": runs,
     });
     let report_text = serde_json::to_string_pretty(&report).unwrap_or_default();
-    if let Err(e) = std::fs::create_dir_all(out).map_err(|e| e.to_string()).and_then(|()| {
-        kinegraph_nodes::formats::atomic::write_atomic(&out.join("batch_report.json"), report_text.as_bytes())
-            .map_err(|e| e.to_string())
-    }) {
+    if let Err(e) = save_within(out, Path::new(BATCH_REPORT), report_text.as_bytes()) {
         eprintln!("warning: could not save batch_report.json: {e}");
     }
     if json {
-        println!("{report_text}");
+        outln!("{report_text}");
     } else {
-        eprintln!("{:<8} {:>8}  {:<40} detail", "status", "seconds", "input");
+        eprintln!("{:<9} {:>8}  {:<40} detail", "status", "seconds", "input");
         for r in &runs {
-            let status = if r.exit_code == 0 { "ok" } else { "FAILED" };
             let detail = r.error.clone().unwrap_or_else(|| format!("{} files", r.files_written.len()));
-            eprintln!("{status:<8} {:>8.3}  {:<40} {detail}", r.seconds, r.input.display());
+            eprintln!("{:<9} {:>8.3}  {:<40} {detail}", r.status.label(), r.seconds, r.input.display());
         }
+        let stopped =
+            if cancelled + not_run > 0 { format!(", {cancelled} cancelled, {not_run} not run") } else { String::new() };
         eprintln!(
-            "{} runs: {} ok, {failed} failed, {:.2} s; report in {}",
+            "{} runs: {ok} ok, {failed} failed{stopped}, {:.2} s; report in {}",
             runs.len(),
-            runs.len() - failed,
             started.elapsed().as_secs_f64(),
-            out.join("batch_report.json").display()
+            out.join(BATCH_REPORT).display()
         );
     }
-    if failed > 0 { EXIT_FAILED } else { 0 }
+    if cancelled + not_run > 0 {
+        EXIT_CANCELLED
+    } else if failed > 0 {
+        EXIT_FAILED
+    } else {
+        0
+    }
 }
 
 #[cfg(test)]

@@ -53,20 +53,20 @@ fn markdown(schema: &NodeSchema) -> String {
 pub(super) fn nodes_command(json: bool, as_markdown: bool) -> u8 {
     let registry = kinegraph_nodes::builtin::registry();
     if json {
-        println!("{}", serde_json::to_string_pretty(&catalogue_json(&registry)).unwrap_or_default());
+        outln!("{}", serde_json::to_string_pretty(&catalogue_json(&registry)).unwrap_or_default());
     } else if as_markdown {
-        println!("# kinegraph node catalogue\n");
+        outln!("# kinegraph node catalogue\n");
         for node in registry.iter() {
-            print!("{}", markdown(node.schema()));
+            out!("{}", markdown(node.schema()));
         }
     } else {
         for node in registry.iter() {
             let s = node.schema();
             let ins: Vec<String> = s.inputs.iter().map(|p| format!("{}:{}", p.name, p.ty.name())).collect();
             let outs: Vec<String> = s.outputs.iter().map(|p| format!("{}:{}", p.name, p.ty.name())).collect();
-            println!("{:<16} ({}) -> ({})  {}", s.kind, ins.join(", "), outs.join(", "), s.doc);
+            outln!("{:<16} ({}) -> ({})  {}", s.kind, ins.join(", "), outs.join(", "), s.doc);
             for p in s.params {
-                println!("    {:<16} {}", p.name, param_range(p));
+                outln!("    {:<16} {}", p.name, param_range(p));
             }
         }
     }

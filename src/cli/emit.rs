@@ -103,7 +103,7 @@ pub(super) fn emit_command(args: &EmitArgs) -> u8 {
     };
     match &args.out {
         None => {
-            print!("{text}");
+            out!("{text}");
             0
         }
         Some(path) => match save_file(path, text.as_bytes()) {

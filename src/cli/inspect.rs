@@ -83,22 +83,22 @@ pub fn inspect(path: &Path) -> Result<Value, String> {
 }
 
 fn print_human(path: &Path, facts: &Value) {
-    println!("{}", path.display());
+    outln!("{}", path.display());
     if let Value::Object(map) = facts {
         for (key, value) in map {
             match value {
                 Value::Array(items) if items.iter().all(Value::is_object) && !items.is_empty() => {
-                    println!("  {key}:");
+                    outln!("  {key}:");
                     for item in items {
-                        println!("    - {item}");
+                        outln!("    - {item}");
                     }
                 }
                 Value::Array(items) if key == "warnings" => {
                     for w in items {
-                        println!("  warning: {}", w.as_str().unwrap_or_default());
+                        outln!("  warning: {}", w.as_str().unwrap_or_default());
                     }
                 }
-                other => println!("  {key}: {other}"),
+                other => outln!("  {key}: {other}"),
             }
         }
     }
@@ -108,7 +108,7 @@ pub(super) fn inspect_command(path: &Path, json: bool) -> u8 {
     match inspect(path) {
         Ok(facts) => {
             if json {
-                println!("{facts}");
+                outln!("{facts}");
             } else {
                 print_human(path, &facts);
             }

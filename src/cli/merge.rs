@@ -3,7 +3,9 @@
 use std::path::Path;
 
 use super::{EXIT_FAILED, EXIT_INVALID, save_file};
+use crate::farm::report::SUMMARY_FILE;
 use crate::farm::{Plan, merge};
+use crate::output::save_within;
 
 /// Merges the reports under `out` for the plan at `plan_path`, saves the summary (default
 /// `OUT/summary.json`) and prints it (as JSON with `json`). Exit 0 when every task is done,
@@ -17,15 +19,22 @@ pub(super) fn merge_command(plan_path: &Path, out: &Path, summary_path: Option<&
         }
     };
     let summary = merge(&plan, out);
+    for w in &summary.warnings {
+        eprintln!("warning: {w}");
+    }
     let mut text = serde_json::to_string_pretty(&summary).unwrap_or_default();
     text.push('\n');
-    let target = summary_path.map(Path::to_path_buf).unwrap_or_else(|| out.join("summary.json"));
-    if let Err(e) = save_file(&target, text.as_bytes()) {
+    let saved = match summary_path {
+        Some(path) => save_file(path, text.as_bytes()).map(|()| path.to_path_buf()),
+        None => save_within(out, Path::new(SUMMARY_FILE), text.as_bytes()),
+    };
+    let target = summary_path.map(Path::to_path_buf).unwrap_or_else(|| out.join(SUMMARY_FILE));
+    if let Err(e) = saved {
         eprintln!("cannot save the summary: {e}");
         return EXIT_FAILED;
     }
     if json {
-        print!("{text}");
+        out!("{text}");
     } else {
         eprintln!("{:<8} {:>8}  {:<5} task", "status", "seconds", "index");
         for t in &summary.per_task {

@@ -1,7 +1,19 @@
 //! The `kg` command line: one evaluator, many ways in.
 //!
 //! Exit codes: 0 success; 1 a node failed (or a regression test did not match); 2 the
-//! graph or the command line is invalid.
+//! graph or the command line is invalid; 3 the output folder (or the farm task) is in use
+//! by another kg; 130 the run was cancelled (Ctrl-C, SIGINT, SIGTERM or SIGHUP): what ran
+//! is reported, nothing half-written is left.
+
+/// Writes to standard output through [`write_stdout`], like `print!`.
+macro_rules! out {
+    ($($arg:tt)*) => { $crate::cli::write_stdout(format_args!($($arg)*)) };
+}
+
+/// Writes a line to standard output through [`write_stdout`], like `println!`.
+macro_rules! outln {
+    ($($arg:tt)*) => { $crate::cli::write_stdout(format_args!("{}\n", format_args!($($arg)*))) };
+}
 
 mod batch;
 mod catalogue;
@@ -16,6 +28,7 @@ mod watch;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, Subcommand};
 
@@ -26,12 +39,31 @@ pub const EXIT_FAILED: u8 = 1;
 /// Exit code: the graph or the command line is invalid.
 pub const EXIT_INVALID: u8 = 2;
 
-/// Writes `bytes` to `path` atomically, creating its folder; the error names the file.
-fn save_file(path: &std::path::Path, bytes: &[u8]) -> Result<(), String> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create the folder: {e}", dir.display()))?;
+/// Exit code: the run was cancelled by a signal (SIGINT, SIGTERM, SIGHUP).
+pub const EXIT_CANCELLED: u8 = 130;
+
+/// Exit code: the output folder (or, for a farm task, the task) is in use by another kg;
+/// nothing was done.
+pub const EXIT_BUSY: u8 = 3;
+
+use crate::output::save_file;
+
+/// Writes to standard output for `out!` and `outln!`. A closed pipe (`kg nodes | head`)
+/// is not an error: the rest of the output is dropped and the command ends with the exit
+/// code it decides (0 for a listing), where `println!` would panic (exit 101).
+pub fn write_stdout(args: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    static CLOSED: AtomicBool = AtomicBool::new(false);
+    if CLOSED.load(Ordering::Relaxed) {
+        return;
     }
-    kinegraph_nodes::formats::atomic::write_atomic(path, bytes).map_err(|e| e.to_string())
+    let mut stdout = std::io::stdout().lock();
+    if let Err(e) = stdout.write_fmt(args).and_then(|()| stdout.flush()) {
+        CLOSED.store(true, Ordering::Relaxed);
+        if e.kind() != std::io::ErrorKind::BrokenPipe {
+            eprintln!("warning: cannot write to standard output: {e}");
+        }
+    }
 }
 
 /// kinegraph's headless runner.

@@ -12,6 +12,7 @@ use crate::engine::compile_file;
 use crate::farm::plan::{PLAN_FORMAT, PLAN_VERSION, plan_dir, relative_to, sha256_file};
 use crate::farm::{Dependency, HashedFile, Plan, Task};
 use crate::graph::{GraphFile, Overrides, is_input_file};
+use crate::output::safe_unique_names;
 
 /// A file bound to a graph input, and the upstream task that makes it, if any.
 #[derive(Clone)]
@@ -87,7 +88,7 @@ fn plan_path_of(file: &Path, base: &Path) -> String {
 
 /// A file for the plan and its hash.
 fn hashed(file: &Path, base: &Path) -> Result<HashedFile, String> {
-    Ok(HashedFile { path: plan_path_of(file, base), sha256: sha256_file(file).map_err(|e| e.to_string())? })
+    Ok(HashedFile { path: plan_path_of(file, base), sha256: sha256_file(file).map_err(|e| e.to_string())?, size: None })
 }
 
 /// Builds the plan of `graph` over the `--input` bindings, for a plan file at `plan_path`;
@@ -120,9 +121,11 @@ pub fn make_plan(
         }
     }
     let graph_name = graph.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "graph".into());
+    let bindings = bindings(inputs, upstream_out, &base)?;
+    let raw_ids: Vec<String> =
+        bindings.iter().map(|b| if b.labels.is_empty() { graph_name.clone() } else { b.id() }).collect();
     let mut tasks = Vec::new();
-    for (index, binding) in bindings(inputs, upstream_out, &base)?.into_iter().enumerate() {
-        let id = if binding.labels.is_empty() { graph_name.clone() } else { binding.id() };
+    for ((index, binding), id) in bindings.into_iter().enumerate().zip(safe_unique_names(&raw_ids)) {
         let mut task_inputs = file_settings.clone();
         let mut depends_on = Vec::new();
         for file in &binding.files {
@@ -130,7 +133,7 @@ pub fn make_plan(
                 // Not made yet: no hash; the task waits for the one that makes it.
                 Some(from) => {
                     depends_on.push(from.clone());
-                    HashedFile { path: plan_path_of(&file.path, &base), sha256: String::new() }
+                    HashedFile { path: plan_path_of(&file.path, &base), sha256: String::new(), size: None }
                 }
                 None => hashed(&file.path, &base)?,
             };

@@ -537,7 +537,7 @@ pub(super) fn test_command(graphs: Vec<PathBuf>, root: Option<&Path>, bless: boo
             }
         }
     }
-    println!("kg test: {passed} passed, {failed} failed, {skipped} skipped");
+    outln!("kg test: {passed} passed, {failed} failed, {skipped} skipped");
     if failed > 0 { EXIT_FAILED } else { 0 }
 }
 

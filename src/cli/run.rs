@@ -7,11 +7,12 @@ use std::sync::{Arc, OnceLock};
 
 use kinegraph_nodes::node::{ParamValue, Registry};
 
-use super::{EXIT_FAILED, EXIT_INVALID};
+use super::{EXIT_BUSY, EXIT_CANCELLED, EXIT_FAILED, EXIT_INVALID};
 use crate::document;
 use crate::engine::{Engine, NodeStatus, RunEvent, RunOptions, RunReport, compile_file};
 pub use crate::graph::Setting;
 use crate::graph::{Graph, GraphFile, LoadError, NodeId, Overrides, ParamPath, PortRef};
+use crate::output::{OutLock, remove_own_temps, remove_stale_temps};
 
 /// `path` made absolute against the current directory.
 pub fn absolute(path: &Path) -> PathBuf {
@@ -27,14 +28,16 @@ pub fn load_graph(path: &Path, settings: &[Setting], registry: &Registry) -> Res
     Ok(loaded)
 }
 
-/// The cancellation flag Ctrl-C sets (installed once per process).
+/// The cancellation flag that Ctrl-C (SIGINT), SIGTERM and SIGHUP set (the handler is
+/// installed once per process, on the first call). Evaluation stops at the next node
+/// boundary or cancellation check, and the commands then report what ran.
 pub fn cancel_flag() -> Arc<AtomicBool> {
     static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
     FLAG.get_or_init(|| {
         let flag = Arc::new(AtomicBool::new(false));
         let handler_flag = flag.clone();
         if let Err(e) = ctrlc::set_handler(move || handler_flag.store(true, Ordering::Relaxed)) {
-            eprintln!("warning: Ctrl-C will not cancel cleanly: {e}");
+            eprintln!("warning: Ctrl-C and SIGTERM will not cancel cleanly: {e}");
         }
         flag
     })
@@ -133,10 +136,16 @@ pub fn print_report(graph: &Path, report: &RunReport) {
     );
 }
 
-/// The `--json` report object.
+/// The `--json` report object; `status` is `ok`, `failed` or `cancelled`.
 pub fn json_report(graph: &Path, report: &RunReport, exit_code: u8) -> serde_json::Value {
+    let status = match exit_code {
+        0 => "ok",
+        EXIT_CANCELLED => "cancelled",
+        _ => "failed",
+    };
     serde_json::json!({
         "graph": graph,
+        "status": status,
         "exit_code": exit_code,
         "ok": report.succeeded(),
         "seconds": report.seconds,
@@ -146,8 +155,16 @@ pub fn json_report(graph: &Path, report: &RunReport, exit_code: u8) -> serde_jso
     })
 }
 
-fn exit_code(report: &RunReport) -> u8 {
-    if report.succeeded() { 0 } else { EXIT_FAILED }
+/// The exit code of a run: 0, [`EXIT_FAILED`], or [`EXIT_CANCELLED`] when a signal stopped
+/// it before every node ran.
+pub fn exit_code(report: &RunReport) -> u8 {
+    if report.succeeded() {
+        0
+    } else if report.count(NodeStatus::Cancelled) > 0 {
+        EXIT_CANCELLED
+    } else {
+        EXIT_FAILED
+    }
 }
 
 pub(super) fn run_command(
@@ -159,6 +176,7 @@ pub(super) fn run_command(
     targets: Vec<String>,
 ) -> u8 {
     let engine = Engine::new(kinegraph_nodes::builtin::registry());
+    let cancel = cancel_flag();
     let loaded = match load_graph(graph, settings, engine.registry()) {
         Ok(l) => l,
         Err(e) => {
@@ -167,13 +185,25 @@ pub(super) fn run_command(
         }
     };
     let targets = (!targets.is_empty()).then_some(targets);
+    let started = std::time::SystemTime::now();
+    let _lock = match OutLock::exclusive(out) {
+        Ok(lock) => lock,
+        Err(e) => {
+            eprintln!("{e}");
+            return EXIT_BUSY;
+        }
+    };
+    remove_stale_temps(out, started);
     let report = match execute(&engine, &loaded, Some(out), threads, targets, !json) {
         Ok(r) => r,
         Err(code) => return code,
     };
     let code = exit_code(&report);
+    if cancel.load(Ordering::Relaxed) {
+        remove_own_temps(out);
+    }
     if json {
-        println!("{}", json_report(graph, &report, code));
+        outln!("{}", json_report(graph, &report, code));
     } else {
         print_report(graph, &report);
     }
@@ -214,7 +244,7 @@ pub(super) fn check_command(graphs: &[PathBuf], json: bool) -> u8 {
         );
     }
     if json {
-        println!("{}", serde_json::Value::Array(results));
+        outln!("{}", serde_json::Value::Array(results));
     }
     worst
 }

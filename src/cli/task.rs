@@ -13,11 +13,12 @@ use std::time::Instant;
 
 use super::batch::{BatchRun, run_once};
 use super::run::Setting;
-use super::{EXIT_FAILED, EXIT_INVALID};
+use super::{EXIT_BUSY, EXIT_CANCELLED, EXIT_FAILED, EXIT_INVALID};
 use crate::engine::Engine;
 use crate::farm::plan::{normalised_absolute, plan_dir, sha256_file};
-use crate::farm::report::serde_name;
+use crate::farm::report::{REPORTS_DIR, serde_name};
 use crate::farm::{HashedFile, Plan, Task, TaskReport, TaskStatus};
+use crate::output::{Lease, OutLock, is_temp_of};
 
 /// Prints `message` and gives the exit code for an invalid plan, task or input.
 fn invalid(message: impl std::fmt::Display) -> u8 {
@@ -56,13 +57,37 @@ fn check_inputs(task: &Task, base: &Path, plan_path: &Path) -> Result<BTreeMap<S
     Ok(hashes)
 }
 
-/// Removes staging folders that earlier attempts of the task left behind (killed runs).
-fn remove_stale_staging(out: &Path, task: &Task) {
-    let prefix = format!(".{}.partial-", task.id);
+/// The name prefix of the task's staging folders under the output root; the full name is
+/// `.<id>.partial-<pid>-<random>`.
+fn staging_prefix(task: &Task) -> String {
+    format!(".{}.partial-", task.id)
+}
+
+/// True when `name` is a staging folder of `task` (not of a task whose id merely starts
+/// like it, e.g. `a` and `a.partial-2`).
+fn is_staging_of(name: &str, task: &Task) -> bool {
+    name.strip_prefix(&staging_prefix(task)).and_then(|rest| rest.split_once('-')).is_some_and(|(pid, random)| {
+        !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()) && random.bytes().all(|b| b.is_ascii_alphanumeric())
+    })
+}
+
+/// Removes what earlier attempts of the task left behind when killed: staging folders and
+/// temporary report files. Only called while holding the task's lease, so none of them
+/// belongs to a running attempt.
+fn remove_stale_attempts(out: &Path, task: &Task) {
     if let Ok(entries) = std::fs::read_dir(out) {
         for entry in entries.flatten() {
-            if entry.file_name().to_string_lossy().starts_with(&prefix) {
+            let is_dir = entry.file_type().is_ok_and(|t| t.is_dir());
+            if is_dir && is_staging_of(&entry.file_name().to_string_lossy(), task) {
                 let _ = std::fs::remove_dir_all(entry.path());
+            }
+        }
+    }
+    let report_name = format!("{}.json", task.id);
+    if let Ok(entries) = std::fs::read_dir(out.join(REPORTS_DIR)) {
+        for entry in entries.flatten() {
+            if is_temp_of(&entry.file_name().to_string_lossy(), &report_name) {
+                let _ = std::fs::remove_file(entry.path());
             }
         }
     }
@@ -86,7 +111,11 @@ fn publish(task: &Task, staging: &Path, out: &Path) -> Result<Vec<HashedFile>, S
         .map_err(|e| format!("{}: cannot move outputs into place: {e}", final_dir.display()))?;
     task.outputs
         .iter()
-        .map(|o| Ok(HashedFile { path: o.clone(), sha256: sha256_file(&out.join(o)).map_err(|e| e.to_string())? }))
+        .map(|o| {
+            let path = out.join(o);
+            let size = std::fs::metadata(&path).map_err(|e| format!("{}: {e}", path.display()))?.len();
+            Ok(HashedFile { path: o.clone(), sha256: sha256_file(&path).map_err(|e| e.to_string())?, size: Some(size) })
+        })
         .collect()
 }
 
@@ -100,6 +129,8 @@ pub(super) fn task_command(
     json: bool,
 ) -> u8 {
     let started = Instant::now();
+    // From here on a signal cancels cleanly instead of killing the task.
+    let _ = super::run::cancel_flag();
     let plan = match Plan::read(plan_path) {
         Ok(p) => p,
         Err(e) => return invalid(e),
@@ -135,6 +166,20 @@ pub(super) fn task_command(
         Ok(h) => h,
         Err(e) => return invalid(e),
     };
+    let _lock = match OutLock::shared(out) {
+        Ok(lock) => lock,
+        Err(e) => {
+            eprintln!("{e}");
+            return EXIT_BUSY;
+        }
+    };
+    let _lease = match Lease::take(out, &task.id) {
+        Ok(lease) => lease,
+        Err(e) => {
+            eprintln!("{}: task {index}: {e}", plan_path.display());
+            return EXIT_BUSY;
+        }
+    };
     let report_path = TaskReport::path(out, task);
     let previous = TaskReport::read(&report_path);
     if let Some(previous) = previous.filter(|r| r.is_up_to_date(task, &plan.graph.sha256, &input_hashes, out)) {
@@ -150,14 +195,18 @@ pub(super) fn task_command(
             task.id,
             report.outputs.len()
         );
-        return finish(&report, &report_path, json);
+        return finish(&report, out, json);
     }
 
-    if let Err(e) = std::fs::create_dir_all(out) {
-        return invalid(format!("{}: cannot create the output folder: {e}", out.display()));
-    }
-    remove_stale_staging(out, task);
-    let staging = out.join(format!(".{}.partial-{}", task.id, std::process::id()));
+    remove_stale_attempts(out, task);
+    // A fresh folder under a random name (`mkdir` fails on anything planted there).
+    let staging = match tempfile::Builder::new()
+        .prefix(&format!("{}{}-", staging_prefix(task), std::process::id()))
+        .tempdir_in(out)
+    {
+        Ok(dir) => dir.keep(),
+        Err(e) => return invalid(format!("{}: cannot make a staging folder: {e}", out.display())),
+    };
     let mut settings: Vec<Setting> =
         task.set.iter().map(|(name, value)| Setting { name: name.clone(), value: value.clone() }).collect();
     settings.extend(task.inputs.iter().map(|(name, file)| Setting {
@@ -187,6 +236,7 @@ pub(super) fn task_command(
         status: match run.exit_code {
             0 => TaskStatus::Ok,
             EXIT_FAILED => TaskStatus::Failed,
+            EXIT_CANCELLED => TaskStatus::Cancelled,
             _ => TaskStatus::Invalid,
         },
         exit_code: run.exit_code,
@@ -197,22 +247,48 @@ pub(super) fn task_command(
         nodes: run.nodes.iter().map(|(id, n)| (id.clone(), serde_name(n.status))).collect(),
         error: run.error.clone(),
     };
-    match &report.error {
-        Some(e) => eprintln!("task {index} ({}): FAILED: {e}", task.id),
-        None => eprintln!("task {index} ({}): ok, {} outputs, {:.3} s", task.id, report.outputs.len(), report.seconds),
+    match (report.status, &report.error) {
+        (TaskStatus::Ok, _) => {
+            eprintln!("task {index} ({}): ok, {} outputs, {:.3} s", task.id, report.outputs.len(), report.seconds)
+        }
+        (TaskStatus::Cancelled, _) => eprintln!("task {index} ({}): cancelled by a signal; nothing kept", task.id),
+        (_, Some(e)) => eprintln!("task {index} ({}): FAILED: {e}", task.id),
+        (_, None) => eprintln!("task {index} ({}): FAILED (exit code {})", task.id, report.exit_code),
     }
-    finish(&report, &report_path, json)
+    finish(&report, out, json)
 }
 
 /// Writes the task report (the idempotency marker), prints it with `--json`, and gives the
 /// exit code.
-fn finish(report: &TaskReport, path: &Path, json: bool) -> u8 {
-    if let Err(e) = report.write(path) {
+fn finish(report: &TaskReport, out: &Path, json: bool) -> u8 {
+    if let Err(e) = report.write(out) {
         eprintln!("{e}");
         return EXIT_FAILED.max(report.exit_code);
     }
     if json {
-        println!("{}", serde_json::to_string(report).unwrap_or_default());
+        outln!("{}", serde_json::to_string(report).unwrap_or_default());
     }
     report.exit_code
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn staging_folders_are_told_apart_from_those_of_tasks_with_longer_ids() {
+        let task = |id: &str| Task {
+            index: 0,
+            id: id.into(),
+            inputs: BTreeMap::new(),
+            set: BTreeMap::new(),
+            outputs: Vec::new(),
+            depends_on: Vec::new(),
+        };
+        assert!(is_staging_of(".a.partial-123-AbC9xYz", &task("a")));
+        assert!(!is_staging_of(".a.partial-1.partial-123-AbC9xYz", &task("a")));
+        assert!(is_staging_of(".a.partial-1.partial-123-AbC9xYz", &task("a.partial-1")));
+        assert!(!is_staging_of(".a.partial-", &task("a")));
+        assert!(!is_staging_of(".ab.partial-1-x", &task("a")));
+    }
 }

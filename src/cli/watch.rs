@@ -11,9 +11,10 @@ use std::time::{Duration, Instant};
 
 use notify::{RecursiveMode, Watcher};
 
-use super::EXIT_FAILED;
 use super::run::{Setting, absolute, cancel_flag, execute, json_report, load_graph, print_report};
+use super::{EXIT_BUSY, EXIT_FAILED};
 use crate::engine::{Engine, compile_file};
+use crate::output::OutLock;
 
 /// How long to let a burst of file events (an editor's write, rename, chmod) settle.
 const SETTLE: Duration = Duration::from_millis(25);
@@ -27,6 +28,14 @@ pub(super) fn watch_command(graph: &Path, settings: &[Setting], out: &Path, json
         Err(e) => {
             eprintln!("kg watch: cannot watch files here: {e}");
             return EXIT_FAILED;
+        }
+    };
+    // Like `kg run`, a watch owns its output folder while it lives.
+    let _lock = match OutLock::exclusive(out) {
+        Ok(lock) => lock,
+        Err(e) => {
+            eprintln!("{e}");
+            return EXIT_BUSY;
         }
     };
     let mut folders: BTreeSet<PathBuf> = BTreeSet::new();
@@ -98,12 +107,12 @@ fn run_once(
         Ok(report) => {
             let code = if report.succeeded() { 0 } else { EXIT_FAILED };
             if json {
-                println!("{}", json_report(graph, &report, code));
+                outln!("{}", json_report(graph, &report, code));
             } else {
                 print_report(graph, &report);
             }
         }
-        Err(code) if json => println!("{}", serde_json::json!({ "graph": graph, "exit_code": code, "ok": false })),
+        Err(code) if json => outln!("{}", serde_json::json!({ "graph": graph, "exit_code": code, "ok": false })),
         Err(_) => {}
     }
     files

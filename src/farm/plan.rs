@@ -12,6 +12,8 @@ use std::path::{Component, Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use sha2::Digest;
 
+use crate::output::check_folder_name;
+
 /// The `format` field of every plan file.
 pub const PLAN_FORMAT: &str = "kinegraph.plan";
 /// The plan file version this kinegraph writes and reads.
@@ -45,6 +47,33 @@ pub struct HashedFile {
     pub path: String,
     /// Lower-case hex SHA-256 of the file's bytes.
     pub sha256: String,
+    /// The file's size in bytes, where recorded (task reports' outputs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size: Option<u64>,
+}
+
+impl HashedFile {
+    /// Why the file at `path` is not this one (missing, not a plain file, another size,
+    /// other bytes); `None` when it is.
+    pub fn mismatch(&self, path: &Path) -> Option<String> {
+        let meta = match std::fs::symlink_metadata(path) {
+            Ok(m) => m,
+            Err(e) => return Some(format!("{}: {e}", path.display())),
+        };
+        if !meta.is_file() {
+            return Some(format!("{}: not a plain file", path.display()));
+        }
+        if let Some(size) = self.size
+            && meta.len() != size
+        {
+            return Some(format!("{}: {} bytes, the report says {size}", path.display(), meta.len()));
+        }
+        match sha256_file(path) {
+            Ok(h) if h == self.sha256 => None,
+            Ok(h) => Some(format!("{}: sha256 {h}, the report says {}", path.display(), self.sha256)),
+            Err(e) => Some(e.to_string()),
+        }
+    }
 }
 
 /// A task of another plan that must finish before a task of this one can start.
@@ -125,9 +154,37 @@ impl Plan {
         }
         let plan: Plan = serde_json::from_value(header).map_err(|e| invalid(e.to_string()))?;
         if let Some((i, task)) = plan.tasks.iter().enumerate().find(|(i, t)| t.index != *i) {
-            return Err(invalid(format!("task '{}' has index {} but is listed at {i}", task.id, task.index)));
+            return Err(invalid(format!("task {:?} has index {} but is listed at {i}", task.id, task.index)));
         }
+        plan.check_ids().map_err(invalid)?;
         Ok(plan)
+    }
+
+    /// Checks that every task id can be its output folder (a single safe path component,
+    /// not a name kg uses: [`check_folder_name`]), that ids are unique, and that every
+    /// output lies inside its task's folder; a tampered plan must not send a task's files
+    /// or report outside the output root, or over another task's.
+    pub fn check_ids(&self) -> Result<(), String> {
+        let mut seen: BTreeMap<String, usize> = BTreeMap::new();
+        for task in &self.tasks {
+            check_folder_name(&task.id).map_err(|why| format!("task {}: id {:?} {why}", task.index, task.id))?;
+            if let Some(other) = seen.insert(task.id.to_lowercase(), task.index) {
+                return Err(format!("task {}: id {:?} is also the id of task {other}", task.index, task.id));
+            }
+            for output in &task.outputs {
+                let inside = output.strip_prefix(&format!("{}/", task.id)).is_some_and(|rest| {
+                    let rest = Path::new(rest);
+                    rest.components().next().is_some() && rest.components().all(|c| matches!(c, Component::Normal(_)))
+                });
+                if !inside {
+                    return Err(format!(
+                        "task {}: output {output:?} is not a file inside the task's folder '{}/'",
+                        task.index, task.id
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The task at `index`, or an error naming the plan's size.

@@ -5,10 +5,12 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::plan::{HashedFile, Plan, PlanError, Task, sha256_file};
+use super::plan::{HashedFile, Plan, PlanError, Task};
 
 /// Folder under the run's output root that holds one report per task.
 pub const REPORTS_DIR: &str = "reports";
+/// The merged summary's default name at the top of the output root.
+pub const SUMMARY_FILE: &str = "summary.json";
 
 /// How a task's last attempt ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
@@ -23,6 +25,9 @@ pub enum TaskStatus {
     Failed,
     /// The graph, the plan or an input was invalid (exit code 2).
     Invalid,
+    /// A signal (SIGINT, SIGTERM) stopped the attempt (exit code 130); nothing of it was
+    /// kept.
+    Cancelled,
 }
 
 /// What one attempt at a task did; written atomically to `reports/<id>.json`.
@@ -55,25 +60,39 @@ pub struct TaskReport {
 impl TaskReport {
     /// Where the report of `task` lives under the output root `out`.
     pub fn path(out: &Path, task: &Task) -> PathBuf {
-        out.join(REPORTS_DIR).join(format!("{}.json", task.id))
+        out.join(Self::relative_path(&task.id))
     }
 
     /// Reads a report; `None` when there is none (or it cannot be parsed: it is then
     /// treated as absent and the task runs again).
     pub fn read(path: &Path) -> Option<TaskReport> {
-        let text = std::fs::read_to_string(path).ok()?;
-        serde_json::from_str(&text).ok()
+        Self::load(path).ok().flatten()
     }
 
-    /// Writes the report atomically (creating the reports folder).
-    pub fn write(&self, path: &Path) -> Result<(), PlanError> {
-        let io = |message: String| PlanError::Io { path: path.to_path_buf(), message };
-        if let Some(dir) = path.parent() {
-            std::fs::create_dir_all(dir).map_err(|e| io(e.to_string()))?;
-        }
+    /// Reads a report: `Ok(None)` when there is none, an error naming the file when it
+    /// cannot be read or parsed.
+    pub fn load(path: &Path) -> Result<Option<TaskReport>, String> {
+        let text = match std::fs::read_to_string(path) {
+            Ok(text) => text,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+            Err(e) => return Err(format!("{}: {e}", path.display())),
+        };
+        serde_json::from_str(&text).map(Some).map_err(|e| format!("{}: not a task report: {e}", path.display()))
+    }
+
+    /// Where the report of the task with id `id` lives, relative to the output root.
+    pub fn relative_path(id: &str) -> PathBuf {
+        Path::new(REPORTS_DIR).join(format!("{id}.json"))
+    }
+
+    /// Writes the report atomically under the output root `out` (making the reports
+    /// folder, never through a link).
+    pub fn write(&self, out: &Path) -> Result<(), PlanError> {
+        let relative = Self::relative_path(&self.id);
+        let io = |message: String| PlanError::Io { path: out.join(&relative), message };
         let mut text = serde_json::to_string_pretty(self).map_err(|e| io(e.to_string()))?;
         text.push('\n');
-        kinegraph_nodes::formats::atomic::write_atomic(path, text.as_bytes()).map_err(|e| io(e.message))
+        crate::output::save_within(out, &relative, text.as_bytes()).map(|_| ()).map_err(io)
     }
 
     /// True when this report proves `task` done for this graph and these input hashes: it
@@ -92,7 +111,20 @@ impl TaskReport {
             && self.graph_sha256 == graph_sha256
             && &self.inputs == inputs
             && listed == expected
-            && self.outputs.iter().all(|o| sha256_file(&out.join(&o.path)).is_ok_and(|h| h == o.sha256))
+            && self.outputs.iter().all(|o| o.mismatch(&out.join(&o.path)).is_none())
+    }
+
+    /// Why the outputs on disk under `out` are not what this report of `task` recorded
+    /// (an output missing, resized or changed, or the list not the task's); `None` when
+    /// they are.
+    pub fn check_outputs(&self, task: &Task, out: &Path) -> Option<String> {
+        let listed: Vec<&str> = self.outputs.iter().map(|o| o.path.as_str()).collect();
+        let expected: Vec<&str> = task.outputs.iter().map(String::as_str).collect();
+        if listed != expected {
+            return Some(format!("the report lists outputs {listed:?}, the plan {expected:?}"));
+        }
+        let problems: Vec<String> = self.outputs.iter().filter_map(|o| o.mismatch(&out.join(&o.path))).collect();
+        (!problems.is_empty()).then(|| format!("outputs differ from the report: {}", problems.join("; ")))
     }
 }
 
@@ -119,12 +151,16 @@ pub struct Summary {
     pub graph: String,
     /// Tasks in the plan.
     pub tasks: usize,
-    /// Counts per status (`ok`, `skipped`, `failed`, `invalid`, `missing`), every key present.
+    /// Counts per status (`ok`, `skipped`, `failed`, `invalid`, `cancelled`, `missing`),
+    /// every key present.
     pub counts: BTreeMap<String, usize>,
     /// Sum of the attempts' seconds.
     pub total_seconds: f64,
     /// Per task, in index order.
     pub per_task: Vec<TaskSummary>,
+    /// Reports that could not be read (each names its file); their tasks count as failed.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 impl Summary {
@@ -139,27 +175,42 @@ pub fn serde_name(value: impl Serialize) -> String {
     serde_json::to_value(value).ok().and_then(|v| v.as_str().map(str::to_string)).unwrap_or_default()
 }
 
-/// Collects the reports of `plan`'s tasks from the output root `out`.
+/// Collects the reports of `plan`'s tasks from the output root `out`, and checks every
+/// output a successful report lists against the disk (present, same size, same SHA-256):
+/// a task whose outputs are missing or changed counts as `failed`, with the reason. A
+/// report that cannot be read is a warning naming the file, and its task counts as
+/// `failed`; a task without a report is `missing`.
 pub fn merge(plan: &Plan, out: &Path) -> Summary {
     let mut counts: BTreeMap<String, usize> =
-        ["ok", "skipped", "failed", "invalid", "missing"].iter().map(|s| (s.to_string(), 0)).collect();
+        ["ok", "skipped", "failed", "invalid", "cancelled", "missing"].iter().map(|s| (s.to_string(), 0)).collect();
     let mut per_task = Vec::with_capacity(plan.tasks.len());
+    let mut warnings = Vec::new();
     for task in &plan.tasks {
-        let line = match TaskReport::read(&TaskReport::path(out, task)).filter(|r| r.id == task.id) {
-            Some(r) => TaskSummary {
-                index: task.index,
-                id: task.id.clone(),
-                status: serde_name(r.status),
-                seconds: r.seconds,
-                error: r.error,
+        let line = |status: &str, seconds: f64, error: Option<String>| TaskSummary {
+            index: task.index,
+            id: task.id.clone(),
+            status: status.to_string(),
+            seconds,
+            error,
+        };
+        let path = TaskReport::path(out, task);
+        let line = match TaskReport::load(&path) {
+            Ok(Some(r)) if r.id != task.id => {
+                let why = format!("{}: the report is of task {:?}, not {:?}", path.display(), r.id, task.id);
+                warnings.push(why.clone());
+                line("failed", r.seconds, Some(why))
+            }
+            Ok(Some(r)) if matches!(r.status, TaskStatus::Ok | TaskStatus::Skipped) => match r.check_outputs(task, out)
+            {
+                None => line(&serde_name(r.status), r.seconds, r.error),
+                Some(why) => line("failed", r.seconds, Some(why)),
             },
-            None => TaskSummary {
-                index: task.index,
-                id: task.id.clone(),
-                status: "missing".into(),
-                seconds: 0.0,
-                error: None,
-            },
+            Ok(Some(r)) => line(&serde_name(r.status), r.seconds, r.error),
+            Ok(None) => line("missing", 0.0, None),
+            Err(e) => {
+                warnings.push(e.clone());
+                line("failed", 0.0, Some(format!("unreadable report: {e}")))
+            }
         };
         *counts.entry(line.status.clone()).or_default() += 1;
         per_task.push(line);
@@ -170,5 +221,6 @@ pub fn merge(plan: &Plan, out: &Path) -> Summary {
         counts,
         total_seconds: per_task.iter().map(|t| t.seconds).sum(),
         per_task,
+        warnings,
     }
 }

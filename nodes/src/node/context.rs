@@ -9,7 +9,7 @@ use super::param::{ChoiceParam, FloatParam, InputPathParam, IntParam, OutputPath
 use super::port::{Input, Output};
 use super::value::{PortValue, Value};
 use super::{NodeError, NodeSchema};
-use crate::formats::atomic::write_atomic;
+use crate::formats::atomic::write_within;
 
 /// Per-run services shared by every node of one evaluation.
 pub struct RunServices<'a> {
@@ -170,13 +170,8 @@ impl<'a> NodeContext<'a> {
             .services
             .out_dir
             .ok_or_else(|| NodeError::Failed("this run has no output folder, so nothing may be written".into()))?;
-        let path = out_dir.join(&relative);
-        if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent)
-                .map_err(|e| NodeError::Failed(format!("cannot create {}: {e}", parent.display())))?;
-        }
         self.check_cancelled()?;
-        write_atomic(&path, bytes)?;
+        let path = write_within(out_dir, &relative, bytes)?;
         self.files_written.push(path);
         Ok(relative)
     }

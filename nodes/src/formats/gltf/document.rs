@@ -5,7 +5,8 @@
 //! 2. deserialize with gltf-json; 3. run gltf-json's validation (index ranges, missing
 //! fields) and report the first problem with its JSON path; 4. resolve each buffer: the
 //! GLB BIN chunk, a `data:` URI (base64) or a file relative to the glTF file (absolute
-//! paths, `..` and URL schemes are refused); 5. check each buffer holds `byteLength` bytes.
+//! paths, `..`, URL schemes and links that resolve outside the file's folder are refused;
+//! images are never read); 5. check each buffer holds `byteLength` bytes.
 
 use std::path::{Component, Path};
 
@@ -139,9 +140,26 @@ fn load_external(uri: &str, index: usize, file: &Path) -> Result<Vec<u8>, ReadEr
             format!("buffer URI '{uri}' leaves the glTF file's folder (absolute or '..'); refusing to read it"),
         ));
     }
-    let dir = file.parent().unwrap_or(Path::new("."));
+    let dir = match file.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
     let full = dir.join(relative_path);
-    std::fs::read(&full).map_err(|e| ReadError::new(at, Kind::Io, format!("buffer file '{}': {e}", full.display())))
+    let io = |e: std::io::Error| ReadError::new(at.clone(), Kind::Io, format!("buffer file '{}': {e}", full.display()));
+    // Links inside the folder may point anywhere: compare where the file really is.
+    let real_dir = std::fs::canonicalize(dir).map_err(io)?;
+    let real = std::fs::canonicalize(&full).map_err(io)?;
+    if !real.starts_with(&real_dir) {
+        return Err(ReadError::new(
+            at.clone(),
+            Kind::Unsupported,
+            format!(
+                "buffer URI '{uri}' resolves through a link to {}, outside the glTF file's folder; refusing to read it",
+                real.display()
+            ),
+        ));
+    }
+    std::fs::read(&real).map_err(io)
 }
 
 /// Parses `bytes` (GLB or JSON glTF); `file` resolves external buffers.
@@ -251,6 +269,28 @@ mod tests {
             json_pointer("meshes[0].primitives[1].attributes[\"POSITION\"]"),
             "/meshes/0/primitives/1/attributes/POSITION"
         );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_buffer_linked_out_of_the_folder_is_refused_and_one_inside_is_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let secret = dir.path().join("secret.bin");
+        std::fs::write(&secret, b"other file's bytes").unwrap();
+        let model_dir = dir.path().join("model");
+        std::fs::create_dir_all(model_dir.join("sub")).unwrap();
+        std::fs::write(model_dir.join("sub/real.bin"), b"mesh").unwrap();
+        std::os::unix::fs::symlink(&secret, model_dir.join("data.bin")).unwrap();
+        std::os::unix::fs::symlink(dir.path(), model_dir.join("up")).unwrap();
+        std::os::unix::fs::symlink("sub/real.bin", model_dir.join("inside.bin")).unwrap();
+        let file = model_dir.join("model.gltf");
+        for uri in ["data.bin", "up/secret.bin"] {
+            let err = load_external(uri, 1, &file).unwrap_err();
+            assert_eq!(err.path, "/buffers/1/uri", "{uri}");
+            assert!(err.message.contains(uri) && err.message.contains("outside"), "{}", err.message);
+        }
+        assert_eq!(load_external("inside.bin", 0, &file).unwrap(), b"mesh");
+        assert_eq!(load_external("sub/real.bin", 0, &file).unwrap(), b"mesh");
     }
 
     #[test]
