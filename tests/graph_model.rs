@@ -226,3 +226,27 @@ fn kg_fmt_never_drops_comments() {
     assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
     assert!(std::fs::read_to_string(&plain).unwrap().contains("nodes: {\n"));
 }
+
+#[test]
+fn export_paths_that_cannot_be_written_are_refused_by_kg_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let walk = assets().join("mannequin_walk.bvh");
+    let graph = |a: &str, b: &str| {
+        format!(
+            "(format: \"kinegraph.graph\", version: 2,\n nodes: {{\n \"load\": (kind: \"clip.load\", params: {{ \"path\": \"{}\" }}),\n \"a\": (kind: \"export.bvh\", params: {{ \"file\": \"{a}\" }}),\n \"b\": (kind: \"export.bvh\", params: {{ \"file\": \"{b}\" }}),\n }},\n edges: [ (from: \"load.clip\", to: \"a.clip\"), (from: \"load.clip\", to: \"b.clip\") ])",
+            walk.display()
+        )
+    };
+    let cases = [
+        ("nul.ron", graph("w\\u{0}.bvh", "v.bvh"), "which file names cannot carry"),
+        ("clash.ron", graph("take.bvh", "take.bvh/w.bvh"), "needs a folder 'take.bvh', where node 'a' writes a file"),
+        ("ours.ron", graph(".kg-lock/w.bvh", "v.bvh"), "kg's own"),
+    ];
+    for (name, text, phrase) in cases {
+        let path = write(dir.path(), name, &text);
+        let out = kg(&["check", path.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(2), "{name}: {}", stderr(&out));
+        assert!(stderr(&out).contains(phrase), "{name}: {}", stderr(&out));
+        assert!(!stderr(&out).contains('\0'), "{name}: a NUL reached the terminal");
+    }
+}

@@ -196,9 +196,11 @@ pub(super) fn compile_fed<'r>(
         }
     }
 
-    // Two exports writing one file would race and one result would silently vanish.
+    // Two exports writing one file would race and one result would silently vanish; one
+    // writing a file where another needs a folder fails half way through a run.
     let mut writers: BTreeMap<String, &str> = BTreeMap::new();
-    for output in output_files(&nodes) {
+    let outputs = output_files(&nodes);
+    for output in &outputs {
         let key = output.file.to_string_lossy().to_lowercase();
         if let Some(first) = writers.insert(key, output.node) {
             errors.push(GraphError::SameOutputFile {
@@ -206,6 +208,21 @@ pub(super) fn compile_fed<'r>(
                 file: output.text.to_string(),
                 other: NodeId::new(first),
             });
+        }
+    }
+    for output in &outputs {
+        for folder in output.file.ancestors().skip(1).filter(|a| !a.as_os_str().is_empty()) {
+            let key = folder.to_string_lossy().to_lowercase();
+            if let Some(&other) = writers.get(&key) {
+                errors.push(GraphError::BadValue {
+                    param: ParamPath::new(output.node, output.param),
+                    message: format!(
+                        "'{}' needs a folder '{}', where node '{other}' writes a file",
+                        output.text,
+                        folder.display()
+                    ),
+                });
+            }
         }
     }
 

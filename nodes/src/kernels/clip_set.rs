@@ -89,6 +89,9 @@ pub struct LoadedClipSet {
     pub warnings: Vec<String>,
 }
 
+/// How many files and folders a clip-set folder may hold: a library of actions, not a disk.
+pub const MAX_FOLDER_ENTRIES: usize = 200_000;
+
 /// Loads every file under `folder` (recursively) whose name matches one of `patterns`
 /// (comma-separated wildcards), groups them by skeleton family, keeps the family of the
 /// clip named `family` (else the largest family, ties to the first file), drops cgspeed
@@ -96,9 +99,8 @@ pub struct LoadedClipSet {
 /// Actions are named by file stem, or by their path under `folder` when two stems clash.
 pub fn load_clip_set(folder: &Path, patterns: &str, fps: f64, family: Option<&str>) -> Result<LoadedClipSet, String> {
     let patterns: Vec<&str> = patterns.split(',').map(str::trim).filter(|p| !p.is_empty()).collect();
-    let mut files: Vec<_> = ["bvh", "glb", "gltf"]
-        .iter()
-        .flat_map(|ext| crate::corpus::files_with_extension(folder, ext))
+    let mut files: Vec<_> = crate::corpus::files_under(folder, &["bvh", "glb", "gltf"], MAX_FOLDER_ENTRIES)?
+        .into_iter()
         .filter(|p| {
             let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
             patterns.iter().any(|pat| wildcard(pat.as_bytes(), name.as_bytes()))

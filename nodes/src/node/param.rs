@@ -177,6 +177,13 @@ fn check_output_path(s: &str, extension: &str) -> Result<(), String> {
     if path.components().any(|c| !matches!(c, Component::Normal(_) | Component::CurDir)) {
         return Err(format!("'{s}' leaves the output folder: give a relative path without '..'"));
     }
+    // No file system takes these in a name; refused here, not half way through a run.
+    if let Some(c) = s.chars().find(|c| c.is_control() || matches!(c, '\\' | ':' | '*' | '?' | '"' | '<' | '>' | '|')) {
+        return Err(format!("'{}' holds the character {c:?}, which file names cannot carry", s.escape_debug()));
+    }
+    if path.components().any(|c| c.as_os_str().to_string_lossy().starts_with(".kg-")) {
+        return Err(format!("'{s}': names starting with '.kg-' are kg's own (locks, temporary files)"));
+    }
     if !path.extension().is_some_and(|e| e.eq_ignore_ascii_case(extension)) {
         return Err(format!("'{s}' must end in .{extension}"));
     }
