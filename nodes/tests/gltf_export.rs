@@ -2,8 +2,8 @@
 //! a skinned box and for every glTF sample of the corpus re-exported.
 //!
 //! The validator runs through `tests/tools/validate_gltf.mjs` with `node`; it is looked
-//! for in `$KG_GLTF_VALIDATOR_DIR` (default `/work/tools/gltf-validator`, set up with
-//! `npm install gltf-validator`). Missing node or validator: the test fails when `CI` is
+//! for in `$KG_GLTF_VALIDATOR_DIR`, else where `.ci/run` installs it
+//! (`${KG_TOOLS_DIR:-$HOME/.cache/kinegraph-tools}/khronos-validator`). Missing node or validator: the test fails when `CI` is
 //! set and is skipped with a message otherwise.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed unwrap is a failed test
@@ -18,9 +18,16 @@ use kinegraph_nodes::formats::gltf::{GltfReadOptions, read_gltf_file, write_glb,
 use kinegraph_nodes::model::{Clip, ImportScale, Joint, Mesh, Skeleton, Skin, forward_kinematics};
 
 fn validator() -> Option<(PathBuf, PathBuf)> {
+    // The same folder `.ci/run` installs into, so a developer who ran it once is set up.
+    let tools = || {
+        std::env::var_os("KG_TOOLS_DIR")
+            .map(PathBuf::from)
+            .or_else(|| std::env::var_os("HOME").map(|home| Path::new(&home).join(".cache/kinegraph-tools")))
+    };
     let dir = std::env::var_os("KG_GLTF_VALIDATOR_DIR")
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("/work/tools/gltf-validator"));
+        .or_else(|| tools().map(|t| t.join("khronos-validator")))
+        .unwrap_or_default();
     let script = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/tools/validate_gltf.mjs"));
     let node_ok = Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
     if node_ok && dir.join("node_modules/gltf-validator").is_dir() {

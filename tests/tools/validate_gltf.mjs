@@ -1,14 +1,17 @@
 // Validates glTF/GLB files with the Khronos glTF Validator (npm package `gltf-validator`).
 // Usage: node validate_gltf.mjs FILE...
 // The validator is loaded from $KG_GLTF_VALIDATOR_DIR (a folder where `npm install
-// gltf-validator` was run), default /work/tools/gltf-validator.
+// gltf-validator` was run), else where .ci/run installs it:
+// ${KG_TOOLS_DIR:-$HOME/.cache/kinegraph-tools}/khronos-validator.
 // Prints "FILE: errors=N warnings=M" per file (plus each error) and exits 1 if any file has
 // errors, 2 on bad usage or a missing validator.
 import { createRequire } from 'node:module';
 import { readFileSync } from 'node:fs';
 import { join } from 'node:path';
+import { homedir } from 'node:os';
 
-const dir = process.env.KG_GLTF_VALIDATOR_DIR || '/work/tools/gltf-validator';
+const tools = process.env.KG_TOOLS_DIR || join(homedir(), '.cache', 'kinegraph-tools');
+const dir = process.env.KG_GLTF_VALIDATOR_DIR || join(tools, 'khronos-validator');
 let validator;
 try {
   validator = createRequire(join(dir, 'package.json'))('gltf-validator');
