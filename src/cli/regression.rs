@@ -462,23 +462,12 @@ fn use_corpus_dir(
         return Ok(());
     }
     let base = loaded.base_dir();
-    let mut moved = Vec::new();
-    for (id, node) in loaded.graph.nodes() {
-        for (name, value) in &node.params {
-            let path = crate::graph::ParamPath::new(id.clone(), name.as_str());
-            if let kinegraph_nodes::node::ParamValue::Text(text) = value
-                && text.contains("shared/data")
-                && crate::graph::is_input_file(&loaded.graph, registry, &path).unwrap_or(false)
-            {
-                moved.push((path, corpus_path(&base, text).to_string_lossy().into_owned()));
-            }
-        }
-    }
-    for (path, file) in moved {
-        let value = kinegraph_nodes::node::ParamValue::Text(file);
-        loaded.graph.set_param(registry, &path, &value).map_err(|e| format!("{path}: {e}"))?;
-    }
-    Ok(())
+    loaded
+        .graph
+        .relocate_input_files(registry, |text| {
+            text.contains("shared/data").then(|| corpus_path(&base, text).to_string_lossy().into_owned())
+        })
+        .map_err(|e| format!("{}: {e}", loaded.path.display()))
 }
 
 /// The first screen of a failure: per output, how many facts differ, before the detail.

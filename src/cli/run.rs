@@ -9,7 +9,7 @@ use kinegraph_nodes::node::{ParamValue, Registry};
 
 use super::{EXIT_BUSY, EXIT_CANCELLED, EXIT_FAILED, EXIT_INVALID};
 use crate::document;
-use crate::engine::{Engine, NodeStatus, RunEvent, RunOptions, RunReport, compile_file};
+use crate::engine::{CompiledGraph, Engine, NodeStatus, RunEvent, RunOptions, RunReport, compile_file};
 pub use crate::graph::Setting;
 use crate::graph::{Graph, GraphFile, LoadError, NodeId, Overrides, ParamPath, PortRef};
 use crate::output::{OutLock, remove_own_temps, remove_stale_temps};
@@ -58,6 +58,19 @@ pub fn execute(
         eprint!("{e}");
         EXIT_INVALID
     })?;
+    execute_compiled(engine, loaded, &compiled, out, threads, targets, progress)
+}
+
+/// [`execute`] for a graph compiled already (`kg watch` also reads its file list from it).
+pub fn execute_compiled(
+    engine: &Engine,
+    loaded: &GraphFile,
+    compiled: &CompiledGraph<'_>,
+    out: Option<&Path>,
+    threads: Option<usize>,
+    targets: Option<Vec<String>>,
+    progress: bool,
+) -> Result<RunReport, u8> {
     if let Some(targets) = &targets {
         let unknown: Vec<&String> = targets.iter().filter(|t| compiled.index_of(t).is_none()).collect();
         if !unknown.is_empty() {
@@ -97,7 +110,7 @@ pub fn execute(
         threads,
         observer: Some(&observer),
     };
-    let report = engine.run(&compiled, &options);
+    let report = engine.run(compiled, &options);
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }

@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 
 use notify::{RecursiveMode, Watcher};
 
-use super::run::{Setting, absolute, cancel_flag, execute, json_report, load_graph, print_report};
-use super::{EXIT_BUSY, EXIT_FAILED};
+use super::run::{Setting, absolute, cancel_flag, execute_compiled, json_report, load_graph, print_report};
+use super::{EXIT_BUSY, EXIT_FAILED, EXIT_INVALID};
 use crate::engine::{Engine, compile_file};
 use crate::output::OutLock;
 
@@ -98,12 +98,21 @@ fn run_once(
             return files;
         }
     };
-    if let Ok(compiled) = compile_file(&loaded, engine.registry()) {
-        let base = loaded.base_dir();
-        files.extend(compiled.input_files().map(|f| absolute(&base.join(f))));
-        files.extend(compiled.includes.iter().cloned());
-    }
-    match execute(engine, &loaded, Some(out), threads, None, false) {
+    // Compiled once: the run and the list of files to watch come from the same graph.
+    let compiled = match compile_file(&loaded, engine.registry()) {
+        Ok(compiled) => compiled,
+        Err(e) => {
+            eprint!("{e}");
+            if json {
+                outln!("{}", serde_json::json!({ "graph": graph, "exit_code": EXIT_INVALID, "ok": false }));
+            }
+            return files;
+        }
+    };
+    let base = loaded.base_dir();
+    files.extend(compiled.input_files().map(|f| absolute(&base.join(f))));
+    files.extend(compiled.includes.iter().cloned());
+    match execute_compiled(engine, &loaded, &compiled, Some(out), threads, None, false) {
         Ok(report) => {
             let code = if report.succeeded() { 0 } else { EXIT_FAILED };
             if json {

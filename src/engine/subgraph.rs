@@ -123,7 +123,14 @@ fn inline(
         Err(LoadError::Structure(e)) => return Err(Failure::Inside(e)),
     };
     includes.insert(key.clone());
-    absolutise_input_files(&mut child, registry);
+    // Relative input files inside the file are relative to the file, wherever its nodes go.
+    let child_base = child.base_dir();
+    let relocated = child.graph.relocate_input_files(registry, |text| {
+        Path::new(text).is_relative().then(|| child_base.join(text).to_string_lossy().into_owned())
+    });
+    if let Err(e) = relocated {
+        return Err(fail(format!("subgraph file {}: {e}", path.display())).into());
+    }
 
     // 2. The node's parameters set the file's graph inputs.
     let mut errors = Vec::new();
@@ -175,20 +182,18 @@ fn inline(
     for e in inner.edges() {
         out.insert_edge_unchecked(Edge { from: prefixed(&e.from), to: prefixed(&e.to) });
     }
-    let shown = |side: Side| -> Vec<String> {
-        match side {
+    let unknown_port = |port: &PortRef, side: Side| GraphError::UnknownSubgraphPort {
+        port: port.clone(),
+        file: rel.clone(),
+        side,
+        shown: match side {
             Side::Input => ports.inputs.keys().cloned().collect(),
             Side::Output => ports.outputs.keys().cloned().collect(),
-        }
+        },
     };
     for e in into {
         let Some(targets) = ports.inputs.get(&e.to.port) else {
-            errors.push(GraphError::UnknownSubgraphPort {
-                port: e.to.clone(),
-                file: rel.clone(),
-                side: Side::Input,
-                shown: shown(Side::Input),
-            });
+            errors.push(unknown_port(&e.to, Side::Input));
             continue;
         };
         for target in targets {
@@ -201,12 +206,7 @@ fn inline(
     }
     for e in from {
         let Some(source) = ports.outputs.get(&e.from.port) else {
-            errors.push(GraphError::UnknownSubgraphPort {
-                port: e.from.clone(),
-                file: rel.clone(),
-                side: Side::Output,
-                shown: shown(Side::Output),
-            });
+            errors.push(unknown_port(&e.from, Side::Output));
             continue;
         };
         out.insert_edge_unchecked(Edge { from: prefixed(source), to: e.to.clone() });
@@ -221,12 +221,7 @@ fn inline(
             } else if let Some(inner_targets) = ports.inputs.get(&t.port) {
                 rewired.extend(inner_targets.iter().map(prefixed));
             } else {
-                errors.push(GraphError::UnknownSubgraphPort {
-                    port: t.clone(),
-                    file: rel.clone(),
-                    side: Side::Input,
-                    shown: shown(Side::Input),
-                });
+                errors.push(unknown_port(&t, Side::Input));
             }
         }
         *targets = rewired;
@@ -235,12 +230,7 @@ fn inline(
         if &source.node == id {
             match ports.outputs.get(&source.port) {
                 Some(inner_source) => *source = prefixed(inner_source),
-                None => errors.push(GraphError::UnknownSubgraphPort {
-                    port: source.clone(),
-                    file: rel.clone(),
-                    side: Side::Output,
-                    shown: shown(Side::Output),
-                }),
+                None => errors.push(unknown_port(source, Side::Output)),
             }
         }
     }
@@ -284,26 +274,4 @@ fn boundary_types(
         });
     }
     Ok(())
-}
-
-/// Relative input files of a subgraph's nodes made absolute from the subgraph's own folder,
-/// so they stay right once its nodes sit in another graph.
-fn absolutise_input_files(child: &mut GraphFile, registry: &Registry) {
-    let base = child.base_dir();
-    let mut moves = Vec::new();
-    for (id, node) in child.graph.nodes() {
-        for (name, value) in &node.params {
-            let path = ParamPath::new(id.clone(), name.as_str());
-            if let ParamValue::Text(text) = value
-                && Path::new(text).is_relative()
-                && is_input_file(&child.graph, registry, &path).unwrap_or(false)
-            {
-                moves.push((path, ParamValue::Text(base.join(text).to_string_lossy().into_owned())));
-            }
-        }
-    }
-    for (path, value) in moves {
-        // The value was accepted before; only its folder changes.
-        let _ = child.graph.set_param(registry, &path, &value);
-    }
 }

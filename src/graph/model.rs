@@ -363,6 +363,32 @@ impl Graph {
         std::mem::replace(&mut self.description, text.to_string())
     }
 
+    /// Rewrites the graph's input-file parameters: `relocate` gets each path as written and
+    /// returns its new text, or `None` to leave it. One place for "where do this graph's files
+    /// live" (subgraph files moved into another graph, a corpus kept elsewhere).
+    pub fn relocate_input_files(
+        &mut self,
+        registry: &Registry,
+        relocate: impl Fn(&str) -> Option<String>,
+    ) -> Result<(), GraphError> {
+        let mut moves = Vec::new();
+        for (id, node) in &self.nodes {
+            for (name, value) in &node.params {
+                let path = ParamPath::new(id.clone(), name.as_str());
+                if let ParamValue::Text(text) = value
+                    && super::is_input_file(self, registry, &path).unwrap_or(false)
+                    && let Some(moved) = relocate(text)
+                {
+                    moves.push((path, ParamValue::Text(moved)));
+                }
+            }
+        }
+        for (path, value) in moves {
+            self.set_param(registry, &path, &value)?;
+        }
+        Ok(())
+    }
+
     /// The parameter a setting name means: a graph input's target, else `node.param`.
     pub fn resolve(&self, name: &str) -> Result<ParamPath, GraphError> {
         let unknown =
