@@ -58,6 +58,7 @@ static SPIN: NodeSchema = NodeSchema {
     outputs: &[SPIN_OUT.spec()],
     params: &[SPIN_SALT.0],
     writes_files: false,
+    version: 1,
 };
 
 /// The kernel: `iterations` steps of a logistic-style recurrence seeded by `x` and

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use kinegraph::document::{self, EdgeDoc, GraphDoc, NodeDoc, SourceMap};
-use kinegraph::engine::{Engine, NodeStatus, RunOptions, compile};
+use kinegraph::engine::{Engine, MEMORY_KEEP_RUNS, NodeStatus, RunOptions, compile};
 use kinegraph::graph::Graph;
 use kinegraph_nodes::node::{
     FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, ParamValue, Registry, Value,
@@ -64,6 +64,32 @@ fn rerun_after_one_param_change_recomputes_only_its_downstream() {
     assert_eq!(scalar(&second, "a3"), 8.0);
 }
 
+#[test]
+fn the_in_memory_cache_keeps_only_recent_runs_and_undo_within_them_is_free() {
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
+    let options = RunOptions::new(PathBuf::from("."));
+    let run = |offset: f64| {
+        let doc = chain_doc(offset);
+        let g = compile(&Graph::from_doc(&doc).unwrap(), engine.registry(), Path::new("chain"), &SourceMap::default())
+            .unwrap();
+        engine.run(&g, &options)
+    };
+    // An artist drags a slider through 100 values: each run makes 2 new results (a2, a3).
+    for step in 0..100 {
+        run(f64::from(step));
+    }
+    // The 3 shared results plus 2 per kept run, not 2 per run ever made.
+    assert_eq!(engine.cached_results(), 3 + 2 * MEMORY_KEEP_RUNS as usize);
+    // Undo a few steps: still served from memory.
+    let undo = run(97.0);
+    assert_eq!(undo.count(NodeStatus::Ok), 0);
+    assert_eq!(scalar(&undo, "a3"), 1.0 + 1.0 + 97.0 + 1.0);
+    // A value from long ago was evicted and is computed again, correctly.
+    let old = run(3.0);
+    assert_eq!(old.count(NodeStatus::Ok), 2);
+    assert_eq!(scalar(&old, "a3"), 6.0);
+}
+
 /// A node that fails on demand, counts its runs and can cancel the run it is in.
 struct Probe {
     runs: Arc<AtomicUsize>,
@@ -81,6 +107,7 @@ static PROBE: NodeSchema = NodeSchema {
     outputs: &[PROBE_OUT.spec()],
     params: &[FAIL_IF.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Probe {
@@ -169,6 +196,7 @@ fn independent_branches_run_in_parallel() {
         outputs: &[OUT.spec()],
         params: &[],
         writes_files: false,
+        version: 1,
     };
     impl Node for Sleepy {
         fn schema(&self) -> &'static NodeSchema {

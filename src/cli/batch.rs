@@ -175,8 +175,12 @@ pub(super) fn batch_command(
     jobs: Option<usize>,
     settings: &[Setting],
     json: bool,
+    cache: &super::CacheArgs,
 ) -> u8 {
-    let engine = Engine::new(kinegraph_nodes::builtin::registry());
+    let engine = match cache.engine() {
+        Ok(engine) => engine,
+        Err(code) => return code,
+    };
     let cancel = cancel_flag();
     // Validate the graph and the input name once, before any work.
     if let Err(e) = load_graph(graph, settings, engine.registry())

@@ -21,6 +21,9 @@ fn param_range(p: &ParamSpec) -> String {
         ParamKind::InputPath { extensions, required } => {
             format!("input file (.{}), {}", extensions.join(", ."), if required { "required" } else { "optional" })
         }
+        ParamKind::InputFolder { extensions, default } => {
+            format!("input folder (reads .{}), default {default:?}", extensions.join(", ."))
+        }
         ParamKind::Text { default } => format!("text, default {default:?}"),
         ParamKind::OutputPath { extension, default } => format!("output file (.{extension}), default {default}"),
     }

@@ -32,6 +32,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, Subcommand};
 
+use crate::engine::{DEFAULT_MAX_BYTES, DiskCache, Engine};
+
 pub use run::{Setting, convert_graph, load_graph};
 
 /// Exit code: a node failed.
@@ -108,6 +110,8 @@ enum Command {
         /// Evaluate only these nodes (and what they need); default: every sink.
         #[arg(long = "target", value_name = "NODE", conflicts_with = "plan")]
         targets: Vec<String>,
+        #[command(flatten)]
+        cache: CacheArgs,
     },
     /// Plan a farm run: one task per input binding, with content hashes, as a plan file.
     Plan {
@@ -199,6 +203,8 @@ enum Command {
         /// Print the JSON report on stdout instead of the table.
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        cache: CacheArgs,
     },
     /// Rewrite graph files in canonical form (sorted, current version; migrates old files).
     Fmt {
@@ -214,6 +220,8 @@ enum Command {
     Edit {
         /// The graph file (.ron).
         graph: Option<PathBuf>,
+        #[command(flatten)]
+        cache: CacheArgs,
     },
     /// Run a graph, then again on every change to it or to the files it reads (only what
     /// the change reaches is recomputed); Ctrl-C stops.
@@ -232,6 +240,8 @@ enum Command {
         /// Worker threads (default: one per core).
         #[arg(long)]
         threads: Option<usize>,
+        #[command(flatten)]
+        cache: CacheArgs,
     },
     /// Regression-test saved graphs against their NAME.expect.ron files.
     Test {
@@ -246,18 +256,50 @@ enum Command {
     },
 }
 
+/// The cache-folder options of the commands that run graphs.
+#[derive(clap::Args, Debug, Clone)]
+struct CacheArgs {
+    /// Keep node results in this folder and serve unchanged nodes from it in later runs
+    /// (also across processes: batch jobs and farm tasks can share one).
+    #[arg(long, value_name = "DIR")]
+    cache: Option<PathBuf>,
+    /// Size bound of the cache folder in MiB; the least recently used results go first.
+    #[arg(long, value_name = "MIB", default_value_t = DEFAULT_MAX_BYTES >> 20, requires = "cache")]
+    cache_max_mib: u64,
+}
+
+impl CacheArgs {
+    /// An engine over the built-in nodes, with the cache folder when one is given; an
+    /// unusable folder is reported and gives the exit code.
+    fn engine(&self) -> Result<Engine, u8> {
+        let engine = Engine::new(kinegraph_nodes::builtin::registry());
+        let Some(dir) = &self.cache else { return Ok(engine) };
+        match DiskCache::open(dir, self.cache_max_mib.saturating_mul(1 << 20)) {
+            Ok(disk) => Ok(engine.with_disk_cache(disk)),
+            Err(e) => {
+                eprintln!("--cache: {e}");
+                Err(EXIT_INVALID)
+            }
+        }
+    }
+}
+
 /// Runs `kg` with the process arguments.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let code = match cli.command {
-        Command::Run { graph, set, plan, task_index, out, json, threads, targets } => match (plan, task_index, graph) {
-            (Some(plan), Some(index), graph) => task::task_command(&plan, index, graph.as_deref(), &out, threads, json),
-            (_, _, Some(graph)) => run::run_command(&graph, &set, &out, json, threads, targets),
-            _ => {
-                eprintln!("kg run: give a GRAPH, or --plan and --task-index");
-                EXIT_INVALID
+        Command::Run { graph, set, plan, task_index, out, json, threads, targets, cache } => {
+            match (plan, task_index, graph) {
+                (Some(plan), Some(index), graph) => {
+                    task::task_command(&plan, index, graph.as_deref(), &out, threads, json, &cache)
+                }
+                (_, _, Some(graph)) => run::run_command(&graph, &set, &out, json, threads, targets, &cache),
+                _ => {
+                    eprintln!("kg run: give a GRAPH, or --plan and --task-index");
+                    EXIT_INVALID
+                }
             }
-        },
+        }
         Command::Plan { graph, input, upstream_out, set, out } => {
             plan::plan_command(&graph, &input, &set, &upstream_out, &out)
         }
@@ -267,19 +309,22 @@ pub fn main() -> ExitCode {
         Command::Nodes { json, markdown } => catalogue::nodes_command(json, markdown),
         Command::Inspect { file, json } => inspect::inspect_command(&file, json),
         Command::Convert { input, output, set } => run::convert_command(&input, &output, &set),
-        Command::Batch { graph, input, out, jobs, set, json } => {
-            batch::batch_command(&graph, &input, &out, jobs, &set, json)
+        Command::Batch { graph, input, out, jobs, set, json, cache } => {
+            batch::batch_command(&graph, &input, &out, jobs, &set, json, &cache)
         }
         Command::Fmt { graphs, check } => run::fmt_command(&graphs, check),
-        Command::Watch { graph, set, out, json, threads } => watch::watch_command(&graph, &set, &out, json, threads),
+        Command::Watch { graph, set, out, json, threads, cache } => {
+            watch::watch_command(&graph, &set, &out, json, threads, &cache)
+        }
         Command::Test { graphs, root, bless } => regression::test_command(graphs, root.as_deref(), bless),
         #[cfg(feature = "editor")]
-        Command::Edit { graph } => match crate::editor::run(graph) {
-            Ok(()) => 0,
-            Err(e) => {
+        Command::Edit { graph, cache } => match cache.engine().map(|engine| crate::editor::run(graph, engine)) {
+            Ok(Ok(())) => 0,
+            Ok(Err(e)) => {
                 eprintln!("error: {e}");
                 EXIT_FAILED
             }
+            Err(code) => code,
         },
     };
     ExitCode::from(code)

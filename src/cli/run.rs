@@ -187,8 +187,12 @@ pub(super) fn run_command(
     json: bool,
     threads: Option<usize>,
     targets: Vec<String>,
+    cache: &super::CacheArgs,
 ) -> u8 {
-    let engine = Engine::new(kinegraph_nodes::builtin::registry());
+    let engine = match cache.engine() {
+        Ok(engine) => engine,
+        Err(code) => return code,
+    };
     let cancel = cancel_flag();
     let loaded = match load_graph(graph, settings, engine.registry()) {
         Ok(l) => l,

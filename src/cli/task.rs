@@ -14,7 +14,6 @@ use std::time::Instant;
 use super::batch::{BatchRun, run_once};
 use super::run::Setting;
 use super::{EXIT_BUSY, EXIT_CANCELLED, EXIT_FAILED, EXIT_INVALID};
-use crate::engine::Engine;
 use crate::farm::plan::{normalised_absolute, plan_dir, sha256_file};
 use crate::farm::report::{REPORTS_DIR, serde_name};
 use crate::farm::{HashedFile, Plan, Task, TaskReport, TaskStatus};
@@ -127,6 +126,7 @@ pub(super) fn task_command(
     out: &Path,
     threads: Option<usize>,
     json: bool,
+    cache: &super::CacheArgs,
 ) -> u8 {
     let started = Instant::now();
     // From here on a signal cancels cleanly instead of killing the task.
@@ -213,7 +213,10 @@ pub(super) fn task_command(
         name: name.clone(),
         value: normalised_absolute(&base.join(&file.path)).to_string_lossy().into_owned(),
     }));
-    let engine = Engine::new(kinegraph_nodes::builtin::registry());
+    let engine = match cache.engine() {
+        Ok(engine) => engine,
+        Err(code) => return code,
+    };
     let label = PathBuf::from(&task.id);
     let mut run: BatchRun = run_once(&engine, &graph_path, &settings, &label, &staging, threads);
     let outputs = if run.exit_code == 0 {

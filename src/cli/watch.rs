@@ -19,8 +19,18 @@ use crate::output::OutLock;
 /// How long to let a burst of file events (an editor's write, rename, chmod) settle.
 const SETTLE: Duration = Duration::from_millis(25);
 
-pub(super) fn watch_command(graph: &Path, settings: &[Setting], out: &Path, json: bool, threads: Option<usize>) -> u8 {
-    let engine = Engine::new(kinegraph_nodes::builtin::registry());
+pub(super) fn watch_command(
+    graph: &Path,
+    settings: &[Setting],
+    out: &Path,
+    json: bool,
+    threads: Option<usize>,
+    cache: &super::CacheArgs,
+) -> u8 {
+    let engine = match cache.engine() {
+        Ok(engine) => engine,
+        Err(code) => return code,
+    };
     let cancel = cancel_flag();
     let (tx, rx) = channel();
     let mut watcher = match notify::recommended_watcher(tx) {
@@ -39,13 +49,18 @@ pub(super) fn watch_command(graph: &Path, settings: &[Setting], out: &Path, json
         }
     };
     let mut folders: BTreeSet<PathBuf> = BTreeSet::new();
+    let out_dir = absolute(out);
     loop {
         let started = Instant::now();
         let files = run_once(&engine, graph, settings, out, json, threads);
         // Folders are watched, not files: editors save by writing a new file and renaming it.
-        for folder in files.iter().filter_map(|f| f.parent()) {
+        // A folder the graph reads (a clip set) is watched with everything under it.
+        let read_folders: Vec<&PathBuf> = files.iter().filter(|f| f.is_dir()).collect();
+        let watched = files.iter().filter_map(|f| f.parent()).map(|f| (f, RecursiveMode::NonRecursive));
+        let recursive = read_folders.iter().map(|f| (f.as_path(), RecursiveMode::Recursive));
+        for (folder, mode) in recursive.chain(watched) {
             if !folders.contains(folder) && folder.is_dir() {
-                match watcher.watch(folder, RecursiveMode::NonRecursive) {
+                match watcher.watch(folder, mode) {
                     Ok(()) => {
                         folders.insert(folder.to_path_buf());
                     }
@@ -64,8 +79,17 @@ pub(super) fn watch_command(graph: &Path, settings: &[Setting], out: &Path, json
                 return 0;
             }
             match rx.recv_timeout(Duration::from_millis(50)) {
+                // Reading a file is not changing it: our own runs open the graph and its
+                // inputs, and reacting to that would re-run forever.
+                Ok(Ok(event)) if event.kind.is_access() => {}
                 Ok(Ok(event)) => {
-                    if let Some(path) = event.paths.iter().find(|p| files.contains(&absolute(p))) {
+                    // Our own exports may land inside a folder the graph reads: not a change.
+                    let read = |p: &PathBuf| {
+                        let p = absolute(p);
+                        files.contains(&p)
+                            || (read_folders.iter().any(|f| p.starts_with(f)) && !p.starts_with(&out_dir))
+                    };
+                    if let Some(path) = event.paths.iter().find(|p| read(p)) {
                         break path.clone();
                     }
                 }

@@ -19,7 +19,7 @@ use super::results::{self, ResultsState};
 use super::viewport::{ShownMesh, Viewport};
 use super::worker::{Worker, WorkerMessage};
 use crate::document;
-use crate::engine::{NodeStatus, RunReport};
+use crate::engine::{Engine, NodeStatus, RunReport};
 use crate::graph::{Graph, GraphFile, NodeId};
 
 /// What the file dialog is open for.
@@ -80,8 +80,13 @@ impl EditorApp {
 
     /// An editor keeping recent files and autosaves in `settings_dir`.
     pub fn with_settings_dir(ctx: &egui::Context, path: Option<&Path>, settings_dir: PathBuf) -> Self {
+        Self::with_engine(ctx, path, settings_dir, Engine::new(kinegraph_nodes::builtin::registry()))
+    }
+
+    /// An editor evaluating with `engine` (e.g. one with a cache folder).
+    pub fn with_engine(ctx: &egui::Context, path: Option<&Path>, settings_dir: PathBuf, engine: Engine) -> Self {
         let wake_ctx = ctx.clone();
-        let worker = Worker::spawn(kinegraph_nodes::builtin::registry(), Arc::new(move || wake_ctx.request_repaint()));
+        let worker = Worker::spawn(engine, Arc::new(move || wake_ctx.request_repaint()));
         let mut app = EditorApp {
             registry: kinegraph_nodes::builtin::registry(),
             graph: Graph::new(),
@@ -805,8 +810,9 @@ impl eframe::App for EditorApp {
 #[error("the editor could not start: {0}")]
 pub struct StartError(String);
 
-/// Opens the editor window on `graph` (or an empty graph) and returns when it closes.
-pub fn run(graph: Option<PathBuf>) -> Result<(), StartError> {
+/// Opens the editor window on `graph` (or an empty graph), evaluating with `engine`, and
+/// returns when it closes.
+pub fn run(graph: Option<PathBuf>, engine: Engine) -> Result<(), StartError> {
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default().with_inner_size([1400.0, 860.0]).with_title("kinegraph"),
         renderer: eframe::Renderer::Glow,
@@ -815,7 +821,9 @@ pub fn run(graph: Option<PathBuf>) -> Result<(), StartError> {
     eframe::run_native(
         "kinegraph",
         options,
-        Box::new(move |cc| Ok(Box::new(EditorApp::new(&cc.egui_ctx, graph.as_deref())))),
+        Box::new(move |cc| {
+            Ok(Box::new(EditorApp::with_engine(&cc.egui_ctx, graph.as_deref(), default_settings_dir(), engine)))
+        }),
     )
     .map_err(|e| StartError(e.to_string()))
 }

@@ -136,7 +136,10 @@ pub(crate) fn show(
                         }
                     });
                 }
-                ParamKind::InputPath { .. } | ParamKind::OutputPath { .. } | ParamKind::Text { .. } => {
+                ParamKind::InputPath { .. }
+                | ParamKind::InputFolder { .. }
+                | ParamKind::OutputPath { .. }
+                | ParamKind::Text { .. } => {
                     let stored = match set {
                         Some(ParamValue::Text(s)) => s.clone(),
                         _ => spec

@@ -13,8 +13,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::thread::JoinHandle;
 
-use kinegraph_nodes::node::Registry;
-
 use crate::engine::{Engine, GraphErrors, NodeStatus, RunEvent, RunOptions, RunReport, compile_file};
 use crate::graph::{Graph, GraphFile};
 
@@ -61,13 +59,13 @@ pub struct Worker {
 }
 
 impl Worker {
-    /// Starts the thread with an engine over `registry`; `wake` is called on every message.
-    pub fn spawn(registry: Registry, wake: Waker) -> Worker {
+    /// Starts the thread evaluating with `engine`; `wake` is called on every message.
+    pub fn spawn(engine: Engine, wake: Waker) -> Worker {
         let (jobs, job_rx) = channel::<Job>();
         let (msg_tx, messages) = channel();
         let thread = std::thread::Builder::new()
             .name("kg-evaluate".into())
-            .spawn(move || worker_loop(Engine::new(registry), &job_rx, &msg_tx, &wake))
+            .spawn(move || worker_loop(engine, &job_rx, &msg_tx, &wake))
             .ok();
         Worker { jobs: Some(jobs), messages, latest: 0, finished: 0, cancel: Arc::new(AtomicBool::new(false)), thread }
     }
@@ -192,7 +190,7 @@ mod tests {
     #[test]
     fn runs_the_demo_without_exports_then_reuses_the_cache() {
         let (mut doc, base) = demo();
-        let mut worker = Worker::spawn(kinegraph_nodes::builtin::registry(), Arc::new(|| {}));
+        let mut worker = Worker::spawn(Engine::new(kinegraph_nodes::builtin::registry()), Arc::new(|| {}));
         worker.submit(doc.clone(), base.clone());
         let Some(WorkerMessage::Done(report)) = worker.wait() else { panic!("no report") };
         assert!(report.succeeded(), "{report:?}");
@@ -211,7 +209,7 @@ mod tests {
     #[test]
     fn stale_requests_are_dropped() {
         let (doc, base) = demo();
-        let mut worker = Worker::spawn(kinegraph_nodes::builtin::registry(), Arc::new(|| {}));
+        let mut worker = Worker::spawn(Engine::new(kinegraph_nodes::builtin::registry()), Arc::new(|| {}));
         let first = worker.submit(doc.clone(), base.clone());
         let mut broken = doc;
         broken.disconnect(&PortRef::parse("clip.clip").unwrap(), &PortRef::parse("trim.clip").unwrap()).unwrap();

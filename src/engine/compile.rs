@@ -25,14 +25,17 @@ pub struct CompiledNode<'r> {
 }
 
 impl CompiledNode<'_> {
-    /// The files this node reads: its input-file parameters' values, as written.
-    pub fn input_files(&self) -> impl Iterator<Item = &str> {
+    /// The files and folders this node reads: its input-file and input-folder parameters,
+    /// as (parameter name, value as written).
+    pub fn input_files(&self) -> impl Iterator<Item = (&str, &str)> {
         let schema = self.node.schema();
         self.params.iter().filter_map(move |(name, value)| match value {
             ParamValue::Text(path)
-                if schema.param(name).is_some_and(|p| matches!(p.kind, ParamKind::InputPath { .. })) =>
+                if schema
+                    .param(name)
+                    .is_some_and(|p| matches!(p.kind, ParamKind::InputPath { .. } | ParamKind::InputFolder { .. })) =>
             {
-                Some(path.as_str())
+                Some((name.as_str(), path.as_str()))
             }
             _ => None,
         })
@@ -55,9 +58,9 @@ impl CompiledGraph<'_> {
         self.nodes.binary_search_by(|n| n.id.as_str().cmp(id)).ok()
     }
 
-    /// Every file the graph's nodes read (input-file parameters), as written, in node order.
+    /// Every file and folder the graph's nodes read, as written, in node order.
     pub fn input_files(&self) -> impl Iterator<Item = &str> {
-        self.nodes.iter().flat_map(CompiledNode::input_files)
+        self.nodes.iter().flat_map(|n| n.input_files().map(|(_, path)| path))
     }
 
     /// Every file the graph's export nodes write, in node order.

@@ -8,15 +8,17 @@
 //! other branches go on.
 
 use std::collections::{BTreeMap, HashMap};
-use std::hash::{Hash, Hasher};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Instant;
 
-use kinegraph_nodes::node::{NodeContext, NodeError, NodeOutcome, Registry, RunServices, Value};
+use kinegraph_nodes::formats::atomic::write_within;
+use kinegraph_nodes::node::{NodeContext, NodeError, NodeOutcome, NodeSchema, Registry, RunServices, Value};
 
 use super::compile::CompiledGraph;
+use super::disk_cache::{DiskCache, Entry, Lookup, StoredFile};
+use super::fingerprint::{FileIdentity, Fingerprint, fingerprints};
 use super::report::{NodeReport, NodeStatus, RunReport};
 
 /// Something that happened during a run, for progress displays.
@@ -78,17 +80,28 @@ impl RunOptions<'_> {
     }
 }
 
-/// Outputs and warnings of a node, as kept in the cache.
+/// Outputs and warnings of a node, as kept in the in-memory cache, with the number of the
+/// run that last used them.
 struct Cached {
     outputs: Vec<Option<Value>>,
     warnings: Vec<String>,
+    last_used: AtomicU64,
 }
 
+/// Runs an in-memory result survives unused: enough that undoing a few edits in the editor
+/// is instant, few enough that the cache holds at most a few generations of the graph's
+/// results instead of growing for a whole session.
+pub const MEMORY_KEEP_RUNS: u64 = 8;
+
 /// The evaluator: a node registry and a result cache that lives across runs, so a re-run
-/// after one parameter change recomputes only what depends on it.
+/// after one parameter change recomputes only what depends on it; optionally a cache folder
+/// that keeps results between processes.
 pub struct Engine {
     registry: Registry,
-    cache: Mutex<HashMap<u64, Arc<Cached>>>,
+    cache: Mutex<HashMap<Fingerprint, Arc<Cached>>>,
+    disk: Option<DiskCache>,
+    /// Runs started so far; numbers the runs for the in-memory cache's eviction.
+    runs: AtomicU64,
 }
 
 /// A node's state inside one run.
@@ -108,12 +121,28 @@ struct RunState {
 impl Engine {
     /// An engine over `registry` with an empty cache.
     pub fn new(registry: Registry) -> Self {
-        Engine { registry, cache: Mutex::new(HashMap::new()) }
+        Engine { registry, cache: Mutex::new(HashMap::new()), disk: None, runs: AtomicU64::new(0) }
+    }
+
+    /// This engine, also keeping results in (and serving them from) `disk`.
+    pub fn with_disk_cache(mut self, disk: DiskCache) -> Self {
+        self.disk = Some(disk);
+        self
+    }
+
+    /// The cache folder, if any.
+    pub fn disk_cache(&self) -> Option<&DiskCache> {
+        self.disk.as_ref()
     }
 
     /// The node registry.
     pub fn registry(&self) -> &Registry {
         &self.registry
+    }
+
+    /// How many results the in-memory cache holds.
+    pub fn cached_results(&self) -> usize {
+        self.cache.lock().unwrap_or_else(PoisonError::into_inner).len()
     }
 
     /// Forgets every cached result.
@@ -124,8 +153,11 @@ impl Engine {
     /// Runs `graph` (compiled against this engine's registry).
     pub fn run(&self, graph: &CompiledGraph<'_>, options: &RunOptions<'_>) -> RunReport {
         let started = Instant::now();
+        let run_number = self.runs.fetch_add(1, Ordering::Relaxed) + 1;
         let needed = needed_nodes(graph, options.targets.as_deref());
-        let fingerprints = fingerprints(graph, &options.base_dir);
+        // Keys that outlive the process must follow file contents, not times.
+        let identity = if self.disk.is_some() { FileIdentity::Content } else { FileIdentity::Stamp };
+        let fingerprints = fingerprints(graph, &options.base_dir, identity);
         if let Some(observe) = options.observer {
             observe(&RunEvent::Planned { total: needed.iter().filter(|n| **n).count() });
         }
@@ -157,6 +189,7 @@ impl Engine {
             .collect();
         let job = Job {
             engine: self,
+            run_number,
             graph,
             needed: &needed,
             fingerprints: &fingerprints,
@@ -175,6 +208,10 @@ impl Engine {
             Some(pool) => pool.install(schedule),
             None => schedule(),
         }
+        self.cache
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .retain(|_, c| c.last_used.load(Ordering::Relaxed) + MEMORY_KEEP_RUNS > run_number);
         let state = state.into_inner().unwrap_or_else(PoisonError::into_inner);
         let mut outputs = BTreeMap::new();
         for (node, slot) in graph.nodes.iter().zip(state.slots) {
@@ -188,12 +225,23 @@ impl Engine {
     }
 }
 
+/// An engine with a cache folder trims the folder to its size bound when it goes away: at
+/// the end of a `kg` command, or when the editor closes.
+impl Drop for Engine {
+    fn drop(&mut self) {
+        if let Some(disk) = &self.disk {
+            disk.trim();
+        }
+    }
+}
+
 #[derive(Clone, Copy)]
 struct Job<'a, 'g> {
     engine: &'a Engine,
+    run_number: u64,
     graph: &'a CompiledGraph<'g>,
     needed: &'a [bool],
-    fingerprints: &'a [u64],
+    fingerprints: &'a [Fingerprint],
     state: &'a Mutex<RunState>,
     services: &'a RunServices<'a>,
     options: &'a RunOptions<'a>,
@@ -236,14 +284,13 @@ impl Job<'_, '_> {
         }
         let cancelled = self.services.cancel.load(Ordering::Relaxed);
         let fingerprint = self.fingerprints[index];
+        let mut cache_warnings = Vec::new();
         let started = Instant::now();
         let (status, outcome, error) = if cancelled {
             (NodeStatus::Cancelled, None, Some("run cancelled".to_string()))
         } else if let Some(upstream) = blocked_by {
             (NodeStatus::Blocked, None, Some(format!("upstream node '{upstream}' did not produce a result")))
-        } else if let Some(hit) = (!schema.writes_files).then(|| self.cached(fingerprint)).flatten() {
-            let outcome =
-                NodeOutcome { outputs: hit.outputs.clone(), warnings: hit.warnings.clone(), files_written: Vec::new() };
+        } else if let Some(outcome) = self.reuse(schema, &fingerprint, &mut cache_warnings) {
             (NodeStatus::Cached, Some(outcome), None)
         } else {
             self.observe(RunEvent::Started { node: node.id.clone() });
@@ -253,14 +300,7 @@ impl Job<'_, '_> {
             match node.node.eval(&mut ctx) {
                 Ok(()) => {
                     let outcome = ctx.finish();
-                    if !schema.writes_files {
-                        let cached = Cached { outputs: outcome.outputs.clone(), warnings: outcome.warnings.clone() };
-                        self.engine
-                            .cache
-                            .lock()
-                            .unwrap_or_else(PoisonError::into_inner)
-                            .insert(fingerprint, Arc::new(cached));
-                    }
+                    self.keep(schema, &fingerprint, &outcome, &mut cache_warnings);
                     (NodeStatus::Ok, Some(outcome), None)
                 }
                 Err(NodeError::Cancelled) => (NodeStatus::Cancelled, None, Some("run cancelled".to_string())),
@@ -279,6 +319,7 @@ impl Job<'_, '_> {
                 }
                 None => (Slot::Failed, Vec::new()),
             };
+            let warnings = [warnings, cache_warnings].concat();
             state.slots[index] = slot;
             state.reports.insert(
                 node.id.clone(),
@@ -299,8 +340,77 @@ impl Job<'_, '_> {
         }
     }
 
-    fn cached(&self, fingerprint: u64) -> Option<Arc<Cached>> {
-        self.engine.cache.lock().unwrap_or_else(PoisonError::into_inner).get(&fingerprint).cloned()
+    fn memory(&self) -> std::sync::MutexGuard<'_, HashMap<Fingerprint, Arc<Cached>>> {
+        self.engine.cache.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// A result kept from an earlier run: from memory, or from the cache folder (which
+    /// also restores the files an exporting node wrote). Exports are never served from
+    /// memory: their files may have changed since.
+    fn reuse(&self, schema: &NodeSchema, key: &Fingerprint, warnings: &mut Vec<String>) -> Option<NodeOutcome> {
+        if !schema.writes_files
+            && let Some(hit) = self.memory().get(key).cloned()
+        {
+            hit.last_used.fetch_max(self.run_number, Ordering::Relaxed);
+            return Some(NodeOutcome {
+                outputs: hit.outputs.clone(),
+                warnings: hit.warnings.clone(),
+                files_written: Vec::new(),
+            });
+        }
+        let disk = self.engine.disk.as_ref()?;
+        let out_dir = self.services.out_dir;
+        if schema.writes_files && out_dir.is_none() {
+            return None;
+        }
+        let entry = match disk.get(key) {
+            Lookup::Hit(entry) => entry,
+            Lookup::Miss => return None,
+            Lookup::Corrupt(why) => {
+                warnings.push(format!("a damaged entry in the cache folder was ignored and rebuilt ({why})"));
+                return None;
+            }
+        };
+        let mut files_written = Vec::with_capacity(entry.files.len());
+        for file in &entry.files {
+            // A restore that fails is a miss: the node runs and reports the real problem.
+            files_written.push(write_within(out_dir?, &file.relative, &file.bytes).ok()?);
+        }
+        let Entry { outputs, warnings: node_warnings, .. } = *entry;
+        if !schema.writes_files {
+            let cached = Cached {
+                outputs: outputs.clone(),
+                warnings: node_warnings.clone(),
+                last_used: AtomicU64::new(self.run_number),
+            };
+            self.memory().insert(*key, Arc::new(cached));
+        }
+        Some(NodeOutcome { outputs, warnings: node_warnings, files_written })
+    }
+
+    /// Keeps a fresh result in memory (not for exports) and in the cache folder (exports
+    /// with their files' bytes).
+    fn keep(&self, schema: &NodeSchema, key: &Fingerprint, outcome: &NodeOutcome, warnings: &mut Vec<String>) {
+        if !schema.writes_files {
+            let cached = Cached {
+                outputs: outcome.outputs.clone(),
+                warnings: outcome.warnings.clone(),
+                last_used: AtomicU64::new(self.run_number),
+            };
+            self.memory().insert(*key, Arc::new(cached));
+        }
+        let Some(disk) = self.engine.disk.as_ref() else { return };
+        let mut files = Vec::with_capacity(outcome.files_written.len());
+        for path in &outcome.files_written {
+            let relative = self.services.out_dir.and_then(|out| path.strip_prefix(out).ok());
+            match (relative, std::fs::read(path)) {
+                (Some(relative), Ok(bytes)) => files.push(StoredFile { relative: relative.to_path_buf(), bytes }),
+                // Not kept rather than kept without a file it made.
+                _ => return,
+            }
+        }
+        let entry = Entry { outputs: outcome.outputs.clone(), warnings: outcome.warnings.clone(), files };
+        warnings.extend(disk.put(key, &entry));
     }
 }
 
@@ -317,31 +427,4 @@ fn needed_nodes(graph: &CompiledGraph<'_>, targets: Option<&[String]>) -> Vec<bo
         }
     }
     needed
-}
-
-/// Fingerprints in topological order: (kind, params, input files' size and mtime,
-/// upstream fingerprints). Equal fingerprints mean equal results.
-fn fingerprints(graph: &CompiledGraph<'_>, base_dir: &std::path::Path) -> Vec<u64> {
-    let mut out = vec![0u64; graph.nodes.len()];
-    for &i in &graph.order {
-        let node = &graph.nodes[i];
-        let schema = node.node.schema();
-        let mut h = std::hash::DefaultHasher::new();
-        schema.kind.hash(&mut h);
-        for (name, value) in &node.params {
-            name.hash(&mut h);
-            format!("{value:?}").hash(&mut h);
-        }
-        // A file changed (or gone) since the last run is a new input.
-        for path in node.input_files() {
-            let meta = std::fs::metadata(base_dir.join(path)).ok();
-            meta.as_ref().map(|m| m.len()).hash(&mut h);
-            meta.and_then(|m| m.modified().ok()).hash(&mut h);
-        }
-        for input in &node.inputs {
-            input.map(|(src, port)| (out[src], port)).hash(&mut h);
-        }
-        out[i] = h.finish();
-    }
-    out
 }

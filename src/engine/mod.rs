@@ -3,11 +3,15 @@
 //! independent branches in parallel.
 
 mod compile;
+mod disk_cache;
 mod evaluate;
+mod fingerprint;
 mod report;
 mod subgraph;
 
 pub use compile::{CompiledGraph, CompiledNode, Diagnostic, GraphErrors, OutputFile, compile};
-pub use evaluate::{Engine, RunEvent, RunOptions};
+pub use disk_cache::{CacheError, DEFAULT_MAX_BYTES, DiskCache};
+pub use evaluate::{Engine, MEMORY_KEEP_RUNS, RunEvent, RunOptions};
+pub use fingerprint::{FileIdentity, Fingerprint};
 pub use report::{NodeReport, NodeStatus, RunReport};
 pub use subgraph::{MAX_DEPTH, compile_file, expand_subgraphs};

@@ -65,12 +65,15 @@ pub struct OverrideError {
     pub error: Box<GraphError>,
 }
 
-/// True when `path` is a parameter that names a file to read.
+/// True when `path` is a parameter that names a file or folder to read.
 pub fn is_input_file(graph: &Graph, registry: &Registry, path: &ParamPath) -> Result<bool, GraphError> {
     if rules::is_subgraph(graph, &path.node) {
         return Ok(path.param == crate::document::SUBGRAPH_FILE_PARAM);
     }
-    Ok(matches!(rules::param_spec(graph, registry, path)?.kind, ParamKind::InputPath { .. }))
+    Ok(matches!(
+        rules::param_spec(graph, registry, path)?.kind,
+        ParamKind::InputPath { .. } | ParamKind::InputFolder { .. }
+    ))
 }
 
 /// A value's text: a RON number, bool or quoted string, else the raw text.

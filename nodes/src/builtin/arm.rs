@@ -33,6 +33,7 @@ static ARM: NodeSchema = NodeSchema {
     outputs: &[CLIP_OUT.spec(), POSES_OUT.spec(), MESH_OUT.spec()],
     params: &[FRAMES.0, FPS.0, RINGS.0, SEGMENTS.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Arm {

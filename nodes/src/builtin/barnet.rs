@@ -531,6 +531,7 @@ static BUILD: NodeSchema = NodeSchema {
     outputs: &[NET_OUT.spec()],
     params: &[FREE.0, Q.0, BOUNDARY_Q.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Build {
@@ -577,6 +578,7 @@ static DEFORM_NET: NodeSchema = NodeSchema {
     outputs: &[SEQ_OUT.spec()],
     params: &[DRIVER.0, RAMP_START.0, RAMP_FULL.0, BULGE.0, PRESSURE.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for DeformNet {
@@ -625,6 +627,7 @@ static WRAP: NodeSchema = NodeSchema {
     outputs: &[WRAP_OUT.spec()],
     params: &[],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Wrap {

@@ -51,6 +51,7 @@ static TRIM: NodeSchema = NodeSchema {
     outputs: &[OUT.spec()],
     params: &[START.0, END.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Trim {
@@ -78,6 +79,7 @@ static RESAMPLE: NodeSchema = NodeSchema {
     outputs: &[OUT.spec()],
     params: &[FPS.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Resample {

@@ -59,6 +59,7 @@ static LOAD_CLIP: NodeSchema = NodeSchema {
     outputs: &[CLIP_OUT.spec()],
     params: &[PATH.0, SCALE.0, ANIMATION.0, SAMPLE_FPS.0, UP_AXIS.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for LoadClip {
@@ -97,6 +98,7 @@ static EXPORT_BVH: NodeSchema = NodeSchema {
     outputs: &[FILE_OUT.spec()],
     params: &[BVH_FILE.0],
     writes_files: true,
+    version: 1,
 };
 
 impl Node for ExportBvh {
@@ -129,6 +131,7 @@ static EXPORT_GLB: NodeSchema = NodeSchema {
     outputs: &[FILE_OUT.spec()],
     params: &[GLB_FILE.0],
     writes_files: true,
+    version: 1,
 };
 
 impl Node for ExportGlb {

@@ -60,6 +60,7 @@ static DETECT_CONTACTS: NodeSchema = NodeSchema {
     outputs: &[CONTACTS.spec()],
     params: &[ENTER_HEIGHT.0, LEAVE_HEIGHT.0, ENTER_SPEED.0, LEAVE_SPEED.0, MIN_DURATION.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for DetectContacts {

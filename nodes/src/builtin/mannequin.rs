@@ -29,6 +29,7 @@ static MANNEQUIN: NodeSchema = NodeSchema {
     outputs: &[CLIP_OUT.spec(), MESH_OUT.spec()],
     params: &[FRAMES.0, FPS.0, CYCLES.0, SPEED.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Mannequin {

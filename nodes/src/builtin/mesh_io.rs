@@ -43,6 +43,7 @@ static LOAD_MESH: NodeSchema = NodeSchema {
     outputs: &[MESH_OUT.spec()],
     params: &[PATH.0, SCALE.0, INDEX.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for LoadMesh {
@@ -84,6 +85,7 @@ static EXPORT_SEQUENCE: NodeSchema = NodeSchema {
     outputs: &[FILE_OUT.spec()],
     params: &[GLB_FILE.0],
     writes_files: true,
+    version: 1,
 };
 
 impl Node for ExportSequence {

@@ -509,6 +509,7 @@ static DEFORM: NodeSchema = NodeSchema {
     outputs: &[SEQ_OUT.spec()],
     params: &[METHOD.0, DISTANCE.0, WIDTH.0, PRINCIPAL.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Deform {
@@ -572,6 +573,7 @@ static FIT_WEIGHTS: NodeSchema = NodeSchema {
     outputs: &[FIT_MESH_OUT.spec(), RMS_OUT.spec()],
     params: &[],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for FitWeights {

@@ -22,6 +22,7 @@ static CONSTANT: NodeSchema = NodeSchema {
     outputs: &[OUT.spec()],
     params: &[VALUE.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Constant {
@@ -51,6 +52,7 @@ static ADD: NodeSchema = NodeSchema {
     outputs: &[SUM.spec()],
     params: &[OFFSET.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Add {

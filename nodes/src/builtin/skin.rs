@@ -45,6 +45,7 @@ static BIND: NodeSchema = NodeSchema {
     outputs: &[MESH_OUT.spec()],
     params: &[MODE.0, POWER.0, SMOOTHING.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Bind {

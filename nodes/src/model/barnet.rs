@@ -50,7 +50,7 @@ pub enum BarNetError {
 }
 
 /// A bar-net coupled to a control mesh: node `i` is vertex `i` of [`BarNet::control`].
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct BarNet {
     /// The control mesh (usually skinned): its vertices are the nodes, its rest positions
     /// the net's rest shape.

@@ -51,7 +51,7 @@ pub enum ClipError {
 /// Storage is frame-major (`[frame * joints + joint]`) because blending, FK and export all
 /// walk a frame at a time. Translations are metres and include the rest offset, so joints
 /// without animated translation simply repeat it.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Clip {
     skeleton: Arc<Skeleton>,
     fps: f64,

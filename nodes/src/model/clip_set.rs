@@ -7,7 +7,7 @@ use super::clip::Clip;
 use super::skeleton::Skeleton;
 
 /// One action of a [`ClipSet`].
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NamedClip {
     /// Action name (the file stem unless relabelled), unique in the set.
     pub name: String,
@@ -17,7 +17,7 @@ pub struct NamedClip {
 
 /// Clips sharing one skeleton (same joint names, hierarchy and rest offsets) and one frame
 /// rate, sorted by name so every consumer sees them in the same order.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ClipSet {
     skeleton: Arc<Skeleton>,
     fps: f64,

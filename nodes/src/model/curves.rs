@@ -1,10 +1,10 @@
 //! Sampled curves: named scalar channels on one clock, the value of analysis nodes
 //! (angular momentum, centre of mass, joint angles, IK residuals) that plots and tests read.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// One named channel: a value per frame.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CurveChannel {
     /// Stable name, e.g. `"L.x"` or `"com.y"`.
     pub name: String,
@@ -15,7 +15,7 @@ pub struct CurveChannel {
 }
 
 /// Channels of equal length sampled at one frame rate.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Curves {
     fps: f64,
     frames: usize,

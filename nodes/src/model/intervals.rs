@@ -1,9 +1,9 @@
 //! Frame intervals of a clip: motion phases and foot contacts.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Frames `start..end` (half-open) of a clip.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub struct FrameRange {
     /// First frame inside.
     pub start: usize,
@@ -52,7 +52,7 @@ impl FrameRange {
 /// The phases of a dynamic full-body motion (Shum et al. 2009): the main phase carries the
 /// peak angular momentum; the preparatory and posterior phases, when present, turn the
 /// other way.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Phases {
     /// Frame rate of the clip the frames refer to.
     pub fps: f64,
@@ -69,7 +69,7 @@ pub struct Phases {
 }
 
 /// When one foot touches the ground.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FootContacts {
     /// Which foot, by its joint name.
     pub foot: String,
@@ -78,7 +78,7 @@ pub struct FootContacts {
 }
 
 /// Foot contacts of a clip.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Contacts {
     /// Frame rate of the clip the frames refer to.
     pub fps: f64,

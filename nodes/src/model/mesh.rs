@@ -7,7 +7,7 @@ use glam::{Mat4, Vec2, Vec3};
 use super::skeleton::Skeleton;
 
 /// Per-vertex joint influences and the bind pose of a skinned mesh.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Skin {
     /// The skeleton the joint indices refer to.
     pub skeleton: Arc<Skeleton>,
@@ -20,7 +20,7 @@ pub struct Skin {
 }
 
 /// A triangle mesh (metres, Y up), optionally skinned.
-#[derive(Clone, Debug, PartialEq, Default)]
+#[derive(Clone, Debug, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Mesh {
     /// Name from the source file.
     pub name: String,

@@ -38,7 +38,7 @@ pub enum MeshSequenceError {
 ///
 /// Frame-major storage (`[frame * vertices + vertex]`), like [`Clip`], because deformers and
 /// exporters produce and consume a whole frame at a time.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MeshSequence {
     /// Topology, UVs and (when skinned) the bind of the undeformed mesh.
     pub rest: Arc<Mesh>,

@@ -5,7 +5,9 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::param::{ChoiceParam, FloatParam, InputPathParam, IntParam, OutputPathParam, ParamValue, TextParam};
+use super::param::{
+    ChoiceParam, FloatParam, InputFolderParam, InputPathParam, IntParam, OutputPathParam, ParamValue, TextParam,
+};
 use super::port::{Input, Output};
 use super::value::{PortValue, Value};
 use super::{NodeError, NodeSchema};
@@ -153,7 +155,7 @@ impl<'a> NodeContext<'a> {
     }
 
     /// A folder named by a text parameter, resolved against the graph's folder.
-    pub fn input_folder(&self, p: &TextParam) -> Result<PathBuf, NodeError> {
+    pub fn input_folder(&self, p: &InputFolderParam) -> Result<PathBuf, NodeError> {
         Ok(self.services.base_dir.join(self.text(p.0.name)?))
     }
 

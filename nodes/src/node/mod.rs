@@ -11,7 +11,8 @@ use std::collections::BTreeMap;
 
 pub use context::{NodeContext, NodeOutcome, RunServices};
 pub use param::{
-    ChoiceParam, FloatParam, InputPathParam, IntParam, OutputPathParam, ParamKind, ParamSpec, ParamValue, TextParam,
+    ChoiceParam, FloatParam, InputFolderParam, InputPathParam, IntParam, OutputPathParam, ParamKind, ParamSpec,
+    ParamValue, TextParam,
 };
 pub use port::{Input, Output, PortSpec};
 pub use value::{PortType, PortValue, Report, Value, into_report, report_of};
@@ -37,6 +38,10 @@ pub struct NodeSchema {
     pub params: &'static [ParamSpec],
     /// Writes files: never served from the cache, and run only with an output folder.
     pub writes_files: bool,
+    /// The node's algorithm version, part of every cache key: bump it when the same inputs
+    /// and parameters give different results, so cached results of the old version are not
+    /// served (also those kept on disk between runs).
+    pub version: u32,
 }
 
 impl NodeSchema {

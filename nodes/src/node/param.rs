@@ -83,6 +83,15 @@ pub enum ParamKind {
         /// Whether the node refuses to run without it.
         required: bool,
     },
+    /// A folder to read files from, sub-folders included; relative paths resolve against
+    /// the graph file's folder. The engine fingerprints the files under it that have one of
+    /// `extensions`, so adding, removing or editing one re-runs the node.
+    InputFolder {
+        /// Extensions of the files the node reads there, lowercase without the dot.
+        extensions: &'static [&'static str],
+        /// Value when the graph does not set it.
+        default: &'static str,
+    },
     /// A file to write, relative to the run's output folder and never leaving it.
     OutputPath {
         /// Required extension, lowercase without the dot.
@@ -110,9 +119,10 @@ impl ParamSpec {
         match self.kind {
             ParamKind::Float { default, .. } => default.map(ParamValue::Float),
             ParamKind::Int { default, .. } => default.map(ParamValue::Int),
-            ParamKind::Choice { default, .. } | ParamKind::OutputPath { default, .. } | ParamKind::Text { default } => {
-                Some(ParamValue::Text(default.to_string()))
-            }
+            ParamKind::Choice { default, .. }
+            | ParamKind::OutputPath { default, .. }
+            | ParamKind::InputFolder { default, .. }
+            | ParamKind::Text { default } => Some(ParamValue::Text(default.to_string())),
             ParamKind::InputPath { .. } => None,
         }
     }
@@ -141,7 +151,7 @@ impl ParamSpec {
                     Err(format!("'{s}' is not one of {}", choices.join(", ")))
                 }
             }
-            (ParamKind::Text { .. }, ParamValue::Text(_)) => Ok(value.clone()),
+            (ParamKind::Text { .. } | ParamKind::InputFolder { .. }, ParamValue::Text(_)) => Ok(value.clone()),
             (ParamKind::InputPath { extensions, .. }, ParamValue::Text(s)) => {
                 if extensions.contains(&crate::formats::extension(std::path::Path::new(s)).as_str()) {
                     Ok(value.clone())
@@ -163,7 +173,7 @@ fn kind_name(kind: ParamKind) -> &'static str {
         ParamKind::Int { .. } => "a whole number",
         ParamKind::Choice { .. } => "a choice (text)",
         ParamKind::Text { .. } => "text",
-        ParamKind::InputPath { .. } | ParamKind::OutputPath { .. } => "a path (text)",
+        ParamKind::InputPath { .. } | ParamKind::InputFolder { .. } | ParamKind::OutputPath { .. } => "a path (text)",
     }
 }
 
@@ -200,6 +210,8 @@ pub struct ChoiceParam(pub ParamSpec);
 pub struct TextParam(pub ParamSpec);
 /// A typed input-file parameter declaration.
 pub struct InputPathParam(pub ParamSpec);
+/// A typed input-folder parameter declaration.
+pub struct InputFolderParam(pub ParamSpec);
 /// A typed output-file parameter declaration.
 pub struct OutputPathParam(pub ParamSpec);
 
@@ -259,6 +271,18 @@ impl InputPathParam {
     /// Declares an input file parameter that may stay unset.
     pub const fn optional(name: &'static str, doc: &'static str, extensions: &'static [&'static str]) -> Self {
         InputPathParam(ParamSpec { name, doc, kind: ParamKind::InputPath { extensions, required: false } })
+    }
+}
+
+impl InputFolderParam {
+    /// Declares an input folder parameter read for files with `extensions`.
+    pub const fn new(
+        name: &'static str,
+        doc: &'static str,
+        extensions: &'static [&'static str],
+        default: &'static str,
+    ) -> Self {
+        InputFolderParam(ParamSpec { name, doc, kind: ParamKind::InputFolder { extensions, default } })
     }
 }
 

@@ -69,7 +69,8 @@ impl PortType {
 }
 
 /// A value on an edge. Heavy data sits behind `Arc`, so fan-out and caching copy pointers.
-#[derive(Clone, Debug, PartialEq)]
+/// Serialisable, so the engine's on-disk cache can keep node outputs between runs.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Value {
     /// See [`PortType::Clip`].
     Clip(Arc<Clip>),

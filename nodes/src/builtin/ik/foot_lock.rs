@@ -226,6 +226,7 @@ static FOOT_LOCK: NodeSchema = NodeSchema {
     outputs: &[LOCKED.spec(), REPORT.spec(), super::RESIDUAL_CURVES.spec()],
     params: &[BLEND.0, WEIGHTS.0, TOLERANCE.0, ITERATIONS.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for FootLock {

@@ -1214,6 +1214,7 @@ static PROCEDURAL_GAIT: NodeSchema = NodeSchema {
         STAIR_START.0,
     ],
     writes_files: false,
+    version: 1,
 };
 
 fn leg_json(leg: &LegReport) -> serde_json::Value {

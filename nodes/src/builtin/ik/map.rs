@@ -370,6 +370,7 @@ static MAP_SKELETON: NodeSchema = NodeSchema {
     outputs: &[MAPPED.spec(), MAP_OUT.spec(), REPORT.spec()],
     params: &[MAP_FILE.0, AUTO.0, ROOT_SCALE.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for MapSkeleton {
@@ -460,6 +461,7 @@ static EXPORT_BONE_MAP: NodeSchema = NodeSchema {
     outputs: &[FILE_OUT.spec()],
     params: &[MAP_FILE_OUT.0],
     writes_files: true,
+    version: 1,
 };
 
 impl Node for ExportBoneMap {

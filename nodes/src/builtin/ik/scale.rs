@@ -117,6 +117,7 @@ static SCALE_SKELETON: NodeSchema = NodeSchema {
     outputs: &[SCALED.spec()],
     params: &[UNIFORM.0, RULES.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for ScaleSkeleton {

@@ -459,6 +459,7 @@ static IK_SOLVE: NodeSchema = NodeSchema {
     outputs: &[SOLVED.spec(), SOLVE_REPORT.spec(), super::RESIDUAL_CURVES.spec()],
     params: &[CHAINS.0, GOALS.0, WEIGHTS.0, TOLERANCE.0, ITERATIONS.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for IkSolve {

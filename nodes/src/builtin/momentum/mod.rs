@@ -154,6 +154,7 @@ static ANGULAR_MOMENTUM: NodeSchema = NodeSchema {
     outputs: &[CURVES.spec(), REPORT.spec()],
     params: &MASS_PARAMS,
     writes_files: false,
+    version: 1,
 };
 
 impl Node for AngularMomentum {
@@ -217,6 +218,7 @@ static SEGMENT_PHASES: NodeSchema = NodeSchema {
     outputs: &[PHASES.spec(), PHASE_CURVES.spec(), REPORT.spec()],
     params: &[TOTAL_MASS.0, MASS_TABLE.0, MASS_OVERRIDE.0, SMOOTHING.0, MAIN_SECS.0, MAIN_START.0, MAIN_END.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for SegmentPhases {
@@ -307,6 +309,7 @@ static ALIGN: NodeSchema = NodeSchema {
     outputs: &[ALIGNED.spec(), REPORT.spec()],
     params: &[RULE.0, MAX_FACING.0, TOTAL_MASS.0, MASS_TABLE.0, MASS_OVERRIDE.0, SMOOTHING.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Align {
@@ -451,6 +454,7 @@ static CONCAT: NodeSchema = NodeSchema {
         SMOOTHING.0,
     ],
     writes_files: false,
+    version: 1,
 };
 
 fn set_joined(ctx: &mut NodeContext<'_>, joined: Concatenated) {
@@ -526,6 +530,7 @@ static CONCAT_BASELINE: NodeSchema = NodeSchema {
     outputs: &[JOINED.spec(), REPORT.spec()],
     params: &[SEARCH_SHARE.0, CROSSFADE.0, TOTAL_MASS.0, MASS_TABLE.0, MASS_OVERRIDE.0, SMOOTHING.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for ConcatBaseline {

@@ -27,8 +27,8 @@ use crate::kernels::transition_graph::{Clusters, TransitionGraph};
 use crate::kernels::transition_graph::{cluster, graph};
 use crate::model::{Clip, ClipSet, FrameRange};
 use crate::node::{
-    ChoiceParam, FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output,
-    Registry, Report, TextParam, report_of,
+    ChoiceParam, FloatParam, Input, InputFolderParam, InputPathParam, IntParam, Node, NodeContext, NodeError,
+    NodeSchema, Output, Registry, Report, TextParam, report_of,
 };
 
 /// Registers the transition nodes.
@@ -40,9 +40,11 @@ pub fn register(registry: &mut Registry) {
     registry.add(Box::new(Sequence));
 }
 
-const FOLDER: TextParam = TextParam::new(
+const FOLDER: InputFolderParam = InputFolderParam::new(
     "folder",
     "Folder to read clips from (sub-folders included). Relative paths start at the graph file's folder.",
+    // The clip files, and the buffers a .gltf may keep beside it.
+    &["bvh", "glb", "gltf", "bin"],
     ".",
 );
 const PATTERN: TextParam = TextParam::new(
@@ -72,6 +74,7 @@ static LOAD_CLIP_SET: NodeSchema = NodeSchema {
     outputs: &[CLIP_SET_OUT.spec(), REPORT.spec()],
     params: &[FOLDER.0, PATTERN.0, SET_FPS.0, FAMILY.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for LoadClipSet {
@@ -138,6 +141,7 @@ static CLUSTER_FRAMES: NodeSchema = NodeSchema {
     outputs: &[CLUSTERS_OUT.spec(), REPORT.spec()],
     params: &[RADIUS.0, VELOCITY_WEIGHT.0, JOINT_WEIGHTS.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for ClusterFrames {
@@ -190,6 +194,7 @@ static BUILD_GRAPH: NodeSchema = NodeSchema {
     outputs: &[GRAPH_OUT.spec(), REPORT.spec()],
     params: &[DIRECTION.0, K.0, MAX_COST.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for BuildGraph {
@@ -279,6 +284,7 @@ static TRANSITION: NodeSchema = NodeSchema {
     outputs: &[JOINED_OUT.spec(), TRANSITION_OUT.spec(), REPORT.spec()],
     params: &[SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0],
     writes_files: false,
+    version: 1,
 };
 
 impl Node for Transition {
@@ -326,6 +332,7 @@ static SEQUENCE: NodeSchema = NodeSchema {
     outputs: &[SEQUENCE_OUT.spec(), REPORT.spec()],
     params: &[ACTIONS.0, LABELS.0, SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0],
     writes_files: false,
+    version: 1,
 };
 
 /// Plays `actions` (at least one, from the graph's clip set) one after another with a

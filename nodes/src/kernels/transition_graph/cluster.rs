@@ -14,7 +14,7 @@ use super::distance::{DistanceParams, PoseFeatures};
 use crate::model::ClipSet;
 
 /// Every frame of a clip set labelled with a cluster, and the cluster centres.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Clusters {
     /// The corpus.
     pub clip_set: Arc<ClipSet>,

@@ -14,7 +14,7 @@ use glam::{Quat, Vec3};
 use crate::model::{Clip, Skeleton};
 
 /// Settings of the pose distance.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DistanceParams {
     /// Weight per joint (skeleton order); joints at zero are skipped entirely.
     pub weights: Vec<f32>,
@@ -106,7 +106,7 @@ fn acos_unit(x: f32) -> f32 {
 
 /// The per-frame quantities the distance compares, for the joints of nonzero weight only,
 /// stored flat (frame-major) so comparing two frames walks contiguous memory.
-#[derive(Clone, Debug, PartialEq, Default)]
+#[derive(Clone, Debug, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct PoseFeatures {
     /// Weighted joints' indices in the skeleton.
     joints: Vec<usize>,

@@ -16,7 +16,7 @@ use super::cluster::Clusters;
 use super::paths::{PathLimits, PathTable, k_best_paths};
 
 /// A run of frames `start..end` of corpus clip `clip`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
 pub struct Run {
     /// Clip index in the clip set.
     pub clip: u32,
@@ -40,7 +40,7 @@ impl Run {
 
 /// A clip realising an edge: `run` played forwards, or backwards for the reverse edges of
 /// an undirected graph.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
 pub struct EdgeClip {
     /// The frames.
     pub run: Run,
@@ -49,7 +49,7 @@ pub struct EdgeClip {
 }
 
 /// A cluster node.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ClusterNode {
     /// Centre frame (corpus index).
     pub centre: usize,
@@ -58,7 +58,7 @@ pub struct ClusterNode {
 }
 
 /// An edge between two clusters.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TransitionEdge {
     /// Every passage between the two clusters.
     pub clips: Vec<EdgeClip>,
@@ -69,7 +69,7 @@ pub struct TransitionEdge {
 }
 
 /// Which way edges may be travelled.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Direction {
     /// Only as captured.
     Directed,
@@ -78,7 +78,9 @@ pub enum Direction {
 }
 
 /// Clusters joined by the passages between them, with lazily computed candidate paths.
-#[derive(Debug)]
+/// Serialised without the path tables (they are rebuilt on first use).
+#[derive(Debug, serde::Deserialize)]
+#[serde(from = "OwnedParts")]
 pub struct TransitionGraph {
     /// The clusters (and corpus) it was built from.
     pub clusters: Arc<Clusters>,
@@ -152,7 +154,34 @@ pub fn build_graph(clusters: Arc<Clusters>, direction: Direction, limits: PathLi
             TransitionEdge { clips, centre_distance, cost },
         );
     }
-    TransitionGraph { clusters, graph, direction, limits, tables: (0..n).map(|_| OnceLock::new()).collect() }
+    GraphParts { clusters, graph, direction, limits }.into()
+}
+
+/// What a [`TransitionGraph`] is made of, less its lazily filled path tables.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct GraphParts<C, G> {
+    clusters: C,
+    graph: G,
+    direction: Direction,
+    limits: PathLimits,
+}
+
+type OwnedParts = GraphParts<Arc<Clusters>, DiGraph<ClusterNode, TransitionEdge>>;
+
+impl From<OwnedParts> for TransitionGraph {
+    fn from(parts: OwnedParts) -> Self {
+        let tables = (0..parts.graph.node_count()).map(|_| OnceLock::new()).collect();
+        let GraphParts { clusters, graph, direction, limits } = parts;
+        TransitionGraph { clusters, graph, direction, limits, tables }
+    }
+}
+
+impl serde::Serialize for TransitionGraph {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let parts =
+            GraphParts { clusters: &self.clusters, graph: &self.graph, direction: self.direction, limits: self.limits };
+        parts.serialize(serializer)
+    }
 }
 
 impl TransitionGraph {

@@ -48,7 +48,7 @@ pub struct PathTable {
 }
 
 /// What the search keeps.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PathLimits {
     /// K: paths kept per target.
     pub k: usize,
