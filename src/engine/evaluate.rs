@@ -1,11 +1,12 @@
-//! Evaluation: a plan restricted to what the targets need, fingerprints for caching, and
+//! Evaluation: fingerprints for caching, a plan restricted to what the targets need, and
 //! a dependency-counting scheduler on rayon so independent branches run in parallel.
 //!
-//! Steps: 1. collect the targets' ancestors; 2. fingerprint each needed node from its
-//! kind, parameters, input files' size and modification time, and its inputs'
-//! fingerprints; 3. start every node whose inputs are ready; when one finishes, start
-//! the dependents it completes; 4. a failure marks everything downstream blocked while
-//! other branches go on.
+//! Steps: 1. fingerprint every node from its kind and version, parameters, the files it
+//! reads and its inputs' fingerprints ([`super::fingerprint`]); 2. walk back from the
+//! targets, looking each node up in the caches: a node found there is not run and what
+//! only it reads is not visited; 3. start every node whose inputs are ready; when one
+//! finishes, start the dependents it completes; 4. a failure marks everything downstream
+//! blocked while other branches go on.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::PathBuf;
@@ -114,6 +115,10 @@ enum Slot {
 struct RunState {
     remaining_inputs: Vec<usize>,
     slots: Vec<Slot>,
+    /// Per node: the result found before the run, taken when the node's turn comes.
+    found: Vec<Option<Found>>,
+    /// Per node: what the caches had to say (a damaged entry, a folder that cannot be written).
+    cache_warnings: Vec<Vec<String>>,
     reports: BTreeMap<String, NodeReport>,
     files: Vec<PathBuf>,
 }
@@ -154,44 +159,44 @@ impl Engine {
     pub fn run(&self, graph: &CompiledGraph<'_>, options: &RunOptions<'_>) -> RunReport {
         let started = Instant::now();
         let run_number = self.runs.fetch_add(1, Ordering::Relaxed) + 1;
-        let needed = needed_nodes(graph, options.targets.as_deref());
         // Keys that outlive the process must follow file contents, not times.
         let identity = if self.disk.is_some() { FileIdentity::Content } else { FileIdentity::Stamp };
         let fingerprints = fingerprints(graph, &options.base_dir, identity);
+        let Plan { needed, found, cache_warnings } = self.plan(graph, options, &fingerprints, run_number);
         if let Some(observe) = options.observer {
             observe(&RunEvent::Planned { total: needed.iter().filter(|n| **n).count() });
         }
-        // Per node: how many distinct needed upstream nodes it still waits for.
-        let remaining_inputs = graph
+        // Per node that must run: how many distinct needed upstream nodes it still waits for.
+        let waits: Vec<bool> = (0..graph.nodes.len()).map(|i| needed[i] && found[i].is_none()).collect();
+        let remaining_inputs: Vec<usize> = graph
             .nodes
             .iter()
-            .map(|n| {
+            .zip(&waits)
+            .map(|(n, waits)| {
                 let mut sources: Vec<usize> =
                     n.inputs.iter().flatten().map(|(src, _)| *src).filter(|s| needed[*s]).collect();
                 sources.sort_unstable();
                 sources.dedup();
-                sources.len()
+                if *waits { sources.len() } else { 0 }
             })
             .collect();
+        let ready: Vec<usize> =
+            graph.order.iter().copied().filter(|&i| needed[i] && remaining_inputs[i] == 0).collect();
         let state = Mutex::new(RunState {
             remaining_inputs,
             slots: graph.nodes.iter().map(|_| Slot::Pending).collect(),
+            found,
+            cache_warnings,
             reports: BTreeMap::new(),
             files: Vec::new(),
         });
         let services =
             RunServices { base_dir: &options.base_dir, out_dir: options.out_dir.as_deref(), cancel: &options.cancel };
-        let ready: Vec<usize> = graph
-            .order
-            .iter()
-            .copied()
-            .filter(|&i| needed[i] && graph.nodes[i].inputs.iter().flatten().all(|(src, _)| !needed[*src]))
-            .collect();
         let job = Job {
             engine: self,
             run_number,
             graph,
-            needed: &needed,
+            waits: &waits,
             fingerprints: &fingerprints,
             state: &state,
             services: &services,
@@ -225,6 +230,91 @@ impl Engine {
     }
 }
 
+/// What a run will do: which nodes it visits and which of those have a result already.
+struct Plan {
+    needed: Vec<bool>,
+    found: Vec<Option<Found>>,
+    cache_warnings: Vec<Vec<String>>,
+}
+
+/// A result found before the run, in memory or in the cache folder.
+struct Found {
+    outputs: Vec<Option<Value>>,
+    warnings: Vec<String>,
+    /// Files to write back (exports found in the cache folder).
+    files: Vec<StoredFile>,
+}
+
+impl Engine {
+    /// Walks back from the targets (default: every sink), looking each node up in the
+    /// caches: a node found there is not run, and what only it reads is not visited at
+    /// all, so a re-run of unchanged work reads just the results it hands over.
+    fn plan(&self, graph: &CompiledGraph<'_>, options: &RunOptions<'_>, keys: &[Fingerprint], run_number: u64) -> Plan {
+        let n = graph.nodes.len();
+        let mut plan =
+            Plan { needed: vec![false; n], found: (0..n).map(|_| None).collect(), cache_warnings: vec![Vec::new(); n] };
+        let mut stack: Vec<usize> = match options.targets.as_deref() {
+            Some(ids) => ids.iter().filter_map(|id| graph.index_of(id)).collect(),
+            None => (0..n).filter(|&i| graph.nodes[i].dependents.is_empty()).collect(),
+        };
+        while let Some(i) = stack.pop() {
+            if std::mem::replace(&mut plan.needed[i], true) {
+                continue;
+            }
+            let schema = graph.nodes[i].node.schema();
+            match self.lookup(schema, &keys[i], options.out_dir.is_some(), run_number, &mut plan.cache_warnings[i]) {
+                Some(found) => plan.found[i] = Some(found),
+                None => stack.extend(graph.nodes[i].inputs.iter().flatten().map(|(src, _)| *src)),
+            }
+        }
+        plan
+    }
+
+    /// A result kept from an earlier run: from memory, or from the cache folder (for an
+    /// exporting node, with its files' bytes, and only when this run can write them).
+    /// Exports are never taken from memory: their files may have changed since.
+    fn lookup(
+        &self,
+        schema: &NodeSchema,
+        key: &Fingerprint,
+        can_write: bool,
+        run_number: u64,
+        warnings: &mut Vec<String>,
+    ) -> Option<Found> {
+        let mut memory = self.cache.lock().unwrap_or_else(PoisonError::into_inner);
+        if !schema.writes_files
+            && let Some(hit) = memory.get(key)
+        {
+            hit.last_used.fetch_max(run_number, Ordering::Relaxed);
+            return Some(Found { outputs: hit.outputs.clone(), warnings: hit.warnings.clone(), files: Vec::new() });
+        }
+        drop(memory);
+        let disk = self.disk.as_ref()?;
+        if schema.writes_files && !can_write {
+            return None;
+        }
+        let entry = match disk.get(key) {
+            Lookup::Hit(entry) => entry,
+            Lookup::Miss => return None,
+            Lookup::Corrupt(why) => {
+                warnings.push(format!("a damaged entry in the cache folder was ignored and rebuilt ({why})"));
+                return None;
+            }
+        };
+        let Entry { outputs, warnings: node_warnings, files } = *entry;
+        if !schema.writes_files {
+            memory = self.cache.lock().unwrap_or_else(PoisonError::into_inner);
+            let cached = Cached {
+                outputs: outputs.clone(),
+                warnings: node_warnings.clone(),
+                last_used: AtomicU64::new(run_number),
+            };
+            memory.insert(*key, Arc::new(cached));
+        }
+        Some(Found { outputs, warnings: node_warnings, files })
+    }
+}
+
 /// An engine with a cache folder trims the folder to its size bound when it goes away: at
 /// the end of a `kg` command, or when the editor closes.
 impl Drop for Engine {
@@ -240,7 +330,8 @@ struct Job<'a, 'g> {
     engine: &'a Engine,
     run_number: u64,
     graph: &'a CompiledGraph<'g>,
-    needed: &'a [bool],
+    /// Nodes that run (needed and not found in a cache): they wait for their inputs.
+    waits: &'a [bool],
     fingerprints: &'a [Fingerprint],
     state: &'a Mutex<RunState>,
     services: &'a RunServices<'a>,
@@ -267,9 +358,9 @@ impl Job<'_, '_> {
         // Gather inputs, or find the upstream failure that blocks this node.
         let mut inputs = Vec::with_capacity(node.inputs.len());
         let mut blocked_by = None;
-        {
-            let state = self.lock();
-            for input in &node.inputs {
+        let (found, mut cache_warnings) = {
+            let mut state = self.lock();
+            for input in node.inputs.iter().filter(|_| self.waits[index]) {
                 match input {
                     None => inputs.push(None),
                     Some((src, out)) => match &state.slots[*src] {
@@ -281,17 +372,20 @@ impl Job<'_, '_> {
                     },
                 }
             }
-        }
+            (state.found[index].take(), std::mem::take(&mut state.cache_warnings[index]))
+        };
         let cancelled = self.services.cancel.load(Ordering::Relaxed);
         let fingerprint = self.fingerprints[index];
-        let mut cache_warnings = Vec::new();
         let started = Instant::now();
         let (status, outcome, error) = if cancelled {
             (NodeStatus::Cancelled, None, Some("run cancelled".to_string()))
+        } else if let Some(found) = found {
+            match self.restore(found) {
+                Ok(outcome) => (NodeStatus::Cached, Some(outcome), None),
+                Err(e) => (NodeStatus::Error, None, Some(e)),
+            }
         } else if let Some(upstream) = blocked_by {
             (NodeStatus::Blocked, None, Some(format!("upstream node '{upstream}' did not produce a result")))
-        } else if let Some(outcome) = self.reuse(schema, &fingerprint, &mut cache_warnings) {
-            (NodeStatus::Cached, Some(outcome), None)
         } else {
             self.observe(RunEvent::Started { node: node.id.clone() });
             let id = node.id.clone();
@@ -326,7 +420,7 @@ impl Job<'_, '_> {
                 NodeReport { kind: schema.kind.to_string(), status, seconds, warnings, error },
             );
             for &d in &node.dependents {
-                if self.needed[d] {
+                if self.waits[d] {
                     state.remaining_inputs[d] -= 1;
                     if state.remaining_inputs[d] == 0 {
                         ready.push(d);
@@ -344,48 +438,17 @@ impl Job<'_, '_> {
         self.engine.cache.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
-    /// A result kept from an earlier run: from memory, or from the cache folder (which
-    /// also restores the files an exporting node wrote). Exports are never served from
-    /// memory: their files may have changed since.
-    fn reuse(&self, schema: &NodeSchema, key: &Fingerprint, warnings: &mut Vec<String>) -> Option<NodeOutcome> {
-        if !schema.writes_files
-            && let Some(hit) = self.memory().get(key).cloned()
-        {
-            hit.last_used.fetch_max(self.run_number, Ordering::Relaxed);
-            return Some(NodeOutcome {
-                outputs: hit.outputs.clone(),
-                warnings: hit.warnings.clone(),
-                files_written: Vec::new(),
-            });
-        }
-        let disk = self.engine.disk.as_ref()?;
-        let out_dir = self.services.out_dir;
-        if schema.writes_files && out_dir.is_none() {
-            return None;
-        }
-        let entry = match disk.get(key) {
-            Lookup::Hit(entry) => entry,
-            Lookup::Miss => return None,
-            Lookup::Corrupt(why) => {
-                warnings.push(format!("a damaged entry in the cache folder was ignored and rebuilt ({why})"));
-                return None;
+    /// Writes back the files an exporting node made when its result was stored, and
+    /// hands over the outputs.
+    fn restore(&self, found: Found) -> Result<NodeOutcome, String> {
+        let mut files_written = Vec::with_capacity(found.files.len());
+        if !found.files.is_empty() {
+            let out_dir = self.services.out_dir.ok_or("this run has no output folder, so nothing may be written")?;
+            for file in &found.files {
+                files_written.push(write_within(out_dir, &file.relative, &file.bytes).map_err(|e| e.to_string())?);
             }
-        };
-        let mut files_written = Vec::with_capacity(entry.files.len());
-        for file in &entry.files {
-            // A restore that fails is a miss: the node runs and reports the real problem.
-            files_written.push(write_within(out_dir?, &file.relative, &file.bytes).ok()?);
         }
-        let Entry { outputs, warnings: node_warnings, .. } = *entry;
-        if !schema.writes_files {
-            let cached = Cached {
-                outputs: outputs.clone(),
-                warnings: node_warnings.clone(),
-                last_used: AtomicU64::new(self.run_number),
-            };
-            self.memory().insert(*key, Arc::new(cached));
-        }
-        Some(NodeOutcome { outputs, warnings: node_warnings, files_written })
+        Ok(NodeOutcome { outputs: found.outputs, warnings: found.warnings, files_written })
     }
 
     /// Keeps a fresh result in memory (not for exports) and in the cache folder (exports
@@ -412,19 +475,4 @@ impl Job<'_, '_> {
         let entry = Entry { outputs: outcome.outputs.clone(), warnings: outcome.warnings.clone(), files };
         warnings.extend(disk.put(key, &entry));
     }
-}
-
-/// Marks the targets and everything they read from.
-fn needed_nodes(graph: &CompiledGraph<'_>, targets: Option<&[String]>) -> Vec<bool> {
-    let mut needed = vec![false; graph.nodes.len()];
-    let mut stack: Vec<usize> = match targets {
-        Some(ids) => ids.iter().filter_map(|id| graph.index_of(id)).collect(),
-        None => (0..graph.nodes.len()).filter(|&i| graph.nodes[i].dependents.is_empty()).collect(),
-    };
-    while let Some(i) = stack.pop() {
-        if !std::mem::replace(&mut needed[i], true) {
-            stack.extend(graph.nodes[i].inputs.iter().flatten().map(|(src, _)| *src));
-        }
-    }
-    needed
 }
