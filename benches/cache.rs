@@ -36,16 +36,21 @@ fn to_glb(clip: &Path) -> GraphDoc {
     doc
 }
 
-/// Runs the batch over `clips` into `out` (one folder per clip); returns (ran, cached).
+/// Runs the batch over `clips` into `out` (one folder per clip, made first, as `kg batch`
+/// does); returns (nodes run, nodes served from a cache). A failed node stops the bench:
+/// it would measure failures, not work.
 fn batch(engine: &Engine, clips: &[PathBuf], out: &Path) -> (usize, usize) {
     let (mut ran, mut cached) = (0, 0);
     for (i, clip) in clips.iter().enumerate() {
         let graph = Graph::from_doc(&to_glb(clip)).unwrap();
         let compiled = compile(&graph, engine.registry(), Path::new("batch.ron"), &SourceMap::default()).unwrap();
         let mut options = RunOptions::new(PathBuf::from("."));
-        options.out_dir = Some(out.join(i.to_string()));
+        let run_out = out.join(i.to_string());
+        std::fs::create_dir_all(&run_out).unwrap();
+        options.out_dir = Some(run_out);
         let report = engine.run(&compiled, &options);
-        ran += report.count(NodeStatus::Ok) + report.count(NodeStatus::Error);
+        assert!(report.succeeded(), "{}: {:?}", clip.display(), report.nodes);
+        ran += report.count(NodeStatus::Ok);
         cached += report.count(NodeStatus::Cached);
     }
     (ran, cached)
