@@ -10,9 +10,11 @@ use std::time::{Instant, SystemTime};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::run::{Setting, absolute, cancel_flag, execute, exit_code, load_graph};
+use super::run::{Setting, absolute, cancel_flag, execute, exit_code};
 use super::{EXIT_BUSY, EXIT_CANCELLED, EXIT_FAILED, EXIT_INVALID};
 use crate::engine::{Engine, NodeReport, NodeStatus};
+use crate::farm::inputs::{expand_glob, run_folder_names};
+use crate::graph::GraphFile;
 use crate::output::{OutLock, folder_within, remove_own_temps, remove_stale_temps, safe_unique_names, save_within};
 
 /// The batch report's name at the top of `--out`.
@@ -82,20 +84,6 @@ impl BatchRun {
     }
 }
 
-/// The files a `NAME=GLOB` binding matches, sorted; an error naming the glob when it is
-/// malformed or matches no file.
-pub fn expand_glob(input: &Setting) -> Result<Vec<PathBuf>, String> {
-    let mut inputs: Vec<PathBuf> = match glob::glob(&input.value) {
-        Ok(paths) => paths.filter_map(Result::ok).filter(|p| p.is_file()).collect(),
-        Err(e) => return Err(format!("--input {}: bad glob: {e}", input.value)),
-    };
-    inputs.sort();
-    if inputs.is_empty() {
-        return Err(format!("--input {}: no files match", input.value));
-    }
-    Ok(inputs)
-}
-
 /// One run of `graph` with `settings` into `out_dir`, as `kg batch` and `kg run --plan`
 /// do it: never panics, always gives a [`BatchRun`] (`input` only labels it).
 pub fn run_once(
@@ -107,9 +95,10 @@ pub fn run_once(
     threads: Option<usize>,
 ) -> BatchRun {
     let t = Instant::now();
-    let result = load_graph(graph, settings, engine.registry()).map_err(|e| (EXIT_INVALID, e)).and_then(|loaded| {
-        execute(engine, &loaded, Some(out_dir), threads, None, false).map_err(|c| (c, "invalid graph".to_string()))
-    });
+    let result =
+        GraphFile::load_with(graph, settings, engine.registry()).map_err(|e| (EXIT_INVALID, e)).and_then(|loaded| {
+            execute(engine, &loaded, Some(out_dir), threads, None, false).map_err(|c| (c, "invalid graph".to_string()))
+        });
     let (exit_code, nodes, files_written, error) = match result {
         Ok(report) => {
             let error = report.nodes.iter().find_map(|(id, n)| {
@@ -137,37 +126,6 @@ pub fn run_once(
     }
 }
 
-/// Output subfolder names: the file stem, disambiguated by parent folders when two inputs
-/// share a stem (e.g. `cmu/02_02.bvh` and `cmu_daz/02_02.bvh`).
-pub fn run_folder_names(inputs: &[PathBuf]) -> Vec<String> {
-    let name_at = |p: &Path, depth: usize| -> String {
-        let mut parts: Vec<String> =
-            p.components().rev().take(depth + 1).map(|c| c.as_os_str().to_string_lossy().into_owned()).collect();
-        parts.reverse();
-        if let Some(last) = parts.last_mut() {
-            *last = Path::new(last.as_str()).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-        }
-        parts.join("-")
-    };
-    let mut names: Vec<String> = inputs.iter().map(|p| name_at(p, 0)).collect();
-    for depth in 1..4 {
-        let mut counts: BTreeMap<&str, usize> = BTreeMap::new();
-        for n in &names {
-            *counts.entry(n.as_str()).or_default() += 1;
-        }
-        let clashing: Vec<bool> = names.iter().map(|n| counts[n.as_str()] > 1).collect();
-        if !clashing.contains(&true) {
-            break;
-        }
-        for (i, clash) in clashing.into_iter().enumerate() {
-            if clash {
-                names[i] = name_at(&inputs[i], depth);
-            }
-        }
-    }
-    names
-}
-
 pub(super) fn batch_command(
     graph: &Path,
     input: &Setting,
@@ -183,7 +141,7 @@ pub(super) fn batch_command(
     };
     let cancel = cancel_flag();
     // Validate the graph and the input name once, before any work.
-    if let Err(e) = load_graph(graph, settings, engine.registry())
+    if let Err(e) = GraphFile::load_with(graph, settings, engine.registry())
         .and_then(|l| l.graph.resolve(&input.name).map(|_| ()).map_err(|e| format!("--input {}: {e}", input.name)))
     {
         eprintln!("{e}");
@@ -274,17 +232,5 @@ pub(super) fn batch_command(
         EXIT_FAILED
     } else {
         0
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn folder_names_disambiguate_shared_stems() {
-        let inputs: Vec<PathBuf> =
-            ["d/cmu/02_02.bvh", "d/cmu_daz/02_02.bvh", "d/cmu/01_01.bvh"].iter().map(PathBuf::from).collect();
-        assert_eq!(run_folder_names(&inputs), vec!["cmu-02_02", "cmu_daz-02_02", "01_01"]);
     }
 }

@@ -34,7 +34,7 @@ use clap::{Parser, Subcommand};
 
 use crate::engine::{DEFAULT_MAX_BYTES, DiskCache, Engine};
 
-pub use run::{Setting, convert_graph, load_graph};
+pub use run::{Setting, convert_graph};
 
 /// Exit code: a node failed.
 pub const EXIT_FAILED: u8 = 1;

@@ -12,8 +12,9 @@ use serde::{Deserialize, Serialize};
 use sha2::Digest;
 
 use super::EXIT_FAILED;
-use super::run::{execute_compiled, load_graph};
+use super::run::execute_compiled;
 use crate::engine::{Engine, RunReport, compile_file};
+use crate::graph::GraphFile;
 
 /// Checkable facts about one output value.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -407,7 +408,7 @@ fn run_and_compare(
     bless: bool,
     existing: Option<Result<Expectation, String>>,
 ) -> Vec<String> {
-    let mut loaded = match load_graph(graph, &[], engine.registry()) {
+    let mut loaded = match GraphFile::load_with(graph, &[], engine.registry()) {
         Ok(l) => l,
         Err(e) => return vec![e],
     };

@@ -19,15 +19,6 @@ pub fn absolute(path: &Path) -> PathBuf {
     std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf())
 }
 
-/// Loads a graph file and applies overrides; the error text is ready to print.
-pub fn load_graph(path: &Path, settings: &[Setting], registry: &Registry) -> Result<GraphFile, String> {
-    let mut loaded = GraphFile::load(path).map_err(|e| e.to_string())?;
-    Overrides(settings.to_vec())
-        .apply(&mut loaded.graph, registry)
-        .map_err(|e| format!("{}: --set {e}", path.display()))?;
-    Ok(loaded)
-}
-
 /// The cancellation flag that Ctrl-C (SIGINT), SIGTERM and SIGHUP set (the handler is
 /// installed once per process, on the first call). Evaluation stops at the next node
 /// boundary or cancellation check, and the commands then report what ran.
@@ -194,7 +185,7 @@ pub(super) fn run_command(
         Err(code) => return code,
     };
     let cancel = cancel_flag();
-    let loaded = match load_graph(graph, settings, engine.registry()) {
+    let loaded = match GraphFile::load_with(graph, settings, engine.registry()) {
         Ok(l) => l,
         Err(e) => {
             eprintln!("{e}");

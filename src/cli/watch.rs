@@ -11,9 +11,10 @@ use std::time::{Duration, Instant};
 
 use notify::{RecursiveMode, Watcher};
 
-use super::run::{Setting, absolute, cancel_flag, execute_compiled, json_report, load_graph, print_report};
+use super::run::{Setting, absolute, cancel_flag, execute_compiled, json_report, print_report};
 use super::{EXIT_BUSY, EXIT_FAILED, EXIT_INVALID};
 use crate::engine::{Engine, compile_file};
+use crate::graph::GraphFile;
 use crate::output::OutLock;
 
 /// How long to let a burst of file events (an editor's write, rename, chmod) settle.
@@ -115,7 +116,7 @@ fn run_once(
     threads: Option<usize>,
 ) -> BTreeSet<PathBuf> {
     let mut files = BTreeSet::from([absolute(graph)]);
-    let loaded = match load_graph(graph, settings, engine.registry()) {
+    let loaded = match GraphFile::load_with(graph, settings, engine.registry()) {
         Ok(l) => l,
         Err(e) => {
             eprintln!("{e}");

@@ -3,8 +3,11 @@
 //! Kubernetes, Open Job Description, OpenCue). kinegraph never schedules or submits by
 //! itself (DESIGN §7).
 
+pub mod attempt;
 pub mod emit;
+pub mod inputs;
 pub mod plan;
+pub mod planner;
 pub mod report;
 
 pub use emit::{EmitOptions, Target, emit};

@@ -20,6 +20,8 @@ pub use ids::{MAX_ID_CHARS, NodeId, ParamPath, PortRef};
 pub use model::{Edge, Graph, GraphNode, Ports, Removal, RemovedNode};
 pub use overrides::{OverrideError, Overrides, Setting, is_input_file};
 
+use kinegraph_nodes::node::Registry;
+
 use crate::document::{self, DocumentError, SourceMap};
 
 /// A graph read from a file, with what is needed to point back into the file.
@@ -50,6 +52,16 @@ impl GraphFile {
     /// Reads and migrates a graph file.
     pub fn load(path: &Path) -> Result<GraphFile, LoadError> {
         Self::from_loaded(document::load_file(path)?)
+    }
+
+    /// Reads a graph file and applies `settings` to it (`--set`, a batch input, a farm
+    /// task's bindings); the error text names the file and is ready to print.
+    pub fn load_with(path: &Path, settings: &[Setting], registry: &Registry) -> Result<GraphFile, String> {
+        let mut loaded = GraphFile::load(path).map_err(|e| e.to_string())?;
+        Overrides(settings.to_vec())
+            .apply(&mut loaded.graph, registry)
+            .map_err(|e| format!("{}: --set {e}", path.display()))?;
+        Ok(loaded)
     }
 
     /// Reads graph text; `path` names the file in errors and anchors relative paths.
