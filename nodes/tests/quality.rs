@@ -55,17 +55,21 @@ fn close(got: Option<f64>, want: f64, tolerance: f64) -> bool {
 
 #[test]
 fn a_foot_sliding_one_centimetre_a_frame_while_planted_skates_one_centimetre_a_frame() {
-    // The body glides forward 1 cm per frame; only the left foot is planted, frames 5..25.
+    // The body glides forward 1 cm per frame; only the left foot is planted, frames 5..25
+    // and 30..36: it slides 19 cm in the first plant and 5 cm in the second.
     let clip = mannequin_moving(40, |f| Vec3::new(0.0, 0.0, 0.01 * f as f32));
-    let contacts = left_foot_down(&clip, vec![FrameRange::new(5, 25)]);
+    let contacts = left_foot_down(&clip, vec![FrameRange::new(5, 25), FrameRange::new(30, 36)]);
     let r = measure(&clip, Some(&contacts), &[]);
     let left = &r.feet[0];
-    assert_eq!((left.foot.as_str(), left.contacts, left.contact_frame_pairs), ("LeftFoot", 1, 19));
+    assert_eq!((left.foot.as_str(), left.contacts, left.contact_frame_pairs), ("LeftFoot", 2, 24));
     assert!((left.skate_mean_cm_per_frame - 1.0).abs() < 1e-4, "{left:?}");
     assert!((left.skate_max_cm_per_frame - 1.0).abs() < 1e-4, "{left:?}");
-    assert!((left.skate_total_cm - 19.0).abs() < 1e-3, "{left:?}");
+    assert!((left.skate_total_cm - 24.0).abs() < 1e-3, "{left:?}");
+    assert!((left.contact_slide_max_cm - 19.0).abs() < 1e-3, "{left:?}");
+    assert_eq!(left.contact_slide_max_frames, Some((5, 25)));
     assert_eq!((r.feet[1].contact_frame_pairs, r.feet[1].skate_total_cm), (0, 0.0));
     assert!(close(r.summary.skate_max_cm_per_frame, 1.0, 1e-4), "{:?}", r.summary);
+    assert!(close(r.summary.contact_slide_max_cm, 19.0, 1e-3), "{:?}", r.summary);
     assert_eq!(r.contacts, "connected");
     // At 0.3 m/s the detector plants both feet too; the skate it then measures is the same.
     let detected = measure(&clip, None, &[]);

@@ -13,7 +13,7 @@
 //! 1. Skate: for two consecutive frames inside one contact of a foot, the horizontal
 //!    distance moved by the foot's stillest point (the least of its joints' moves). A foot
 //!    rolling from heel to toe keeps one point still and does not skate; a sliding foot
-//!    moves every point.
+//!    moves every point. Summed over one contact, the slide of that plant.
 //! 2. Penetration: how far the lowest point of a foot is below the floor; frames are
 //!    counted when a foot is more than [`BELOW_FLOOR_SLACK_M`] under it.
 //! 3. Float: per contact, the lowest the foot gets above the floor (a planted foot that
@@ -94,6 +94,8 @@ pub struct QualitySummary {
     pub skate_max_cm_per_frame: Option<f64>,
     /// Mean skate over every frame of contact of both feet, cm per frame.
     pub skate_mean_cm_per_frame: Option<f64>,
+    /// Longest slide of one foot over one contact (the skate summed over the plant), cm.
+    pub contact_slide_max_cm: Option<f64>,
     /// Deepest any foot goes under the floor, cm (0 when never below).
     pub penetration_max_cm: Option<f64>,
     /// Frames in which a foot is more than 1 mm under the floor.
@@ -133,6 +135,10 @@ pub struct FootQuality {
     pub skate_max_frame: Option<usize>,
     /// Total skate over all contacts, cm.
     pub skate_total_cm: f64,
+    /// The longest slide over one contact, cm.
+    pub contact_slide_max_cm: f64,
+    /// That contact's frames `[start, end)`.
+    pub contact_slide_max_frames: Option<(usize, usize)>,
     /// Deepest under the floor, cm.
     pub penetration_max_cm: f64,
     /// Frames more than 1 mm under the floor.
@@ -336,7 +342,9 @@ fn lowest_heights(
 /// height per frame.
 fn foot_quality(tracks: &Tracks, foot: &Foot, lowest_m: &[f64], floor_m: f64, sole_from_mesh: bool) -> FootQuality {
     let mut skates: Vec<(f64, usize)> = Vec::new();
+    let mut slides: Vec<(f64, (usize, usize))> = Vec::new();
     for r in &foot.intervals {
+        let before = skates.len();
         for f in r.start + 1..r.end {
             let moved = foot
                 .joints
@@ -345,7 +353,9 @@ fn foot_quality(tracks: &Tracks, foot: &Foot, lowest_m: &[f64], floor_m: f64, so
                 .fold(f64::INFINITY, f64::min);
             skates.push((moved * 100.0, f));
         }
+        slides.push((skates[before..].iter().map(|s| s.0).sum(), (r.start, r.end)));
     }
+    let worst_slide = max_at(slides.iter().map(|s| s.0));
     let total: f64 = skates.iter().map(|s| s.0).sum();
     let worst = max_at(skates.iter().map(|s| s.0));
     let depth_m = |f: usize| floor_m - lowest_m[f];
@@ -364,6 +374,8 @@ fn foot_quality(tracks: &Tracks, foot: &Foot, lowest_m: &[f64], floor_m: f64, so
         skate_max_cm_per_frame: worst.map_or(0.0, |w| w.0),
         skate_max_frame: worst.map(|w| skates[w.1].1),
         skate_total_cm: total,
+        contact_slide_max_cm: worst_slide.map_or(0.0, |w| w.0),
+        contact_slide_max_frames: worst_slide.map(|w| slides[w.1].1),
         penetration_max_cm: (0..lowest_m.len()).map(depth_m).fold(0.0, f64::max) * 100.0,
         frames_below_floor: (0..lowest_m.len()).filter(|&f| depth_m(f) > BELOW_FLOOR_SLACK_M).count(),
         float_in_contact_max_cm: float_cm,
@@ -526,6 +538,7 @@ pub fn measure_quality(
                 feet_quality.iter().map(|f| f.skate_mean_cm_per_frame * f.contact_frame_pairs as f64).sum();
             if pairs == 0 { 0.0 } else { total / pairs as f64 }
         }),
+        contact_slide_max_cm: worst_foot(|f| f.contact_slide_max_cm),
         penetration_max_cm,
         frames_below_floor: measured_feet.then_some(frames_below),
         float_in_contact_max_cm: worst_foot(|f| f.float_in_contact_max_cm),
@@ -564,6 +577,9 @@ pub struct QualityGate {
     /// Limit on `skate_max_cm_per_frame`, cm per frame.
     #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
     pub max_skate_cm: Option<f64>,
+    /// Limit on `contact_slide_max_cm`, cm.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_contact_slide_cm: Option<f64>,
     /// Limit on `penetration_max_cm`, cm.
     #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
     pub max_penetration_cm: Option<f64>,
@@ -598,6 +614,13 @@ impl QualityGate {
         let count = |n: Option<usize>| n.map(|n| n as f64);
         let checks = [
             ("max_skate_cm", self.max_skate_cm, "skate_max_cm_per_frame", summary.skate_max_cm_per_frame, " cm/frame"),
+            (
+                "max_contact_slide_cm",
+                self.max_contact_slide_cm,
+                "contact_slide_max_cm",
+                summary.contact_slide_max_cm,
+                " cm",
+            ),
             ("max_penetration_cm", self.max_penetration_cm, "penetration_max_cm", summary.penetration_max_cm, " cm"),
             ("max_float_cm", self.max_float_cm, "float_in_contact_max_cm", summary.float_in_contact_max_cm, " cm"),
             (
