@@ -10,7 +10,7 @@ use std::sync::Arc;
 use glam::Vec3;
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::kernels::load::{ClipLoadOptions, load_clip};
-use kinegraph_nodes::kernels::mannequin::mannequin_skeleton;
+use kinegraph_nodes::kernels::mannequin::{mannequin_mesh, mannequin_skeleton};
 use kinegraph_nodes::kernels::quality::{QualityGate, QualityOptions, QualityReport, measure_quality};
 use kinegraph_nodes::model::{Clip, Contacts, FootContacts, FrameRange, ImportScale, Joint, Skeleton};
 
@@ -119,6 +119,31 @@ fn a_foot_three_centimetres_under_the_floor_penetrates_three_centimetres() {
     let r = measure_quality(&clip, None, &[], None, &lower);
     assert!(close(r.summary.penetration_max_cm, 0.0, 1e-4), "{:?}", r.summary);
     assert_eq!(r.summary.frames_below_floor, Some(0));
+}
+
+#[test]
+fn a_skinned_mesh_puts_the_soles_where_its_lowest_vertices_are() {
+    // The mannequin's box mesh is bound in the rest pose, where its lowest vertices (the
+    // boxes round the toes) hang below the toe joints on the floor: the soles are under the
+    // floor by exactly the mesh's lowest point, and 1 cm more with the body 1 cm lower.
+    let clip = mannequin_moving(10, |f| if f >= 5 { Vec3::new(0.0, -0.01, 0.0) } else { Vec3::ZERO });
+    let mesh = mannequin_mesh(clip.skeleton().clone(), 0.04);
+    let (lowest, _) = mesh.bounds().unwrap();
+    assert!(lowest.y < 0.0);
+    let r = measure_quality(&clip, None, &[], Some(&mesh), &QualityOptions::default());
+    let want = -f64::from(lowest.y) * 100.0 + 1.0;
+    assert!(close(r.summary.penetration_max_cm, want, 1e-3), "{:?} vs {want}", r.summary);
+    assert_eq!(r.summary.frames_below_floor, Some(10));
+    assert!(r.feet.iter().all(|f| f.sole_from_mesh && (f.penetration_max_cm - want).abs() < 1e-3), "{:?}", r.feet);
+    // Joints alone stand 1 cm under the floor in the lowered frames only.
+    let joints = measure(&clip, None, &[]);
+    assert!(close(joints.summary.penetration_max_cm, 1.0, 1e-4), "{:?}", joints.summary);
+    assert_eq!(joints.summary.frames_below_floor, Some(5));
+    // A mesh on another skeleton is a finding, and the joints are measured.
+    let other = mannequin_mesh(Arc::new(Skeleton::new(vec![Joint::new("a", None, Vec3::ZERO)]).unwrap()), 0.04);
+    let r = measure_quality(&clip, None, &[], Some(&other), &QualityOptions::default());
+    assert!(r.findings.iter().any(|f| f.contains("soles are not measured")), "{:?}", r.findings);
+    assert!(close(r.summary.penetration_max_cm, 1.0, 1e-4), "{:?}", r.summary);
 }
 
 #[test]
@@ -256,34 +281,29 @@ fn gates_parse_bare_numbers_refuse_unknown_limits_and_pass_within_them() {
     assert_eq!(ron::to_string(&strict).unwrap(), "(max_skate_cm:0.3)");
 }
 
-/// Reference world positions of `shared/data/reference` (file units).
-#[derive(serde::Deserialize)]
-struct Reference {
-    source: String,
-    joints: Vec<String>,
-    frames: Vec<usize>,
-    positions: Vec<Vec<[f64; 3]>>,
-}
-
 #[test]
 fn on_a_cmu_walk_the_floor_matches_independent_kinematics_and_an_injected_kink_is_found() {
     let Some(data) = shared_data() else { return };
-    let r: Reference =
+    // World positions of every joint at a few frames from an independent implementation
+    // (shared/data/reference/README.md), in file units.
+    let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(data.join("reference/cmu_02_02.fk.json")).unwrap()).unwrap();
-    let clip = load_clip(&data.join(&r.source), ClipLoadOptions::default()).unwrap().value;
+    let clip = load_clip(&data.join(r["source"].as_str().unwrap()), ClipLoadOptions::default()).unwrap().value;
+    let joints: Vec<&str> = r["joints"].as_array().unwrap().iter().map(|j| j.as_str().unwrap()).collect();
     let scale = clip.import_scale.metres_per_unit;
     // A floor 20 cm up puts every foot under it: each foot's depth is 20 cm minus its
     // lowest joint (ankle, toe, toe tip) in the independent implementation's positions.
     let floor = QualityOptions { floor_height_m: 0.2, ..QualityOptions::default() };
-    for (fi, &frame) in r.frames.iter().enumerate() {
+    for (fi, frame) in r["frames"].as_array().unwrap().iter().enumerate() {
+        let frame = frame.as_u64().unwrap() as usize;
         let single = clip.slice(frame, frame + 1);
         let got = measure_quality(&single, None, &[], None, &floor);
         for (k, side) in ["Left", "Right"].iter().enumerate() {
             let lowest = ["Foot", "ToeBase", "ToeBase_EndSite"]
                 .iter()
                 .map(|part| {
-                    let j = r.joints.iter().position(|n| *n == format!("{side}{part}")).unwrap();
-                    r.positions[fi][j][1] * scale
+                    let j = joints.iter().position(|n| *n == format!("{side}{part}")).unwrap();
+                    r["positions"][fi][j][1].as_f64().unwrap() * scale
                 })
                 .fold(f64::INFINITY, f64::min);
             let want_cm = (0.2 - lowest) * 100.0;

@@ -22,7 +22,9 @@ const SOURCE_SET: Input<Arc<ClipSet>> =
     Input::optional("source_set", "Clips the motion was made from (e.g. a transition graph's clip set).");
 const CONTACTS: Input<Arc<Contacts>> = Input::optional(
     "contacts",
-    "When each foot is down (motion.contacts on this clip); detected with the default thresholds when unconnected.",
+    "When each foot is down (motion.contacts on this clip); detected with its default thresholds when unconnected. \
+     Those end a plant when the foot moves faster than 0.9 m/s, so a planted foot gliding faster counts as lifted: \
+     connect motion.contacts with a higher leave_speed_mps to catch fast glides.",
 );
 const MESH: Input<Arc<Mesh>> = Input::optional(
     "mesh",

@@ -289,14 +289,14 @@ fn feet_of(clip: &Clip, contacts: &Contacts, findings: &mut Vec<String>) -> Vec<
 }
 
 /// Per foot and frame, the lowest height of its joints and, with a usable skinned `mesh`,
-/// of the vertices bound mostly to them; and whether the mesh was used.
+/// of the vertices bound mostly to them; and per foot whether it has such a sole.
 fn lowest_heights(
     clip: &Clip,
     tracks: &Tracks,
     feet: &[Foot],
     mesh: Option<&Mesh>,
     findings: &mut Vec<String>,
-) -> (Vec<Vec<f64>>, bool) {
+) -> (Vec<Vec<f64>>, Vec<bool>) {
     let mut lowest: Vec<Vec<f64>> = feet
         .iter()
         .map(|foot| {
@@ -305,14 +305,15 @@ fn lowest_heights(
                 .collect()
         })
         .collect();
-    let Some(mesh) = mesh else { return (lowest, false) };
+    let joints_only = vec![false; feet.len()];
+    let Some(mesh) = mesh else { return (lowest, joints_only) };
     let Some(skin) = mesh.skin.as_ref() else {
         findings.push("the mesh is not skinned, so its soles are not measured".into());
-        return (lowest, false);
+        return (lowest, joints_only);
     };
     if let Err(why) = check_skin(skin, clip.skeleton(), mesh.positions.len()) {
         findings.push(format!("the mesh's soles are not measured: {why}"));
-        return (lowest, false);
+        return (lowest, joints_only);
     }
     let heaviest = |v: usize| {
         let (joints, weights) = (&skin.joints[v], &skin.weights[v]);
@@ -335,7 +336,7 @@ fn lowest_heights(
             }
         }
     }
-    (lowest, soles.iter().any(|s| !s.is_empty()))
+    (lowest, soles.iter().map(|s| !s.is_empty()).collect())
 }
 
 /// Skate, penetration and float of one foot (see the module doc), `lowest_m` its lowest
@@ -479,10 +480,14 @@ pub fn measure_quality(
             }
         },
     };
-    let (lowest, sole_from_mesh) = lowest_heights(clip, &tracks, &feet, mesh, &mut findings);
+    let (lowest, soles) = lowest_heights(clip, &tracks, &feet, mesh, &mut findings);
     let floor = options.floor_height_m;
-    let feet_quality: Vec<FootQuality> =
-        feet.iter().zip(&lowest).map(|(foot, low)| foot_quality(&tracks, foot, low, floor, sole_from_mesh)).collect();
+    let feet_quality: Vec<FootQuality> = feet
+        .iter()
+        .zip(&lowest)
+        .zip(soles)
+        .map(|((foot, low), sole)| foot_quality(&tracks, foot, low, floor, sole))
+        .collect();
     let measured_feet = !feet_quality.is_empty();
     if measured_feet && feet_quality.iter().all(|f| f.contacts == 0) && clip.frame_count() > 1 {
         findings.push("no foot contacts: the feet never plant, so there is no skate or float to measure".into());
