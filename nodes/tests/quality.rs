@@ -194,6 +194,36 @@ fn a_single_acceleration_spike_is_its_size_over_the_steady_acceleration_around_i
 }
 
 #[test]
+fn a_window_looks_only_at_its_frames_and_still_sees_around_them() {
+    let (a, kick, at) = (2.0, 0.1, 20);
+    let clip = accelerating(41, a, kick, at);
+    let within = |first: usize, last: usize| QualityOptions {
+        window_secs: Some((first as f64 / FPS, last as f64 / FPS)),
+        ..QualityOptions::default()
+    };
+    // Frames 0..=15 miss the kick: the steady acceleration alone.
+    let before = measure_quality(&clip, None, &[], None, &within(0, 15));
+    assert_eq!(before.window_frames, (0, 16));
+    assert!(close(before.summary.acceleration_peak_mps2, a, 0.02 * a), "{:?}", before.summary);
+    assert!(close(before.summary.acceleration_spike_ratio, 1.0, 0.02), "{:?}", before.summary);
+    assert!(close(before.summary.root_velocity_change_max_mps, a / FPS, 0.02 * a / FPS), "{:?}", before.summary);
+    // Frames 19..=21 hold it, and its neighbourhood still reaches outside the window.
+    let around = measure_quality(&clip, None, &[], None, &within(19, 21));
+    assert_eq!(around.acceleration_spike_frame, Some(at));
+    assert!(close(around.summary.acceleration_spike_ratio, (a + kick * FPS) / a, 0.05), "{:?}", around.summary);
+    // Contacts are cut to the window: 1 cm a frame over frames 10..=14 is a 4 cm slide.
+    let gliding = mannequin_moving(40, |f| Vec3::new(0.0, 0.0, 0.01 * f as f32));
+    let contacts = left_foot_down(&gliding, vec![FrameRange::new(5, 25)]);
+    let r = measure_quality(&gliding, Some(&contacts), &[], None, &within(10, 14));
+    assert!((r.feet[0].contact_slide_max_cm - 4.0).abs() < 1e-3, "{:?}", r.feet[0]);
+    assert_eq!(r.feet[0].contact_slide_max_frames, Some((10, 15)));
+    // A window past the clip's end looks at nothing, and says so.
+    let past = measure_quality(&gliding, None, &[], None, &within(50, 60));
+    assert_eq!((past.window_frames, past.summary.acceleration_peak_mps2), ((40, 40), None));
+    assert!(past.findings.iter().any(|f| f.contains("window holds no frame")), "{:?}", past.findings);
+}
+
+#[test]
 fn a_teleporting_root_is_a_finding_with_its_size_and_frame() {
     // The root stands, then is 0.5 m further along X from frame 12 on.
     let (jump, at) = (0.5, 12);

@@ -51,6 +51,21 @@ const NEIGHBOURHOOD: FloatParam = FloatParam::new(
     10.0,
     "s",
 );
+const WINDOW_START: FloatParam = FloatParam::new(
+    "window_start_secs",
+    "First moment looked at, seconds from the clip's start (e.g. where a transition begins).",
+    0.0,
+    0.0,
+    1e6,
+    "s",
+);
+const WINDOW_END: FloatParam = FloatParam::optional(
+    "window_end_secs",
+    "Last moment looked at, seconds from the clip's start; unset looks to the end.",
+    0.0,
+    1e6,
+    "s",
+);
 
 /// `motion.quality`.
 pub struct MeasureQuality;
@@ -59,11 +74,11 @@ static MEASURE_QUALITY: NodeSchema = NodeSchema {
     kind: "motion.quality",
     category: "motion",
     doc: "Checks a motion the way an animator does: planted feet that slide, feet through or above the floor, \
-          jerky joints against the source clips, sudden root speed changes, stretching bones and pops. \
-          Expectation files can gate on its report.",
+          jerky joints against the source clips, sudden root speed changes, stretching bones and pops, \
+          over the whole clip or a window of it. Expectation files can gate on its report.",
     inputs: &[CLIP.spec(), SOURCE.spec(), OTHER_SOURCE.spec(), SOURCE_SET.spec(), CONTACTS.spec(), MESH.spec()],
     outputs: &[REPORT.spec()],
-    params: &[FLOOR.0, NEIGHBOURHOOD.0],
+    params: &[FLOOR.0, NEIGHBOURHOOD.0, WINDOW_START.0, WINDOW_END.0],
     writes_files: false,
     version: 1,
 };
@@ -81,9 +96,15 @@ impl Node for MeasureQuality {
         }
         let contacts = ctx.optional_input(&CONTACTS)?;
         let mesh = ctx.optional_input(&MESH)?;
+        let start = ctx.float(&WINDOW_START)?;
+        let end = ctx.optional_float(&WINDOW_END)?;
+        if end.is_some_and(|e| e < start) {
+            return Err(NodeError::param("window_end_secs", "must not be before window_start_secs"));
+        }
         let options = QualityOptions {
             floor_height_m: ctx.float(&FLOOR)?,
             neighbourhood_secs: ctx.float(&NEIGHBOURHOOD)?,
+            window_secs: Some((start, end.unwrap_or(f64::INFINITY))),
             ..QualityOptions::default()
         };
         let sources: Vec<&Clip> = sources.iter().map(|c| c.as_ref()).collect();

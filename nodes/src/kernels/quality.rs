@@ -35,6 +35,9 @@
 //!    the frame before and the frame after, and faster than [`POP_MIN_SPEED_MPS`] (a
 //!    teleporting root pops every joint).
 //!
+//! With a window (e.g. a transition's frames) only the frames inside it are looked at:
+//! contacts are cut to it, while accelerations and pops still see the frames around it.
+//!
 //! Degenerate clips (no frames, one frame, no contacts, feet not found) are measured as far
 //! as they go: what cannot be measured is `None` and said in the findings, never a panic.
 //!
@@ -78,11 +81,19 @@ pub struct QualityOptions {
     pub neighbourhood_secs: f64,
     /// Thresholds used when contacts must be detected. Default: the detector's defaults.
     pub contacts: ContactThresholds,
+    /// The seconds looked at, first and last included (rounded to frames); `None` (the
+    /// default) looks at the whole clip.
+    pub window_secs: Option<(f64, f64)>,
 }
 
 impl Default for QualityOptions {
     fn default() -> Self {
-        QualityOptions { floor_height_m: 0.0, neighbourhood_secs: 0.25, contacts: ContactThresholds::default() }
+        QualityOptions {
+            floor_height_m: 0.0,
+            neighbourhood_secs: 0.25,
+            contacts: ContactThresholds::default(),
+            window_secs: None,
+        }
     }
 }
 
@@ -160,6 +171,8 @@ pub struct QualityReport {
     pub fps: f64,
     /// The floor plane's height, metres.
     pub floor_height_m: f64,
+    /// The frames looked at, `[start, end)`.
+    pub window_frames: (usize, usize),
     /// `"connected"`, `"detected"` or `"none"` (feet not found).
     pub contacts: &'static str,
     /// The gated measures.
@@ -245,9 +258,19 @@ fn max_at(values: impl IntoIterator<Item = f64>) -> Option<(f64, usize)> {
     })
 }
 
-/// The largest spike ratio of `peaks` (one per interior frame, see the module doc) and its
-/// index, comparing with the values `exclusion..=half_width` indices away.
-fn spike_ratio(peaks: &[f64], half_width: usize) -> Option<(f64, usize)> {
+/// The largest of per-interior-frame `values` (index `i` is frame `i + 1`) inside
+/// `window`, and its frame.
+fn max_in_window(values: &[f64], window: FrameRange) -> Option<(f64, usize)> {
+    let inside = values.iter().enumerate().filter(|(i, _)| window.contains(i + 1));
+    inside.fold(None, |best, (i, &v)| match best {
+        Some((b, _)) if b >= v => best,
+        _ => Some((v, i + 1)),
+    })
+}
+
+/// The spike ratio (see the module doc) of each of `peaks` (one per interior frame),
+/// comparing with the values `SPIKE_EXCLUSION_FRAMES..=half_width` indices away.
+fn spike_ratios(peaks: &[f64], half_width: usize) -> Vec<f64> {
     let ratios = (0..peaks.len()).map(|i| {
         let mut around: Vec<f64> = (i.saturating_sub(half_width)..=(i + half_width).min(peaks.len() - 1))
             .filter(|&k| k.abs_diff(i) >= SPIKE_EXCLUSION_FRAMES)
@@ -259,7 +282,7 @@ fn spike_ratio(peaks: &[f64], half_width: usize) -> Option<(f64, usize)> {
         around.sort_by(f64::total_cmp);
         peaks[i] / around[(around.len() - 1) / 2].max(QUIET_ACCELERATION_MPS2)
     });
-    max_at(ratios)
+    ratios.collect()
 }
 
 /// A foot of the clip: its joints, its sole's vertices and its contacts.
@@ -269,8 +292,9 @@ struct Foot {
     intervals: Vec<FrameRange>,
 }
 
-/// The feet named by `contacts`, or the findings why some are not.
-fn feet_of(clip: &Clip, contacts: &Contacts, findings: &mut Vec<String>) -> Vec<Foot> {
+/// The feet named by `contacts`, their contacts cut to `window`; findings say why a foot
+/// is not.
+fn feet_of(clip: &Clip, contacts: &Contacts, window: FrameRange, findings: &mut Vec<String>) -> Vec<Foot> {
     let skeleton = clip.skeleton();
     contacts
         .feet
@@ -281,8 +305,7 @@ fn feet_of(clip: &Clip, contacts: &Contacts, findings: &mut Vec<String>) -> Vec<
                 return None;
             };
             let joints = (0..skeleton.len()).filter(|&j| j == ankle || skeleton.is_ancestor(ankle, j)).collect();
-            let intervals =
-                c.intervals.iter().map(|r| FrameRange::new(r.start, r.end.min(clip.frame_count()))).collect();
+            let intervals = c.intervals.iter().filter_map(|r| r.intersect(&window)).collect();
             Some(Foot { name: c.foot.clone(), joints, intervals })
         })
         .collect()
@@ -339,9 +362,16 @@ fn lowest_heights(
     (lowest, soles.iter().map(|s| !s.is_empty()).collect())
 }
 
-/// Skate, penetration and float of one foot (see the module doc), `lowest_m` its lowest
-/// height per frame.
-fn foot_quality(tracks: &Tracks, foot: &Foot, lowest_m: &[f64], floor_m: f64, sole_from_mesh: bool) -> FootQuality {
+/// Skate, penetration and float of one foot (see the module doc) over the frames of
+/// `window`, `lowest_m` its lowest height per frame.
+fn foot_quality(
+    tracks: &Tracks,
+    foot: &Foot,
+    lowest_m: &[f64],
+    floor_m: f64,
+    window: FrameRange,
+    sole_from_mesh: bool,
+) -> FootQuality {
     let mut skates: Vec<(f64, usize)> = Vec::new();
     let mut slides: Vec<(f64, (usize, usize))> = Vec::new();
     for r in &foot.intervals {
@@ -377,20 +407,20 @@ fn foot_quality(tracks: &Tracks, foot: &Foot, lowest_m: &[f64], floor_m: f64, so
         skate_total_cm: total,
         contact_slide_max_cm: worst_slide.map_or(0.0, |w| w.0),
         contact_slide_max_frames: worst_slide.map(|w| slides[w.1].1),
-        penetration_max_cm: (0..lowest_m.len()).map(depth_m).fold(0.0, f64::max) * 100.0,
-        frames_below_floor: (0..lowest_m.len()).filter(|&f| depth_m(f) > BELOW_FLOOR_SLACK_M).count(),
+        penetration_max_cm: (window.start..window.end).map(depth_m).fold(0.0, f64::max) * 100.0,
+        frames_below_floor: (window.start..window.end).filter(|&f| depth_m(f) > BELOW_FLOOR_SLACK_M).count(),
         float_in_contact_max_cm: float_cm,
         sole_from_mesh,
     }
 }
 
-/// Frames in which some joint pops (see the module doc), with the largest pop:
+/// Frames of `window` in which some joint pops (see the module doc), with the largest pop:
 /// (frame, joint, move in metres).
-fn pops(tracks: &Tracks) -> (usize, Option<(usize, usize, f64)>) {
+fn pops(tracks: &Tracks, window: FrameRange) -> (usize, Option<(usize, usize, f64)>) {
     let moved = |f: usize, j: usize| (tracks.at(f, j) - tracks.at(f - 1, j)).length();
     let min_move_m = POP_MIN_SPEED_MPS / tracks.fps;
     let (mut frames, mut largest): (usize, Option<(usize, usize, f64)>) = (0, None);
-    for f in 1..tracks.frames {
+    for f in window.start.max(1)..window.end {
         let mut popped = false;
         for j in 0..tracks.joints {
             let around: Vec<f64> =
@@ -409,12 +439,12 @@ fn pops(tracks: &Tracks) -> (usize, Option<(usize, usize, f64)>) {
     (frames, largest)
 }
 
-/// The largest change of a bone's length over the clip (metres) and its joint.
-fn bone_length_drift(clip: &Clip, tracks: &Tracks) -> Option<(f64, usize)> {
+/// The largest change of a bone's length over the frames of `window` (metres) and its joint.
+fn bone_length_drift(clip: &Clip, tracks: &Tracks, window: FrameRange) -> Option<(f64, usize)> {
     let joints = clip.skeleton().joints();
     let drift = |j: usize| {
         let parent = joints[j].parent?;
-        let lengths = (0..tracks.frames).map(|f| tracks.at(f, j).distance(tracks.at(f, parent)));
+        let lengths = (window.start..window.end).map(|f| tracks.at(f, j).distance(tracks.at(f, parent)));
         let (lo, hi) = lengths.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), l| (lo.min(l), hi.max(l)));
         (hi >= lo).then_some((hi - lo, j))
     };
@@ -422,6 +452,21 @@ fn bone_length_drift(clip: &Clip, tracks: &Tracks) -> Option<(f64, usize)> {
         Some(b) if b.0 >= x.0 => Some(b),
         _ => Some(x),
     })
+}
+
+/// The frames of `clip` from the first to the last second of `window_secs` (both
+/// included, rounded to frames), or all of them.
+fn window_frames(clip: &Clip, window_secs: Option<(f64, f64)>) -> FrameRange {
+    let n = clip.frame_count();
+    match window_secs {
+        None => FrameRange::new(0, n),
+        // Negative or NaN seconds become frame 0 (`as` saturates and maps NaN to 0).
+        Some((first, last)) if last >= first => FrameRange::new(
+            ((first * clip.fps()).round() as usize).min(n),
+            ((last * clip.fps()).round() as usize).saturating_add(1).min(n),
+        ),
+        Some(_) => FrameRange::new(0, 0),
+    }
 }
 
 /// `value / reference`, when the reference is above round-off.
@@ -457,6 +502,13 @@ pub fn measure_quality(
         2 => findings.push("the clip has two frames: accelerations need three, so they are not measured".into()),
         _ => {}
     }
+    let window = window_frames(clip, options.window_secs);
+    if window.is_empty() && clip.frame_count() > 0 {
+        findings.push(format!(
+            "the window holds no frame of the clip ({:.3} s long): nothing is measured",
+            clip.duration_secs()
+        ));
+    }
 
     // Feet: the connected contacts when they describe this clip, else detected ones.
     let given = contacts.filter(|c| {
@@ -471,9 +523,9 @@ pub fn measure_quality(
         fits
     });
     let (contacts_from, feet) = match given {
-        Some(c) => ("connected", feet_of(clip, c, &mut findings)),
+        Some(c) => ("connected", feet_of(clip, c, window, &mut findings)),
         None => match contacts_of(clip, &forward_kinematics(clip), &options.contacts) {
-            Ok((c, _)) => ("detected", feet_of(clip, &c, &mut findings)),
+            Ok((c, _)) => ("detected", feet_of(clip, &c, window, &mut findings)),
             Err(why) => {
                 findings.push(format!("the feet could not be found, so they are not measured: {why}"));
                 ("none", Vec::new())
@@ -486,15 +538,15 @@ pub fn measure_quality(
         .iter()
         .zip(&lowest)
         .zip(soles)
-        .map(|((foot, low), sole)| foot_quality(&tracks, foot, low, floor, sole))
+        .map(|((foot, low), sole)| foot_quality(&tracks, foot, low, floor, window, sole))
         .collect();
     let measured_feet = !feet_quality.is_empty();
     if measured_feet && feet_quality.iter().all(|f| f.contacts == 0) && clip.frame_count() > 1 {
         findings.push("no foot contacts: the feet never plant, so there is no skate or float to measure".into());
     }
     let below = |f: usize| lowest.iter().any(|l| floor - l[f] > BELOW_FLOOR_SLACK_M);
-    let frames_below = (0..tracks.frames).filter(|&f| below(f)).count();
-    let longest_below_secs = longest_run((0..tracks.frames).map(below)) as f64 / clip.fps();
+    let frames_below = (window.start..window.end).filter(|&f| below(f)).count();
+    let longest_below_secs = longest_run((window.start..window.end).map(below)) as f64 / clip.fps();
     let pairs: usize = feet_quality.iter().map(|f| f.contact_frame_pairs).sum();
     let worst_foot =
         |value: fn(&FootQuality) -> f64| measured_feet.then(|| feet_quality.iter().map(value).fold(0.0, f64::max));
@@ -507,19 +559,19 @@ pub fn measure_quality(
 
     // Accelerations and the root, against the sources' own.
     let peaks = tracks.peak_accelerations();
-    let peak = max_at(peaks.iter().map(|p| p.0));
+    let peak_values: Vec<f64> = peaks.iter().map(|p| p.0).collect();
+    let peak = max_in_window(&peak_values, window);
     let half_width = ((options.neighbourhood_secs * clip.fps()).round() as usize).max(2 * SPIKE_EXCLUSION_FRAMES);
-    let spike = spike_ratio(&peaks.iter().map(|p| p.0).collect::<Vec<_>>(), half_width);
-    let root = max_at(tracks.root_velocity_changes());
+    let spike = max_in_window(&spike_ratios(&peak_values, half_width), window);
+    let root = max_in_window(&tracks.root_velocity_changes(), window);
     let source_tracks: Vec<Tracks> = sources.iter().map(|s| Tracks::of(s)).collect();
-    let largest = |values: Vec<Option<(f64, usize)>>| values.into_iter().flatten().map(|v| v.0).reduce(f64::max);
     let sources_peak =
-        largest(source_tracks.iter().map(|t| max_at(t.peak_accelerations().iter().map(|p| p.0))).collect());
-    let sources_root = largest(source_tracks.iter().map(|t| max_at(t.root_velocity_changes())).collect());
+        source_tracks.iter().flat_map(|t| t.peak_accelerations().into_iter().map(|p| p.0)).reduce(f64::max);
+    let sources_root = source_tracks.iter().flat_map(|t| t.root_velocity_changes()).reduce(f64::max);
     if !sources.is_empty() && sources_peak.is_none() {
         findings.push("the source clips have fewer than three frames: nothing to compare with".into());
     }
-    let (pop_frames, largest_pop) = pops(&tracks);
+    let (pop_frames, largest_pop) = pops(&tracks, window);
     if let Some((f, j, moved_m)) = largest_pop {
         findings.push(format!(
             "{pop_frames} frame(s) with a pop; the largest: '{}' jumps {:.1} cm into frame {f} ({:.1} m/s)",
@@ -528,7 +580,7 @@ pub fn measure_quality(
             moved_m * clip.fps()
         ));
     }
-    let drift = bone_length_drift(clip, &tracks);
+    let drift = bone_length_drift(clip, &tracks, window);
     let joint_name = |j: usize| clip.skeleton().joints()[j].name.clone();
     if findings.len() > MAX_LISTED_FINDINGS {
         let more = findings.len() - MAX_LISTED_FINDINGS;
@@ -560,14 +612,15 @@ pub fn measure_quality(
         frames: clip.frame_count(),
         fps: clip.fps(),
         floor_height_m: floor,
+        window_frames: (window.start, window.end),
         contacts: contacts_from,
         summary,
         feet: feet_quality,
         longest_below_floor_secs: longest_below_secs,
-        acceleration_peak_at: peak.map(|p| (p.1 + 1, joint_name(peaks[p.1].1))),
-        acceleration_spike_frame: spike.map(|s| s.1 + 1),
+        acceleration_peak_at: peak.map(|(_, f)| (f, joint_name(peaks[f - 1].1))),
+        acceleration_spike_frame: spike.map(|s| s.1),
         sources_acceleration_peak_mps2: sources_peak,
-        root_velocity_change_frame: root.map(|r| r.1 + 1),
+        root_velocity_change_frame: root.map(|r| r.1),
         sources_root_velocity_change_max_mps: sources_root,
         bone_length_drift_joint: drift.map(|d| joint_name(d.1)),
         findings,
