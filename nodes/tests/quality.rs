@@ -68,6 +68,7 @@ fn a_foot_sliding_one_centimetre_a_frame_while_planted_skates_one_centimetre_a_f
     assert!((left.contact_slide_max_cm - 19.0).abs() < 1e-3, "{left:?}");
     assert_eq!(left.contact_slide_max_frames, Some((5, 25)));
     assert_eq!((r.feet[1].contact_frame_pairs, r.feet[1].skate_total_cm), (0, 0.0));
+    assert!(r.feet[1].skate_total_cm.is_sign_positive(), "a report shows 0, not -0");
     assert!(close(r.summary.skate_max_cm_per_frame, 1.0, 1e-4), "{:?}", r.summary);
     assert!(close(r.summary.contact_slide_max_cm, 19.0, 1e-3), "{:?}", r.summary);
     assert_eq!(r.contacts, "connected");

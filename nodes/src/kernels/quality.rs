@@ -362,6 +362,11 @@ fn lowest_heights(
     (lowest, soles.iter().map(|s| !s.is_empty()).collect())
 }
 
+/// The sum of the skates (cm), 0 for none (an empty float sum is −0).
+fn sum_cm(skates: &[(f64, usize)]) -> f64 {
+    skates.iter().fold(0.0, |total, s| total + s.0)
+}
+
 /// Skate, penetration and float of one foot (see the module doc) over the frames of
 /// `window`, `lowest_m` its lowest height per frame.
 fn foot_quality(
@@ -384,10 +389,10 @@ fn foot_quality(
                 .fold(f64::INFINITY, f64::min);
             skates.push((moved * 100.0, f));
         }
-        slides.push((skates[before..].iter().map(|s| s.0).sum(), (r.start, r.end)));
+        slides.push((sum_cm(&skates[before..]), (r.start, r.end)));
     }
     let worst_slide = max_at(slides.iter().map(|s| s.0));
-    let total: f64 = skates.iter().map(|s| s.0).sum();
+    let total = sum_cm(&skates);
     let worst = max_at(skates.iter().map(|s| s.0));
     let depth_m = |f: usize| floor_m - lowest_m[f];
     let float_cm = foot
