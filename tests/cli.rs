@@ -263,6 +263,61 @@ fn kg_test_passes_on_the_shipped_graphs_and_fails_visibly_on_a_broken_expectatio
     assert!(err.contains("resample.clip.fps: expected 24.5, got 24"), "{err}");
 }
 
+/// The mannequin's generated walk slides its planted feet (about 2.8 cm per frame) but
+/// stays on the floor: a gate on the floor passes, one on the skate fails and says where.
+#[test]
+fn kg_test_gates_on_motion_quality_naming_the_graph_node_and_measure() {
+    let dir = tempfile::tempdir().unwrap();
+    let graphs = dir.path().join("graphs");
+    std::fs::create_dir_all(&graphs).unwrap();
+    let graph = r#"(
+    format: "kinegraph.graph",
+    version: 2,
+    nodes: {
+        "mannequin": (kind: "generate.mannequin"),
+        "check": (kind: "motion.quality"),
+    },
+    edges: [(from: "mannequin.clip", to: "check.clip")],
+)"#;
+    std::fs::write(graphs.join("walk.ron"), graph).unwrap();
+    let kg_test = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_kg")).arg("test").args(args).current_dir(dir.path()).output().unwrap()
+    };
+    let blessed = kg_test(&["--bless"]);
+    assert_eq!(blessed.status.code(), Some(0), "{}", stderr(&blessed));
+    let expect_path = graphs.join("walk.expect.ron");
+    let plain = std::fs::read_to_string(&expect_path).unwrap();
+    assert!(!plain.contains("quality:"), "an expectation without gates is written as before:\n{plain}");
+    let gated =
+        |gates: &str| plain.replacen("    outputs: {", &format!("    quality: {{{gates}}},\n    outputs: {{"), 1);
+
+    std::fs::write(&expect_path, gated(r#""check": (max_penetration_cm: 0.5, max_pop_frames: 0)"#)).unwrap();
+    let ok = kg_test(&[]);
+    assert_eq!(ok.status.code(), Some(0), "{}", stderr(&ok));
+
+    std::fs::write(
+        &expect_path,
+        gated(r#""check": (max_skate_cm: 0.5, max_penetration_cm: 0.5), "mannequin": (max_skate_cm: 1)"#),
+    )
+    .unwrap();
+    let fail = kg_test(&[]);
+    assert_eq!(fail.status.code(), Some(1));
+    let err = stderr(&fail);
+    assert!(err.contains("FAILED  graphs/walk.ron"), "{err}");
+    assert!(err.contains("quality gate 'check': skate_max_cm_per_frame = 2.7"), "{err}");
+    assert!(err.contains("above max_skate_cm 0.5"), "{err}");
+    assert!(!err.contains("penetration_max_cm ="), "{err}");
+    assert!(err.contains("quality gate 'mannequin': the node is a generate.mannequin, not a motion.quality"), "{err}");
+
+    // Blessing keeps the gates and still fails on them; a misspelt limit is refused.
+    assert_eq!(kg_test(&["--bless"]).status.code(), Some(1));
+    assert!(std::fs::read_to_string(&expect_path).unwrap().contains("max_skate_cm: 0.5"));
+    std::fs::write(&expect_path, gated(r#""check": (max_skate: 0.5)"#)).unwrap();
+    let typo = kg_test(&[]);
+    assert_eq!(typo.status.code(), Some(1));
+    assert!(stderr(&typo).contains("max_skate"), "{}", stderr(&typo));
+}
+
 #[test]
 fn shipped_assets_are_exactly_what_make_assets_produces() {
     let dir = tempfile::tempdir().unwrap();

@@ -21,6 +21,7 @@ mod emit;
 mod inspect;
 mod merge;
 mod plan;
+mod quality_gates;
 mod regression;
 mod run;
 mod task;

@@ -6,12 +6,14 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use kinegraph_nodes::kernels::quality::QualityGate;
 use kinegraph_nodes::model::forward_kinematics;
 use kinegraph_nodes::node::Value;
 use serde::{Deserialize, Serialize};
 use sha2::Digest;
 
 use super::EXIT_FAILED;
+use super::quality_gates::gate_violations;
 use super::run::execute_compiled;
 use crate::engine::{Engine, RunReport, compile_file};
 use crate::graph::GraphFile;
@@ -91,6 +93,10 @@ pub struct Expectation {
     /// with a message, or fails when the `CI` environment variable is set.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub requires: Vec<String>,
+    /// Limits on the reports of `motion.quality` nodes, by node id (see
+    /// [`super::quality_gates`]); a run beyond one fails, blessed or not.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub quality: BTreeMap<String, QualityGate>,
     /// Facts per `node.port`.
     pub outputs: BTreeMap<String, Facts>,
 }
@@ -440,12 +446,15 @@ fn run_and_compare(
     }
     let actual = run_facts(&report, engine, out_dir.path());
     let path = expectation_path(graph);
+    if let Some(Ok(expected)) = &existing {
+        problems.extend(gate_violations(&expected.quality, &report));
+    }
     if bless {
-        let (tolerance, requires) = match existing {
-            Some(Ok(e)) => (e.tolerance, e.requires),
-            _ => (1e-5, Vec::new()),
+        let (tolerance, requires, quality) = match existing {
+            Some(Ok(e)) => (e.tolerance, e.requires, e.quality),
+            _ => (1e-5, Vec::new(), BTreeMap::new()),
         };
-        let expectation = Expectation { tolerance, requires, outputs: actual };
+        let expectation = Expectation { tolerance, requires, quality, outputs: actual };
         let config = ron::ser::PrettyConfig::new().indentor("    ");
         let text = ron::ser::to_string_pretty(&expectation, config).map(|t| t + "\n").unwrap_or_default();
         if let Err(e) = kinegraph_nodes::formats::atomic::write_atomic(&path, text.as_bytes()) {
@@ -456,7 +465,10 @@ fn run_and_compare(
     match existing {
         None => vec![format!("no expectation file {}: run `kg test --bless` to create it", path.display())],
         Some(Err(e)) => vec![e],
-        Some(Ok(expected)) => compare(&expected, &actual),
+        Some(Ok(expected)) => {
+            problems.extend(compare(&expected, &actual));
+            problems
+        }
     }
 }
 
@@ -550,6 +562,7 @@ mod tests {
         let expected = |requires: &[&str]| Expectation {
             tolerance: 1e-5,
             requires: requires.iter().map(|r| r.to_string()).collect(),
+            quality: BTreeMap::new(),
             outputs: BTreeMap::new(),
         };
         assert_eq!(missing_data(&graph, &expected(&["here"]), true), None);
@@ -587,6 +600,7 @@ mod tests {
         let expected = Expectation {
             tolerance: 1e-3,
             requires: Vec::new(),
+            quality: BTreeMap::new(),
             outputs: [("a.clip".to_string(), clip(10, 30.0))].into(),
         };
         let same = [("a.clip".to_string(), clip(10, 30.01))].into();

@@ -13,6 +13,7 @@ pub mod mannequin;
 pub mod mesh_io;
 pub mod momentum;
 pub mod pose_space;
+pub mod quality;
 pub mod scalar;
 pub mod skin;
 pub mod transitions;
@@ -41,6 +42,7 @@ pub fn register(registry: &mut Registry) {
     pose_space::register(registry);
     barnet::register(registry);
     transitions::register(registry);
+    quality::register(registry);
 }
 
 #[cfg(test)]

@@ -16,6 +16,7 @@
 //! | heading alignment of two motions | [`align`] |
 //! | blend-and-splice, foot skate, join result | [`join`] |
 //! | the Motion-Graphs crossfade baseline | [`baseline`] |
+//! | motion quality measures and gates (skate, floor, spikes, pops) | [`quality`] |
 //! | resampling | [`resample`] |
 //! | skinning matrices, LBS, automatic weights | [`skinning`] |
 //! | pose vectors | [`pose_vector`] |
@@ -36,6 +37,7 @@ pub mod load;
 pub mod mannequin;
 pub mod phases;
 pub mod pose_vector;
+pub mod quality;
 pub mod resample;
 pub mod roles;
 pub mod skinning;

@@ -1,0 +1,759 @@
+//! Motion quality measured the way an animator checks a clip frame by frame: planted feet
+//! that slide, feet under the floor or hovering over it while planted, joints that jerk, a
+//! root that changes speed in one frame, bones that stretch, joints that pop.
+//!
+//! Units are in every field name: lengths in centimetres (`_cm`), speeds in m/s (`_mps`),
+//! accelerations in m/s² (`_mps2`). "Per frame" means between consecutive frames at the
+//! clip's own frame rate. The floor is the horizontal plane y = `floor_height_m` in the
+//! clip's metres (0 by default: the ground of glTF and of the corpus clips). A foot is its
+//! ankle (the joint the contacts name) with every joint below it (toes, toe tips) and,
+//! when a skinned mesh is given, the vertices bound mostly to those joints (its sole).
+//!
+//! Measures:
+//! 1. Skate: for two consecutive frames inside one contact of a foot, the horizontal
+//!    distance moved by the foot's stillest point (the least of its joints' moves). A foot
+//!    rolling from heel to toe keeps one point still and does not skate; a sliding foot
+//!    moves every point. Summed over one contact, the slide of that plant.
+//! 2. Penetration: how far the lowest point of a foot is below the floor; frames are
+//!    counted when a foot is more than [`BELOW_FLOOR_SLACK_M`] under it.
+//! 3. Float: per contact, the lowest the foot gets above the floor (a planted foot that
+//!    never reaches the floor hovers); the largest over the contacts. Measured on joints it
+//!    includes the rig's ankle or toe height above the sole: connect the skinned mesh for
+//!    the sole itself.
+//! 4. Acceleration: the second difference of every joint's world position times fps²;
+//!    A(f) is the largest over the joints. The spike ratio at f is A(f) over the median of
+//!    A in the frames 3 to w away (w = `neighbourhood_secs` · fps, at least 6), the median
+//!    taken as at least [`QUIET_ACCELERATION_MPS2`] so a still clip has no spikes of
+//!    noise; the report gives the largest ratio. With source clips, the clip's peak A over
+//!    the largest peak of the sources.
+//! 5. Root velocity change: |p(f+1) − 2 p(f) + p(f−1)| · fps of the root joint's world
+//!    position (m/s): the one-frame change of the root's velocity; with source clips, over
+//!    the sources' largest.
+//! 6. Bone-length drift: per bone (joint and parent), longest minus shortest length over
+//!    the clip; the largest.
+//! 7. Pops: a joint that moves in one frame more than [`POP_RATIO`] times as far as in
+//!    the frame before and the frame after, and faster than [`POP_MIN_SPEED_MPS`] (a
+//!    teleporting root pops every joint).
+//!
+//! With a window (e.g. a transition's frames) only the frames inside it are looked at:
+//! contacts are cut to it, while accelerations and pops still see the frames around it.
+//!
+//! Degenerate clips (no frames, one frame, no contacts, feet not found) are measured as far
+//! as they go: what cannot be measured is `None` and said in the findings, never a panic.
+//!
+//! A kernel: the `motion.quality` node reports with it and `kg test` gates on its summary.
+
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+use super::contacts::{ContactThresholds, contacts_of};
+use super::skinning::{blend_matrices, check_skin, clip_skinning_matrices};
+use crate::model::{Clip, Contacts, FrameRange, Mesh, forward_kinematics};
+
+/// A foot more than this far under the floor (metres) counts as below it: capture noise
+/// of a millimetre is not a fault.
+pub const BELOW_FLOOR_SLACK_M: f64 = 0.001;
+
+/// The least neighbourhood acceleration a spike is divided by (m/s²): below it a joint is
+/// as good as still, and a ratio to capture noise would mean nothing.
+pub const QUIET_ACCELERATION_MPS2: f64 = 1.0;
+
+/// A joint's one-frame move must exceed this many times its moves in the frames around it
+/// to be a pop.
+pub const POP_RATIO: f64 = 3.0;
+
+/// …and be faster than this (m/s), so the jitter of a joint at rest is no pop.
+pub const POP_MIN_SPEED_MPS: f64 = 1.0;
+
+/// Frames nearer than this to a frame are not its neighbourhood: a single spike in a
+/// position spreads over three second differences.
+const SPIKE_EXCLUSION_FRAMES: usize = 3;
+
+/// Findings listed one by one before the rest are counted.
+const MAX_LISTED_FINDINGS: usize = 5;
+
+/// Settings of [`measure_quality`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QualityOptions {
+    /// Height of the floor plane in the clip's metres. Default 0.
+    pub floor_height_m: f64,
+    /// Half-width of the neighbourhood a spike is compared with, seconds. Default 0.25.
+    pub neighbourhood_secs: f64,
+    /// Thresholds used when contacts must be detected. Default: the detector's defaults.
+    pub contacts: ContactThresholds,
+    /// The seconds looked at, first and last included (rounded to frames); `None` (the
+    /// default) looks at the whole clip.
+    pub window_secs: Option<(f64, f64)>,
+}
+
+impl Default for QualityOptions {
+    fn default() -> Self {
+        QualityOptions {
+            floor_height_m: 0.0,
+            neighbourhood_secs: 0.25,
+            contacts: ContactThresholds::default(),
+            window_secs: None,
+        }
+    }
+}
+
+/// The measures a quality gate reads: the worst value of each over the clip, `None` when
+/// it could not be measured (see the findings).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct QualitySummary {
+    /// Largest skate of any foot in one frame of contact, cm per frame.
+    pub skate_max_cm_per_frame: Option<f64>,
+    /// Mean skate over every frame of contact of both feet, cm per frame.
+    pub skate_mean_cm_per_frame: Option<f64>,
+    /// Longest slide of one foot over one contact (the skate summed over the plant), cm.
+    pub contact_slide_max_cm: Option<f64>,
+    /// Deepest any foot goes under the floor, cm (0 when never below).
+    pub penetration_max_cm: Option<f64>,
+    /// Frames in which a foot is more than 1 mm under the floor.
+    pub frames_below_floor: Option<usize>,
+    /// Highest a planted foot stays above the floor through a whole contact, cm.
+    pub float_in_contact_max_cm: Option<f64>,
+    /// Largest joint acceleration, m/s².
+    pub acceleration_peak_mps2: Option<f64>,
+    /// Largest acceleration spike over its neighbourhood (dimensionless).
+    pub acceleration_spike_ratio: Option<f64>,
+    /// Peak acceleration over the sources' peak (dimensionless).
+    pub acceleration_over_sources: Option<f64>,
+    /// Largest one-frame change of the root's velocity, m/s.
+    pub root_velocity_change_max_mps: Option<f64>,
+    /// That over the sources' largest (dimensionless).
+    pub root_velocity_change_over_sources: Option<f64>,
+    /// Largest change of a bone's length over the clip, cm.
+    pub bone_length_drift_max_cm: Option<f64>,
+    /// Frames in which some joint pops.
+    pub pop_frames: Option<usize>,
+}
+
+/// One foot's measures.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FootQuality {
+    /// The ankle joint's name.
+    pub foot: String,
+    /// Contacts (plants) of the foot.
+    pub contacts: usize,
+    /// Pairs of consecutive frames inside a contact, over which skate is measured.
+    pub contact_frame_pairs: usize,
+    /// Mean skate in contact, cm per frame (0 without contacts).
+    pub skate_mean_cm_per_frame: f64,
+    /// Largest skate in contact, cm per frame.
+    pub skate_max_cm_per_frame: f64,
+    /// The frame ending the largest skate.
+    pub skate_max_frame: Option<usize>,
+    /// Total skate over all contacts, cm.
+    pub skate_total_cm: f64,
+    /// The longest slide over one contact, cm.
+    pub contact_slide_max_cm: f64,
+    /// That contact's frames `[start, end)`.
+    pub contact_slide_max_frames: Option<(usize, usize)>,
+    /// Deepest under the floor, cm.
+    pub penetration_max_cm: f64,
+    /// Frames more than 1 mm under the floor.
+    pub frames_below_floor: usize,
+    /// Highest it stays above the floor through a whole contact, cm (0 without contacts).
+    pub float_in_contact_max_cm: f64,
+    /// Whether the lowest point includes the skinned mesh's sole.
+    pub sole_from_mesh: bool,
+}
+
+/// Everything measured, with where the worst values happen.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct QualityReport {
+    /// How to read the numbers.
+    pub units: &'static str,
+    /// Frames measured.
+    pub frames: usize,
+    /// The clip's frame rate: every "per frame" is at this rate.
+    pub fps: f64,
+    /// The floor plane's height, metres.
+    pub floor_height_m: f64,
+    /// The frames looked at, `[start, end)`.
+    pub window_frames: (usize, usize),
+    /// `"connected"`, `"detected"` or `"none"` (feet not found).
+    pub contacts: &'static str,
+    /// The gated measures.
+    #[serde(flatten)]
+    pub summary: QualitySummary,
+    /// Per foot.
+    pub feet: Vec<FootQuality>,
+    /// Longest stretch with a foot under the floor, seconds.
+    pub longest_below_floor_secs: f64,
+    /// Frame and joint of the peak acceleration.
+    pub acceleration_peak_at: Option<(usize, String)>,
+    /// Frame of the largest spike ratio.
+    pub acceleration_spike_frame: Option<usize>,
+    /// The sources' largest acceleration, m/s².
+    pub sources_acceleration_peak_mps2: Option<f64>,
+    /// Frame of the largest root velocity change.
+    pub root_velocity_change_frame: Option<usize>,
+    /// The sources' largest one-frame root velocity change, m/s.
+    pub sources_root_velocity_change_max_mps: Option<f64>,
+    /// The joint whose bone drifts most.
+    pub bone_length_drift_joint: Option<String>,
+    /// What an animator would be told, one line each.
+    pub findings: Vec<String>,
+}
+
+/// World positions of every joint of a clip, frame-major, in f64.
+struct Tracks {
+    fps: f64,
+    joints: usize,
+    frames: usize,
+    pos_m: Vec<DVec3>,
+}
+
+impl Tracks {
+    fn of(clip: &Clip) -> Tracks {
+        let poses = forward_kinematics(clip);
+        let pos_m = (0..clip.frame_count())
+            .flat_map(|f| poses.frame(f).iter().map(|t| t.translation.as_dvec3()))
+            .collect::<Vec<_>>();
+        Tracks { fps: clip.fps(), joints: clip.joint_count(), frames: clip.frame_count(), pos_m }
+    }
+
+    fn at(&self, frame: usize, joint: usize) -> DVec3 {
+        self.pos_m[frame * self.joints + joint]
+    }
+
+    /// `p(f+1) − 2 p(f) + p(f−1)` of `joint`, metres; `frame` must have both neighbours.
+    fn second_difference(&self, frame: usize, joint: usize) -> DVec3 {
+        self.at(frame + 1, joint) - 2.0 * self.at(frame, joint) + self.at(frame - 1, joint)
+    }
+
+    /// The frames with both neighbours.
+    fn interior(&self) -> std::ops::Range<usize> {
+        1..self.frames.saturating_sub(1)
+    }
+
+    /// Per interior frame, the largest joint acceleration (m/s²) and its joint.
+    fn peak_accelerations(&self) -> Vec<(f64, usize)> {
+        let fps2 = self.fps * self.fps;
+        self.interior()
+            .map(|f| {
+                (0..self.joints)
+                    .map(|j| (self.second_difference(f, j).length() * fps2, j))
+                    .fold((0.0, 0), |best, x| if x.0 > best.0 { x } else { best })
+            })
+            .collect()
+    }
+
+    /// Per interior frame, the one-frame change of the root's velocity, m/s.
+    fn root_velocity_changes(&self) -> Vec<f64> {
+        if self.joints == 0 {
+            return Vec::new();
+        }
+        self.interior().map(|f| self.second_difference(f, 0).length() * self.fps).collect()
+    }
+}
+
+/// The largest value and its index.
+fn max_at(values: impl IntoIterator<Item = f64>) -> Option<(f64, usize)> {
+    values.into_iter().enumerate().fold(None, |best, (i, v)| match best {
+        Some((b, _)) if b >= v => best,
+        _ => Some((v, i)),
+    })
+}
+
+/// The largest of per-interior-frame `values` (index `i` is frame `i + 1`) inside
+/// `window`, and its frame.
+fn max_in_window(values: &[f64], window: FrameRange) -> Option<(f64, usize)> {
+    let inside = values.iter().enumerate().filter(|(i, _)| window.contains(i + 1));
+    inside.fold(None, |best, (i, &v)| match best {
+        Some((b, _)) if b >= v => best,
+        _ => Some((v, i + 1)),
+    })
+}
+
+/// The spike ratio (see the module doc) of each of `peaks` (one per interior frame),
+/// comparing with the values `SPIKE_EXCLUSION_FRAMES..=half_width` indices away.
+fn spike_ratios(peaks: &[f64], half_width: usize) -> Vec<f64> {
+    let ratios = (0..peaks.len()).map(|i| {
+        let mut around: Vec<f64> = (i.saturating_sub(half_width)..=(i + half_width).min(peaks.len() - 1))
+            .filter(|&k| k.abs_diff(i) >= SPIKE_EXCLUSION_FRAMES)
+            .map(|k| peaks[k])
+            .collect();
+        if around.is_empty() {
+            return 0.0;
+        }
+        around.sort_by(f64::total_cmp);
+        peaks[i] / around[(around.len() - 1) / 2].max(QUIET_ACCELERATION_MPS2)
+    });
+    ratios.collect()
+}
+
+/// A foot of the clip: its joints, its sole's vertices and its contacts.
+struct Foot {
+    name: String,
+    joints: Vec<usize>,
+    intervals: Vec<FrameRange>,
+}
+
+/// The feet named by `contacts`, their contacts cut to `window`; findings say why a foot
+/// is not.
+fn feet_of(clip: &Clip, contacts: &Contacts, window: FrameRange, findings: &mut Vec<String>) -> Vec<Foot> {
+    let skeleton = clip.skeleton();
+    contacts
+        .feet
+        .iter()
+        .filter_map(|c| {
+            let Some(ankle) = skeleton.index_of(&c.foot) else {
+                findings.push(format!("the contacts name a foot '{}' the clip's skeleton lacks", c.foot));
+                return None;
+            };
+            let joints = (0..skeleton.len()).filter(|&j| j == ankle || skeleton.is_ancestor(ankle, j)).collect();
+            let intervals = c.intervals.iter().filter_map(|r| r.intersect(&window)).collect();
+            Some(Foot { name: c.foot.clone(), joints, intervals })
+        })
+        .collect()
+}
+
+/// Per foot and frame, the lowest height of its joints and, with a usable skinned `mesh`,
+/// of the vertices bound mostly to them; and per foot whether it has such a sole.
+fn lowest_heights(
+    clip: &Clip,
+    tracks: &Tracks,
+    feet: &[Foot],
+    mesh: Option<&Mesh>,
+    findings: &mut Vec<String>,
+) -> (Vec<Vec<f64>>, Vec<bool>) {
+    let mut lowest: Vec<Vec<f64>> = feet
+        .iter()
+        .map(|foot| {
+            (0..tracks.frames)
+                .map(|f| foot.joints.iter().map(|&j| tracks.at(f, j).y).fold(f64::INFINITY, f64::min))
+                .collect()
+        })
+        .collect();
+    let joints_only = vec![false; feet.len()];
+    let Some(mesh) = mesh else { return (lowest, joints_only) };
+    let Some(skin) = mesh.skin.as_ref() else {
+        findings.push("the mesh is not skinned, so its soles are not measured".into());
+        return (lowest, joints_only);
+    };
+    if let Err(why) = check_skin(skin, clip.skeleton(), mesh.positions.len()) {
+        findings.push(format!("the mesh's soles are not measured: {why}"));
+        return (lowest, joints_only);
+    }
+    let heaviest = |v: usize| {
+        let (joints, weights) = (&skin.joints[v], &skin.weights[v]);
+        (0..4).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).map(|k| usize::from(joints[k]))
+    };
+    let soles: Vec<Vec<usize>> = feet
+        .iter()
+        .map(|foot| {
+            (0..mesh.positions.len()).filter(|&v| heaviest(v).is_some_and(|j| foot.joints.contains(&j))).collect()
+        })
+        .collect();
+    let matrices = clip_skinning_matrices(clip, skin);
+    let joints = clip.joint_count();
+    for (per_frame, sole) in lowest.iter_mut().zip(&soles) {
+        for (f, low) in per_frame.iter_mut().enumerate() {
+            let frame_matrices = &matrices[f * joints..(f + 1) * joints];
+            for &v in sole {
+                let m = blend_matrices(frame_matrices, &skin.joints[v], &skin.weights[v]);
+                *low = low.min(f64::from(m.transform_point3(mesh.positions[v]).y));
+            }
+        }
+    }
+    (lowest, soles.iter().map(|s| !s.is_empty()).collect())
+}
+
+/// The sum of the skates (cm), 0 for none (an empty float sum is −0).
+fn sum_cm(skates: &[(f64, usize)]) -> f64 {
+    skates.iter().fold(0.0, |total, s| total + s.0)
+}
+
+/// Skate, penetration and float of one foot (see the module doc) over the frames of
+/// `window`, `lowest_m` its lowest height per frame.
+fn foot_quality(
+    tracks: &Tracks,
+    foot: &Foot,
+    lowest_m: &[f64],
+    floor_m: f64,
+    window: FrameRange,
+    sole_from_mesh: bool,
+) -> FootQuality {
+    let mut skates: Vec<(f64, usize)> = Vec::new();
+    let mut slides: Vec<(f64, (usize, usize))> = Vec::new();
+    for r in &foot.intervals {
+        let before = skates.len();
+        for f in r.start + 1..r.end {
+            let moved = foot
+                .joints
+                .iter()
+                .map(|&j| (tracks.at(f, j) - tracks.at(f - 1, j)).with_y(0.0).length())
+                .fold(f64::INFINITY, f64::min);
+            skates.push((moved * 100.0, f));
+        }
+        slides.push((sum_cm(&skates[before..]), (r.start, r.end)));
+    }
+    let worst_slide = max_at(slides.iter().map(|s| s.0));
+    let total = sum_cm(&skates);
+    let worst = max_at(skates.iter().map(|s| s.0));
+    let depth_m = |f: usize| floor_m - lowest_m[f];
+    let float_cm = foot
+        .intervals
+        .iter()
+        .filter(|r| !r.is_empty())
+        .map(|r| (r.start..r.end).map(|f| -depth_m(f)).fold(f64::INFINITY, f64::min))
+        .fold(0.0, f64::max)
+        * 100.0;
+    FootQuality {
+        foot: foot.name.clone(),
+        contacts: foot.intervals.iter().filter(|r| !r.is_empty()).count(),
+        contact_frame_pairs: skates.len(),
+        skate_mean_cm_per_frame: if skates.is_empty() { 0.0 } else { total / skates.len() as f64 },
+        skate_max_cm_per_frame: worst.map_or(0.0, |w| w.0),
+        skate_max_frame: worst.map(|w| skates[w.1].1),
+        skate_total_cm: total,
+        contact_slide_max_cm: worst_slide.map_or(0.0, |w| w.0),
+        contact_slide_max_frames: worst_slide.map(|w| slides[w.1].1),
+        penetration_max_cm: (window.start..window.end).map(depth_m).fold(0.0, f64::max) * 100.0,
+        frames_below_floor: (window.start..window.end).filter(|&f| depth_m(f) > BELOW_FLOOR_SLACK_M).count(),
+        float_in_contact_max_cm: float_cm,
+        sole_from_mesh,
+    }
+}
+
+/// Frames of `window` in which some joint pops (see the module doc), with the largest pop:
+/// (frame, joint, move in metres).
+fn pops(tracks: &Tracks, window: FrameRange) -> (usize, Option<(usize, usize, f64)>) {
+    let moved = |f: usize, j: usize| (tracks.at(f, j) - tracks.at(f - 1, j)).length();
+    let min_move_m = POP_MIN_SPEED_MPS / tracks.fps;
+    let (mut frames, mut largest): (usize, Option<(usize, usize, f64)>) = (0, None);
+    for f in window.start.max(1)..window.end {
+        let mut popped = false;
+        for j in 0..tracks.joints {
+            let around: Vec<f64> =
+                [f - 1, f + 1].into_iter().filter(|&g| g >= 1 && g < tracks.frames).map(|g| moved(g, j)).collect();
+            let here = moved(f, j);
+            let Some(neighbour) = around.into_iter().reduce(f64::max) else { continue };
+            if here > min_move_m && here > POP_RATIO * neighbour {
+                popped = true;
+                if largest.is_none_or(|l| here > l.2) {
+                    largest = Some((f, j, here));
+                }
+            }
+        }
+        frames += usize::from(popped);
+    }
+    (frames, largest)
+}
+
+/// The largest change of a bone's length over the frames of `window` (metres) and its joint.
+fn bone_length_drift(clip: &Clip, tracks: &Tracks, window: FrameRange) -> Option<(f64, usize)> {
+    let joints = clip.skeleton().joints();
+    let drift = |j: usize| {
+        let parent = joints[j].parent?;
+        let lengths = (window.start..window.end).map(|f| tracks.at(f, j).distance(tracks.at(f, parent)));
+        let (lo, hi) = lengths.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), l| (lo.min(l), hi.max(l)));
+        (hi >= lo).then_some((hi - lo, j))
+    };
+    (0..joints.len()).filter_map(drift).fold(None, |best, x| match best {
+        Some(b) if b.0 >= x.0 => Some(b),
+        _ => Some(x),
+    })
+}
+
+/// The frames of `clip` from the first to the last second of `window_secs` (both
+/// included, rounded to frames), or all of them.
+fn window_frames(clip: &Clip, window_secs: Option<(f64, f64)>) -> FrameRange {
+    let n = clip.frame_count();
+    match window_secs {
+        None => FrameRange::new(0, n),
+        // Negative or NaN seconds become frame 0 (`as` saturates and maps NaN to 0).
+        Some((first, last)) if last >= first => FrameRange::new(
+            ((first * clip.fps()).round() as usize).min(n),
+            ((last * clip.fps()).round() as usize).saturating_add(1).min(n),
+        ),
+        Some(_) => FrameRange::new(0, 0),
+    }
+}
+
+/// `value / reference`, when the reference is above round-off.
+fn ratio(value: Option<f64>, reference: Option<f64>) -> Option<f64> {
+    match (value, reference) {
+        (Some(v), Some(r)) if r > 1e-9 => Some(v / r),
+        _ => None,
+    }
+}
+
+/// The longest run of consecutive `true`s.
+fn longest_run(flags: impl Iterator<Item = bool>) -> usize {
+    flags.fold((0, 0), |(run, best), x| if x { (run + 1, best.max(run + 1)) } else { (0, best) }).1
+}
+
+/// Measures `clip` (see the module doc). `contacts` are used when they describe this clip,
+/// else contacts are detected with `options.contacts`; `sources` are the clips it was made
+/// from (any skeleton, any rate); `mesh`, skinned to the clip's skeleton, adds its soles.
+pub fn measure_quality(
+    clip: &Clip,
+    contacts: Option<&Contacts>,
+    sources: &[&Clip],
+    mesh: Option<&Mesh>,
+    options: &QualityOptions,
+) -> QualityReport {
+    let tracks = Tracks::of(clip);
+    let mut findings = Vec::new();
+    match clip.frame_count() {
+        0 => findings.push("the clip has no frames: nothing is measured".into()),
+        1 => {
+            findings.push("the clip has a single frame: nothing moves, so only the floor and bones are measured".into())
+        }
+        2 => findings.push("the clip has two frames: accelerations need three, so they are not measured".into()),
+        _ => {}
+    }
+    let window = window_frames(clip, options.window_secs);
+    if window.is_empty() && clip.frame_count() > 0 {
+        findings.push(format!(
+            "the window holds no frame of the clip ({:.3} s long): nothing is measured",
+            clip.duration_secs()
+        ));
+    }
+
+    // Feet: the connected contacts when they describe this clip, else detected ones.
+    let given = contacts.filter(|c| {
+        let fits = c.frame_count == clip.frame_count();
+        if !fits {
+            findings.push(format!(
+                "the connected contacts cover {} frames but the clip has {}: contacts were detected instead",
+                c.frame_count,
+                clip.frame_count()
+            ));
+        }
+        fits
+    });
+    let (contacts_from, feet) = match given {
+        Some(c) => ("connected", feet_of(clip, c, window, &mut findings)),
+        None => match contacts_of(clip, &forward_kinematics(clip), &options.contacts) {
+            Ok((c, _)) => ("detected", feet_of(clip, &c, window, &mut findings)),
+            Err(why) => {
+                findings.push(format!("the feet could not be found, so they are not measured: {why}"));
+                ("none", Vec::new())
+            }
+        },
+    };
+    let (lowest, soles) = lowest_heights(clip, &tracks, &feet, mesh, &mut findings);
+    let floor = options.floor_height_m;
+    let feet_quality: Vec<FootQuality> = feet
+        .iter()
+        .zip(&lowest)
+        .zip(soles)
+        .map(|((foot, low), sole)| foot_quality(&tracks, foot, low, floor, window, sole))
+        .collect();
+    let measured_feet = !feet_quality.is_empty();
+    if measured_feet && feet_quality.iter().all(|f| f.contacts == 0) && clip.frame_count() > 1 {
+        findings.push("no foot contacts: the feet never plant, so there is no skate or float to measure".into());
+    }
+    let below = |f: usize| lowest.iter().any(|l| floor - l[f] > BELOW_FLOOR_SLACK_M);
+    let frames_below = (window.start..window.end).filter(|&f| below(f)).count();
+    let longest_below_secs = longest_run((window.start..window.end).map(below)) as f64 / clip.fps();
+    let pairs: usize = feet_quality.iter().map(|f| f.contact_frame_pairs).sum();
+    let worst_foot =
+        |value: fn(&FootQuality) -> f64| measured_feet.then(|| feet_quality.iter().map(value).fold(0.0, f64::max));
+    let penetration_max_cm = worst_foot(|f| f.penetration_max_cm);
+    if let Some(depth) = penetration_max_cm.filter(|_| frames_below > 0) {
+        findings.push(format!(
+            "feet under the floor by up to {depth:.1} cm in {frames_below} frames (longest {longest_below_secs:.2} s)"
+        ));
+    }
+
+    // Accelerations and the root, against the sources' own.
+    let peaks = tracks.peak_accelerations();
+    let peak_values: Vec<f64> = peaks.iter().map(|p| p.0).collect();
+    let peak = max_in_window(&peak_values, window);
+    let half_width = ((options.neighbourhood_secs * clip.fps()).round() as usize).max(2 * SPIKE_EXCLUSION_FRAMES);
+    let spike = max_in_window(&spike_ratios(&peak_values, half_width), window);
+    let root = max_in_window(&tracks.root_velocity_changes(), window);
+    let source_tracks: Vec<Tracks> = sources.iter().map(|s| Tracks::of(s)).collect();
+    let sources_peak =
+        source_tracks.iter().flat_map(|t| t.peak_accelerations().into_iter().map(|p| p.0)).reduce(f64::max);
+    let sources_root = source_tracks.iter().flat_map(|t| t.root_velocity_changes()).reduce(f64::max);
+    if !sources.is_empty() && sources_peak.is_none() {
+        findings.push("the source clips have fewer than three frames: nothing to compare with".into());
+    }
+    let (pop_frames, largest_pop) = pops(&tracks, window);
+    if let Some((f, j, moved_m)) = largest_pop {
+        findings.push(format!(
+            "{pop_frames} frame(s) with a pop; the largest: '{}' jumps {:.1} cm into frame {f} ({:.1} m/s)",
+            clip.skeleton().joints()[j].name,
+            moved_m * 100.0,
+            moved_m * clip.fps()
+        ));
+    }
+    let drift = bone_length_drift(clip, &tracks, window);
+    let joint_name = |j: usize| clip.skeleton().joints()[j].name.clone();
+    if findings.len() > MAX_LISTED_FINDINGS {
+        let more = findings.len() - MAX_LISTED_FINDINGS;
+        findings.truncate(MAX_LISTED_FINDINGS);
+        findings.push(format!("… and {more} more"));
+    }
+
+    let summary = QualitySummary {
+        skate_max_cm_per_frame: worst_foot(|f| f.skate_max_cm_per_frame),
+        skate_mean_cm_per_frame: measured_feet.then(|| {
+            let total: f64 =
+                feet_quality.iter().map(|f| f.skate_mean_cm_per_frame * f.contact_frame_pairs as f64).sum();
+            if pairs == 0 { 0.0 } else { total / pairs as f64 }
+        }),
+        contact_slide_max_cm: worst_foot(|f| f.contact_slide_max_cm),
+        penetration_max_cm,
+        frames_below_floor: measured_feet.then_some(frames_below),
+        float_in_contact_max_cm: worst_foot(|f| f.float_in_contact_max_cm),
+        acceleration_peak_mps2: peak.map(|p| p.0),
+        acceleration_spike_ratio: spike.map(|s| s.0),
+        acceleration_over_sources: ratio(peak.map(|p| p.0), sources_peak),
+        root_velocity_change_max_mps: root.map(|r| r.0),
+        root_velocity_change_over_sources: ratio(root.map(|r| r.0), sources_root),
+        bone_length_drift_max_cm: drift.map(|d| d.0 * 100.0),
+        pop_frames: (clip.frame_count() > 1).then_some(pop_frames),
+    };
+    QualityReport {
+        units: "lengths cm, speeds m/s, accelerations m/s²; per frame = between consecutive frames at fps",
+        frames: clip.frame_count(),
+        fps: clip.fps(),
+        floor_height_m: floor,
+        window_frames: (window.start, window.end),
+        contacts: contacts_from,
+        summary,
+        feet: feet_quality,
+        longest_below_floor_secs: longest_below_secs,
+        acceleration_peak_at: peak.map(|(_, f)| (f, joint_name(peaks[f - 1].1))),
+        acceleration_spike_frame: spike.map(|s| s.1),
+        sources_acceleration_peak_mps2: sources_peak,
+        root_velocity_change_frame: root.map(|r| r.1),
+        sources_root_velocity_change_max_mps: sources_root,
+        bone_length_drift_joint: drift.map(|d| joint_name(d.1)),
+        findings,
+    }
+}
+
+/// Limits on a [`QualitySummary`]: what `kg test` holds a `motion.quality` node to. Unset
+/// limits are not checked. In an expectation file: `(max_skate_cm: 0.5, max_penetration_cm: 0.5)`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct QualityGate {
+    /// Limit on `skate_max_cm_per_frame`, cm per frame.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_skate_cm: Option<f64>,
+    /// Limit on `contact_slide_max_cm`, cm.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_contact_slide_cm: Option<f64>,
+    /// Limit on `penetration_max_cm`, cm.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_penetration_cm: Option<f64>,
+    /// Limit on `float_in_contact_max_cm`, cm.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_float_cm: Option<f64>,
+    /// Limit on `acceleration_spike_ratio`.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_spike_ratio: Option<f64>,
+    /// Limit on `acceleration_over_sources`.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_acceleration_over_sources: Option<f64>,
+    /// Limit on `root_velocity_change_max_mps`, m/s.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_root_velocity_change_mps: Option<f64>,
+    /// Limit on `root_velocity_change_over_sources`.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_root_velocity_change_over_sources: Option<f64>,
+    /// Limit on `bone_length_drift_max_cm`, cm.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_bone_drift_cm: Option<f64>,
+    /// Limit on `pop_frames`.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_pop_frames: Option<f64>,
+}
+
+impl QualityGate {
+    /// One line per limit `summary` breaks: the measure, its value and unit, the limit's
+    /// name and value. A limit on a measure that could not be taken breaks too: a gate
+    /// never passes by not looking.
+    pub fn violations(&self, summary: &QualitySummary) -> Vec<String> {
+        let count = |n: Option<usize>| n.map(|n| n as f64);
+        let checks = [
+            ("max_skate_cm", self.max_skate_cm, "skate_max_cm_per_frame", summary.skate_max_cm_per_frame, " cm/frame"),
+            (
+                "max_contact_slide_cm",
+                self.max_contact_slide_cm,
+                "contact_slide_max_cm",
+                summary.contact_slide_max_cm,
+                " cm",
+            ),
+            ("max_penetration_cm", self.max_penetration_cm, "penetration_max_cm", summary.penetration_max_cm, " cm"),
+            ("max_float_cm", self.max_float_cm, "float_in_contact_max_cm", summary.float_in_contact_max_cm, " cm"),
+            (
+                "max_spike_ratio",
+                self.max_spike_ratio,
+                "acceleration_spike_ratio",
+                summary.acceleration_spike_ratio,
+                "×",
+            ),
+            (
+                "max_acceleration_over_sources",
+                self.max_acceleration_over_sources,
+                "acceleration_over_sources",
+                summary.acceleration_over_sources,
+                "×",
+            ),
+            (
+                "max_root_velocity_change_mps",
+                self.max_root_velocity_change_mps,
+                "root_velocity_change_max_mps",
+                summary.root_velocity_change_max_mps,
+                " m/s",
+            ),
+            (
+                "max_root_velocity_change_over_sources",
+                self.max_root_velocity_change_over_sources,
+                "root_velocity_change_over_sources",
+                summary.root_velocity_change_over_sources,
+                "×",
+            ),
+            (
+                "max_bone_drift_cm",
+                self.max_bone_drift_cm,
+                "bone_length_drift_max_cm",
+                summary.bone_length_drift_max_cm,
+                " cm",
+            ),
+            ("max_pop_frames", self.max_pop_frames, "pop_frames", count(summary.pop_frames), ""),
+        ];
+        checks
+            .into_iter()
+            .filter_map(|(limit_name, limit, measure, value, unit)| {
+                let limit = limit?;
+                match value {
+                    Some(v) if v <= limit => None,
+                    Some(v) => {
+                        let shown = (v * 1000.0).round() / 1000.0;
+                        Some(format!("{measure} = {shown}{unit}, above {limit_name} {limit}"))
+                    }
+                    None => {
+                        Some(format!("{measure} was not measured (see the report's findings), so {limit_name} fails"))
+                    }
+                }
+            })
+            .collect()
+    }
+}
+
+/// Optional limits written as bare numbers (`0.5`, not `Some(0.5)`) in RON files.
+mod bare_number {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(value: &Option<f64>, s: S) -> Result<S::Ok, S::Error> {
+        match value {
+            Some(v) => s.serialize_f64(*v),
+            None => s.serialize_none(),
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+        f64::deserialize(d).map(Some)
+    }
+}
