@@ -6,9 +6,12 @@
 //!   that both `kg` and the editor call.
 //! - [`editor`]: the editor's command reducer and undo history; with the `editor`
 //!   feature, the egui node editor behind `kg edit`.
-//! - [`farm`]: plans, per-task reports and farm submission files (`kg plan`, `kg emit`).
+//! - [`farm`]: plans, task attempts, per-task reports and farm submission files (`kg plan`,
+//!   `kg run --plan`, `kg emit`).
 //! - [`output`]: how kg writes into an output folder: safe atomic writes, the folder's
 //!   lock, task leases, and the removal of temporary files of runs that died.
+//! - [`regression`]: saved graphs as regression tests (`kg test`): facts of every
+//!   output compared with `NAME.expect.ron`, and quality gates.
 //! - [`cli`]: the `kg` command line.
 
 pub mod cli;
@@ -18,5 +21,6 @@ pub mod engine;
 pub mod farm;
 pub mod graph;
 pub mod output;
+pub mod regression;
 
 pub use kinegraph_nodes as nodes;

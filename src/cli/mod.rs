@@ -21,10 +21,9 @@ mod emit;
 mod inspect;
 mod merge;
 mod plan;
-mod quality_gates;
-mod regression;
 mod run;
 mod task;
+mod test;
 mod watch;
 
 use std::path::PathBuf;
@@ -317,7 +316,7 @@ pub fn main() -> ExitCode {
         Command::Watch { graph, set, out, json, threads, cache } => {
             watch::watch_command(&graph, &set, &out, json, threads, &cache)
         }
-        Command::Test { graphs, root, bless } => regression::test_command(graphs, root.as_deref(), bless),
+        Command::Test { graphs, root, bless } => test::test_command(graphs, root.as_deref(), bless),
         #[cfg(feature = "editor")]
         Command::Edit { graph, cache } => match cache.engine().map(|engine| crate::editor::run(graph, engine)) {
             Ok(Ok(())) => 0,

@@ -1,4 +1,4 @@
-//! `kg test`: saved graphs as regression tests. Each `graphs/NAME.ron` runs into a
+//! Saved graphs as regression tests (`kg test`). Each `graphs/NAME.ron` runs into a
 //! temporary folder and the facts of every node output are compared with
 //! `graphs/NAME.expect.ron`: counts and hashes exactly, real numbers within the file's
 //! relative tolerance. `--bless` rewrites the expectations from the current results.
@@ -12,10 +12,13 @@ use kinegraph_nodes::node::Value;
 use serde::{Deserialize, Serialize};
 use sha2::Digest;
 
-use super::EXIT_FAILED;
-use super::quality_gates::gate_violations;
-use super::run::execute_compiled;
-use crate::engine::{Engine, RunReport, compile_file};
+pub mod quality_gates;
+
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use self::quality_gates::gate_violations;
+use crate::engine::{Engine, RunOptions, RunReport, compile_file};
 use crate::graph::GraphFile;
 
 /// Checkable facts about one output value.
@@ -94,7 +97,7 @@ pub struct Expectation {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub requires: Vec<String>,
     /// Limits on the reports of `motion.quality` nodes, by node id (see
-    /// [`super::quality_gates`]); a run beyond one fails, blessed or not.
+    /// [`quality_gates`]); a run beyond one fails, blessed or not.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub quality: BTreeMap<String, QualityGate>,
     /// Facts per `node.port`.
@@ -394,15 +397,15 @@ fn missing_data(graph: &Path, expected: &Expectation, ci: bool) -> Option<GraphT
     })
 }
 
-/// Runs one graph and compares (or blesses).
-pub fn test_graph(engine: &Engine, graph: &Path, bless: bool) -> GraphTest {
+/// Runs one graph and compares (or blesses); setting `cancel` stops the run.
+pub fn test_graph(engine: &Engine, graph: &Path, bless: bool, cancel: &Arc<AtomicBool>) -> GraphTest {
     let existing = read_expectation(graph);
     if let Some(Ok(expected)) = &existing
         && let Some(outcome) = missing_data(graph, expected, std::env::var_os("CI").is_some())
     {
         return outcome;
     }
-    match run_and_compare(engine, graph, bless, existing) {
+    match run_and_compare(engine, graph, bless, existing, cancel) {
         problems if problems.is_empty() => GraphTest::Passed,
         problems => GraphTest::Failed(problems),
     }
@@ -413,6 +416,7 @@ fn run_and_compare(
     graph: &Path,
     bless: bool,
     existing: Option<Result<Expectation, String>>,
+    cancel: &Arc<AtomicBool>,
 ) -> Vec<String> {
     let mut loaded = match GraphFile::load_with(graph, &[], engine.registry()) {
         Ok(l) => l,
@@ -431,11 +435,11 @@ fn run_and_compare(
     };
     // Every node's output is a fact, so every node is a target: none is skipped because
     // what reads it came from the cache (the engine is shared by the graphs under test).
-    let every_node = Some(compiled.nodes.iter().map(|n| n.id.clone()).collect());
-    let report = match execute_compiled(engine, &loaded, &compiled, Some(out_dir.path()), None, every_node, false) {
-        Ok(r) => r,
-        Err(_) => return vec!["the graph could not run (see above)".into()],
-    };
+    let mut options = RunOptions::new(loaded.base_dir());
+    options.targets = Some(compiled.nodes.iter().map(|n| n.id.clone()).collect());
+    options.out_dir = Some(out_dir.path().to_path_buf());
+    options.cancel = cancel.clone();
+    let report = engine.run(&compiled, &options);
     let mut problems: Vec<String> = report
         .nodes
         .iter()
@@ -491,7 +495,7 @@ fn use_corpus_dir(
 }
 
 /// The first screen of a failure: per output, how many facts differ, before the detail.
-fn summary(problems: &[String]) -> Vec<String> {
+pub fn summary(problems: &[String]) -> Vec<String> {
     let mut per_output: BTreeMap<&str, usize> = BTreeMap::new();
     for p in problems {
         let key = p.split([':', '.', '[']).next().unwrap_or(p);
@@ -504,50 +508,6 @@ fn summary(problems: &[String]) -> Vec<String> {
         lines.push(format!("… and {more} more outputs"));
     }
     lines
-}
-
-pub(super) fn test_command(graphs: Vec<PathBuf>, root: Option<&Path>, bless: bool) -> u8 {
-    let explicit = !graphs.is_empty();
-    let graphs: Vec<PathBuf> = if explicit {
-        // A shell glob over a folder brings the expectation files too: they are not graphs.
-        graphs.into_iter().filter(|g| !g.to_string_lossy().ends_with(".expect.ron")).collect()
-    } else {
-        let dir = root.unwrap_or(Path::new("graphs"));
-        if !dir.is_dir() {
-            eprintln!("kg test: {} is not a folder of graphs (give --root DIR or graph files)", dir.display());
-            return super::EXIT_INVALID;
-        }
-        graphs_in(dir)
-    };
-    let engine = Engine::new(kinegraph_nodes::builtin::registry());
-    let (mut passed, mut failed, mut skipped) = (0, 0, 0);
-    for graph in &graphs {
-        match test_graph(&engine, graph, bless) {
-            GraphTest::Passed => {
-                passed += 1;
-                eprintln!("{} {}", if bless { "blessed" } else { "ok     " }, graph.display());
-            }
-            GraphTest::Skipped(why) => {
-                skipped += 1;
-                eprintln!("skipped {}: {why}", graph.display());
-            }
-            GraphTest::Failed(problems) => {
-                failed += 1;
-                eprintln!("FAILED  {}: {} difference(s)", graph.display(), problems.len());
-                if problems.len() > 1 {
-                    for line in summary(&problems) {
-                        eprintln!("        {line}");
-                    }
-                    eprintln!("        detail:");
-                }
-                for p in problems {
-                    eprintln!("        {p}");
-                }
-            }
-        }
-    }
-    outln!("kg test: {passed} passed, {failed} failed, {skipped} skipped");
-    if failed > 0 { EXIT_FAILED } else { 0 }
 }
 
 #[cfg(test)]
