@@ -431,3 +431,20 @@ fn kg_test_runs_from_anywhere_on_graphs_only_and_honours_kg_shared_data() {
     // A folder that is not there is a usage error, not "0 passed".
     assert_eq!(kg_test(&["--root", "no/such/folder"], None).status.code(), Some(2));
 }
+
+#[test]
+fn a_closed_standard_error_leaves_the_exit_code_the_commands_own() {
+    // `kg run … 2>&1 | head` closes the pipe before kg reports: the messages are lost,
+    // the exports and the exit code are not (eprintln! would panic with exit 101).
+    let out = tempfile::tempdir().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_kg"))
+        .args(["run", "graphs/demo.ron", "--out", out.path().to_str().unwrap()])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stderr.take());
+    assert_eq!(child.wait().unwrap().code(), Some(0));
+    assert!(out.path().join("mannequin_walk.glb").is_file());
+}

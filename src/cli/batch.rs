@@ -144,13 +144,13 @@ pub(super) fn batch_command(
     if let Err(e) = GraphFile::load_with(graph, settings, engine.registry())
         .and_then(|l| l.graph.resolve(&input.name).map(|_| ()).map_err(|e| format!("--input {}: {e}", input.name)))
     {
-        eprintln!("{e}");
+        errln!("{e}");
         return EXIT_INVALID;
     }
     let inputs = match expand_glob(input) {
         Ok(inputs) => inputs,
         Err(e) => {
-            eprintln!("{e}");
+            errln!("{e}");
             return EXIT_INVALID;
         }
     };
@@ -158,7 +158,7 @@ pub(super) fn batch_command(
     let _lock = match OutLock::exclusive(out) {
         Ok(lock) => lock,
         Err(e) => {
-            eprintln!("{e}");
+            errln!("{e}");
             return EXIT_BUSY;
         }
     };
@@ -207,19 +207,19 @@ pub(super) fn batch_command(
     });
     let report_text = serde_json::to_string_pretty(&report).unwrap_or_default();
     if let Err(e) = save_within(out, Path::new(BATCH_REPORT), report_text.as_bytes()) {
-        eprintln!("warning: could not save batch_report.json: {e}");
+        errln!("warning: could not save batch_report.json: {e}");
     }
     if json {
         outln!("{report_text}");
     } else {
-        eprintln!("{:<9} {:>8}  {:<40} detail", "status", "seconds", "input");
+        errln!("{:<9} {:>8}  {:<40} detail", "status", "seconds", "input");
         for r in &runs {
             let detail = r.error.clone().unwrap_or_else(|| format!("{} files", r.files_written.len()));
-            eprintln!("{:<9} {:>8.3}  {:<40} {detail}", r.status.label(), r.seconds, r.input.display());
+            errln!("{:<9} {:>8.3}  {:<40} {detail}", r.status.label(), r.seconds, r.input.display());
         }
         let stopped =
             if cancelled + not_run > 0 { format!(", {cancelled} cancelled, {not_run} not run") } else { String::new() };
-        eprintln!(
+        errln!(
             "{} runs: {ok} ok, {failed} failed{stopped}, {:.2} s; report in {}",
             runs.len(),
             started.elapsed().as_secs_f64(),

@@ -90,14 +90,14 @@ pub(super) fn emit_command(args: &EmitArgs) -> u8 {
     let plan = match Plan::read(&args.plan) {
         Ok(p) => p,
         Err(e) => {
-            eprintln!("{e}");
+            errln!("{e}");
             return EXIT_INVALID;
         }
     };
     let text = match emit(args.target, &plan, &options(args, &plan)) {
         Ok(t) => t,
         Err(e) => {
-            eprintln!("{}: {e}", args.plan.display());
+            errln!("{}: {e}", args.plan.display());
             return EXIT_INVALID;
         }
     };
@@ -108,11 +108,11 @@ pub(super) fn emit_command(args: &EmitArgs) -> u8 {
         }
         Some(path) => match save_file(path, text.as_bytes()) {
             Ok(()) => {
-                eprintln!("{}: {} tasks for {}", path.display(), plan.tasks.len(), args.target.name());
+                errln!("{}: {} tasks for {}", path.display(), plan.tasks.len(), args.target.name());
                 0
             }
             Err(e) => {
-                eprintln!("{e}");
+                errln!("{e}");
                 EXIT_INVALID
             }
         },

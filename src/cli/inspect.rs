@@ -115,7 +115,7 @@ pub(super) fn inspect_command(path: &Path, json: bool) -> u8 {
             0
         }
         Err(e) => {
-            eprintln!("{e}");
+            errln!("{e}");
             EXIT_INVALID
         }
     }

@@ -14,13 +14,13 @@ pub(super) fn merge_command(plan_path: &Path, out: &Path, summary_path: Option<&
     let plan = match Plan::read(plan_path) {
         Ok(p) => p,
         Err(e) => {
-            eprintln!("{e}");
+            errln!("{e}");
             return EXIT_INVALID;
         }
     };
     let summary = merge(&plan, out);
     for w in &summary.warnings {
-        eprintln!("warning: {w}");
+        errln!("warning: {w}");
     }
     let mut text = serde_json::to_string_pretty(&summary).unwrap_or_default();
     text.push('\n');
@@ -30,19 +30,19 @@ pub(super) fn merge_command(plan_path: &Path, out: &Path, summary_path: Option<&
     };
     let target = summary_path.map(Path::to_path_buf).unwrap_or_else(|| out.join(SUMMARY_FILE));
     if let Err(e) = saved {
-        eprintln!("cannot save the summary: {e}");
+        errln!("cannot save the summary: {e}");
         return EXIT_FAILED;
     }
     if json {
         out!("{text}");
     } else {
-        eprintln!("{:<8} {:>8}  {:<5} task", "status", "seconds", "index");
+        errln!("{:<8} {:>8}  {:<5} task", "status", "seconds", "index");
         for t in &summary.per_task {
             let error = t.error.as_deref().map(|e| format!(" {e}")).unwrap_or_default();
-            eprintln!("{:<8} {:>8.3}  {:<5} {}{error}", t.status, t.seconds, t.index, t.id);
+            errln!("{:<8} {:>8.3}  {:<5} {}{error}", t.status, t.seconds, t.index, t.id);
         }
         let counts: Vec<String> = summary.counts.iter().map(|(k, v)| format!("{v} {k}")).collect();
-        eprintln!(
+        errln!(
             "{} tasks: {}; {:.2} s in all; summary in {}",
             summary.tasks,
             counts.join(", "),

@@ -15,6 +15,16 @@ macro_rules! outln {
     ($($arg:tt)*) => { $crate::cli::write_stdout(format_args!("{}\n", format_args!($($arg)*))) };
 }
 
+/// Writes to standard error through [`write_stderr`], like `eprint!`.
+macro_rules! err {
+    ($($arg:tt)*) => { $crate::cli::write_stderr(format_args!($($arg)*)) };
+}
+
+/// Writes a line to standard error through [`write_stderr`], like `eprintln!`.
+macro_rules! errln {
+    ($($arg:tt)*) => { $crate::cli::write_stderr(format_args!("{}\n", format_args!($($arg)*))) };
+}
+
 mod batch;
 mod catalogue;
 mod emit;
@@ -63,9 +73,17 @@ pub fn write_stdout(args: std::fmt::Arguments<'_>) {
     if let Err(e) = stdout.write_fmt(args).and_then(|()| stdout.flush()) {
         CLOSED.store(true, Ordering::Relaxed);
         if e.kind() != std::io::ErrorKind::BrokenPipe {
-            eprintln!("warning: cannot write to standard output: {e}");
+            errln!("warning: cannot write to standard output: {e}");
         }
     }
+}
+
+/// Writes to standard error for `err!` and `errln!`. A closed pipe (`kg run … 2>&1 |
+/// head`) drops the messages: the command still ends with its own exit code, where
+/// `eprintln!` would panic (exit 101) half way through writing outputs.
+pub fn write_stderr(args: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    let _ = std::io::stderr().lock().write_fmt(args);
 }
 
 /// kinegraph's headless runner.
@@ -277,7 +295,7 @@ impl CacheArgs {
         match DiskCache::open(dir, self.cache_max_mib.saturating_mul(1 << 20)) {
             Ok(disk) => Ok(engine.with_disk_cache(disk)),
             Err(e) => {
-                eprintln!("--cache: {e}");
+                errln!("--cache: {e}");
                 Err(EXIT_INVALID)
             }
         }
@@ -295,7 +313,7 @@ pub fn main() -> ExitCode {
                 }
                 (_, _, Some(graph)) => run::run_command(&graph, &set, &out, json, threads, targets, &cache),
                 _ => {
-                    eprintln!("kg run: give a GRAPH, or --plan and --task-index");
+                    errln!("kg run: give a GRAPH, or --plan and --task-index");
                     EXIT_INVALID
                 }
             }
@@ -321,7 +339,7 @@ pub fn main() -> ExitCode {
         Command::Edit { graph, cache } => match cache.engine().map(|engine| crate::editor::run(graph, engine)) {
             Ok(Ok(())) => 0,
             Ok(Err(e)) => {
-                eprintln!("error: {e}");
+                errln!("error: {e}");
                 EXIT_FAILED
             }
             Err(code) => code,

@@ -18,17 +18,17 @@ pub(super) fn plan_command(
     let plan = match make_plan(graph, inputs, settings, upstream_out, out, &registry) {
         Ok(plan) => plan,
         Err(e) => {
-            eprint!("{e}");
+            err!("{e}");
             if !e.ends_with('\n') {
-                eprintln!();
+                errln!("");
             }
             return EXIT_INVALID;
         }
     };
     if let Err(e) = save_file(out, plan.to_json().as_bytes()) {
-        eprintln!("{e}");
+        errln!("{e}");
         return EXIT_INVALID;
     }
-    eprintln!("{}: {} tasks of {}", out.display(), plan.tasks.len(), graph.display());
+    errln!("{}: {} tasks of {}", out.display(), plan.tasks.len(), graph.display());
     0
 }

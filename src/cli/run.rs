@@ -28,7 +28,7 @@ pub fn cancel_flag() -> Arc<AtomicBool> {
         let flag = Arc::new(AtomicBool::new(false));
         let handler_flag = flag.clone();
         if let Err(e) = ctrlc::set_handler(move || handler_flag.store(true, Ordering::Relaxed)) {
-            eprintln!("warning: Ctrl-C and SIGTERM will not cancel cleanly: {e}");
+            errln!("warning: Ctrl-C and SIGTERM will not cancel cleanly: {e}");
         }
         flag
     })
@@ -46,7 +46,7 @@ pub fn execute(
     progress: bool,
 ) -> Result<RunReport, u8> {
     let compiled = compile_file(loaded, engine.registry()).map_err(|e| {
-        eprint!("{e}");
+        err!("{e}");
         EXIT_INVALID
     })?;
     execute_compiled(engine, loaded, &compiled, out, threads, targets, progress)
@@ -65,14 +65,14 @@ pub fn execute_compiled(
     if let Some(targets) = &targets {
         let unknown: Vec<&String> = targets.iter().filter(|t| compiled.index_of(t).is_none()).collect();
         if !unknown.is_empty() {
-            eprintln!("{}: --target names unknown nodes: {unknown:?}", loaded.path.display());
+            errln!("{}: --target names unknown nodes: {unknown:?}", loaded.path.display());
             return Err(EXIT_INVALID);
         }
     }
     if let Some(out) = out
         && let Err(e) = std::fs::create_dir_all(out)
     {
-        eprintln!("{}: cannot create the output folder: {e}", out.display());
+        errln!("{}: cannot create the output folder: {e}", out.display());
         return Err(EXIT_INVALID);
     }
     let bar = (progress && std::io::stderr().is_terminal()).then(|| {
@@ -118,26 +118,20 @@ pub fn print_report(graph: &Path, report: &RunReport) {
             NodeStatus::Blocked => "blocked",
             NodeStatus::Cancelled => "cancelled",
         };
-        eprintln!("  {status:<9} {id} ({}) {:.3} s", node.kind, node.seconds);
+        errln!("  {status:<9} {id} ({}) {:.3} s", node.kind, node.seconds);
         for w in &node.warnings {
-            eprintln!("            warning: {w}");
+            errln!("            warning: {w}");
         }
         if let Some(e) = &node.error {
-            eprintln!("            {e}");
+            errln!("            {e}");
         }
     }
     for f in &report.files_written {
-        eprintln!("  wrote {}", f.display());
+        errln!("  wrote {}", f.display());
     }
     let failed =
         report.count(NodeStatus::Error) + report.count(NodeStatus::Blocked) + report.count(NodeStatus::Cancelled);
-    eprintln!(
-        "{}: {} nodes, {} failed or blocked, {:.3} s",
-        graph.display(),
-        report.nodes.len(),
-        failed,
-        report.seconds
-    );
+    errln!("{}: {} nodes, {} failed or blocked, {:.3} s", graph.display(), report.nodes.len(), failed, report.seconds);
 }
 
 /// The `--json` report object; `status` is `ok`, `failed` or `cancelled`.
@@ -188,7 +182,7 @@ pub(super) fn run_command(
     let loaded = match GraphFile::load_with(graph, settings, engine.registry()) {
         Ok(l) => l,
         Err(e) => {
-            eprintln!("{e}");
+            errln!("{e}");
             return EXIT_INVALID;
         }
     };
@@ -197,7 +191,7 @@ pub(super) fn run_command(
     let _lock = match OutLock::exclusive(out) {
         Ok(lock) => lock,
         Err(e) => {
-            eprintln!("{e}");
+            errln!("{e}");
             return EXIT_BUSY;
         }
     };
@@ -235,14 +229,14 @@ pub(super) fn check_command(graphs: &[PathBuf], json: bool) -> u8 {
         match &outcome {
             Ok(()) => {
                 if !json {
-                    eprintln!("{}: ok", path.display());
+                    errln!("{}: ok", path.display());
                 }
             }
             Err(problems) => {
                 worst = EXIT_INVALID;
                 if !json {
                     for p in problems {
-                        eprintln!("{p}");
+                        errln!("{p}");
                     }
                 }
             }
@@ -287,14 +281,14 @@ pub(super) fn convert_command(input: &Path, output: &Path, settings: &[Setting])
     let mut graph = match convert_graph(input, output, engine.registry()) {
         Ok(g) => g,
         Err(e) => {
-            eprintln!("{e}");
+            errln!("{e}");
             return EXIT_INVALID;
         }
     };
     let prefixed: Vec<Setting> =
         settings.iter().map(|s| Setting { name: format!("load.{}", s.name), value: s.value.clone() }).collect();
     if let Err(e) = Overrides(prefixed).apply(&mut graph, engine.registry()) {
-        eprintln!("--set {e}");
+        errln!("--set {e}");
         return EXIT_INVALID;
     }
     let out_dir = output.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
@@ -314,7 +308,7 @@ pub(super) fn fmt_command(graphs: &[PathBuf], check: bool) -> u8 {
         let loaded = match document::load_file(path) {
             Ok(l) => l,
             Err(e) => {
-                eprintln!("{e}");
+                errln!("{e}");
                 code = EXIT_INVALID;
                 continue;
             }
@@ -325,19 +319,19 @@ pub(super) fn fmt_command(graphs: &[PathBuf], check: bool) -> u8 {
             continue;
         }
         if check {
-            eprintln!("{}: not in canonical form (run kg fmt)", path.display());
+            errln!("{}: not in canonical form (run kg fmt)", path.display());
             code = code.max(EXIT_FAILED);
         } else if loaded.source.has_comments() {
-            eprintln!(
+            errln!(
                 "{}: not rewritten: it has comments, which the canonical form cannot keep (remove them to format it)",
                 path.display()
             );
             code = code.max(EXIT_FAILED);
         } else if let Err(e) = document::save_file(&loaded.doc, path) {
-            eprintln!("{e}");
+            errln!("{e}");
             code = EXIT_INVALID;
         } else {
-            eprintln!(
+            errln!(
                 "{}: rewritten{}",
                 path.display(),
                 if loaded.file_version < document::written_version(&loaded.doc) { " (migrated)" } else { "" }

@@ -22,7 +22,7 @@ use crate::output::{Lease, OutLock};
 
 /// Prints `message` and gives the exit code for an invalid plan, task or input.
 fn invalid(message: impl std::fmt::Display) -> u8 {
-    eprintln!("{message}");
+    errln!("{message}");
     EXIT_INVALID
 }
 
@@ -77,14 +77,14 @@ pub(super) fn task_command(
     let _lock = match OutLock::shared(out) {
         Ok(lock) => lock,
         Err(e) => {
-            eprintln!("{e}");
+            errln!("{e}");
             return EXIT_BUSY;
         }
     };
     let _lease = match Lease::take(out, &task.id) {
         Ok(lease) => lease,
         Err(e) => {
-            eprintln!("{}: task {index}: {e}", plan_path.display());
+            errln!("{}: task {index}: {e}", plan_path.display());
             return EXIT_BUSY;
         }
     };
@@ -98,7 +98,7 @@ pub(super) fn task_command(
             error: None,
             ..previous
         };
-        eprintln!(
+        errln!(
             "task {index} ({}): already done, {} outputs present with matching hashes; nothing to do",
             task.id,
             report.outputs.len()
@@ -160,11 +160,11 @@ pub(super) fn task_command(
     };
     match (report.status, &report.error) {
         (TaskStatus::Ok, _) => {
-            eprintln!("task {index} ({}): ok, {} outputs, {:.3} s", task.id, report.outputs.len(), report.seconds)
+            errln!("task {index} ({}): ok, {} outputs, {:.3} s", task.id, report.outputs.len(), report.seconds)
         }
-        (TaskStatus::Cancelled, _) => eprintln!("task {index} ({}): cancelled by a signal; nothing kept", task.id),
-        (_, Some(e)) => eprintln!("task {index} ({}): FAILED: {e}", task.id),
-        (_, None) => eprintln!("task {index} ({}): FAILED (exit code {})", task.id, report.exit_code),
+        (TaskStatus::Cancelled, _) => errln!("task {index} ({}): cancelled by a signal; nothing kept", task.id),
+        (_, Some(e)) => errln!("task {index} ({}): FAILED: {e}", task.id),
+        (_, None) => errln!("task {index} ({}): FAILED (exit code {})", task.id, report.exit_code),
     }
     finish(&report, out, json)
 }
@@ -173,7 +173,7 @@ pub(super) fn task_command(
 /// exit code.
 fn finish(report: &TaskReport, out: &Path, json: bool) -> u8 {
     if let Err(e) = report.write(out) {
-        eprintln!("{e}");
+        errln!("{e}");
         return EXIT_FAILED.max(report.exit_code);
     }
     if json {

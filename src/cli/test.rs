@@ -16,7 +16,7 @@ pub(super) fn test_command(graphs: Vec<PathBuf>, root: Option<&Path>, bless: boo
     } else {
         let dir = root.unwrap_or(Path::new("graphs"));
         if !dir.is_dir() {
-            eprintln!("kg test: {} is not a folder of graphs (give --root DIR or graph files)", dir.display());
+            errln!("kg test: {} is not a folder of graphs (give --root DIR or graph files)", dir.display());
             return EXIT_INVALID;
         }
         graphs_in(dir)
@@ -28,23 +28,23 @@ pub(super) fn test_command(graphs: Vec<PathBuf>, root: Option<&Path>, bless: boo
         match test_graph(&engine, graph, bless, &cancel) {
             GraphTest::Passed => {
                 passed += 1;
-                eprintln!("{} {}", if bless { "blessed" } else { "ok     " }, graph.display());
+                errln!("{} {}", if bless { "blessed" } else { "ok     " }, graph.display());
             }
             GraphTest::Skipped(why) => {
                 skipped += 1;
-                eprintln!("skipped {}: {why}", graph.display());
+                errln!("skipped {}: {why}", graph.display());
             }
             GraphTest::Failed(problems) => {
                 failed += 1;
-                eprintln!("FAILED  {}: {} difference(s)", graph.display(), problems.len());
+                errln!("FAILED  {}: {} difference(s)", graph.display(), problems.len());
                 if problems.len() > 1 {
                     for line in summary(&problems) {
-                        eprintln!("        {line}");
+                        errln!("        {line}");
                     }
-                    eprintln!("        detail:");
+                    errln!("        detail:");
                 }
                 for p in problems {
-                    eprintln!("        {p}");
+                    errln!("        {p}");
                 }
             }
         }

@@ -37,7 +37,7 @@ pub(super) fn watch_command(
     let mut watcher = match notify::recommended_watcher(tx) {
         Ok(w) => w,
         Err(e) => {
-            eprintln!("kg watch: cannot watch files here: {e}");
+            errln!("kg watch: cannot watch files here: {e}");
             return EXIT_FAILED;
         }
     };
@@ -45,7 +45,7 @@ pub(super) fn watch_command(
     let _lock = match OutLock::exclusive(out) {
         Ok(lock) => lock,
         Err(e) => {
-            eprintln!("{e}");
+            errln!("{e}");
             return EXIT_BUSY;
         }
     };
@@ -65,18 +65,18 @@ pub(super) fn watch_command(
                     Ok(()) => {
                         folders.insert(folder.to_path_buf());
                     }
-                    Err(e) => eprintln!("warning: {} will not be watched: {e}", folder.display()),
+                    Err(e) => errln!("warning: {} will not be watched: {e}", folder.display()),
                 }
             }
         }
-        eprintln!(
+        errln!(
             "kg watch: ran in {:.0} ms; watching {} file(s) — Ctrl-C stops",
             started.elapsed().as_secs_f64() * 1e3,
             files.len()
         );
         let changed = loop {
             if cancel.load(Ordering::Relaxed) {
-                eprintln!("kg watch: stopped");
+                errln!("kg watch: stopped");
                 return 0;
             }
             match rx.recv_timeout(Duration::from_millis(50)) {
@@ -94,14 +94,14 @@ pub(super) fn watch_command(
                         break path.clone();
                     }
                 }
-                Ok(Err(e)) => eprintln!("warning: file watching: {e}"),
+                Ok(Err(e)) => errln!("warning: file watching: {e}"),
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => return EXIT_FAILED,
             }
         };
         std::thread::sleep(SETTLE);
         while rx.try_recv().is_ok() {}
-        eprintln!("kg watch: {} changed", changed.display());
+        errln!("kg watch: {} changed", changed.display());
     }
 }
 
@@ -119,7 +119,7 @@ fn run_once(
     let loaded = match GraphFile::load_with(graph, settings, engine.registry()) {
         Ok(l) => l,
         Err(e) => {
-            eprintln!("{e}");
+            errln!("{e}");
             return files;
         }
     };
@@ -127,7 +127,7 @@ fn run_once(
     let compiled = match compile_file(&loaded, engine.registry()) {
         Ok(compiled) => compiled,
         Err(e) => {
-            eprint!("{e}");
+            err!("{e}");
             if json {
                 outln!("{}", serde_json::json!({ "graph": graph, "exit_code": EXIT_INVALID, "ok": false }));
             }
