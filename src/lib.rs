@@ -13,8 +13,10 @@
 //! - [`regression`]: saved graphs as regression tests (`kg test`): facts of every
 //!   output compared with `NAME.expect.ron`, and quality gates.
 //! - [`cli`]: the `kg` command line.
+//! - [`digest`]: SHA-256 of bytes and files, one way for every part.
 
 pub mod cli;
+pub mod digest;
 pub mod document;
 pub mod editor;
 pub mod engine;

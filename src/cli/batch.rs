@@ -133,12 +133,8 @@ pub(super) fn batch_command(
     jobs: Option<usize>,
     settings: &[Setting],
     json: bool,
-    cache: &super::CacheArgs,
+    engine: Engine,
 ) -> u8 {
-    let engine = match cache.engine() {
-        Ok(engine) => engine,
-        Err(code) => return code,
-    };
     let cancel = cancel_flag();
     // Validate the graph and the input name once, before any work.
     if let Err(e) = GraphFile::load_with(graph, settings, engine.registry())

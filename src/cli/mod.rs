@@ -287,16 +287,16 @@ struct CacheArgs {
 }
 
 impl CacheArgs {
-    /// An engine over the built-in nodes, with the cache folder when one is given; an
-    /// unusable folder is reported and gives the exit code.
-    fn engine(&self) -> Result<Engine, u8> {
+    /// Runs `command` with an engine over the built-in nodes, with the cache folder when
+    /// one is given; an unusable folder is reported and gives the exit code instead.
+    fn run(&self, command: impl FnOnce(Engine) -> u8) -> u8 {
         let engine = Engine::new(kinegraph_nodes::builtin::registry());
-        let Some(dir) = &self.cache else { return Ok(engine) };
+        let Some(dir) = &self.cache else { return command(engine) };
         match DiskCache::open(dir, self.cache_max_mib.saturating_mul(1 << 20)) {
-            Ok(disk) => Ok(engine.with_disk_cache(disk)),
+            Ok(disk) => command(engine.with_disk_cache(disk)),
             Err(e) => {
                 errln!("--cache: {e}");
-                Err(EXIT_INVALID)
+                EXIT_INVALID
             }
         }
     }
@@ -309,9 +309,11 @@ pub fn main() -> ExitCode {
         Command::Run { graph, set, plan, task_index, out, json, threads, targets, cache } => {
             match (plan, task_index, graph) {
                 (Some(plan), Some(index), graph) => {
-                    task::task_command(&plan, index, graph.as_deref(), &out, threads, json, &cache)
+                    cache.run(|engine| task::task_command(&plan, index, graph.as_deref(), &out, threads, json, engine))
                 }
-                (_, _, Some(graph)) => run::run_command(&graph, &set, &out, json, threads, targets, &cache),
+                (_, _, Some(graph)) => {
+                    cache.run(|engine| run::run_command(&graph, &set, &out, json, threads, targets, engine))
+                }
                 _ => {
                     errln!("kg run: give a GRAPH, or --plan and --task-index");
                     EXIT_INVALID
@@ -328,22 +330,21 @@ pub fn main() -> ExitCode {
         Command::Inspect { file, json } => inspect::inspect_command(&file, json),
         Command::Convert { input, output, set } => run::convert_command(&input, &output, &set),
         Command::Batch { graph, input, out, jobs, set, json, cache } => {
-            batch::batch_command(&graph, &input, &out, jobs, &set, json, &cache)
+            cache.run(|engine| batch::batch_command(&graph, &input, &out, jobs, &set, json, engine))
         }
         Command::Fmt { graphs, check } => run::fmt_command(&graphs, check),
         Command::Watch { graph, set, out, json, threads, cache } => {
-            watch::watch_command(&graph, &set, &out, json, threads, &cache)
+            cache.run(|engine| watch::watch_command(&graph, &set, &out, json, threads, engine))
         }
         Command::Test { graphs, root, bless } => test::test_command(graphs, root.as_deref(), bless),
         #[cfg(feature = "editor")]
-        Command::Edit { graph, cache } => match cache.engine().map(|engine| crate::editor::run(graph, engine)) {
-            Ok(Ok(())) => 0,
-            Ok(Err(e)) => {
+        Command::Edit { graph, cache } => cache.run(|engine| match crate::editor::run(graph, engine) {
+            Ok(()) => 0,
+            Err(e) => {
                 errln!("error: {e}");
                 EXIT_FAILED
             }
-            Err(code) => code,
-        },
+        }),
     };
     ExitCode::from(code)
 }

@@ -172,12 +172,8 @@ pub(super) fn run_command(
     json: bool,
     threads: Option<usize>,
     targets: Vec<String>,
-    cache: &super::CacheArgs,
+    engine: Engine,
 ) -> u8 {
-    let engine = match cache.engine() {
-        Ok(engine) => engine,
-        Err(code) => return code,
-    };
     let cancel = cancel_flag();
     let loaded = match GraphFile::load_with(graph, settings, engine.registry()) {
         Ok(l) => l,

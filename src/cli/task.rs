@@ -14,6 +14,7 @@ use std::time::Instant;
 use super::batch::{BatchRun, run_once};
 use super::run::Setting;
 use super::{EXIT_BUSY, EXIT_CANCELLED, EXIT_FAILED, EXIT_INVALID};
+use crate::engine::Engine;
 use crate::farm::attempt::{check_inputs, publish, remove_stale_attempts, staging_prefix};
 use crate::farm::plan::{normalised_absolute, plan_dir, sha256_file};
 use crate::farm::report::serde_name;
@@ -34,7 +35,7 @@ pub(super) fn task_command(
     out: &Path,
     threads: Option<usize>,
     json: bool,
-    cache: &super::CacheArgs,
+    engine: Engine,
 ) -> u8 {
     let started = Instant::now();
     // From here on a signal cancels cleanly instead of killing the task.
@@ -121,10 +122,6 @@ pub(super) fn task_command(
         name: name.clone(),
         value: normalised_absolute(&base.join(&file.path)).to_string_lossy().into_owned(),
     }));
-    let engine = match cache.engine() {
-        Ok(engine) => engine,
-        Err(code) => return code,
-    };
     let label = PathBuf::from(&task.id);
     let mut run: BatchRun = run_once(&engine, &graph_path, &settings, &label, &staging, threads);
     let outputs = if run.exit_code == 0 {

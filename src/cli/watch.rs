@@ -26,12 +26,8 @@ pub(super) fn watch_command(
     out: &Path,
     json: bool,
     threads: Option<usize>,
-    cache: &super::CacheArgs,
+    engine: Engine,
 ) -> u8 {
-    let engine = match cache.engine() {
-        Ok(engine) => engine,
-        Err(code) => return code,
-    };
     let cancel = cancel_flag();
     let (tx, rx) = channel();
     let mut watcher = match notify::recommended_watcher(tx) {

@@ -11,7 +11,6 @@
 //! bound by deleting the least recently used entries.
 
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, SystemTime};
 
@@ -80,11 +79,9 @@ pub enum Lookup {
 pub struct DiskCache {
     dir: PathBuf,
     max_bytes: u64,
-    /// Cleared after the first failed store, so a read-only or full folder warns once
+    /// Cleared by the first failed store, so a read-only or full folder warns once
     /// and the run goes on uncached.
     writable: AtomicBool,
-    /// Why stores stopped, reported once.
-    store_failure: Mutex<Option<String>>,
 }
 
 impl DiskCache {
@@ -95,12 +92,7 @@ impl DiskCache {
         if !std::fs::metadata(dir).map_err(folder_error)?.is_dir() {
             return Err(folder_error(std::io::Error::other("not a folder")));
         }
-        Ok(DiskCache {
-            dir: dir.to_path_buf(),
-            max_bytes,
-            writable: AtomicBool::new(true),
-            store_failure: Mutex::new(None),
-        })
+        Ok(DiskCache { dir: dir.to_path_buf(), max_bytes, writable: AtomicBool::new(true) })
     }
 
     /// The cache folder.
@@ -148,17 +140,13 @@ impl DiskCache {
             write_atomic(&path, &bytes).map_err(|e| e.to_string())
         });
         let why = result.err()?;
-        self.writable.store(false, Ordering::Relaxed);
-        let message = format!(
-            "the cache folder {} cannot take results ({why}); this run goes on without storing them",
-            self.dir.display()
-        );
-        let mut first = self.store_failure.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        if first.is_some() {
-            return None;
-        }
-        *first = Some(message.clone());
-        Some(message)
+        // Of stores failing at the same time in several threads, only the first warns.
+        self.writable.swap(false, Ordering::Relaxed).then(|| {
+            format!(
+                "the cache folder {} cannot take results ({why}); this run goes on without storing them",
+                self.dir.display()
+            )
+        })
     }
 
     /// Deletes the least recently used entries until the folder is within its bound, and

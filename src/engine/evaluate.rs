@@ -115,8 +115,9 @@ enum Slot {
 struct RunState {
     remaining_inputs: Vec<usize>,
     slots: Vec<Slot>,
-    /// Per node: the result found before the run, taken when the node's turn comes.
-    found: Vec<Option<Found>>,
+    /// Per node: the result found before the run (in memory or in the cache folder, with
+    /// the files an export wrote), taken when the node's turn comes.
+    found: Vec<Option<Entry>>,
     /// Per node: what the caches had to say (a damaged entry, a folder that cannot be written).
     cache_warnings: Vec<Vec<String>>,
     reports: BTreeMap<String, NodeReport>,
@@ -147,12 +148,23 @@ impl Engine {
 
     /// How many results the in-memory cache holds.
     pub fn cached_results(&self) -> usize {
-        self.cache.lock().unwrap_or_else(PoisonError::into_inner).len()
+        self.memory().len()
     }
 
     /// Forgets every cached result.
     pub fn clear_cache(&self) {
-        self.cache.lock().unwrap_or_else(PoisonError::into_inner).clear();
+        self.memory().clear();
+    }
+
+    fn memory(&self) -> std::sync::MutexGuard<'_, HashMap<Fingerprint, Arc<Cached>>> {
+        self.cache.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Keeps a node's result in memory, as used by run `run_number`.
+    fn remember(&self, key: &Fingerprint, outputs: &[Option<Value>], warnings: &[String], run_number: u64) {
+        let cached =
+            Cached { outputs: outputs.to_vec(), warnings: warnings.to_vec(), last_used: AtomicU64::new(run_number) };
+        self.memory().insert(*key, Arc::new(cached));
     }
 
     /// Runs `graph` (compiled against this engine's registry).
@@ -213,10 +225,7 @@ impl Engine {
             Some(pool) => pool.install(schedule),
             None => schedule(),
         }
-        self.cache
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .retain(|_, c| c.last_used.load(Ordering::Relaxed) + MEMORY_KEEP_RUNS > run_number);
+        self.memory().retain(|_, c| c.last_used.load(Ordering::Relaxed) + MEMORY_KEEP_RUNS > run_number);
         let state = state.into_inner().unwrap_or_else(PoisonError::into_inner);
         let mut outputs = BTreeMap::new();
         for (node, slot) in graph.nodes.iter().zip(state.slots) {
@@ -233,16 +242,8 @@ impl Engine {
 /// What a run will do: which nodes it visits and which of those have a result already.
 struct Plan {
     needed: Vec<bool>,
-    found: Vec<Option<Found>>,
+    found: Vec<Option<Entry>>,
     cache_warnings: Vec<Vec<String>>,
-}
-
-/// A result found before the run, in memory or in the cache folder.
-struct Found {
-    outputs: Vec<Option<Value>>,
-    warnings: Vec<String>,
-    /// Files to write back (exports found in the cache folder).
-    files: Vec<StoredFile>,
 }
 
 impl Engine {
@@ -280,15 +281,13 @@ impl Engine {
         can_write: bool,
         run_number: u64,
         warnings: &mut Vec<String>,
-    ) -> Option<Found> {
-        let mut memory = self.cache.lock().unwrap_or_else(PoisonError::into_inner);
+    ) -> Option<Entry> {
         if !schema.writes_files
-            && let Some(hit) = memory.get(key)
+            && let Some(hit) = self.memory().get(key)
         {
             hit.last_used.fetch_max(run_number, Ordering::Relaxed);
-            return Some(Found { outputs: hit.outputs.clone(), warnings: hit.warnings.clone(), files: Vec::new() });
+            return Some(Entry { outputs: hit.outputs.clone(), warnings: hit.warnings.clone(), files: Vec::new() });
         }
-        drop(memory);
         let disk = self.disk.as_ref()?;
         if schema.writes_files && !can_write {
             return None;
@@ -301,17 +300,10 @@ impl Engine {
                 return None;
             }
         };
-        let Entry { outputs, warnings: node_warnings, files } = *entry;
         if !schema.writes_files {
-            memory = self.cache.lock().unwrap_or_else(PoisonError::into_inner);
-            let cached = Cached {
-                outputs: outputs.clone(),
-                warnings: node_warnings.clone(),
-                last_used: AtomicU64::new(run_number),
-            };
-            memory.insert(*key, Arc::new(cached));
+            self.remember(key, &entry.outputs, &entry.warnings, run_number);
         }
-        Some(Found { outputs, warnings: node_warnings, files })
+        Some(*entry)
     }
 }
 
@@ -434,13 +426,9 @@ impl Job<'_, '_> {
         }
     }
 
-    fn memory(&self) -> std::sync::MutexGuard<'_, HashMap<Fingerprint, Arc<Cached>>> {
-        self.engine.cache.lock().unwrap_or_else(PoisonError::into_inner)
-    }
-
     /// Writes back the files an exporting node made when its result was stored, and
     /// hands over the outputs.
-    fn restore(&self, found: Found) -> Result<NodeOutcome, String> {
+    fn restore(&self, found: Entry) -> Result<NodeOutcome, String> {
         let mut files_written = Vec::with_capacity(found.files.len());
         if !found.files.is_empty() {
             let out_dir = self.services.out_dir.ok_or("this run has no output folder, so nothing may be written")?;
@@ -455,12 +443,7 @@ impl Job<'_, '_> {
     /// with their files' bytes).
     fn keep(&self, schema: &NodeSchema, key: &Fingerprint, outcome: &NodeOutcome, warnings: &mut Vec<String>) {
         if !schema.writes_files {
-            let cached = Cached {
-                outputs: outcome.outputs.clone(),
-                warnings: outcome.warnings.clone(),
-                last_used: AtomicU64::new(self.run_number),
-            };
-            self.memory().insert(*key, Arc::new(cached));
+            self.engine.remember(key, &outcome.outputs, &outcome.warnings, self.run_number);
         }
         let Some(disk) = self.engine.disk.as_ref() else { return };
         let mut files = Vec::with_capacity(outcome.files_written.len());

@@ -1,7 +1,6 @@
 //! Fingerprints: everything a node's result depends on, hashed, so that equal fingerprints
 //! mean equal results. They key both the in-memory cache and the on-disk one.
 
-use std::io::Read;
 use std::path::Path;
 
 use kinegraph_nodes::node::ParamKind;
@@ -95,25 +94,11 @@ impl Hasher {
                 }
                 Err(_) => self.text("missing"),
             },
-            FileIdentity::Content => match std::fs::File::open(path).map(|f| self.content(f)) {
-                Ok(Ok(())) => {}
-                _ => self.text("unreadable"),
+            FileIdentity::Content => match crate::digest::sha256_file(path) {
+                Ok(hex) => self.text(&hex),
+                Err(_) => self.text("unreadable"),
             },
         }
-    }
-
-    fn content(&mut self, mut file: std::fs::File) -> std::io::Result<()> {
-        let mut digest = Sha256::new();
-        let mut buffer = vec![0u8; 1 << 16];
-        loop {
-            let n = file.read(&mut buffer)?;
-            if n == 0 {
-                break;
-            }
-            digest.update(&buffer[..n]);
-        }
-        self.0.update(digest.finalize());
-        Ok(())
     }
 
     /// A folder: the relative name and identity of every file under it with one of

@@ -10,7 +10,6 @@ use std::collections::BTreeMap;
 use std::path::{Component, Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
-use sha2::Digest;
 
 use crate::output::check_folder_name;
 
@@ -200,15 +199,10 @@ impl Plan {
     }
 }
 
-/// Lower-case hex SHA-256 of a file's bytes.
+/// Lower-case hex SHA-256 of a file's bytes ([`crate::digest::sha256_file`]), an error
+/// naming the file.
 pub fn sha256_file(path: &Path) -> Result<String, PlanError> {
-    let bytes = std::fs::read(path).map_err(|e| PlanError::Io { path: path.to_path_buf(), message: e.to_string() })?;
-    Ok(sha256_hex(&bytes))
-}
-
-/// Lower-case hex SHA-256 of `bytes`.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    format!("{:x}", sha2::Sha256::digest(bytes))
+    crate::digest::sha256_file(path).map_err(|e| PlanError::Io { path: path.to_path_buf(), message: e.to_string() })
 }
 
 /// `path` made absolute against the current directory, with `.` and `..` removed lexically.

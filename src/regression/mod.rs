@@ -10,7 +10,6 @@ use kinegraph_nodes::kernels::quality::QualityGate;
 use kinegraph_nodes::model::forward_kinematics;
 use kinegraph_nodes::node::Value;
 use serde::{Deserialize, Serialize};
-use sha2::Digest;
 
 pub mod quality_gates;
 
@@ -184,7 +183,7 @@ pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
         Value::BoneMap(map) => Facts::Data(serde_json::to_value(&map.joints).unwrap_or_default()),
         Value::File(relative) => {
             let bytes = std::fs::read(out_dir.join(relative.as_path())).unwrap_or_default();
-            Facts::File { bytes: bytes.len() as u64, sha256: format!("{:x}", sha2::Sha256::digest(&bytes)) }
+            Facts::File { bytes: bytes.len() as u64, sha256: crate::digest::sha256_hex(&bytes) }
         }
     }
 }

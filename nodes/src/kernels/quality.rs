@@ -250,22 +250,24 @@ impl Tracks {
     }
 }
 
+/// The larger of `best` and `candidate` by value, the earlier on a tie (for folds).
+fn larger(best: Option<(f64, usize)>, candidate: (f64, usize)) -> Option<(f64, usize)> {
+    match best {
+        Some((b, _)) if b >= candidate.0 => best,
+        _ => Some(candidate),
+    }
+}
+
 /// The largest value and its index.
 fn max_at(values: impl IntoIterator<Item = f64>) -> Option<(f64, usize)> {
-    values.into_iter().enumerate().fold(None, |best, (i, v)| match best {
-        Some((b, _)) if b >= v => best,
-        _ => Some((v, i)),
-    })
+    values.into_iter().enumerate().map(|(i, v)| (v, i)).fold(None, larger)
 }
 
 /// The largest of per-interior-frame `values` (index `i` is frame `i + 1`) inside
 /// `window`, and its frame.
 fn max_in_window(values: &[f64], window: FrameRange) -> Option<(f64, usize)> {
-    let inside = values.iter().enumerate().filter(|(i, _)| window.contains(i + 1));
-    inside.fold(None, |best, (i, &v)| match best {
-        Some((b, _)) if b >= v => best,
-        _ => Some((v, i + 1)),
-    })
+    let inside = values.iter().enumerate().map(|(i, &v)| (v, i + 1)).filter(|(_, f)| window.contains(*f));
+    inside.fold(None, larger)
 }
 
 /// The spike ratio (see the module doc) of each of `peaks` (one per interior frame),
