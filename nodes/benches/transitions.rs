@@ -15,6 +15,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use kinegraph_nodes::builtin::transitions::actions::{Action, ActionLabels, find_actions};
 use kinegraph_nodes::builtin::transitions::play_sequence;
 use kinegraph_nodes::builtin::transitions::synthesis::SynthesisParams;
+use kinegraph_nodes::cancel::Cancel;
 use kinegraph_nodes::kernels::clip_set::load_clip_set;
 use kinegraph_nodes::kernels::transition_graph::cluster::{cluster, corpus_features, two_pass};
 use kinegraph_nodes::kernels::transition_graph::distance::DistanceParams;
@@ -42,15 +43,22 @@ fn bench(c: &mut Criterion) {
     let small = ClipSet::new(small).expect("subset of a valid set");
     let (small_features, _) = corpus_features(&small, &params);
     eprintln!("corpus: {} frames; subset: {} frames", features.len(), small_features.len());
-    c.bench_function("cluster_3600_frames", |b| b.iter(|| black_box(two_pass(&small_features, RADIUS))));
-    c.bench_function("cluster_whole_corpus", |b| b.iter(|| black_box(two_pass(&features, RADIUS))));
+    c.bench_function("cluster_3600_frames", |b| b.iter(|| black_box(two_pass(&small_features, RADIUS, Cancel::NEVER))));
+    c.bench_function("cluster_whole_corpus", |b| b.iter(|| black_box(two_pass(&features, RADIUS, Cancel::NEVER))));
 
     let all_pairs = |name: &str, radius: f32, set: Arc<ClipSet>, c: &mut Criterion| {
-        let graph = build_graph(Arc::new(cluster(set, params.clone(), radius)), Direction::Directed, LIMITS);
+        let graph = build_graph(
+            Arc::new(cluster(set, params.clone(), radius, Cancel::NEVER).unwrap()),
+            Direction::Directed,
+            LIMITS,
+        );
         let adjacency = graph.adjacency();
         let subproblems: usize =
             (0..adjacency.len() as u32).map(|s| k_best_paths(&adjacency, s, LIMITS).subproblems).sum();
-        eprintln!("{name}: r = {radius}, {}, {subproblems} sub-problems", graph.summary(true));
+        eprintln!(
+            "{name}: r = {radius}, {}, {subproblems} sub-problems",
+            graph.summary_with_paths(Cancel::NEVER).unwrap()
+        );
         c.bench_function(name, |b| {
             b.iter(|| {
                 for s in 0..adjacency.len() as u32 {
@@ -94,7 +102,11 @@ fn bench(c: &mut Criterion) {
 
     c.bench_function("end_to_end_whole_corpus", |b| {
         b.iter(|| {
-            let g = build_graph(Arc::new(cluster(set.clone(), params.clone(), RADIUS)), Direction::Directed, LIMITS);
+            let g = build_graph(
+                Arc::new(cluster(set.clone(), params.clone(), RADIUS, Cancel::NEVER).unwrap()),
+                Direction::Directed,
+                LIMITS,
+            );
             black_box(run(&g, &whole))
         })
     });

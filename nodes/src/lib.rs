@@ -7,7 +7,8 @@
 //! Layers, lowest first; a module imports only from its own layer or lower ones, and a
 //! node family (a module of `builtin`) never imports another family
 //! (`nodes/tests/layers.rs` checks it):
-//! 1. `math` (and `corpus`, the shared-data locator for tests and benchmarks: std only);
+//! 1. `math` (and `corpus`, the shared-data locator for tests and benchmarks, and `cancel`,
+//!    the stop request long kernels poll: std only);
 //! 2. `model`: skeletons, clips, meshes, reports, name hints;
 //! 3. `formats`: BVH, glTF, OBJ and bone-map files;
 //! 4. `kernels`: motion operations several node families share;
@@ -15,6 +16,7 @@
 //! 6. `builtin`: the node families and `builtin::registry()`.
 
 pub mod builtin;
+pub mod cancel;
 pub mod corpus;
 pub mod formats;
 pub mod kernels;

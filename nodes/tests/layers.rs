@@ -5,7 +5,7 @@
 //!
 //! | rank | modules            | holds                                                     |
 //! |------|--------------------|-----------------------------------------------------------|
-//! | 0    | `math`, `corpus`   | maths helpers; locating the shared data corpus (std only) |
+//! | 0    | `math`, `corpus`, `cancel` | maths helpers; the shared data corpus; stop requests (std only) |
 //! | 1    | `model`            | skeletons, clips, meshes, reports, name hints             |
 //! | 2    | `formats`          | BVH, glTF, OBJ, bone-map files                            |
 //! | 3    | `kernels`          | motion operations several node families share             |
@@ -22,8 +22,16 @@ use std::path::{Path, PathBuf};
 
 /// Top-level modules of `nodes/src` and their rank. A new top-level module must be added
 /// here, or the test fails.
-const LAYERS: [(&str, u8); 7] =
-    [("math", 0), ("corpus", 0), ("model", 1), ("formats", 2), ("kernels", 3), ("node", 4), ("builtin", 5)];
+const LAYERS: [(&str, u8); 8] = [
+    ("math", 0),
+    ("corpus", 0),
+    ("cancel", 0),
+    ("model", 1),
+    ("formats", 2),
+    ("kernels", 3),
+    ("node", 4),
+    ("builtin", 5),
+];
 
 /// Rank of the crate root (`lib.rs`): above everything, importable by nothing.
 const ROOT_RANK: u8 = 6;

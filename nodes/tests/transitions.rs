@@ -10,6 +10,7 @@ use glam::{Quat, Vec3};
 use kinegraph_nodes::builtin::transitions::actions::find_actions;
 use kinegraph_nodes::builtin::transitions::synthesis::{Frames, Motion, SynthesisParams, append_transition};
 use kinegraph_nodes::builtin::transitions::{play_sequence, smoothness_against_crossfade};
+use kinegraph_nodes::cancel::Cancel;
 use kinegraph_nodes::kernels::clip_set::load_clip_set;
 use kinegraph_nodes::kernels::transition_graph::cluster::cluster;
 use kinegraph_nodes::kernels::transition_graph::distance::DistanceParams;
@@ -40,7 +41,7 @@ fn graph_of(clips: Vec<(&str, Clip)>) -> TransitionGraph {
     let set = ClipSet::new(clips.into_iter().map(|(n, c)| NamedClip { name: n.into(), clip: Arc::new(c) }).collect())
         .unwrap();
     let params = DistanceParams { weights: vec![1.0, 1.0], velocity_weight: 0.0 };
-    let clusters = cluster(Arc::new(set), params, 0.01);
+    let clusters = cluster(Arc::new(set), params, 0.01, Cancel::NEVER).unwrap();
     build_graph(Arc::new(clusters), Direction::Directed, PathLimits { k: 5, max_cost: f64::INFINITY })
 }
 
@@ -180,12 +181,37 @@ fn real_corpus_statistics_and_a_sequence() {
     assert_eq!(loaded.left_out.len(), 15);
     let set = Arc::new(loaded.set);
     let params = DistanceParams::lee_defaults(set.skeleton(), 0.003);
-    let clusters = cluster(set, params, 0.6);
+    let clusters = cluster(set, params, 0.6, Cancel::NEVER).unwrap();
     let g = build_graph(Arc::new(clusters), Direction::Directed, PathLimits { k: 5, max_cost: f64::INFINITY });
     let t = std::time::Instant::now();
-    let s = g.summary(true);
+    let s = g.summary_with_paths(Cancel::NEVER).unwrap();
     eprintln!("{s:#} paths in {:?}", t.elapsed());
     assert!(s["clusters"].as_u64().unwrap() > 20);
+}
+
+/// Clustering the whole corpus with a tiny radius makes every frame a centre: about n²/2
+/// pose distances, minutes of work. A stop request raised 100 ms in must end it with
+/// `Cancelled` (a kernel that never polls would run to the end and return its clusters);
+/// a graph's path statistics stop the same way.
+#[test]
+fn a_stop_request_ends_quadratic_clustering_and_the_path_statistics() {
+    let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };
+    let set = Arc::new(load_clip_set(&data.join("bvh"), "*.bvh", 30.0, None).unwrap().set);
+    let params = DistanceParams::lee_defaults(set.skeleton(), 0.003);
+    let flag = std::sync::atomic::AtomicBool::new(false);
+    let result = std::thread::scope(|scope| {
+        scope.spawn(|| {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+            flag.store(true, std::sync::atomic::Ordering::Relaxed);
+        });
+        cluster(set.clone(), params.clone(), 1e-6, Cancel::on(&flag))
+    });
+    assert_eq!(result.err(), Some(kinegraph_nodes::cancel::Cancelled));
+
+    let clusters = cluster(set, params, 0.6, Cancel::NEVER).unwrap();
+    let g = build_graph(Arc::new(clusters), Direction::Directed, PathLimits { k: 5, max_cost: f64::INFINITY });
+    assert_eq!(g.summary_with_paths(Cancel::on(&flag)).err(), Some(kinegraph_nodes::cancel::Cancelled));
+    assert!(g.summary_with_paths(Cancel::NEVER).is_ok());
 }
 
 /// Smoothness of ten transitions on the whole corpus (printed with `--nocapture`; the
@@ -198,7 +224,7 @@ fn real_corpus_transitions_against_a_crossfade() {
     let set = Arc::new(load_clip_set(&data.join("bvh"), "*.bvh", 30.0, None).unwrap().set);
     let params = DistanceParams::lee_defaults(set.skeleton(), 0.003);
     let g = build_graph(
-        Arc::new(cluster(set.clone(), params, 0.6)),
+        Arc::new(cluster(set.clone(), params, 0.6, Cancel::NEVER).unwrap()),
         Direction::Directed,
         PathLimits { k: 5, max_cost: f64::INFINITY },
     );

@@ -179,7 +179,7 @@ pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
         },
         Value::ClipSet(set) => Facts::Data(set.summary()),
         Value::Clusters(clusters) => Facts::Data(clusters.summary()),
-        Value::TransitionGraph(graph) => Facts::Data(graph.summary(false)),
+        Value::TransitionGraph(graph) => Facts::Data(graph.summary()),
         Value::BoneMap(map) => Facts::Data(serde_json::to_value(&map.joints).unwrap_or_default()),
         Value::File(relative) => {
             let bytes = std::fs::read(out_dir.join(relative.as_path())).unwrap_or_default();

@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 use super::param::{
     ChoiceParam, FloatParam, InputFolderParam, InputPathParam, IntParam, OutputPathParam, ParamValue, TextParam,
@@ -11,6 +11,7 @@ use super::param::{
 use super::port::{Input, Output};
 use super::value::{PortValue, Value};
 use super::{NodeError, NodeSchema};
+use crate::cancel::Cancel;
 use crate::formats::atomic::write_within;
 
 /// Per-run services shared by every node of one evaluation.
@@ -195,6 +196,11 @@ impl<'a> NodeContext<'a> {
 
     /// Fails with [`NodeError::Cancelled`] once the run has been cancelled.
     pub fn check_cancelled(&self) -> Result<(), NodeError> {
-        if self.services.cancel.load(Ordering::Relaxed) { Err(NodeError::Cancelled) } else { Ok(()) }
+        Ok(self.cancel().check()?)
+    }
+
+    /// The run's stop request, for kernels that work long enough to poll it themselves.
+    pub fn cancel(&self) -> Cancel<'a> {
+        Cancel::on(self.services.cancel)
     }
 }

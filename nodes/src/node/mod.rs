@@ -91,6 +91,12 @@ pub enum NodeError {
     Cancelled,
 }
 
+impl From<crate::cancel::Cancelled> for NodeError {
+    fn from(_: crate::cancel::Cancelled) -> Self {
+        NodeError::Cancelled
+    }
+}
+
 impl NodeError {
     /// An input error.
     pub fn input(port: &'static str, message: impl Into<String>) -> Self {

@@ -156,7 +156,7 @@ impl Node for ClusterFrames {
         if params.weights.iter().all(|w| *w == 0.0) {
             return Err(NodeError::param("joint_weights", "every joint has weight 0"));
         }
-        let clusters = cluster::cluster(set, params, ctx.float(&RADIUS)? as f32);
+        let clusters = cluster::cluster(set, params, ctx.float(&RADIUS)? as f32, ctx.cancel())?;
         ctx.set_output(&REPORT, report_of(clusters.summary()));
         ctx.set_output(&CLUSTERS_OUT, Arc::new(clusters));
         Ok(())
@@ -208,7 +208,7 @@ impl Node for BuildGraph {
         let limits =
             PathLimits { k: ctx.int(&K)? as usize, max_cost: ctx.optional_float(&MAX_COST)?.unwrap_or(f64::INFINITY) };
         let graph = graph::build_graph(clusters, direction, limits);
-        let summary = graph.summary(true);
+        let summary = graph.summary_with_paths(ctx.cancel())?;
         ctx.set_output(&REPORT, report_of(summary));
         ctx.set_output(&GRAPH_OUT, Arc::new(graph));
         Ok(())

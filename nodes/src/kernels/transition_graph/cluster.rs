@@ -11,6 +11,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use super::distance::{DistanceParams, PoseFeatures};
+use crate::cancel::{Cancel, Cancelled};
 use crate::model::ClipSet;
 
 /// Every frame of a clip set labelled with a cluster, and the cluster centres.
@@ -57,12 +58,14 @@ pub fn nearest_centre(features: &PoseFeatures, centres: &[usize], query: &PoseFe
     best
 }
 
-/// The two-pass clustering of every frame of `features` with radius `radius`.
-pub fn two_pass(features: &PoseFeatures, radius: f32) -> TwoPass {
+/// The two-pass clustering of every frame of `features` with radius `radius`. The work per
+/// frame is one distance per centre, so `cancel` is polled once per frame.
+pub fn two_pass(features: &PoseFeatures, radius: f32, cancel: Cancel) -> Result<TwoPass, Cancelled> {
     const UNDEFINED: u32 = u32::MAX;
     let mut labels = vec![UNDEFINED; features.len()];
     let mut centres: Vec<usize> = Vec::new();
     for (i, label) in labels.iter_mut().enumerate() {
+        cancel.check()?;
         let (c, d) = nearest_centre(features, &centres, features, i);
         if centres.is_empty() || d > 2.0 * radius {
             *label = centres.len() as u32;
@@ -72,10 +75,12 @@ pub fn two_pass(features: &PoseFeatures, radius: f32) -> TwoPass {
         }
     }
     let undefined = labels.iter().filter(|&&l| l == UNDEFINED).count();
-    labels.par_iter_mut().enumerate().filter(|(_, l)| **l == UNDEFINED).for_each(|(i, l)| {
+    labels.par_iter_mut().enumerate().filter(|(_, l)| **l == UNDEFINED).try_for_each(|(i, l)| {
+        cancel.check()?;
         *l = nearest_centre(features, &centres, features, i).0;
-    });
-    TwoPass { labels, centres, undefined }
+        Ok(())
+    })?;
+    Ok(TwoPass { labels, centres, undefined })
 }
 
 /// Features of every frame of `clip_set` (velocities never straddle two clips) and the
@@ -97,11 +102,25 @@ pub fn corpus_features(clip_set: &ClipSet, params: &DistanceParams) -> (PoseFeat
     (features, starts)
 }
 
-/// Clusters every frame of `clip_set`.
-pub fn cluster(clip_set: Arc<ClipSet>, params: DistanceParams, radius: f32) -> Clusters {
+/// Clusters every frame of `clip_set`; stops early once `cancel` is raised.
+pub fn cluster(
+    clip_set: Arc<ClipSet>,
+    params: DistanceParams,
+    radius: f32,
+    cancel: Cancel,
+) -> Result<Clusters, Cancelled> {
     let (features, clip_starts) = corpus_features(&clip_set, &params);
-    let TwoPass { labels, centres, undefined } = two_pass(&features, radius);
-    Clusters { clip_set, params, radius, features, clip_starts, labels, centres, undefined_after_first_pass: undefined }
+    let TwoPass { labels, centres, undefined } = two_pass(&features, radius, cancel)?;
+    Ok(Clusters {
+        clip_set,
+        params,
+        radius,
+        features,
+        clip_starts,
+        labels,
+        centres,
+        undefined_after_first_pass: undefined,
+    })
 }
 
 impl Clusters {
@@ -154,7 +173,7 @@ pub(crate) mod tests {
         // Frames 0-3 near 0 (cluster 0), 4-6 between r and 2r of cluster 0 (undefined), 7
         // far (new cluster 1), 8-9 near it, 10-11 undefined again.
         let angles = [0.0, 0.05, 0.1, 0.15, 0.22, 0.26, 0.27, 0.5, 0.48, 0.52, 0.29, 0.28];
-        let got = two_pass(&features(&angles), 0.01);
+        let got = two_pass(&features(&angles), 0.01, Cancel::NEVER).unwrap();
         assert_eq!(got.centres, vec![0, 7]);
         assert_eq!(got.undefined, 5);
         // Second pass: 0.22 is nearer 0 than 0.5; 0.26, 0.27, 0.29, 0.28 are nearer 0.5.
@@ -170,7 +189,9 @@ pub(crate) mod tests {
             NamedClip { name: "b".into(), clip: clip(&[1.0, 1.0]) },
         ])
         .unwrap();
-        let c = cluster(Arc::new(set), DistanceParams { weights: vec![1.0], velocity_weight: 0.0 }, 0.01);
+        let c =
+            cluster(Arc::new(set), DistanceParams { weights: vec![1.0], velocity_weight: 0.0 }, 0.01, Cancel::NEVER)
+                .unwrap();
         assert_eq!(c.labels, vec![0, 0, 1, 1, 1]);
         assert_eq!(c.locate(3), (1, 0));
         assert_eq!(c.locate(2), (0, 2));

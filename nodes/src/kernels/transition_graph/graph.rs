@@ -14,6 +14,7 @@ use petgraph::visit::EdgeRef;
 
 use super::cluster::Clusters;
 use super::paths::{PathLimits, PathTable, k_best_paths};
+use crate::cancel::{Cancel, Cancelled};
 
 /// A run of frames `start..end` of corpus clip `clip`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
@@ -210,26 +211,33 @@ impl TransitionGraph {
         self.graph.find_edge(NodeIndex::new(a as usize), NodeIndex::new(b as usize)).map(|e| &self.graph[e])
     }
 
-    /// The paper's statistics; `pairs_with_path` computes every source's table.
-    pub fn summary(&self, pairs_with_path: bool) -> serde_json::Value {
+    /// The paper's statistics of the graph's shape (cheap: no path search).
+    pub fn summary(&self) -> serde_json::Value {
         let runs: usize = self.graph.node_weights().map(|n| n.runs.len()).sum();
-        let mut s = serde_json::json!({
+        serde_json::json!({
             "frames": self.clusters.features.len(),
             "clusters": self.graph.node_count(),
             "clips": runs,
             "edges": self.graph.edge_count(),
             "passages": self.graph.edge_weights().map(|e| e.clips.len()).sum::<usize>(),
             "directed": self.direction == Direction::Directed,
-        });
-        if pairs_with_path {
-            let n = self.graph.node_count();
-            let tables: Vec<Arc<PathTable>> = (0..n as u32).map(|v| self.paths_from(v)).collect();
-            let connected: usize = tables.iter().map(|t| t.paths.iter().filter(|p| !p.is_empty()).count()).sum();
-            let pairs = n * n.saturating_sub(1);
-            s["node_pairs_with_path"] = connected.into();
-            s["share_of_pairs_with_path"] = (connected as f64 / pairs.max(1) as f64).into();
+        })
+    }
+
+    /// [`Self::summary`] plus how many ordered node pairs have a candidate path, which
+    /// computes every source's table (one bounded search each, `cancel` polled between).
+    pub fn summary_with_paths(&self, cancel: Cancel) -> Result<serde_json::Value, Cancelled> {
+        let n = self.graph.node_count();
+        let mut connected = 0;
+        for v in 0..n as u32 {
+            cancel.check()?;
+            connected += self.paths_from(v).paths.iter().filter(|p| !p.is_empty()).count();
         }
-        s
+        let pairs = n * n.saturating_sub(1);
+        let mut s = self.summary();
+        s["node_pairs_with_path"] = connected.into();
+        s["share_of_pairs_with_path"] = (connected as f64 / pairs.max(1) as f64).into();
+        Ok(s)
     }
 }
 
@@ -252,7 +260,9 @@ mod tests {
             NamedClip { name: "c".into(), clip: clip(&[2.0, 0.0, 0.0]) },
         ])
         .unwrap();
-        let c = cluster(Arc::new(set), DistanceParams { weights: vec![1.0], velocity_weight: 0.0 }, 0.01);
+        let c =
+            cluster(Arc::new(set), DistanceParams { weights: vec![1.0], velocity_weight: 0.0 }, 0.01, Cancel::NEVER)
+                .unwrap();
         build_graph(Arc::new(c), direction, PathLimits { k: 5, max_cost: f64::INFINITY })
     }
 
@@ -277,7 +287,7 @@ mod tests {
         let p = g.paths_from(0);
         assert_eq!(p.paths[2].len(), 1);
         assert_eq!(p.paths[2][0].nodes, vec![0, 1, 2]);
-        assert_eq!(g.summary(true)["share_of_pairs_with_path"], 1.0);
+        assert_eq!(g.summary_with_paths(Cancel::NEVER).unwrap()["share_of_pairs_with_path"], 1.0);
     }
 
     #[test]

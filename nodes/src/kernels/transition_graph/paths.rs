@@ -426,7 +426,9 @@ mod tests {
         let Some(data) = crate::corpus::shared_data() else { return };
         let set = load_clip_set(&data.join("bvh/cmu"), "02_01.bvh, 02_05.bvh, 144_05.bvh", 30.0, None).unwrap().set;
         let params = distance::DistanceParams::lee_defaults(set.skeleton(), 0.003);
-        let clusters = std::sync::Arc::new(cluster::cluster(std::sync::Arc::new(set), params, 0.6));
+        let clusters = std::sync::Arc::new(
+            cluster::cluster(std::sync::Arc::new(set), params, 0.6, crate::cancel::Cancel::NEVER).unwrap(),
+        );
         let limits = PathLimits { k: 5, max_cost: f64::INFINITY };
         for direction in [graph::Direction::Directed, graph::Direction::Undirected] {
             let adjacency = graph::build_graph(clusters.clone(), direction, limits).adjacency();
