@@ -428,3 +428,71 @@ fn an_interrupted_farm_task_reports_cancelled_and_keeps_nothing() {
     assert!(leftovers(dir.path()).is_empty(), "{:?}", leftovers(dir.path()));
     assert!(!dir.path().join("out/.kg-lease-walk").exists());
 }
+
+/// `graph.ron` in `dir` holding the given nodes (RON map entries) and no edges.
+fn nodes_graph(dir: &Path, nodes: &str) -> PathBuf {
+    let path = dir.join("graph.ron");
+    std::fs::write(&path, format!(r#"(format: "kinegraph.graph", version: 2, nodes: {{ {nodes} }}, edges: [])"#))
+        .unwrap();
+    path
+}
+
+/// `kg run --json` of `graph` with `extra` arguments: its exit code and report.
+fn run_json(dir: &Path, graph: &Path, extra: &[&str]) -> (Option<i32>, serde_json::Value) {
+    let mut args = vec!["run", graph.to_str().unwrap(), "--json"];
+    args.extend_from_slice(extra);
+    let o = kg(dir, &args);
+    (o.status.code(), serde_json::from_slice(&o.stdout).unwrap_or_else(|_| panic!("{}", stderr(&o))))
+}
+
+/// An arm of 10,000 rings × 10,000 segments is 10⁸ vertices and 2·10⁸ triangles: at least
+/// 10⁸ × (12 B position + 12 B normal) + 2·10⁸ × 12 B = 4.8 GB before any skin. Under a
+/// 4 GiB limit it is refused before anything is allocated, naming the param; the same node
+/// at its default resolution runs under the same limit.
+#[test]
+fn a_node_asking_for_more_memory_than_the_limit_is_refused_naming_its_param() {
+    let dir = tempfile::tempdir().unwrap();
+    let huge = r#""arm": (kind: "generate.arm", params: { "rings": 10000, "segments": 10000 })"#;
+    let graph = nodes_graph(dir.path(), huge);
+    let (code, report) = run_json(dir.path(), &graph, &["--max-memory", "4G"]);
+    assert_eq!(code, Some(1), "{report:#}");
+    let error = report["nodes"]["arm"]["error"].as_str().unwrap();
+    assert!(error.contains("rings") && error.contains("4.0 GiB") && error.contains("--max-memory"), "{error}");
+    let needed: f64 = error.split("about ").nth(1).unwrap().split(" GiB").next().unwrap().parse().unwrap();
+    assert!(needed * (1u64 << 30) as f64 >= 4.8e9, "{error}");
+
+    let graph = nodes_graph(dir.path(), r#""arm": (kind: "generate.arm", params: {})"#);
+    let (code, report) = run_json(dir.path(), &graph, &["--max-memory", "4G"]);
+    assert_eq!(code, Some(0), "{report:#}");
+}
+
+/// A clip's length in frames comes from data and params together: the mannequin's 100,000
+/// frames at 24 fps last 4,167 s, which at 1,000 fps are 4.2 million frames of every joint
+/// (> 1 GiB). `clip.resample` refuses under a 1 GiB limit, naming `fps`.
+#[test]
+fn resampling_a_long_clip_to_a_high_rate_is_refused_under_the_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let graph = dir.path().join("graph.ron");
+    std::fs::write(
+        &graph,
+        r#"(format: "kinegraph.graph", version: 2,
+ nodes: { "m": (kind: "generate.mannequin", params: { "frames": 100000 }),
+          "fast": (kind: "clip.resample", params: { "fps": 1000.0 }) },
+ edges: [ (from: "m.clip", to: "fast.clip") ])"#,
+    )
+    .unwrap();
+    let (code, report) = run_json(dir.path(), &graph, &["--max-memory", "1G"]);
+    assert_eq!(code, Some(1), "{report:#}");
+    let error = report["nodes"]["fast"]["error"].as_str().unwrap();
+    assert!(error.contains("fps") && error.contains("1.0 GiB"), "{error}");
+    assert_eq!(report["nodes"]["m"]["status"], "ok");
+}
+
+#[test]
+fn a_memory_size_that_is_not_one_is_a_usage_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let graph = nodes_graph(dir.path(), r#""arm": (kind: "generate.arm", params: {})"#);
+    let o = kg(dir.path(), &["run", graph.to_str().unwrap(), "--max-memory", "lots"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("'lots' is not a size"), "{}", stderr(&o));
+}

@@ -42,7 +42,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, Subcommand};
 
-use crate::engine::{DEFAULT_MAX_BYTES, DiskCache, Engine};
+use crate::engine::{DEFAULT_MAX_BYTES, DiskCache, Engine, parse_memory_size};
 
 pub use run::{Setting, convert_graph};
 
@@ -129,7 +129,7 @@ enum Command {
         #[arg(long = "target", value_name = "NODE", conflicts_with = "plan")]
         targets: Vec<String>,
         #[command(flatten)]
-        cache: CacheArgs,
+        engine: EngineArgs,
     },
     /// Plan a farm run: one task per input binding, with content hashes, as a plan file.
     Plan {
@@ -222,7 +222,7 @@ enum Command {
         #[arg(long)]
         json: bool,
         #[command(flatten)]
-        cache: CacheArgs,
+        engine: EngineArgs,
     },
     /// Rewrite graph files in canonical form (sorted, current version; migrates old files).
     Fmt {
@@ -239,7 +239,7 @@ enum Command {
         /// The graph file (.ron).
         graph: Option<PathBuf>,
         #[command(flatten)]
-        cache: CacheArgs,
+        engine: EngineArgs,
     },
     /// Run a graph, then again on every change to it or to the files it reads (only what
     /// the change reaches is recomputed); Ctrl-C stops.
@@ -259,7 +259,7 @@ enum Command {
         #[arg(long)]
         threads: Option<usize>,
         #[command(flatten)]
-        cache: CacheArgs,
+        engine: EngineArgs,
     },
     /// Regression-test saved graphs against their NAME.expect.ron files.
     Test {
@@ -274,9 +274,10 @@ enum Command {
     },
 }
 
-/// The cache-folder options of the commands that run graphs.
+/// The engine options of the commands that run graphs: the cache folder and the memory
+/// limit.
 #[derive(clap::Args, Debug, Clone)]
-struct CacheArgs {
+struct EngineArgs {
     /// Keep node results in this folder and serve unchanged nodes from it in later runs
     /// (also across processes: batch jobs and farm tasks can share one).
     #[arg(long, value_name = "DIR")]
@@ -284,13 +285,22 @@ struct CacheArgs {
     /// Size bound of the cache folder in MiB; the least recently used results go first.
     #[arg(long, value_name = "MIB", default_value_t = DEFAULT_MAX_BYTES >> 20, requires = "cache")]
     cache_max_mib: u64,
+    /// Memory one node may plan to use (e.g. 8G, 512M; a bare number is MiB). A node
+    /// whose params or inputs ask for more is refused with the param to change. Default:
+    /// 80 % of the machine's memory.
+    #[arg(long, value_name = "SIZE", value_parser = parse_memory_size)]
+    max_memory: Option<u64>,
 }
 
-impl CacheArgs {
-    /// Runs `command` with an engine over the built-in nodes, with the cache folder when
-    /// one is given; an unusable folder is reported and gives the exit code instead.
+impl EngineArgs {
+    /// Runs `command` with an engine over the built-in nodes, with the memory limit and the
+    /// cache folder when given; an unusable folder is reported and gives the exit code
+    /// instead.
     fn run(&self, command: impl FnOnce(Engine) -> u8) -> u8 {
-        let engine = Engine::new(kinegraph_nodes::builtin::registry());
+        let mut engine = Engine::new(kinegraph_nodes::builtin::registry());
+        if let Some(bytes) = self.max_memory {
+            engine = engine.with_memory_limit(bytes);
+        }
         let Some(dir) = &self.cache else { return command(engine) };
         match DiskCache::open(dir, self.cache_max_mib.saturating_mul(1 << 20)) {
             Ok(disk) => command(engine.with_disk_cache(disk)),
@@ -306,13 +316,13 @@ impl CacheArgs {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let code = match cli.command {
-        Command::Run { graph, set, plan, task_index, out, json, threads, targets, cache } => {
+        Command::Run { graph, set, plan, task_index, out, json, threads, targets, engine } => {
             match (plan, task_index, graph) {
                 (Some(plan), Some(index), graph) => {
-                    cache.run(|engine| task::task_command(&plan, index, graph.as_deref(), &out, threads, json, engine))
+                    engine.run(|engine| task::task_command(&plan, index, graph.as_deref(), &out, threads, json, engine))
                 }
                 (_, _, Some(graph)) => {
-                    cache.run(|engine| run::run_command(&graph, &set, &out, json, threads, targets, engine))
+                    engine.run(|engine| run::run_command(&graph, &set, &out, json, threads, targets, engine))
                 }
                 _ => {
                     errln!("kg run: give a GRAPH, or --plan and --task-index");
@@ -329,16 +339,16 @@ pub fn main() -> ExitCode {
         Command::Nodes { json, markdown } => catalogue::nodes_command(json, markdown),
         Command::Inspect { file, json } => inspect::inspect_command(&file, json),
         Command::Convert { input, output, set } => run::convert_command(&input, &output, &set),
-        Command::Batch { graph, input, out, jobs, set, json, cache } => {
-            cache.run(|engine| batch::batch_command(&graph, &input, &out, jobs, &set, json, engine))
+        Command::Batch { graph, input, out, jobs, set, json, engine } => {
+            engine.run(|engine| batch::batch_command(&graph, &input, &out, jobs, &set, json, engine))
         }
         Command::Fmt { graphs, check } => run::fmt_command(&graphs, check),
-        Command::Watch { graph, set, out, json, threads, cache } => {
-            cache.run(|engine| watch::watch_command(&graph, &set, &out, json, threads, engine))
+        Command::Watch { graph, set, out, json, threads, engine } => {
+            engine.run(|engine| watch::watch_command(&graph, &set, &out, json, threads, engine))
         }
         Command::Test { graphs, root, bless } => test::test_command(graphs, root.as_deref(), bless),
         #[cfg(feature = "editor")]
-        Command::Edit { graph, cache } => cache.run(|engine| match crate::editor::run(graph, engine) {
+        Command::Edit { graph, engine } => engine.run(|engine| match crate::editor::run(graph, engine) {
             Ok(()) => 0,
             Err(e) => {
                 errln!("error: {e}");

@@ -20,6 +20,7 @@ use kinegraph_nodes::node::{NodeContext, NodeError, NodeOutcome, NodeSchema, Reg
 use super::compile::CompiledGraph;
 use super::disk_cache::{DiskCache, Entry, Lookup, StoredFile};
 use super::fingerprint::{FileIdentity, Fingerprint, fingerprints};
+use super::memory::default_memory_limit;
 use super::report::{NodeReport, NodeStatus, RunReport};
 
 /// Something that happened during a run, for progress displays.
@@ -103,6 +104,8 @@ pub struct Engine {
     disk: Option<DiskCache>,
     /// Runs started so far; numbers the runs for the in-memory cache's eviction.
     runs: AtomicU64,
+    /// Bytes one node may plan to allocate (see `engine::memory`).
+    memory_limit: u64,
 }
 
 /// A node's state inside one run.
@@ -127,7 +130,19 @@ struct RunState {
 impl Engine {
     /// An engine over `registry` with an empty cache.
     pub fn new(registry: Registry) -> Self {
-        Engine { registry, cache: Mutex::new(HashMap::new()), disk: None, runs: AtomicU64::new(0) }
+        Engine {
+            registry,
+            cache: Mutex::new(HashMap::new()),
+            disk: None,
+            runs: AtomicU64::new(0),
+            memory_limit: default_memory_limit(),
+        }
+    }
+
+    /// This engine with nodes refusing to plan allocations above `bytes` (`--max-memory`).
+    pub fn with_memory_limit(mut self, bytes: u64) -> Self {
+        self.memory_limit = bytes;
+        self
     }
 
     /// This engine, also keeping results in (and serving them from) `disk`.
@@ -202,8 +217,12 @@ impl Engine {
             reports: BTreeMap::new(),
             files: Vec::new(),
         });
-        let services =
-            RunServices { base_dir: &options.base_dir, out_dir: options.out_dir.as_deref(), cancel: &options.cancel };
+        let services = RunServices {
+            base_dir: &options.base_dir,
+            out_dir: options.out_dir.as_deref(),
+            cancel: &options.cancel,
+            memory_limit_bytes: self.memory_limit,
+        };
         let job = Job {
             engine: self,
             run_number,

@@ -6,6 +6,7 @@ mod compile;
 mod disk_cache;
 mod evaluate;
 mod fingerprint;
+mod memory;
 mod report;
 mod subgraph;
 
@@ -13,5 +14,6 @@ pub use compile::{CompiledGraph, CompiledNode, Diagnostic, GraphErrors, OutputFi
 pub use disk_cache::{CacheError, DEFAULT_MAX_BYTES, DiskCache};
 pub use evaluate::{Engine, MEMORY_KEEP_RUNS, RunEvent, RunOptions};
 pub use fingerprint::{FileIdentity, Fingerprint};
+pub use memory::{default_memory_limit, parse_memory_size};
 pub use report::{NodeReport, NodeStatus, RunReport};
 pub use subgraph::{MAX_DEPTH, compile_file, expand_subgraphs};

@@ -44,7 +44,9 @@ impl Node for Arm {
         let fps = ctx.float(&FPS)?;
         let clip = arm_flex_clip(ctx.int(&FRAMES)? as usize, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
         let poses = arm_clip(&SAMPLE_POSES, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
-        let mesh = arm_mesh(ctx.int(&RINGS)? as usize, ctx.int(&SEGMENTS)? as usize);
+        let (rings, segments) = (ctx.int(&RINGS)? as usize, ctx.int(&SEGMENTS)? as usize);
+        ctx.reserve_memory(Mesh::estimated_bytes(rings * segments + 2, 2 * rings * segments), RINGS.0.name)?;
+        let mesh = arm_mesh(rings, segments);
         ctx.set_output(&CLIP_OUT, Arc::new(clip));
         ctx.set_output(&POSES_OUT, Arc::new(poses));
         ctx.set_output(&MESH_OUT, Arc::new(mesh));

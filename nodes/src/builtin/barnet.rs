@@ -601,6 +601,8 @@ impl Node for DeformNet {
             bulge_n: ctx.float(&BULGE)? as f32,
             pressure_n: ctx.float(&PRESSURE)? as f32,
         };
+        let vertices = net.control.positions.len();
+        ctx.reserve_memory(MeshSequence::estimated_bytes(clip.frame_count(), vertices), CLIP_IN.name())?;
         let seq = deform_net(&net, &clip, &loads).map_err(|e| match e {
             SolveError::Skin(e) => NodeError::input(NET_IN.name(), e.to_string()),
             other => NodeError::Failed(other.to_string()),
@@ -637,6 +639,8 @@ impl Node for Wrap {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let fine = ctx.input(&FINE_IN)?;
         let control = ctx.input(&CONTROL_SEQ_IN)?;
+        let bytes = MeshSequence::estimated_bytes(control.frame_count(), fine.positions.len());
+        ctx.reserve_memory(bytes, CONTROL_SEQ_IN.name())?;
         let seq = wrap(&fine, &control).map_err(|m| NodeError::input(CONTROL_SEQ_IN.name(), m))?;
         ctx.set_output(&WRAP_OUT, Arc::new(seq));
         Ok(())

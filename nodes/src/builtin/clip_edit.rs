@@ -88,7 +88,10 @@ impl Node for Resample {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
-        let out = resample(&clip, ctx.float(&FPS)?).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let fps = ctx.float(&FPS)?;
+        let frames = (clip.duration_secs() * fps).ceil() as usize + 1;
+        ctx.reserve_memory(Clip::estimated_bytes(frames, clip.joint_count()), FPS.0.name)?;
+        let out = resample(&clip, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
         ctx.set_output(&OUT, Arc::new(out));
         Ok(())
     }

@@ -540,6 +540,7 @@ impl Node for Deform {
         if matches!(method, DeformMethod::Lbs) && samples.is_some() {
             ctx.warn("samples are ignored by method lbs");
         }
+        ctx.reserve_memory(MeshSequence::estimated_bytes(clip.frame_count(), mesh.positions.len()), CLIP_IN.name())?;
         let seq = deform(&mesh, &clip, samples.as_deref(), method).map_err(|e| match e {
             PoseSpaceError::Skin(e) => NodeError::input(MESH_IN.name(), e.to_string()),
             PoseSpaceError::Samples(m) => NodeError::input(SAMPLES_IN.name(), m),

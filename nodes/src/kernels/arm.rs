@@ -165,4 +165,18 @@ mod tests {
         let wrist = poses.position(0, 3);
         assert!(((wrist - elbow) - Vec3::new(0.0, 0.0, FOREARM_M)).length() < 1e-5);
     }
+
+    /// The memory estimate nodes check before building a mesh brackets what an arm mesh
+    /// really holds (its buffers' bytes, counted here from the built mesh), to within 3×.
+    #[test]
+    fn the_mesh_memory_estimate_brackets_a_built_mesh() {
+        let (rings, segments) = (40, 24);
+        let mesh = arm_mesh(rings, segments);
+        let held = mesh.positions.len() * 12
+            + mesh.normals.len() * 12
+            + mesh.uvs.as_ref().map_or(0, |u| u.len() * 8)
+            + mesh.triangles.len() * 12;
+        let estimate = Mesh::estimated_bytes(rings * segments + 2, 2 * rings * segments) as usize;
+        assert!(estimate >= held && estimate <= 3 * held, "estimate {estimate} B, held {held} B");
+    }
 }

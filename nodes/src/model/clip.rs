@@ -63,6 +63,12 @@ pub struct Clip {
 }
 
 impl Clip {
+    /// Bytes of the rotations and translations of `frames` frames of `joints` joints: the
+    /// estimate nodes check before making a clip whose length comes from their params.
+    pub fn estimated_bytes(frames: usize, joints: usize) -> u64 {
+        (frames as u64).saturating_mul(joints as u64).saturating_mul(16 + 12)
+    }
+
     /// Builds a clip after checking the frame rate, buffer sizes and finiteness.
     /// Rotations are renormalised (files carry rounding).
     pub fn new(

@@ -37,6 +37,13 @@ pub struct Mesh {
 }
 
 impl Mesh {
+    /// Bytes a skinned mesh of this size holds (positions, normals, UVs, four joints and
+    /// weights per vertex, triangles): the estimate nodes check before building one.
+    pub fn estimated_bytes(vertices: usize, triangles: usize) -> u64 {
+        const PER_VERTEX: u64 = 12 + 12 + 8 + 8 + 16;
+        (vertices as u64).saturating_mul(PER_VERTEX).saturating_add((triangles as u64).saturating_mul(12))
+    }
+
     /// Area-weighted vertex normals from the triangles; vertices no triangle touches (or
     /// touched only by degenerate triangles) get +Y rather than NaN.
     pub fn compute_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {

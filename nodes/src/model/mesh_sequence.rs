@@ -49,6 +49,12 @@ pub struct MeshSequence {
 }
 
 impl MeshSequence {
+    /// Bytes of the baked positions and normals of `frames` frames of `vertices` vertices:
+    /// the estimate nodes check before baking.
+    pub fn estimated_bytes(frames: usize, vertices: usize) -> u64 {
+        (frames as u64).saturating_mul(vertices as u64).saturating_mul(24)
+    }
+
     /// Checks sizes and finiteness, so consumers can index without further checks.
     pub fn new(
         rest: Arc<Mesh>,

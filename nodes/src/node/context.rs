@@ -22,6 +22,8 @@ pub struct RunServices<'a> {
     pub out_dir: Option<&'a Path>,
     /// Set to stop the run; nodes poll it through [`NodeContext::check_cancelled`].
     pub cancel: &'a AtomicBool,
+    /// Bytes one node may plan to allocate; see [`NodeContext::reserve_memory`].
+    pub memory_limit_bytes: u64,
 }
 
 /// One node's view of its evaluation.
@@ -199,8 +201,35 @@ impl<'a> NodeContext<'a> {
         Ok(self.cancel().check()?)
     }
 
+    /// Refuses when the node is about to allocate about `bytes` (an estimate from its
+    /// params and inputs) and that exceeds the run's memory limit, so a huge request fails
+    /// with a located message instead of an out-of-memory abort. `culprit` is the param
+    /// (or, when the size comes from data, the input port) the message tells to change.
+    pub fn reserve_memory(&self, bytes: u64, culprit: &'static str) -> Result<(), NodeError> {
+        let limit = self.services.memory_limit_bytes;
+        if bytes <= limit {
+            return Ok(());
+        }
+        let message = format!(
+            "needs about {} of memory, more than the limit of {} (80 % of the machine's memory, or kg --max-memory); {}",
+            gib(bytes),
+            gib(limit),
+            if self.schema.input(culprit).is_some() { "give a smaller one" } else { "lower it" }
+        );
+        Err(if self.schema.input(culprit).is_some() {
+            NodeError::input(culprit, message)
+        } else {
+            NodeError::param(culprit, message)
+        })
+    }
+
     /// The run's stop request, for kernels that work long enough to poll it themselves.
     pub fn cancel(&self) -> Cancel<'a> {
         Cancel::on(self.services.cancel)
     }
+}
+
+/// `bytes` in GiB with one decimal, for messages.
+fn gib(bytes: u64) -> String {
+    format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
 }
