@@ -6,7 +6,7 @@ use glam::{DVec3, Quat, Vec3};
 
 use super::analysis::Analysis;
 use super::contacts::ground_height;
-use crate::math::slerp_short;
+use crate::math::{slerp_short, smoothstep};
 use crate::model::{Clip, ClipError, FrameRange, Report};
 
 /// Why two clips were not concatenated.
@@ -65,8 +65,11 @@ pub struct Concatenated {
     pub report: Report,
 }
 
-/// Blends `first` frames `f0..=ff` with `second` frames `f0−T..=ff−T` (α falling linearly
-/// from 1 to 0 over the window, eq. 8) and splices: `first[..f0]`, the blend,
+/// Blends `first` frames `f0..=ff` with `second` frames `f0−T..=ff−T` and splices. The
+/// weight α of `first` falls from 1 to 0 over the window by a smoothstep rather than eq. 8's
+/// straight line: a linear ramp switches the blend's velocity term on and off in one frame,
+/// so joint velocities jump at both window edges; the smoothstep's zero end slopes do not
+/// (C1). Frames: `first[..f0]`, the blend: `first[..f0]`, the blend,
 /// `second[ff−T+1..]`. `second` must already be placed and on the same skeleton and rate.
 pub fn splice(first: &Clip, second: &Clip, f0: usize, ff: usize, offset: isize) -> Result<Clip, ClipError> {
     let joints = first.joint_count();
@@ -80,7 +83,7 @@ pub fn splice(first: &Clip, second: &Clip, f0: usize, ff: usize, offset: isize) 
     }
     let last_second = second.frame_count().saturating_sub(1);
     for f in f0..=ff {
-        let alpha = if ff > f0 { 1.0 - (f - f0) as f32 / (ff - f0) as f32 } else { 0.0 };
+        let alpha = if ff > f0 { 1.0 - smoothstep((f - f0) as f64 / (ff - f0) as f64) as f32 } else { 0.0 };
         let g = ((f as isize - offset).max(0) as usize).min(last_second);
         let (ra, rb) = (first.frame_rotations(f), second.frame_rotations(g));
         let (ta, tb) = (first.frame_translations(f), second.frame_translations(g));

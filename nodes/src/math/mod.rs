@@ -37,6 +37,13 @@ pub fn quat_normalize_or_identity(q: Quat) -> Quat {
     if len_sq.is_finite() && len_sq > 1e-20 { q * len_sq.sqrt().recip() } else { Quat::IDENTITY }
 }
 
+/// `3u² − 2u³` on `u` clamped to [0, 1]: a ramp from 0 to 1 with zero slope at both ends,
+/// so a blend weight or a time warp built on it is C1 where it meets constant segments.
+pub fn smoothstep(u: f64) -> f64 {
+    let u = u.clamp(0.0, 1.0);
+    u * u * (3.0 - 2.0 * u)
+}
+
 /// Spherical interpolation that takes the short way round and never returns NaN.
 pub fn slerp_short(a: Quat, b: Quat, t: f32) -> Quat {
     let b = if a.dot(b) < 0.0 { -b } else { b };

@@ -66,6 +66,7 @@ use super::rig::{DofKind, IkRig, RigError};
 use super::solve::{IkSolver, SolveParams};
 use crate::kernels::body::{find_legs, limb_tip};
 use crate::kernels::mannequin::mannequin_skeleton;
+use crate::math::smoothstep;
 use crate::model::fk::{forward_kinematics, rest_world};
 use crate::model::intervals::intersect_all;
 use crate::model::{
@@ -87,12 +88,6 @@ pub const SWING_CYCLE: f64 = 3.0 * PI;
 pub fn foot_height_curve(x: f64) -> f64 {
     let x = x.clamp(0.0, SWING_CYCLE);
     if x <= PI { 1.0 - x.cos() } else { 1.0 - ((PI + x) / 2.0).cos() }
-}
-
-/// `3u² − 2u³` on `u` clamped to [0, 1].
-fn smoothstep(u: f64) -> f64 {
-    let u = u.clamp(0.0, 1.0);
-    u * u * (3.0 - 2.0 * u)
 }
 
 /// Per-leg control and stiffness. Presets are defaults of these.

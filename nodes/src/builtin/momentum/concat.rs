@@ -23,14 +23,14 @@
 
 use std::sync::Arc;
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Quat, Vec3};
 use serde_json::json;
 
-use crate::kernels::align::{Rule, alignment_yaw, facing_difference, feet_centre, place, torso_facing, yaw_rotation};
+use crate::kernels::align::{Rule, alignment_yaw, facing_difference, place, torso_facing, yaw_rotation};
 use crate::kernels::analysis::{Analysis, AnalysisOptions, analyse};
 use crate::kernels::join::{ConcatError, Concatenated, foot_skate_m, same_skeleton, splice};
-use crate::kernels::resample::resample;
-use crate::model::{Clip, ClipError, FrameRange, Phases, into_report};
+use crate::kernels::resample::push_sample;
+use crate::model::{Clip, ClipError, FrameRange, into_report};
 
 /// Which frames of the blendable periods may be blended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -83,7 +83,9 @@ pub struct ConcatParams {
     /// The second clip's main-phase peak plays at least this long after the first's,
     /// seconds, before the blend's time scaling (which can shorten the window by up to
     /// 1 − 1/s). The paper's cost favours the earliest blend, which for two similar motions
-    /// overlaps their main phases into one; a gap keeps both (a double flip stays double).
+    /// overlaps their main phases into one; a gap keeps both (a double flip stays double),
+    /// and then the blend also stays clear of each action's effector apex (a kick's toe at
+    /// its highest), running on into the first clip's posterior phase if it must.
     pub min_peak_gap_secs: f64,
 }
 
@@ -111,28 +113,93 @@ struct Case {
     second: FrameRange,
 }
 
+/// An end effector (foot or hand) must rise at least this far during the main phase for
+/// its apex to count as the action's (a kick's toe, an uppercut's fist), metres.
+const MIN_APEX_RISE_M: f32 = 0.1;
+
+/// The frame where the action's effector peaks: of the feet and hands, the one that rises
+/// most during the main phase (above its height at the phase's start), at its highest
+/// frame there. `None` when none rises by [`MIN_APEX_RISE_M`] (a walk, a twist).
+fn effector_apex(a: &Analysis) -> Option<usize> {
+    let main = a.phases.main;
+    if main.is_empty() {
+        return None;
+    }
+    let ends = a.landmarks.limbs.iter().flat_map(|limb| [limb[2], limb[5]]);
+    let height = |f: usize, j: usize| a.poses.frame(f)[j].translation.y;
+    ends.filter_map(|j| {
+        let top = (main.start..main.end).max_by(|&x, &y| height(x, j).total_cmp(&height(y, j)))?;
+        let rise = height(top, j) - height(main.start, j);
+        (rise >= MIN_APEX_RISE_M).then_some((rise, top))
+    })
+    .max_by(|x, y| x.0.total_cmp(&y.0))
+    .map(|(_, top)| top)
+}
+
+/// The frames of a clip's action that a blend must not reach: its momentum peak t_m and,
+/// with `apex`, its effector apex, as the last protected frame of the first clip
+/// (`Side::First`: the blend starts after it) or the first of the second (`Side::Second`:
+/// the blend ends before it). Blending across an apex replaces the kick by a mix of two
+/// poses; a clip joined to itself at its peak (no gap asked) blends equal poses there and
+/// keeps it anyway, so the apex is protected only when two distinct actions are asked for.
+fn protected_frame(a: &Analysis, side: Side, apex: bool) -> usize {
+    let peak = a.phases.main_frame;
+    match (side, effector_apex(a).filter(|_| apex)) {
+        (Side::First, Some(apex)) => peak.max(apex),
+        (Side::Second, Some(apex)) => peak.min(apex),
+        (_, None) => peak,
+    }
+}
+
+/// Which clip of a join.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Side {
+    First,
+    Second,
+}
+
 /// The latter half of the main phase: from its peak frame t_m on (the halves meet at the
-/// peak, so a clip concatenated with itself under the forward rule joins at its peak).
-fn main_after_peak(p: &Phases) -> FrameRange {
-    FrameRange::new(p.main_frame.max(p.main.start), p.main.end)
+/// peak, so a clip concatenated with itself under the forward rule joins at its peak), or
+/// from after the effector apex when that comes later. When the apex leaves fewer than
+/// `min_frames` of the phase, the period runs on into the posterior phase.
+fn main_after_peak(a: &Analysis, min_frames: usize, apex: bool) -> FrameRange {
+    let p = &a.phases;
+    let keep = protected_frame(a, Side::First, apex);
+    let start = if keep == p.main_frame { keep.max(p.main.start) } else { keep + 1 };
+    let end = p.main.end.max(start + min_frames).min(p.frame_count);
+    FrameRange::new(start.min(end), end)
 }
 
-/// The initial half of the main phase: up to and including its peak frame t_m.
-fn main_before_peak(p: &Phases) -> FrameRange {
-    FrameRange::new(p.main.start, (p.main_frame + 1).min(p.main.end))
+/// The initial half of the main phase: up to and including its peak frame t_m, or up to
+/// just before the effector apex when that comes earlier.
+fn main_before_peak(a: &Analysis, apex: bool) -> FrameRange {
+    let p = &a.phases;
+    let keep = protected_frame(a, Side::Second, apex);
+    let end = if keep == p.main_frame { keep + 1 } else { keep };
+    FrameRange::new(p.main.start, end.min(p.main.end).max(p.main.start))
 }
 
-fn cases(rule: Rule, a: &Analysis, b: &Analysis) -> Result<Vec<Case>, ConcatError> {
+fn cases(rule: Rule, a: &Analysis, b: &Analysis, min_frames: usize, apex: bool) -> Result<Vec<Case>, ConcatError> {
     let (pa, pb) = (&a.phases, &b.phases);
     let out = match rule {
-        Rule::Forward => vec![Case { name: "main -> main", first: main_after_peak(pa), second: main_before_peak(pb) }],
+        Rule::Forward => {
+            vec![Case {
+                name: "main -> main",
+                first: main_after_peak(a, min_frames, apex),
+                second: main_before_peak(b, apex),
+            }]
+        }
         Rule::Reverse => {
             let mut v = Vec::new();
             if let Some(prep) = pb.preparatory {
-                v.push(Case { name: "main -> preparatory", first: main_after_peak(pa), second: prep.second_half() });
+                v.push(Case {
+                    name: "main -> preparatory",
+                    first: main_after_peak(a, min_frames, apex),
+                    second: prep.second_half(),
+                });
             }
             if let Some(post) = pa.posterior {
-                v.push(Case { name: "posterior -> main", first: post.first_half(), second: main_before_peak(pb) });
+                v.push(Case { name: "posterior -> main", first: post.first_half(), second: main_before_peak(b, apex) });
             }
             v
         }
@@ -286,21 +353,49 @@ fn min_offset(params: &ConcatParams, a: &Analysis, b: &Analysis) -> isize {
     (a.phases.main_frame as isize - b.phases.main_frame as isize + gap).max(0)
 }
 
-/// Replaces frames `f0..=ff` of `clip` by the same stretch resampled to `new_len + 1`
-/// frames (slerp between neighbouring frames): the time scaling of eq. 9.
+/// Share of the rescaled window, at each end, over which playback eases between normal
+/// speed and the scaled speed.
+const EASE_SHARE: f64 = 0.25;
+
+/// Source frames (after the window's start) played by output frame `u` of a window of
+/// `span` source frames stretched over `n` output frames. Speed is one source frame per
+/// frame at both ends and eases by a smoothstep S over `ramp` frames to the constant speed
+/// v = (span − ramp) / (n − ramp) in the middle (so the total is `span`): the integral of
+/// 1 + (v − 1)·S(u/ramp), with ∫₀ˣ S = x³ − x⁴/2, mirrored at the end.
+fn eased_time(u: f64, n: f64, span: f64, ramp: f64) -> f64 {
+    let v = (span - ramp) / (n - ramp);
+    let ramp_part = |w: f64| {
+        let x = w / ramp;
+        w + (v - 1.0) * ramp * (x * x * x - 0.5 * x * x * x * x)
+    };
+    if u <= ramp {
+        ramp_part(u)
+    } else if u >= n - ramp {
+        span - ramp_part(n - u)
+    } else {
+        ramp_part(ramp) + v * (u - ramp)
+    }
+}
+
+/// Replaces frames `f0..=ff` of `clip` by the same stretch played over `new_len` frame
+/// intervals: the time scaling of eq. 9. Playback speed eases from normal speed into the
+/// scaled speed and back out over the first and last quarter of the window
+/// ([`eased_time`]) instead of switching in one frame: a jump in speed is a jump in every
+/// joint's velocity, an acceleration spike at both window edges. With the scale
+/// s = (ff − f0) / new_len in [1/2, 2] the speed stays positive (the window never plays
+/// backwards).
 pub fn rescale_window(clip: &Clip, f0: usize, ff: usize, new_len: usize) -> Result<Clip, ClipError> {
-    if ff <= f0 {
+    if ff <= f0 || new_len == 0 {
         return Ok(clip.clone());
     }
-    let window = clip.slice(f0, ff + 1);
-    // Sampling the window's duration at new_len intervals gives new_len + 1 frames, played
-    // back at the clip's own rate.
-    let stretched = resample(&window, new_len as f64 * clip.fps() / (ff - f0) as f64)?;
     let joints = clip.joint_count();
+    let (span, n) = ((ff - f0) as f64, new_len as f64);
+    let ramp = EASE_SHARE * n;
     let mut rotations = clip.rotations()[..f0 * joints].to_vec();
     let mut translations = clip.translations()[..f0 * joints].to_vec();
-    rotations.extend_from_slice(stretched.rotations());
-    translations.extend_from_slice(stretched.translations());
+    for i in 0..=new_len {
+        push_sample(clip, f0 as f64 + eased_time(i as f64, n, span, ramp), &mut rotations, &mut translations);
+    }
     rotations.extend_from_slice(&clip.rotations()[(ff + 1) * joints..]);
     translations.extend_from_slice(&clip.translations()[(ff + 1) * joints..]);
     Clip::new(clip.skeleton().clone(), clip.fps(), rotations, translations, clip.import_scale)
@@ -333,6 +428,36 @@ pub fn alignment(a: &Analysis, b: &Analysis, ranges: (FrameRange, FrameRange), r
     }
 }
 
+/// Whether `foot` (a joint index) of `an` is in contact at `frame`.
+fn planted(an: &Analysis, foot: usize, frame: usize) -> bool {
+    let name = &an.clip.skeleton().joints()[foot].name;
+    an.contacts.feet.iter().any(|c| &c.foot == name && c.intervals.iter().any(|r| r.contains(frame)))
+}
+
+/// The horizontal move of the (turned) second clip that lines it up with the first over the
+/// window `f0..=ff` (second clip's frame g plays at g + `t`). The paper puts the feet
+/// centres together where the blend starts, in double support. Here: the feet planted in
+/// both clips at the same window frame are matched on average over those frames, so a
+/// standing foot stays where it is through the blend; with no such frame (a flip, a leap)
+/// the root paths are matched on average instead, since the blend interpolates root
+/// positions and any disagreement between them becomes a glide of the whole body.
+fn placement(a: &Analysis, b: &Analysis, (f0, ff): (usize, usize), t: isize, turn: Quat) -> Vec3 {
+    let horizontal = |v: Vec3| Vec3::new(v.x, 0.0, v.z);
+    let frames = || (f0..=ff).map(|f| (f, (f as isize - t) as usize));
+    let (mut feet_sum, mut feet_n) = (Vec3::ZERO, 0usize);
+    for foot in a.landmarks.feet() {
+        for (f, g) in frames().filter(|&(f, g)| planted(a, foot, f) && planted(b, foot, g)) {
+            feet_sum += horizontal(a.poses.position(f, foot) - turn * b.poses.position(g, foot));
+            feet_n += 1;
+        }
+    }
+    if feet_n > 0 {
+        return feet_sum / feet_n as f32;
+    }
+    let roots: Vec3 = frames().map(|(f, g)| horizontal(a.poses.position(f, 0) - turn * b.poses.position(g, 0))).sum();
+    roots / (ff - f0 + 1) as f32
+}
+
 /// Concatenates two analysed clips (same skeleton, same frame rate) by the method above.
 pub fn concatenate(
     a: &Analysis,
@@ -361,7 +486,8 @@ pub fn concatenate(
     let scale = 0.5 * (a.smoothed_peak().powi(2) + b.smoothed_peak().powi(2)).max(f64::MIN_POSITIVE);
     let min_frames = ((params.min_blend_secs * fps).round() as usize).max(2);
     let mut best: Option<(Case, Allowed, Timing)> = None;
-    for case in cases(params.rule, a, b)? {
+    let apex = params.min_peak_gap_secs > 0.0;
+    for case in cases(params.rule, a, b, min_frames, apex)? {
         let Some(mask) = allowed(&case, a, b, params.support, min_frames) else { continue };
         let timing = TimingSearch {
             first: TimingSide { momentum: &a.smoothed, arms_m: &a.track.arms_m, allowed: &mask.first },
@@ -421,7 +547,17 @@ pub fn concatenate(
     // A window of a few frames is a pop, not a blend: below the minimum length it grows on
     // beyond the blendable periods (anywhere both clips have frames), towards the side
     // whose momenta agree better.
-    let inside = |f: isize| f >= 0 && (f as usize) < mask.first.len() && f - t >= 0 && ((f - t) as usize) < l2.len();
+    // It never reaches either clip's protected action frames (momentum peak, effector apex).
+    let keep_first = protected_frame(a, Side::First, apex) as isize;
+    let keep_second = protected_frame(b, Side::Second, apex) as isize;
+    let inside = |f: isize| {
+        f >= 0
+            && (f as usize) < mask.first.len()
+            && f - t >= 0
+            && ((f - t) as usize) < l2.len()
+            && f > keep_first.min(timing.centre as isize - 1)
+            && f - t < keep_second.max(timing.centre as isize - t + 1)
+    };
     while ((ff - f0) as usize) < min_frames && (inside(f0 - 1) || inside(ff + 1)) {
         let back = if inside(f0 - 1) { diff(f0 - 1) } else { f64::INFINITY };
         let forth = if inside(ff + 1) { diff(ff + 1) } else { f64::INFINITY };
@@ -439,7 +575,7 @@ pub fn concatenate(
             max_deg: params.max_facing_rad.to_degrees(),
         });
     }
-    let offset_m = feet_centre(&a.poses, f0, &a.landmarks) - turn_f * feet_centre(&b.poses, g0, &b.landmarks);
+    let offset_m = placement(a, b, (f0, ff), t, turn_f);
     let placed = place(&b.clip, yaw, offset_m)?;
     // 5. Blend, then rescale time over the window (eq. 9).
     let blended = Arc::new(splice(&a.clip, &placed, f0, ff, t)?);
@@ -585,7 +721,7 @@ mod tests {
     }
 
     #[test]
-    fn splice_blends_linearly_from_the_first_to_the_second() {
+    fn splice_blends_from_the_first_to_the_second_with_flat_ends() {
         let (first, second) = (constant(0.0, 10), constant(1.0, 10));
         // Blend first[4..=8] with second[2..=6] (T = 2), then second[7..].
         let out = splice(&first, &second, 4, 8, 2).unwrap();
@@ -594,7 +730,10 @@ mod tests {
         assert!(yaw(3).abs() < 1e-6 && (yaw(4) - 0.0).abs() < 1e-6);
         assert!((yaw(6) - 0.5).abs() < 1e-5, "{}", yaw(6));
         assert!((yaw(8) - 1.0).abs() < 1e-5 && (yaw(11) - 1.0).abs() < 1e-5);
-        assert!((out.frame_translations(7)[0].x - 0.75).abs() < 1e-6);
+        // u = 3/4: smoothstep 3u² − 2u³ = 27/32 of the way to the second clip.
+        assert!((out.frame_translations(7)[0].x - 27.0 / 32.0).abs() < 1e-6);
+        // The weight's slope vanishes at both ends: the first step is 5/32, not 1/4.
+        assert!((out.frame_translations(5)[0].x - 5.0 / 32.0).abs() < 1e-6);
     }
 
     #[test]
@@ -609,7 +748,15 @@ mod tests {
         let out = rescale_window(&clip, 2, 6, 8).unwrap();
         assert_eq!(out.frame_count(), 11 + 4);
         let yaw = |f: usize| out.frame_rotations(f)[0].to_scaled_axis().y;
-        assert!((yaw(3) - 0.25).abs() < 1e-5, "{}", yaw(3));
+        // Window of 4 source frames over n = 8: ramps of 2 frames, middle speed
+        // v = (4 − 2) / (8 − 2) = 1/3. By hand: after 1 frame (x = 1/2 of the ramp),
+        // 1 + (1/3 − 1)·2·(1/8 − 1/32) = 1 − 1/8 = 0.875 source frames; after 2 (ramp end),
+        // 2 − (2/3)·2·(1/2) = 4/3; the middle frame (4) plays 4/3 + 2/3 = 2, the window's middle.
+        assert!((yaw(3) - (0.2 + 0.0875)).abs() < 1e-5, "{}", yaw(3));
+        assert!((yaw(4) - (0.2 + 0.4 / 3.0)).abs() < 1e-5, "{}", yaw(4));
+        assert!((yaw(6) - 0.4).abs() < 1e-5, "{}", yaw(6));
         assert!((yaw(10) - 0.6).abs() < 1e-5 && (yaw(11) - 0.7).abs() < 1e-5);
+        // Monotonic: the stretched window never plays backwards.
+        assert!((2..=10).all(|f| yaw(f + 1) >= yaw(f) - 1e-6));
     }
 }
