@@ -256,3 +256,56 @@ fn a_cmu_walk_on_cesium_man_passes_the_validator() {
     write_glb_file(&path, &out.clip, asset.meshes.first()).unwrap();
     validate(&[path]);
 }
+
+/// The inverse bind matrices of every skin in a GLB, read back by the `gltf` crate.
+fn inverse_bind_matrices(path: &Path) -> Vec<[[f32; 4]; 4]> {
+    let (doc, buffers, _) = gltf::import(path).unwrap();
+    doc.skins()
+        .flat_map(|skin| {
+            let reader = skin.reader(|b| Some(&buffers[b.index()]));
+            reader.read_inverse_bind_matrices().map(|m| m.collect::<Vec<_>>()).unwrap_or_default()
+        })
+        .collect()
+}
+
+/// Issue 18: a skeleton exported without a mesh gets inverse bind matrices the exporter
+/// computes; each must be exactly affine (last row exactly 0, 0, 0, 1, which the validator
+/// checks as ACCESSOR_INVALID_IBM) and still invert the joint's rest world transform.
+/// Checked on every rig of the corpus, the Mixamo Xbot included (rest rotations on every joint).
+#[test]
+fn computed_inverse_bind_matrices_are_exactly_affine_on_every_corpus_rig() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for name in ["Xbot.glb", "CesiumMan.glb", "Fox.glb", "RiggedSimple.glb", "SimpleSkin.gltf"] {
+        let asset = read_gltf_file(&data.join("gltf").join(name), &GltfReadOptions::default()).unwrap().value;
+        let clip = &asset.clips[0].clip;
+        let path = dir.path().join(format!("{name}.skeleton.glb"));
+        write_glb_file(&path, clip, None).unwrap();
+        let ibms = inverse_bind_matrices(&path);
+        assert_eq!(ibms.len(), clip.joint_count(), "{name}");
+        // The rest world transforms by the reader's own FK of a one-frame rest clip.
+        let rest = Clip::rest_pose(clip.skeleton().clone(), 30.0, 1).unwrap();
+        let world = forward_kinematics(&rest);
+        for (j, m) in ibms.iter().enumerate() {
+            assert_eq!([m[0][3], m[1][3], m[2][3], m[3][3]], [0.0, 0.0, 0.0, 1.0], "{name} joint {j}");
+            let product = Mat4::from_cols_array_2d(m) * world.frame(0)[j].to_mat4();
+            assert!(product.abs_diff_eq(Mat4::IDENTITY, 1e-4), "{name} joint {j}: {product}");
+        }
+        files.push(path);
+    }
+    validate(&files);
+}
+
+/// Issue 18: a mesh without a skin written beside an animated skeleton is reported, not
+/// silently written standing still.
+#[test]
+fn an_unskinned_mesh_beside_an_animated_skeleton_is_warned_about() {
+    let (clip, mut mesh) = synthetic();
+    mesh.skin = None;
+    let glb = write_glb(&clip, Some(&mesh)).unwrap();
+    assert!(glb.warnings.iter().any(|w| w.contains("'box' has no skin")), "{:?}", glb.warnings);
+    // Still, nothing to warn about for a skinned mesh.
+    let (clip, mesh) = synthetic();
+    assert!(write_glb(&clip, Some(&mesh)).unwrap().warnings.is_empty());
+}
