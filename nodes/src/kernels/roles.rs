@@ -23,7 +23,7 @@
 
 use glam::Vec3;
 
-use crate::kernels::body::{Landmarks, find_landmarks, limb_tip};
+use crate::kernels::body::{Landmarks, find_landmarks_detached, found_by_name, limb_tip};
 use crate::model::Skeleton;
 
 /// One leg or arm: its joints from the spine (or pelvis) out to its tip.
@@ -159,13 +159,21 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
 /// The body roles of `skeleton` from its joint names when they name every limb (CMU, DAZ,
 /// 3ds Max, HumanIK, Mixamo, Blender styles), else from its shape posed at `pos_in_world`
 /// (any naming); or why neither works.
+///
+/// Names may put a foot or hand elsewhere in the hierarchy than below its knee or elbow (an
+/// IK-style game rig hangs the feet off the root): that limb's `chain` then runs from the
+/// pelvis to the knee, on to the foot and its toes, in body order rather than parenthood.
 pub fn roles_of(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRoles, String> {
-    let missing = match find_landmarks(skeleton) {
+    let missing = match find_landmarks_detached(skeleton) {
         Ok(landmarks) => match named_roles(skeleton, &landmarks) {
             Some(roles) => return Ok(roles),
             None => "the named limbs do not hang from one body".to_owned(),
         },
-        Err(missing) => format!("by joint name, missing {}", missing.join(", ")),
+        Err(missing) => {
+            let found = found_by_name(skeleton);
+            let found = if found.is_empty() { "nothing".to_owned() } else { found.join(", ") };
+            format!("by joint name, found {found} but not {}", missing.join(", "))
+        }
     };
     body_roles(skeleton, pos_in_world).map_err(|why| format!("{missing}; by shape, {why}"))
 }
@@ -178,16 +186,26 @@ fn named_roles(skeleton: &Skeleton, landmarks: &Landmarks) -> Option<BodyRoles> 
     let pelvis = common_ancestor(skeleton, left[0], right[0]);
     let chest = common_ancestor(skeleton, left[3], right[3]);
     let spine = path_below(skeleton, pelvis, limb_tip(skeleton, landmarks.head))?;
-    let limb = |from: usize, upper: usize, end: usize| {
-        let chain = path_below(skeleton, from, limb_tip(skeleton, end))?;
+    let limb = |from: usize, [upper, lower, end]: [usize; 3]| {
+        let tip = limb_tip(skeleton, end);
+        let chain = if skeleton.is_ancestor(lower, end) {
+            path_below(skeleton, from, tip)?
+        } else {
+            // A detached end: down to the lower joint, then the end and what hangs below it.
+            let mut chain = path_below(skeleton, from, lower)?;
+            chain.push(end);
+            chain.extend(path_below(skeleton, end, tip)?);
+            chain
+        };
         Some(Limb { upper: chain.iter().position(|&j| j == upper)?, chain })
     };
+    let three = |slots: &[usize; 6], first: usize| [slots[first], slots[first + 1], slots[first + 2]];
     Some(BodyRoles {
         pelvis,
         chest,
         spine,
-        legs: [limb(pelvis, left[0], left[2])?, limb(pelvis, right[0], right[2])?],
-        arms: [limb(chest, left[3], left[5])?, limb(chest, right[3], right[5])?],
+        legs: [limb(pelvis, three(&left, 0))?, limb(pelvis, three(&right, 0))?],
+        arms: [limb(chest, three(&left, 3))?, limb(chest, three(&right, 3))?],
     })
 }
 
