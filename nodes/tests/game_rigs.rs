@@ -297,3 +297,80 @@ fn a_one_legged_rig_is_refused_naming_what_was_found_and_what_to_set() {
         assert!(e.contains(part), "'{part}' missing from: {e}");
     }
 }
+
+/// `clip` with its joints renamed `b000`, `b001`… (no reader knows them).
+fn anonymous(clip: &Clip) -> Clip {
+    let sk = clip.skeleton();
+    let renamed = rename(sk, |n| format!("b{:03}", sk.index_of(n).unwrap()));
+    Clip::new(Arc::new(renamed), clip.fps(), clip.rotations().to_vec(), clip.translations().to_vec(), clip.import_scale)
+        .unwrap()
+}
+
+/// Issue 18, `motion.contacts` with named feet: on an anonymous IK-style rig (feet under a
+/// ground-level root, names no reader knows) the feet cannot be found, and named ankles and
+/// toes give exactly the contacts found automatically on the original Xbot walking the same walk.
+#[test]
+fn named_feet_find_the_contacts_detection_cannot() {
+    use kinegraph_nodes::kernels::contacts::{ContactThresholds, NamedFeet, contacts_of, contacts_with, joint_pair};
+    let Some(Setup { walk, xbot }) = setup() else { return };
+    let (_, _, original) = carry(&walk, (*xbot).clone());
+    let game = FAMILIES.iter().find(|(f, _)| *f == "game").unwrap().1;
+    let rig = game_rig(&rename(&xbot, |n| renamed(game, n)), ["FootL", "FootR"], &["UpperLegL", "UpperLegR"]);
+    let (_, _, on_rig) = carry(&walk, rig);
+    let lost = anonymous(&on_rig.clip);
+    let t = ContactThresholds::default();
+    let poses = forward_kinematics(&lost);
+    let e = contacts_of(&lost, &poses, &t).unwrap_err();
+    println!("anonymous IK rig: {e}");
+    let name = |n: &str| format!("b{:03}", on_rig.clip.skeleton().index_of(n).unwrap());
+    let sk = lost.skeleton();
+    let named = NamedFeet {
+        ankles: joint_pair(sk, &format!("{}, {}", name("FootL"), name("FootR"))).unwrap(),
+        toes: joint_pair(sk, &format!("{} ,{}", name("LeftToe_End"), name("RightToe_End"))).unwrap(),
+    };
+    let (got, _) = contacts_with(&lost, &poses, &t, &named).unwrap();
+    let (want, _) = contacts_of(&original.clip, &forward_kinematics(&original.clip), &t).unwrap();
+    assert_eq!(got.double_support, want.double_support);
+    for (g, w) in got.feet.iter().zip(&want.feet) {
+        assert_eq!(g.intervals, w.intervals);
+    }
+    println!("named feet: {} and {} plants", got.feet[0].intervals.len(), got.feet[1].intervals.len());
+    assert!(got.feet.iter().all(|f| f.intervals.len() >= 3));
+    // A wrong name is refused with the nearest one.
+    let e = joint_pair(sk, "b06x, b064").unwrap_err();
+    assert!(e.contains("did you mean"), "{e}");
+}
+
+/// Issue 18, `motion.foot_lock` with named toes: locking the walk on the anonymous Xbot with
+/// named feet and toes moves every joint exactly as locking it on the original Xbot does.
+#[test]
+fn named_toes_lock_like_the_original() {
+    use kinegraph_nodes::builtin::ik::foot_lock::{FootLockParams, foot_lock};
+    use kinegraph_nodes::kernels::contacts::{ContactThresholds, NamedFeet, contacts_of, contacts_with};
+    let Some(Setup { walk, xbot }) = setup() else { return };
+    let (_, _, original) = carry(&walk, (*xbot).clone());
+    let clip = original.clip.slice(0, 120);
+    let t = ContactThresholds::default();
+    let (contacts, feet) = contacts_of(&clip, &forward_kinematics(&clip), &t).unwrap();
+    let want = foot_lock(&clip, &contacts, &FootLockParams::default()).unwrap();
+    let lost = anonymous(&clip);
+    let sk = clip.skeleton();
+    let toes = ["mixamorig:LeftToe_End", "mixamorig:RightToe_End"].map(|n| sk.index_of(n).unwrap());
+    let named = NamedFeet { ankles: Some(feet), toes: Some(toes) };
+    let (lost_contacts, _) = contacts_with(&lost, &forward_kinematics(&lost), &t, &named).unwrap();
+    let params = FootLockParams { toes: Some(toes.map(|j| format!("b{j:03}"))), ..FootLockParams::default() };
+    let got = foot_lock(&lost, &lost_contacts, &params).unwrap();
+    let (a, b) = (forward_kinematics(&want.clip), forward_kinematics(&got.clip));
+    let mut worst = 0.0f32;
+    for f in 0..clip.frame_count() {
+        for j in 0..clip.joint_count() {
+            worst = worst.max(a.position(f, j).distance(b.position(f, j)));
+        }
+    }
+    println!("foot lock with named toes vs the original: worst joint distance {worst:.2e} m; skate after {:.4} m",
+        got.feet.iter().map(|f| f.skate_after_m).sum::<f64>());
+    assert!(worst < 1e-6);
+    assert!(got.feet.iter().zip(&want.feet).all(|(g, w)| (g.skate_after_m - w.skate_after_m).abs() < 1e-9));
+    let bad = FootLockParams { toes: Some(["b999".into(), "b064".into()]), ..FootLockParams::default() };
+    assert!(foot_lock(&lost, &lost_contacts, &bad).unwrap_err().to_string().contains("b999"));
+}

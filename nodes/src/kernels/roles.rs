@@ -172,7 +172,7 @@ pub fn roles_of(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRoles,
         Err(missing) => {
             let found = found_by_name(skeleton);
             let found = if found.is_empty() { "nothing".to_owned() } else { found.join(", ") };
-            format!("by joint name, found {found} but not {}", missing.join(", "))
+            format!("by joint name, found {found}; missing {}", missing.join(", "))
         }
     };
     body_roles(skeleton, pos_in_world).map_err(|why| format!("{missing}; by shape, {why}"))
