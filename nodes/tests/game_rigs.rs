@@ -367,10 +367,43 @@ fn named_toes_lock_like_the_original() {
             worst = worst.max(a.position(f, j).distance(b.position(f, j)));
         }
     }
-    println!("foot lock with named toes vs the original: worst joint distance {worst:.2e} m; skate after {:.4} m",
-        got.feet.iter().map(|f| f.skate_after_m).sum::<f64>());
+    println!(
+        "foot lock with named toes vs the original: worst joint distance {worst:.2e} m; skate after {:.4} m",
+        got.feet.iter().map(|f| f.skate_after_m).sum::<f64>()
+    );
     assert!(worst < 1e-6);
     assert!(got.feet.iter().zip(&want.feet).all(|(g, w)| (g.skate_after_m - w.skate_after_m).abs() < 1e-9));
     let bad = FootLockParams { toes: Some(["b999".into(), "b064".into()]), ..FootLockParams::default() };
     assert!(foot_lock(&lost, &lost_contacts, &bad).unwrap_err().to_string().contains("b999"));
+}
+
+/// Issue 18: an IK-style rig with names no reader knows (feet under a ground-level root,
+/// twist bones) is read by its shape, and walks exactly like the original Xbot.
+#[test]
+fn an_anonymous_ik_rig_is_read_by_its_shape() {
+    let Some(Setup { walk, xbot }) = setup() else { return };
+    let (_, _, original_out) = carry(&walk, (*xbot).clone());
+    let rig = game_rig(
+        &xbot,
+        ["mixamorig:LeftFoot", "mixamorig:RightFoot"],
+        &["mixamorig:LeftUpLeg", "mixamorig:RightUpLeg", "mixamorig:LeftArm", "mixamorig:RightArm"],
+    );
+    let name_of = |n: &str| format!("b{:03}", rig.index_of(n).unwrap());
+    let lost = rename(&rig, |n| format!("b{:03}", rig.index_of(n).unwrap()));
+    let (target, map, out) = carry(&walk, lost);
+    let bodies = Bodies::of(&target, &walk).unwrap();
+    let names =
+        |l: &kinegraph_nodes::kernels::roles::Limb| l.joints().map(|j| target.skeleton().joints()[j].name.clone());
+    assert_eq!(
+        names(&bodies.target.legs[0]),
+        ["mixamorig:LeftUpLeg", "mixamorig:LeftLeg", "mixamorig:LeftFoot"].map(name_of)
+    );
+    assert_eq!(names(&bodies.target.arms[1])[2], name_of("mixamorig:RightHand"));
+    assert!((out.root_scale - original_out.root_scale).abs() < 1e-6, "{}", out.root_scale);
+    let (worst, at) = worst_joint_distance(&original_out.clip, &out.clip, name_of);
+    println!(
+        "anonymous IK rig by shape: {} pairs, worst joint distance to the original {worst:.2e} m ({at})",
+        map.joints.len()
+    );
+    assert!(worst < 1e-4, "{worst} m at {at}");
 }

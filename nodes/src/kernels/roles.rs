@@ -87,9 +87,16 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
             above_ground(l) < 0.25 * height && above_ground(common_ancestor(skeleton, lowest, l)) > 0.3 * height
         })
         .min_by(by_height)
-        .copied()
-        .ok_or("only one leg (no second low leaf splitting from the first above the knees)")?;
-    let pelvis = common_ancestor(skeleton, lowest, other_foot);
+        .copied();
+    let detached = match other_foot {
+        Some(_) => None,
+        None => Some(detached_legs(skeleton, pos_in_world, &leaves, lowest, highest, height)?),
+    };
+    let pelvis = match (&detached, other_foot) {
+        (Some((pelvis, _)), _) => *pelvis,
+        (None, Some(other)) => common_ancestor(skeleton, lowest, other),
+        (None, None) => return Err("only one leg (no second low leaf splitting from the first above the knees)".into()),
+    };
     let spine = path_below(skeleton, pelvis, highest).ok_or("the head is not above the pelvis in the hierarchy")?;
     // Arms: leaves leaving the spine, farthest from where they leave it.
     let leaves_spine_at = |l: usize| spine.iter().rev().copied().find(|&s| skeleton.is_ancestor(s, l));
@@ -129,7 +136,11 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
             .ok_or_else(|| format!("the {what} has fewer than three joints"))?;
         Ok(Limb { chain, upper })
     };
-    let legs = [limb(pelvis, lowest, "leg")?, limb(pelvis, other_foot, "leg")?];
+    let legs = match (detached, other_foot) {
+        (Some((_, legs)), _) => legs,
+        (None, Some(other)) => [limb(pelvis, lowest, "leg")?, limb(pelvis, other, "leg")?],
+        (None, None) => return Err("only one leg".into()),
+    };
     let arms = [limb(splits[0], arm_a, "arm")?, limb(splits[1], arm_b, "arm")?];
 
     // Sides: left is up × forward; forward is where the leaves below the ankles point
@@ -207,6 +218,60 @@ fn named_roles(skeleton: &Skeleton, landmarks: &Landmarks) -> Option<BodyRoles> 
         legs: [limb(pelvis, three(&left, 0))?, limb(pelvis, three(&right, 0))?],
         arms: [limb(chest, three(&left, 3))?, limb(chest, three(&right, 3))?],
     })
+}
+
+/// The legs of a rig that hangs its feet off a root near the ground (IK-style game rigs),
+/// read from positions: the second foot is the lowest other leaf whose branch leaves the
+/// first's on the way to the head; each foot's top joint is where its branch starts; its knee
+/// is the lowest joint of the rest of the body 10–45 % of the body's height above the foot's
+/// top and within 5 % of the height of it horizontally; the pelvis is where the knees'
+/// branches split. Each leg's chain runs pelvis → knee, then the foot's branch.
+fn detached_legs(
+    skeleton: &Skeleton,
+    pos: &[Vec3],
+    leaves: &[usize],
+    lowest: usize,
+    highest: usize,
+    height: f32,
+) -> Result<(usize, [Limb; 2]), String> {
+    const ONE_LEG: &str =
+        "only one leg (no second low leaf splitting from the first above the knees, nor hanging from the root)";
+    let low = |j: usize| pos[j].y - pos[lowest].y;
+    let other = leaves
+        .iter()
+        .copied()
+        .filter(|&l| l != lowest && low(l) < 0.25 * height)
+        .filter(|&l| {
+            let split = common_ancestor(skeleton, lowest, l);
+            split == highest || skeleton.is_ancestor(split, highest)
+        })
+        .min_by(|&a, &b| pos[a].y.total_cmp(&pos[b].y))
+        .ok_or(ONE_LEG)?;
+    let split = common_ancestor(skeleton, lowest, other);
+    let foot_top = |leaf: usize| path_below(skeleton, split, leaf).and_then(|p| p.first().copied());
+    let feet = [foot_top(lowest).ok_or(ONE_LEG)?, foot_top(other).ok_or(ONE_LEG)?];
+    let under_a_foot = |j: usize| feet.iter().any(|&f| j == f || skeleton.is_ancestor(f, j));
+    let knee = |foot: usize| {
+        (0..skeleton.len())
+            .filter(|&j| !under_a_foot(j) && j != split && !skeleton.is_ancestor(j, split))
+            .filter(|&j| {
+                let up = pos[j].y - pos[foot].y;
+                (0.1 * height..0.45 * height).contains(&up) && (pos[j] - pos[foot]).with_y(0.0).length() < 0.05 * height
+            })
+            .min_by(|&a, &b| pos[a].y.total_cmp(&pos[b].y))
+    };
+    let knees = [knee(feet[0]), knee(feet[1])];
+    let [Some(ka), Some(kb)] = knees else {
+        return Err("the feet hang from the root but no knee stands above them".into());
+    };
+    let pelvis = common_ancestor(skeleton, ka, kb);
+    let leg = |knee: usize, leaf: usize| -> Result<Limb, String> {
+        let mut chain = path_below(skeleton, pelvis, knee).ok_or("a knee is not below the pelvis")?;
+        let upper = chain.len().checked_sub(2).ok_or("a knee hangs straight from the pelvis (no thigh)")?;
+        chain.extend(path_below(skeleton, split, leaf).ok_or("a foot is not below the root")?);
+        Ok(Limb { chain, upper })
+    };
+    Ok((pelvis, [leg(ka, lowest)?, leg(kb, other)?]))
 }
 
 /// The deepest joint that is `a` or `b` or an ancestor of both.
