@@ -407,3 +407,18 @@ fn an_anonymous_ik_rig_is_read_by_its_shape() {
     );
     assert!(worst < 1e-4, "{worst} m at {at}");
 }
+
+/// Bad input: the quadruped Fox is not taken for a person; the refusal says what was and was
+/// not found, and what to set.
+#[test]
+fn a_quadruped_is_refused_with_what_was_found() {
+    let Some(Setup { walk, .. }) = setup() else { return };
+    let data = shared_data().unwrap();
+    let fox = read_gltf_file(&data.join("gltf/Fox.glb"), &GltfReadOptions::default()).unwrap().value;
+    let target = Clip::rest_pose(fox.skeleton.clone().unwrap(), 30.0, 1).unwrap();
+    let e = Bodies::of(&target, &walk).unwrap_err().to_string();
+    println!("Fox: {e}");
+    for part in ["target", "by joint name, found", "missing", "by shape", "map_file"] {
+        assert!(e.contains(part), "'{part}' missing from: {e}");
+    }
+}

@@ -8,7 +8,9 @@
 //!    quarter that splits from it high above the ground (more than 30 % of the body's
 //!    height): toes of one foot split at the ankle. Their lowest common ancestor is the
 //!    pelvis.
-//! 2. The head is the highest leaf; the spine is the path from the pelvis to it.
+//! 2. The head is the highest leaf; the spine is the path from the pelvis to it. The head
+//!    must stand above the pelvis (within about 45° of straight up), or the body is not a
+//!    standing biped (a quadruped) and is refused.
 //! 3. The arms are the two leaves farthest from where they leave the spine (three joints or
 //!    more below it), splitting from
 //!    each other on the spine; the lower of the two split points of the arms is the chest.
@@ -98,6 +100,14 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
         (None, None) => return Err("only one leg (no second low leaf splitting from the first above the knees)".into()),
     };
     let spine = path_below(skeleton, pelvis, highest).ok_or("the head is not above the pelvis in the hierarchy")?;
+    // A person stands: the head is well above the pelvis, not ahead of it (a quadruped).
+    let up = (pos_in_world[highest] - pos_in_world[pelvis]).normalize_or_zero().y;
+    if up < 0.7 {
+        return Err(format!(
+            "the body is not upright (the top joint is {:.0}° from straight above the pelvis): not a standing biped, e.g. a quadruped",
+            up.clamp(-1.0, 1.0).acos().to_degrees()
+        ));
+    }
     // Arms: leaves leaving the spine, farthest from where they leave it.
     let leaves_spine_at = |l: usize| spine.iter().rev().copied().find(|&s| skeleton.is_ancestor(s, l));
     let reach = |l: usize| leaves_spine_at(l).map_or(0.0, |s| pos_in_world[l].distance(pos_in_world[s]));
