@@ -256,3 +256,171 @@ fn a_cmu_walk_on_cesium_man_passes_the_validator() {
     write_glb_file(&path, &out.clip, asset.meshes.first()).unwrap();
     validate(&[path]);
 }
+
+/// The inverse bind matrices of every skin in a GLB, read back by the `gltf` crate.
+fn inverse_bind_matrices(path: &Path) -> Vec<[[f32; 4]; 4]> {
+    let (doc, buffers, _) = gltf::import(path).unwrap();
+    doc.skins()
+        .flat_map(|skin| {
+            let reader = skin.reader(|b| Some(&buffers[b.index()]));
+            reader.read_inverse_bind_matrices().map(|m| m.collect::<Vec<_>>()).unwrap_or_default()
+        })
+        .collect()
+}
+
+/// Issue 18: a skeleton exported without a mesh gets inverse bind matrices the exporter
+/// computes; each must be exactly affine (last row exactly 0, 0, 0, 1, which the validator
+/// checks as ACCESSOR_INVALID_IBM) and still invert the joint's rest world transform.
+/// Checked on every rig of the corpus, the Mixamo Xbot included (rest rotations on every joint).
+#[test]
+fn computed_inverse_bind_matrices_are_exactly_affine_on_every_corpus_rig() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for name in ["Xbot.glb", "CesiumMan.glb", "Fox.glb", "RiggedSimple.glb", "SimpleSkin.gltf"] {
+        let asset = read_gltf_file(&data.join("gltf").join(name), &GltfReadOptions::default()).unwrap().value;
+        let clip = &asset.clips[0].clip;
+        let path = dir.path().join(format!("{name}.skeleton.glb"));
+        write_glb_file(&path, clip, None).unwrap();
+        let ibms = inverse_bind_matrices(&path);
+        assert_eq!(ibms.len(), clip.joint_count(), "{name}");
+        // The rest world transforms by the reader's own FK of a one-frame rest clip.
+        let rest = Clip::rest_pose(clip.skeleton().clone(), 30.0, 1).unwrap();
+        let world = forward_kinematics(&rest);
+        for (j, m) in ibms.iter().enumerate() {
+            assert_eq!([m[0][3], m[1][3], m[2][3], m[3][3]], [0.0, 0.0, 0.0, 1.0], "{name} joint {j}");
+            let product = Mat4::from_cols_array_2d(m) * world.frame(0)[j].to_mat4();
+            assert!(product.abs_diff_eq(Mat4::IDENTITY, 1e-4), "{name} joint {j}: {product}");
+        }
+        files.push(path);
+    }
+    validate(&files);
+}
+
+/// Issue 18: a mesh without a skin written beside an animated skeleton is reported, not
+/// silently written standing still.
+#[test]
+fn an_unskinned_mesh_beside_an_animated_skeleton_is_warned_about() {
+    let (clip, mut mesh) = synthetic();
+    mesh.skin = None;
+    let glb = write_glb(&clip, Some(&mesh)).unwrap();
+    assert!(glb.warnings.iter().any(|w| w.contains("'box' has no skin")), "{:?}", glb.warnings);
+    // Still, nothing to warn about for a skinned mesh.
+    let (clip, mesh) = synthetic();
+    assert!(write_glb(&clip, Some(&mesh)).unwrap().warnings.is_empty());
+}
+
+/// Issue 18, `character.load` → `export.glb` round trip on the corpus characters: the
+/// Mixamo Xbot's two skinned meshes (Beta_Joints, Beta_Surface) and CesiumMan come back from
+/// the exported GLB with the same rest-pose vertex positions (< 1e-5 m) as the reader gives
+/// for the original file's meshes, the same skin weights on the same joints (by name), and
+/// the validator reports 0 errors.
+#[test]
+fn whole_characters_round_trip_through_export() {
+    use kinegraph_nodes::kernels::load::load_character;
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for name in ["Xbot.glb", "CesiumMan.glb"] {
+        let path = data.join("gltf").join(name);
+        let original = read_gltf_file(&path, &GltfReadOptions::default()).unwrap().value;
+        let character = load_character(&path, 0).unwrap().value;
+        assert_eq!(character.parts.len(), original.meshes.len(), "{name}");
+        assert!(character.parts.iter().all(|p| p.binding == "skinned"), "{name}: {:?}", character.parts);
+        let out = dir.path().join(format!("{name}.character.glb"));
+        let warnings = write_glb_file(&out, &character.clip, Some(&character.mesh)).unwrap();
+        println!(
+            "{name}: {} meshes, {} vertices; export warnings {warnings:?}",
+            character.parts.len(),
+            character.mesh.positions.len()
+        );
+        let back = read_gltf_file(&out, &GltfReadOptions::default()).unwrap().value;
+        assert_eq!(back.meshes.len(), 1);
+        let m = &back.meshes[0];
+        let skin = m.skin.as_ref().unwrap();
+        // The original meshes, concatenated in order: positions, and weights per joint name.
+        let (mut v, mut worst_pos, mut worst_weight) = (0usize, 0.0f32, 0.0f32);
+        for part in &original.meshes {
+            let ps = part.skin.as_ref().unwrap();
+            for (k, p) in part.positions.iter().enumerate() {
+                worst_pos = worst_pos.max(p.distance(m.positions[v]));
+                let by_name = |sk: &Skeleton, joints: [u16; 4], weights: [f32; 4]| {
+                    let mut w: std::collections::BTreeMap<String, f32> = Default::default();
+                    for i in 0..4 {
+                        if weights[i] > 0.0 {
+                            *w.entry(sk.joints()[joints[i] as usize].name.clone()).or_default() += weights[i];
+                        }
+                    }
+                    w
+                };
+                let (a, b) = (
+                    by_name(&ps.skeleton, ps.joints[k], ps.weights[k]),
+                    by_name(&skin.skeleton, skin.joints[v], skin.weights[v]),
+                );
+                assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>(), "{name} vertex {v}");
+                for (x, y) in a.values().zip(b.values()) {
+                    worst_weight = worst_weight.max((x - y).abs());
+                }
+                v += 1;
+            }
+        }
+        assert_eq!(v, m.positions.len());
+        println!(
+            "{name}: worst rest-pose vertex distance {worst_pos:.2e} m, worst weight difference {worst_weight:.2e}"
+        );
+        assert!(worst_pos < 1e-5, "{name}: {worst_pos}");
+        assert!(worst_weight < 1e-5, "{name}: {worst_weight}");
+        files.push(out);
+    }
+    validate(&files);
+}
+
+/// A two-joint glTF (root at y = 1, bone 1 m above it) with an unskinned triangle node
+/// parented to the bone, 0.5 m along X: `character.load` binds it rigidly to the bone.
+const PROP_ON_A_BONE: &str = r#"{
+  "asset": {"version": "2.0"},
+  "scene": 0,
+  "scenes": [{"nodes": [0]}],
+  "nodes": [
+    {"name": "root", "translation": [0, 1, 0], "children": [1]},
+    {"name": "bone", "translation": [0, 1, 0], "children": [2]},
+    {"name": "prop", "translation": [0.5, 0, 0], "mesh": 0}
+  ],
+  "skins": [{"joints": [0, 1]}],
+  "meshes": [{"name": "plate", "primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+  "buffers": [{"byteLength": 44, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAABAAIAAAA="}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+  "accessors": [
+    {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+    {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}
+  ]
+}"#;
+
+#[test]
+fn a_mesh_parented_to_a_bone_moves_rigidly_with_it() {
+    use kinegraph_nodes::kernels::load::load_character;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("prop.gltf");
+    std::fs::write(&path, PROP_ON_A_BONE).unwrap();
+    let loaded = load_character(&path, 0).unwrap();
+    let c = loaded.value;
+    assert_eq!(c.parts[0].binding, "rigid to bone");
+    let skin = c.mesh.skin.as_ref().unwrap();
+    // Hand-solved rest world positions: root (0,1,0) + bone (0,1,0) + prop (0.5,0,0).
+    let want = [Vec3::new(0.5, 2.0, 0.0), Vec3::new(1.5, 2.0, 0.0), Vec3::new(0.5, 3.0, 0.0)];
+    for (p, w) in c.mesh.positions.iter().zip(want) {
+        assert!(p.distance(w) < 1e-6, "{p} vs {w}");
+    }
+    assert!(skin.joints.iter().all(|j| j[0] == 1) && skin.weights.iter().all(|w| w[0] == 1.0));
+    // Turning the bone 90° about Z swings the plate about the bone's origin (0, 2, 0):
+    // (0.5, 2, 0) → (0, 2.5, 0), by the skinning matrix world × inverse bind.
+    let turned = kinegraph_nodes::model::fk::Transform {
+        rotation: Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+        translation: Vec3::new(0.0, 2.0, 0.0),
+    };
+    let moved = (turned.to_mat4() * skin.inverse_bind_matrices[1]).transform_point3(c.mesh.positions[0]);
+    assert!(moved.distance(Vec3::new(0.0, 2.5, 0.0)) < 1e-6, "{moved}");
+    let out = dir.path().join("prop.glb");
+    write_glb_file(&out, &c.clip, Some(&c.mesh)).unwrap();
+    validate(&[out]);
+}

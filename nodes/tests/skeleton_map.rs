@@ -52,9 +52,15 @@ fn shape_roles_agree_with_named_landmarks_on_every_corpus_skeleton() {
     assert!(checked >= 30, "only {checked} corpus clips agree");
     // The MASS HumanIK files hang mesh-attachment joints (`*_RIGMESH`, up to a metre off the
     // body) from the limbs and spine, which the shape reader cannot tell from limbs; their
-    // names are read instead (`clip_roles`). Every other rig must agree.
-    let odd: Vec<_> =
-        unread.iter().chain(&disagree).filter(|p| !p.to_string_lossy().contains("mass_humanik")).collect();
+    // names are read instead (`clip_roles`). MakeHuman's default rig (`tpose.bvh`), whose
+    // names (`upperleg01.L`, `foot.L`) are read since issue 18, is not read by its shape
+    // either (the head's highest leaf is not on a path from where the legs split); its names
+    // are used. Every other rig must agree.
+    let odd: Vec<_> = unread
+        .iter()
+        .chain(&disagree)
+        .filter(|p| !p.to_string_lossy().contains("mass_humanik") && !p.ends_with("makehuman/tpose.bvh"))
+        .collect();
     assert!(odd.is_empty(), "{odd:?}");
 }
 

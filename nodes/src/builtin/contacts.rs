@@ -2,9 +2,9 @@
 
 use std::sync::Arc;
 
-use crate::kernels::contacts::{ContactThresholds, contacts_of};
+use crate::kernels::contacts::{ContactThresholds, NamedFeet, contacts_with, joint_pair};
 use crate::model::{Clip, Contacts, forward_kinematics};
-use crate::node::{FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Registry};
+use crate::node::{FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Registry, TextParam};
 
 /// Registers the contact node.
 pub fn register(registry: &mut Registry) {
@@ -30,6 +30,17 @@ const LEAVE_SPEED: FloatParam =
     FloatParam::new("leave_speed_mps", "It lifts off when faster than this.", 0.9, 0.0, 20.0, "m/s");
 const MIN_DURATION: FloatParam =
     FloatParam::new("min_duration_secs", "Shorter contacts are ignored.", 0.05, 0.0, 10.0, "s");
+
+const FEET: TextParam = TextParam::new(
+    "feet",
+    "The ankle joints, left then right, comma separated (e.g. 'FootL, FootR'), when the feet are not found by name or shape. Empty: found from the body.",
+    "",
+);
+const TOES: TextParam = TextParam::new(
+    "toes",
+    "The toe joints watched with the ankles, left then right, comma separated (e.g. 'ToeL, ToeR'). Empty: the joint farthest below each ankle.",
+    "",
+);
 
 /// Reads and checks the threshold params.
 fn thresholds_from(ctx: &NodeContext<'_>) -> Result<ContactThresholds, NodeError> {
@@ -58,7 +69,7 @@ static DETECT_CONTACTS: NodeSchema = NodeSchema {
     doc: "Finds when each foot is planted (low and slow, with hysteresis) and the double-support frames.",
     inputs: &[CLIP.spec()],
     outputs: &[CONTACTS.spec()],
-    params: &[ENTER_HEIGHT.0, LEAVE_HEIGHT.0, ENTER_SPEED.0, LEAVE_SPEED.0, MIN_DURATION.0],
+    params: &[ENTER_HEIGHT.0, LEAVE_HEIGHT.0, ENTER_SPEED.0, LEAVE_SPEED.0, MIN_DURATION.0, FEET.0, TOES.0],
     writes_files: false,
     version: 1,
 };
@@ -70,7 +81,12 @@ impl Node for DetectContacts {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
         let thresholds = thresholds_from(ctx)?;
-        let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &thresholds)
+        let skeleton = clip.skeleton();
+        let named = NamedFeet {
+            ankles: joint_pair(skeleton, ctx.text_param(&FEET)?).map_err(|e| NodeError::param("feet", e))?,
+            toes: joint_pair(skeleton, ctx.text_param(&TOES)?).map_err(|e| NodeError::param("toes", e))?,
+        };
+        let (contacts, _) = contacts_with(&clip, &forward_kinematics(&clip), &thresholds, &named)
             .map_err(|why| NodeError::input("clip", format!("the feet could not be found: {why}")))?;
         ctx.set_output(&CONTACTS, Arc::new(contacts));
         Ok(())

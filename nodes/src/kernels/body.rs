@@ -202,38 +202,75 @@ pub fn limb_tip(skeleton: &Skeleton, joint: usize) -> usize {
 
 const LIMB_ROLES: [&str; 6] = ["thigh", "shank", "foot", "upper_arm", "forearm", "hand"];
 
-/// Which body side a joint name names, and the rest of the name, lowercase.
-fn side_and_role(name: &str) -> (Option<usize>, String) {
-    // Namespaces: "mixamorig:LeftArm", "Character1_LeftArm".
-    let name = name.rsplit(':').next().unwrap_or(name);
-    let name = name.strip_prefix("Character1_").unwrap_or(name);
-    let lower = name.to_ascii_lowercase();
-    for (side, word) in [(0, "left"), (1, "right")] {
-        if let Some(rest) = lower.strip_prefix(word) {
-            return (Some(side), rest.trim_start_matches('_').to_string());
+/// Words of a joint name that say nothing about the body part: rig prefixes (Rigify `DEF-`,
+/// `ORG-`, `MCH-`; 3ds Max `Bip01`; VRM `J_Bip_`; HumanIK `Character1_`; Mixamo exported
+/// with `_` for `:`), centre markers (`_C`, `_M`). Numbers are dropped too (`neck_01`,
+/// Rigify's `.001` twist segments).
+const NOISE_WORDS: &[&str] = &["def", "org", "mch", "bip", "j", "c", "m", "character", "mixamorig"];
+
+/// The words of a joint name: split at `_ - . :` and spaces, at lower-to-upper case changes
+/// (`UpperLegL` → Upper, Leg, L), before the last capital of a capital run followed by a
+/// small letter (`RHip` → R, Hip) and between letters and digits.
+fn name_words(name: &str) -> Vec<String> {
+    let chars: Vec<char> = name.chars().collect();
+    let mut words: Vec<String> = Vec::new();
+    let mut word = String::new();
+    for (i, &c) in chars.iter().enumerate() {
+        if !c.is_ascii_alphanumeric() {
+            if !word.is_empty() {
+                words.push(std::mem::take(&mut word));
+            }
+            continue;
         }
-    }
-    // "lThigh", "L_Femur", "RHipJoint": one side letter, then an upper-case letter or '_'.
-    let mut chars = name.chars();
-    if let (Some(first), Some(second)) = (chars.next(), chars.next()) {
-        let side = match first {
-            'l' | 'L' => Some(0),
-            'r' | 'R' => Some(1),
-            _ => None,
-        };
-        if side.is_some() && (second.is_ascii_uppercase() || second == '_') {
-            return (side, name[1..].trim_start_matches('_').to_ascii_lowercase());
-        }
-    }
-    // Blender style "thigh.L", "thigh_r".
-    for (side, suffixes) in [(0, [".l", "_l"]), (1, [".r", "_r"])] {
-        for s in suffixes {
-            if let Some(rest) = lower.strip_suffix(s) {
-                return (Some(side), rest.to_string());
+        if let Some(&prev) = word.chars().last().as_ref() {
+            let next = chars.get(i + 1).copied().unwrap_or(' ');
+            let camel = prev.is_ascii_lowercase() && c.is_ascii_uppercase();
+            let acronym_end = prev.is_ascii_uppercase() && c.is_ascii_uppercase() && next.is_ascii_lowercase();
+            let digits = prev.is_ascii_digit() != c.is_ascii_digit();
+            if camel || acronym_end || digits {
+                words.push(std::mem::take(&mut word));
             }
         }
+        word.push(c);
     }
-    (None, lower)
+    if !word.is_empty() {
+        words.push(word);
+    }
+    words
+}
+
+/// Which body side a joint name names, and the rest of the name, lowercase, without
+/// namespace, rig prefixes, numbers and separators: `mixamorig:LeftUpLeg`,
+/// `Character1_LeftUpLeg`, `lThigh`, `L_Femur`, `thigh_l` (Unreal), `DEF-thigh.L` (Rigify),
+/// `Bip01 L Thigh` (3ds Max), `J_Bip_L_UpperLeg` (VRM), `UpperLegL` (game rigs) all read as
+/// (left, "upleg" / "thigh" / "femur" / "upperleg").
+fn side_and_role(name: &str) -> (Option<usize>, String) {
+    // Namespaces: "mixamorig:LeftArm".
+    let name = name.rsplit(':').next().unwrap_or(name);
+    let mut side = None;
+    let mut role = String::new();
+    for word in name_words(name) {
+        let lower = word.to_ascii_lowercase();
+        if lower.chars().all(|c| c.is_ascii_digit()) || NOISE_WORDS.contains(&lower.as_str()) {
+            continue;
+        }
+        let found = match lower.as_str() {
+            "l" | "left" => Some((0, "")),
+            "r" | "right" => Some((1, "")),
+            // All lower case: "leftupleg".
+            w if w.starts_with("left") => Some((0, &w[4..])),
+            w if w.starts_with("right") => Some((1, &w[5..])),
+            _ => None,
+        };
+        match found {
+            Some((s, rest)) if side.is_none() => {
+                side = Some(s);
+                role.push_str(rest);
+            }
+            _ => role.push_str(&lower),
+        }
+    }
+    (side, role)
 }
 
 /// Role names by priority: an earlier word wins over a later one on the same side.
@@ -261,9 +298,17 @@ fn find_role(
 }
 
 /// The first pair of a limb chain where a joint is not below the previous one, as a message.
-fn chain_order_problem(skeleton: &Skeleton, side: usize, chain: &[usize]) -> Option<String> {
+/// With `detached_end`, the last joint (a foot or hand) may hang elsewhere in the hierarchy
+/// (IK-style game rigs parent the feet to the root) as long as it is not above the joint
+/// before it.
+fn chain_order_problem(skeleton: &Skeleton, side: usize, chain: &[usize], detached_end: bool) -> Option<String> {
     let joints = skeleton.joints();
-    chain.windows(2).find(|pair| !skeleton.is_ancestor(pair[0], pair[1])).map(|pair| {
+    let last = chain.len().saturating_sub(2);
+    let in_order = |k: usize, pair: &[usize]| {
+        skeleton.is_ancestor(pair[0], pair[1])
+            || (detached_end && k == last && pair[0] != pair[1] && !skeleton.is_ancestor(pair[1], pair[0]))
+    };
+    chain.windows(2).enumerate().find(|(k, pair)| !in_order(*k, pair)).map(|(_, pair)| {
         format!("{} chain order ({} above {})", ["left", "right"][side], joints[pair[0]].name, joints[pair[1]].name)
     })
 }
@@ -284,13 +329,46 @@ pub fn find_legs(skeleton: &Skeleton) -> Result<[[usize; 3]; 2], Vec<String>> {
         }
     }
     if missing.is_empty() {
-        missing.extend((0..2).filter_map(|side| chain_order_problem(skeleton, side, &legs[side])));
+        missing.extend((0..2).filter_map(|side| chain_order_problem(skeleton, side, &legs[side], false)));
     }
     if missing.is_empty() { Ok(legs) } else { Err(missing) }
 }
 
 /// Finds the landmark joints by name, or lists the roles it could not find.
 pub fn find_landmarks(skeleton: &Skeleton) -> Result<Landmarks, Vec<String>> {
+    landmarks_by_name(skeleton, false)
+}
+
+/// [`find_landmarks`], also accepting feet and hands that hang elsewhere in the hierarchy
+/// than below their knee or elbow (IK-style game rigs parent the feet to the root): their
+/// limb is then read by position, not by parenthood ([`crate::kernels::roles`]).
+pub fn find_landmarks_detached(skeleton: &Skeleton) -> Result<Landmarks, Vec<String>> {
+    landmarks_by_name(skeleton, true)
+}
+
+/// The body parts found by joint name, as `left thigh = UpperLegL` lines for messages that
+/// say what was found and what was not.
+pub fn found_by_name(skeleton: &Skeleton) -> Vec<String> {
+    let joints = skeleton.joints();
+    let parsed: Vec<(Option<usize>, String)> = joints.iter().map(|j| side_and_role(&j.name)).collect();
+    let mut found = Vec::new();
+    for side in 0..2 {
+        for (role, what) in LIMB_ROLES.iter().enumerate() {
+            if let Some(j) = find_role(joints, &parsed, side, role) {
+                found.push(format!("{} {what} = {}", ["left", "right"][side], joints[j].name));
+            }
+        }
+    }
+    for (what, pred) in [("neck", &(|r: &str| r.contains("neck")) as &dyn Fn(&str) -> bool), ("head", &|r| r == "head")]
+    {
+        if let Some(j) = (0..joints.len()).find(|&j| !joints[j].end_site && pred(&parsed[j].1)) {
+            found.push(format!("{what} = {}", joints[j].name));
+        }
+    }
+    found
+}
+
+fn landmarks_by_name(skeleton: &Skeleton, detached_ends: bool) -> Result<Landmarks, Vec<String>> {
     let joints = skeleton.joints();
     let parsed: Vec<(Option<usize>, String)> = joints.iter().map(|j| side_and_role(&j.name)).collect();
     let mut missing = Vec::new();
@@ -316,7 +394,7 @@ pub fn find_landmarks(skeleton: &Skeleton) -> Result<Landmarks, Vec<String>> {
     if missing.is_empty() {
         for (side, slots) in limbs.iter().enumerate() {
             if let Some(problem) =
-                [&slots[0..3], &slots[3..6]].iter().find_map(|c| chain_order_problem(skeleton, side, c))
+                [&slots[0..3], &slots[3..6]].iter().find_map(|c| chain_order_problem(skeleton, side, c, detached_ends))
             {
                 missing.push(problem);
                 break;
@@ -535,6 +613,26 @@ mod tests {
             ("mixamorig:RightHand", Some(1), "hand"),
             ("L_Femur", Some(0), "femur"),
             ("thigh.L", Some(0), "thigh"),
+            // Issue 18: the naming families of game and DCC rigs.
+            ("thigh_l", Some(0), "thigh"),
+            ("calf_r", Some(1), "calf"),
+            ("upperarm_l", Some(0), "upperarm"),
+            ("neck_01", None, "neck"),
+            ("DEF-thigh.L", Some(0), "thigh"),
+            ("DEF-thigh.L.001", Some(0), "thigh"),
+            ("DEF-upper_arm.R", Some(1), "upperarm"),
+            ("LeftUpperLeg", Some(0), "upperleg"),
+            ("UpperLegL", Some(0), "upperleg"),
+            ("LowerLegR", Some(1), "lowerleg"),
+            ("FootL", Some(0), "foot"),
+            ("Bip01 L Thigh", Some(0), "thigh"),
+            ("Bip01 R Forearm", Some(1), "forearm"),
+            ("J_Bip_L_UpperLeg", Some(0), "upperleg"),
+            ("Head_M", None, "head"),
+            ("mixamorig_LeftUpLeg", Some(0), "upleg"),
+            ("RHipJoint", Some(1), "hipjoint"),
+            ("leg_joint_L_1", Some(0), "legjoint"),
+            ("leftupleg", Some(0), "upleg"),
             ("LowerBack", None, "lowerback"),
             ("lhand", None, "lhand"),
             ("Head", None, "head"),

@@ -13,7 +13,37 @@ use glam::DVec3;
 use super::angular::central_difference;
 use super::body::{Landmarks, limb_tip};
 use super::roles::roles_of;
-use crate::model::{Clip, ClipPoses, Contacts, FootContacts, FrameRange, intervals::intersect_all};
+use crate::model::names::did_you_mean;
+use crate::model::{Clip, ClipPoses, Contacts, FootContacts, FrameRange, Skeleton, intervals::intersect_all};
+
+/// Foot joints named by the user where detection fails (an unusual rig): the ankles and the
+/// toe points watched with them, left then right. `None`: the ankles come from the body
+/// roles, the toes are the joints farthest below each ankle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NamedFeet {
+    /// Ankle joints, left then right.
+    pub ankles: Option<[usize; 2]>,
+    /// Toe joints, left then right.
+    pub toes: Option<[usize; 2]>,
+}
+
+/// Two joint names, `"Left, Right"` (comma separated, spaces trimmed), as joint indices;
+/// empty text is `None`; an unknown name is refused with the nearest joint name.
+pub fn joint_pair(skeleton: &Skeleton, text: &str) -> Result<Option<[usize; 2]>, String> {
+    if text.trim().is_empty() {
+        return Ok(None);
+    }
+    let names: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [left, right] = names[..] else {
+        return Err(format!("expected two joint names, left then right, separated by a comma; got '{text}'"));
+    };
+    let find = |name: &str| {
+        skeleton.index_of(name).ok_or_else(|| {
+            format!("no joint named '{name}'{}", did_you_mean(name, skeleton.joints().iter().map(|j| j.name.as_str())))
+        })
+    };
+    Ok(Some([find(left)?, find(right)?]))
+}
 
 /// Thresholds of contact detection (metres above the point's rest height, m/s).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -95,17 +125,25 @@ pub fn detect_contacts(
     landmarks: &Landmarks,
     thresholds: &ContactThresholds,
 ) -> Contacts {
-    feet_contacts(clip, poses, landmarks.feet(), thresholds)
+    feet_contacts(clip, poses, landmarks.feet(), None, thresholds)
 }
 
-/// Contacts of the two ankle joints `feet` (left, right) of `clip`.
-fn feet_contacts(clip: &Clip, poses: &ClipPoses, feet: [usize; 2], thresholds: &ContactThresholds) -> Contacts {
+/// Contacts of the two ankle joints `feet` (left, right) of `clip`, each watched with its
+/// toe (`toes`, or the joint farthest below the ankle).
+fn feet_contacts(
+    clip: &Clip,
+    poses: &ClipPoses,
+    feet: [usize; 2],
+    toes: Option<[usize; 2]>,
+    thresholds: &ContactThresholds,
+) -> Contacts {
     let skeleton = clip.skeleton();
     let track = |j: usize| (0..poses.frame_count()).map(|f| poses.position(f, j).as_dvec3()).collect::<Vec<DVec3>>();
     let feet: Vec<FootContacts> = feet
         .iter()
-        .map(|&ankle| {
-            let toe = limb_tip(skeleton, ankle);
+        .enumerate()
+        .map(|(k, &ankle)| {
+            let toe = toes.map_or_else(|| limb_tip(skeleton, ankle), |t| t[k]);
             let ankle_contacts = point_contacts(&track(ankle), clip.fps(), thresholds);
             let intervals = if toe == ankle {
                 ankle_contacts
@@ -134,7 +172,32 @@ pub fn contacts_of(
     let first: Vec<glam::Vec3> =
         if poses.frame_count() > 0 { poses.frame(0).iter().map(|t| t.translation).collect() } else { Vec::new() };
     let feet = roles_of(clip.skeleton(), &first)?.legs.map(|l| l.joints()[2]);
-    Ok((feet_contacts(clip, poses, feet, thresholds), feet))
+    Ok((feet_contacts(clip, poses, feet, None, thresholds), feet))
+}
+
+/// [`contacts_of`] with feet named by the user: named ankles replace the body's, named toes
+/// the joints farthest below the ankles.
+pub fn contacts_with(
+    clip: &Clip,
+    poses: &ClipPoses,
+    thresholds: &ContactThresholds,
+    named: &NamedFeet,
+) -> Result<(Contacts, [usize; 2]), String> {
+    let feet = match named.ankles {
+        Some(feet) => feet,
+        None => {
+            let first: Vec<glam::Vec3> = if poses.frame_count() > 0 {
+                poses.frame(0).iter().map(|t| t.translation).collect()
+            } else {
+                Vec::new()
+            };
+            roles_of(clip.skeleton(), &first)
+                .map_err(|why| format!("{why}; name them with the feet param (e.g. 'LeftFoot, RightFoot')"))?
+                .legs
+                .map(|l| l.joints()[2])
+        }
+    };
+    Ok((feet_contacts(clip, poses, feet, named.toes, thresholds), feet))
 }
 
 #[cfg(test)]

@@ -6,7 +6,8 @@ use std::path::Path;
 use crate::formats::bvh::{BvhReadOptions, read_bvh_file};
 use crate::formats::gltf::{GltfReadOptions, read_gltf_file};
 use crate::formats::{FormatError, FormatErrorKind, Loaded};
-use crate::model::{Clip, Mesh};
+use crate::model::fk::rest_world;
+use crate::model::{Clip, Mesh, Skin};
 
 /// How to read a clip file.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -120,4 +121,124 @@ pub fn load_meshes(path: &Path, metres_per_unit: Option<f64>) -> Result<Loaded<V
         }
         _ => Err(FormatError::file(path, FormatErrorKind::Unsupported, "expected a .obj, .gltf or .glb file")),
     }
+}
+
+/// A whole character read from one glTF/GLB scene: its skeleton's clip and every mesh of
+/// the scene merged into one skinned mesh on that skeleton.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Character {
+    /// The chosen animation, or the rest pose (one frame) when the file has none.
+    pub clip: Clip,
+    /// Every mesh and primitive, in file order, skinned to the clip's skeleton in its rest
+    /// pose, with exactly affine inverse bind matrices (the inverse rest world transforms).
+    pub mesh: Mesh,
+    /// What each source mesh became, in order.
+    pub parts: Vec<CharacterPart>,
+}
+
+/// One source mesh of a [`Character`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CharacterPart {
+    /// The mesh's name.
+    pub name: String,
+    /// Its vertices.
+    pub vertices: usize,
+    /// `"skinned"`, or `"rigid to <joint>"` for a mesh parented to a bone (or placed
+    /// beside the skeleton, then bound to its root).
+    pub binding: String,
+}
+
+/// Reads a glTF/GLB file as one character (see [`Character`]): skinned meshes keep their
+/// weights and are put in the skeleton's rest pose; meshes without a skin hang rigidly from
+/// the joint their node is parented under (weight 1), or from the root joint with a warning
+/// when they are not under the skeleton. UVs are kept when every mesh has them.
+pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>, FormatError> {
+    let Loaded { value: asset, mut warnings } = read_gltf_file(path, &GltfReadOptions::default())?;
+    let Some(skeleton) = asset.skeleton.clone() else {
+        return Err(FormatError::file(path, FormatErrorKind::Structure, "has no skeleton (no skin and no animation)"));
+    };
+    if asset.meshes.is_empty() {
+        return Err(FormatError::file(path, FormatErrorKind::Structure, "has no mesh"));
+    }
+    let clip = match asset.clips.into_iter().nth(animation) {
+        Some(c) => c.clip,
+        None if animation == 0 => {
+            warnings.push("the file has no animation; the character stands in its rest pose".into());
+            Clip::rest_pose(skeleton.clone(), 30.0, 1)
+                .map_err(|e| FormatError::file(path, FormatErrorKind::Structure, e.to_string()))?
+        }
+        None => {
+            return Err(FormatError::file(path, FormatErrorKind::Structure, format!("has no animation {animation}")));
+        }
+    };
+    let rest = rest_world(&skeleton);
+    let all_uvs = asset.meshes.iter().all(|m| m.uvs.as_ref().is_some_and(|u| u.len() == m.positions.len()));
+    if !all_uvs && asset.meshes.iter().any(|m| m.uvs.is_some()) {
+        warnings.push("UVs are on only some meshes; dropped".into());
+    }
+    let name = path.file_stem().map_or_else(|| "character".to_owned(), |s| s.to_string_lossy().into_owned());
+    let mut mesh = Mesh { name, ..Mesh::default() };
+    let (mut joints, mut weights, mut uvs) = (Vec::new(), Vec::new(), Vec::new());
+    let mut parts = Vec::new();
+    for (part, attached) in asset.meshes.iter().zip(&asset.mesh_joints) {
+        let base = mesh.positions.len() as u32;
+        let n = part.positions.len();
+        let normals = if part.normals.len() == n {
+            part.normals.clone()
+        } else {
+            Mesh::compute_normals(&part.positions, &part.triangles)
+        };
+        let binding = match &part.skin {
+            Some(skin)
+                if skin.skeleton.len() == skeleton.len() && skin.joints.len() == n && skin.weights.len() == n =>
+            {
+                // Put every vertex in the rest pose: Σ w · rest world · inverse bind.
+                for (v, (p, normal)) in part.positions.iter().zip(&normals).enumerate() {
+                    let mut m = glam::Mat4::ZERO;
+                    for (&j, &w) in skin.joints[v].iter().zip(&skin.weights[v]) {
+                        let j = j as usize;
+                        if let (true, Some(world), Some(ibm)) =
+                            (w != 0.0, rest.get(j), skin.inverse_bind_matrices.get(j))
+                        {
+                            m += (world.to_mat4() * *ibm) * w;
+                        }
+                    }
+                    mesh.positions.push(m.transform_point3(*p));
+                    mesh.normals.push(m.transform_vector3(*normal).try_normalize().unwrap_or(glam::Vec3::Y));
+                }
+                joints.extend_from_slice(&skin.joints);
+                weights.extend_from_slice(&skin.weights);
+                "skinned".to_owned()
+            }
+            _ => {
+                let j = match attached {
+                    Some(j) => *j,
+                    None => {
+                        warnings.push(format!(
+                            "mesh '{}' is not parented to a joint; bound rigidly to the root joint '{}'",
+                            part.name,
+                            skeleton.joints()[0].name
+                        ));
+                        0
+                    }
+                };
+                mesh.positions.extend_from_slice(&part.positions);
+                mesh.normals.extend(normals);
+                joints.extend(std::iter::repeat_n([j as u16, 0, 0, 0], n));
+                weights.extend(std::iter::repeat_n([1.0, 0.0, 0.0, 0.0], n));
+                format!("rigid to {}", skeleton.joints()[j].name)
+            }
+        };
+        if all_uvs && let Some(u) = &part.uvs {
+            uvs.extend_from_slice(u);
+        }
+        mesh.triangles.extend(part.triangles.iter().map(|t| t.map(|i| i + base)));
+        parts.push(CharacterPart { name: part.name.clone(), vertices: n, binding });
+    }
+    if all_uvs {
+        mesh.uvs = Some(uvs);
+    }
+    let inverse_bind_matrices = rest.iter().map(|t| t.inverse_to_mat4()).collect();
+    mesh.skin = Some(Skin { skeleton, joints, weights, inverse_bind_matrices });
+    Ok(Loaded { value: Character { clip, mesh, parts }, warnings })
 }

@@ -8,7 +8,9 @@
 //!    quarter that splits from it high above the ground (more than 30 % of the body's
 //!    height): toes of one foot split at the ankle. Their lowest common ancestor is the
 //!    pelvis.
-//! 2. The head is the highest leaf; the spine is the path from the pelvis to it.
+//! 2. The head is the highest leaf; the spine is the path from the pelvis to it. The head
+//!    must stand above the pelvis (within about 45° of straight up), or the body is not a
+//!    standing biped (a quadruped) and is refused.
 //! 3. The arms are the two leaves farthest from where they leave the spine (three joints or
 //!    more below it), splitting from
 //!    each other on the spine; the lower of the two split points of the arms is the chest.
@@ -23,7 +25,7 @@
 
 use glam::Vec3;
 
-use crate::kernels::body::{Landmarks, find_landmarks, limb_tip};
+use crate::kernels::body::{Landmarks, find_landmarks_detached, found_by_name, limb_tip};
 use crate::model::Skeleton;
 
 /// One leg or arm: its joints from the spine (or pelvis) out to its tip.
@@ -87,10 +89,25 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
             above_ground(l) < 0.25 * height && above_ground(common_ancestor(skeleton, lowest, l)) > 0.3 * height
         })
         .min_by(by_height)
-        .copied()
-        .ok_or("only one leg (no second low leaf splitting from the first above the knees)")?;
-    let pelvis = common_ancestor(skeleton, lowest, other_foot);
+        .copied();
+    let detached = match other_foot {
+        Some(_) => None,
+        None => Some(detached_legs(skeleton, pos_in_world, &leaves, lowest, highest, height)?),
+    };
+    let pelvis = match (&detached, other_foot) {
+        (Some((pelvis, _)), _) => *pelvis,
+        (None, Some(other)) => common_ancestor(skeleton, lowest, other),
+        (None, None) => return Err("only one leg (no second low leaf splitting from the first above the knees)".into()),
+    };
     let spine = path_below(skeleton, pelvis, highest).ok_or("the head is not above the pelvis in the hierarchy")?;
+    // A person stands: the head is well above the pelvis, not ahead of it (a quadruped).
+    let up = (pos_in_world[highest] - pos_in_world[pelvis]).normalize_or_zero().y;
+    if up < 0.7 {
+        return Err(format!(
+            "the body is not upright (the top joint is {:.0}° from straight above the pelvis): not a standing biped, e.g. a quadruped",
+            up.clamp(-1.0, 1.0).acos().to_degrees()
+        ));
+    }
     // Arms: leaves leaving the spine, farthest from where they leave it.
     let leaves_spine_at = |l: usize| spine.iter().rev().copied().find(|&s| skeleton.is_ancestor(s, l));
     let reach = |l: usize| leaves_spine_at(l).map_or(0.0, |s| pos_in_world[l].distance(pos_in_world[s]));
@@ -129,7 +146,11 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
             .ok_or_else(|| format!("the {what} has fewer than three joints"))?;
         Ok(Limb { chain, upper })
     };
-    let legs = [limb(pelvis, lowest, "leg")?, limb(pelvis, other_foot, "leg")?];
+    let legs = match (detached, other_foot) {
+        (Some((_, legs)), _) => legs,
+        (None, Some(other)) => [limb(pelvis, lowest, "leg")?, limb(pelvis, other, "leg")?],
+        (None, None) => return Err("only one leg".into()),
+    };
     let arms = [limb(splits[0], arm_a, "arm")?, limb(splits[1], arm_b, "arm")?];
 
     // Sides: left is up × forward; forward is where the leaves below the ankles point
@@ -159,13 +180,21 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
 /// The body roles of `skeleton` from its joint names when they name every limb (CMU, DAZ,
 /// 3ds Max, HumanIK, Mixamo, Blender styles), else from its shape posed at `pos_in_world`
 /// (any naming); or why neither works.
+///
+/// Names may put a foot or hand elsewhere in the hierarchy than below its knee or elbow (an
+/// IK-style game rig hangs the feet off the root): that limb's `chain` then runs from the
+/// pelvis to the knee, on to the foot and its toes, in body order rather than parenthood.
 pub fn roles_of(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRoles, String> {
-    let missing = match find_landmarks(skeleton) {
+    let missing = match find_landmarks_detached(skeleton) {
         Ok(landmarks) => match named_roles(skeleton, &landmarks) {
             Some(roles) => return Ok(roles),
             None => "the named limbs do not hang from one body".to_owned(),
         },
-        Err(missing) => format!("by joint name, missing {}", missing.join(", ")),
+        Err(missing) => {
+            let found = found_by_name(skeleton);
+            let found = if found.is_empty() { "nothing".to_owned() } else { found.join(", ") };
+            format!("by joint name, found {found}; missing {}", missing.join(", "))
+        }
     };
     body_roles(skeleton, pos_in_world).map_err(|why| format!("{missing}; by shape, {why}"))
 }
@@ -178,17 +207,81 @@ fn named_roles(skeleton: &Skeleton, landmarks: &Landmarks) -> Option<BodyRoles> 
     let pelvis = common_ancestor(skeleton, left[0], right[0]);
     let chest = common_ancestor(skeleton, left[3], right[3]);
     let spine = path_below(skeleton, pelvis, limb_tip(skeleton, landmarks.head))?;
-    let limb = |from: usize, upper: usize, end: usize| {
-        let chain = path_below(skeleton, from, limb_tip(skeleton, end))?;
+    let limb = |from: usize, [upper, lower, end]: [usize; 3]| {
+        let tip = limb_tip(skeleton, end);
+        let chain = if skeleton.is_ancestor(lower, end) {
+            path_below(skeleton, from, tip)?
+        } else {
+            // A detached end: down to the lower joint, then the end and what hangs below it.
+            let mut chain = path_below(skeleton, from, lower)?;
+            chain.push(end);
+            chain.extend(path_below(skeleton, end, tip)?);
+            chain
+        };
         Some(Limb { upper: chain.iter().position(|&j| j == upper)?, chain })
     };
+    let three = |slots: &[usize; 6], first: usize| [slots[first], slots[first + 1], slots[first + 2]];
     Some(BodyRoles {
         pelvis,
         chest,
         spine,
-        legs: [limb(pelvis, left[0], left[2])?, limb(pelvis, right[0], right[2])?],
-        arms: [limb(chest, left[3], left[5])?, limb(chest, right[3], right[5])?],
+        legs: [limb(pelvis, three(&left, 0))?, limb(pelvis, three(&right, 0))?],
+        arms: [limb(chest, three(&left, 3))?, limb(chest, three(&right, 3))?],
     })
+}
+
+/// The legs of a rig that hangs its feet off a root near the ground (IK-style game rigs),
+/// read from positions: the second foot is the lowest other leaf whose branch leaves the
+/// first's on the way to the head; each foot's top joint is where its branch starts; its knee
+/// is the lowest joint of the rest of the body 10–45 % of the body's height above the foot's
+/// top and within 5 % of the height of it horizontally; the pelvis is where the knees'
+/// branches split. Each leg's chain runs pelvis → knee, then the foot's branch.
+fn detached_legs(
+    skeleton: &Skeleton,
+    pos: &[Vec3],
+    leaves: &[usize],
+    lowest: usize,
+    highest: usize,
+    height: f32,
+) -> Result<(usize, [Limb; 2]), String> {
+    const ONE_LEG: &str =
+        "only one leg (no second low leaf splitting from the first above the knees, nor hanging from the root)";
+    let low = |j: usize| pos[j].y - pos[lowest].y;
+    let other = leaves
+        .iter()
+        .copied()
+        .filter(|&l| l != lowest && low(l) < 0.25 * height)
+        .filter(|&l| {
+            let split = common_ancestor(skeleton, lowest, l);
+            split == highest || skeleton.is_ancestor(split, highest)
+        })
+        .min_by(|&a, &b| pos[a].y.total_cmp(&pos[b].y))
+        .ok_or(ONE_LEG)?;
+    let split = common_ancestor(skeleton, lowest, other);
+    let foot_top = |leaf: usize| path_below(skeleton, split, leaf).and_then(|p| p.first().copied());
+    let feet = [foot_top(lowest).ok_or(ONE_LEG)?, foot_top(other).ok_or(ONE_LEG)?];
+    let under_a_foot = |j: usize| feet.iter().any(|&f| j == f || skeleton.is_ancestor(f, j));
+    let knee = |foot: usize| {
+        (0..skeleton.len())
+            .filter(|&j| !under_a_foot(j) && j != split && !skeleton.is_ancestor(j, split))
+            .filter(|&j| {
+                let up = pos[j].y - pos[foot].y;
+                (0.1 * height..0.45 * height).contains(&up) && (pos[j] - pos[foot]).with_y(0.0).length() < 0.05 * height
+            })
+            .min_by(|&a, &b| pos[a].y.total_cmp(&pos[b].y))
+    };
+    let knees = [knee(feet[0]), knee(feet[1])];
+    let [Some(ka), Some(kb)] = knees else {
+        return Err("the feet hang from the root but no knee stands above them".into());
+    };
+    let pelvis = common_ancestor(skeleton, ka, kb);
+    let leg = |knee: usize, leaf: usize| -> Result<Limb, String> {
+        let mut chain = path_below(skeleton, pelvis, knee).ok_or("a knee is not below the pelvis")?;
+        let upper = chain.len().checked_sub(2).ok_or("a knee hangs straight from the pelvis (no thigh)")?;
+        chain.extend(path_below(skeleton, split, leaf).ok_or("a foot is not below the root")?);
+        Ok(Limb { chain, upper })
+    };
+    Ok((pelvis, [leg(ka, lowest)?, leg(kb, other)?]))
 }
 
 /// The deepest joint that is `a` or `b` or an ancestor of both.

@@ -37,6 +37,14 @@ impl Transform {
     pub fn to_mat4(&self) -> Mat4 {
         Mat4::from_rotation_translation(self.rotation, self.translation)
     }
+
+    /// The inverse transform as an exactly affine 4×4 matrix (last row exactly 0, 0, 0, 1):
+    /// an inverse bind matrix as glTF requires it. Inverting the rigid transform first, not
+    /// the general matrix, keeps rounding out of that row.
+    pub fn inverse_to_mat4(&self) -> Mat4 {
+        let inverse = self.rotation.inverse();
+        Mat4::from_rotation_translation(inverse, -(inverse * self.translation))
+    }
 }
 
 /// World transforms of every joint at every frame of a clip, frame-major.

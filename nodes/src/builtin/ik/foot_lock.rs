@@ -39,11 +39,14 @@ pub struct FootLockParams {
     pub weights: Vec<(String, f64)>,
     /// Tolerance and iteration limits of each frame's solve.
     pub solve: SolveParams,
+    /// The toe joints held planted, per foot of the contacts (left, right), by name; `None`:
+    /// the joint farthest below each ankle.
+    pub toes: Option<[String; 2]>,
 }
 
 impl Default for FootLockParams {
     fn default() -> Self {
-        FootLockParams { blend_secs: 0.05, weights: Vec::new(), solve: SolveParams::default() }
+        FootLockParams { blend_secs: 0.05, weights: Vec::new(), solve: SolveParams::default(), toes: None }
     }
 }
 
@@ -88,6 +91,9 @@ pub enum FootLockError {
     /// A foot without two joints above it to turn.
     #[error("foot `{0}` has no knee and hip above it to turn")]
     ShortLeg(String),
+    /// A toe named by the toes param is not in the skeleton.
+    #[error("the clip's skeleton has no toe joint named '{0}'")]
+    UnknownToe(String),
     /// The rig could not be built.
     #[error(transparent)]
     Rig(#[from] RigError),
@@ -121,7 +127,14 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     }
     let rig = rig.finish()?;
     let blend = (params.blend_secs * clip.fps()).round().max(1.0) as usize;
-    let tips: Vec<usize> = ankles.iter().map(|&a| limb_tip(skeleton, a)).collect();
+    let tips: Vec<usize> = match &params.toes {
+        Some(names) => names
+            .iter()
+            .take(ankles.len())
+            .map(|name| skeleton.index_of(name).ok_or_else(|| FootLockError::UnknownToe(name.clone())))
+            .collect::<Result<_, _>>()?,
+        None => ankles.iter().map(|&a| limb_tip(skeleton, a)).collect(),
+    };
     let plants: Vec<Plants> =
         contacts.feet.iter().zip(&tips).map(|(foot, &tip)| Plants::new(clip, tip, &foot.intervals, blend)).collect();
 
@@ -174,6 +187,17 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     Ok(FootLocked { clip: locked, feet, frames })
 }
 
+/// `"ToeL, ToeR"` as two names; empty text is `None`.
+fn parse_toes(text: &str) -> Result<Option<[String; 2]>, String> {
+    if text.trim().is_empty() {
+        return Ok(None);
+    }
+    match text.split(',').map(|s| s.trim().to_owned()).collect::<Vec<_>>()[..] {
+        [ref left, ref right] if !left.is_empty() && !right.is_empty() => Ok(Some([left.clone(), right.clone()])),
+        _ => Err(format!("expected two toe joint names, left then right, separated by a comma; got '{text}'")),
+    }
+}
+
 /// Horizontal travel of joint `point` between consecutive frames that are both fully
 /// planted (weight 1) in `poses`, in metres: how far a foot slides where it should stand still.
 pub fn planted_travel_m(poses: &ClipPoses, point: usize, plants: &Plants) -> f64 {
@@ -213,6 +237,11 @@ const TOLERANCE: FloatParam = FloatParam::new(
     1.0,
     "m",
 );
+const TOES: TextParam = TextParam::new(
+    "toes",
+    "The toe joints held in place, left then right, comma separated (e.g. 'ToeL, ToeR'). Empty: the joint farthest below each ankle.",
+    "",
+);
 const ITERATIONS: IntParam = IntParam::new("max_iterations", "IK iterations allowed per frame.", 50, 1, 10_000);
 
 /// `motion.foot_lock`.
@@ -224,7 +253,7 @@ static FOOT_LOCK: NodeSchema = NodeSchema {
     doc: "Removes foot sliding: while a foot is in contact it stays where it was put down. The knee and hip turn (weighted IK), the foot keeps its angle, the body keeps its path.",
     inputs: &[CLIP.spec(), CONTACTS.spec()],
     outputs: &[LOCKED.spec(), REPORT.spec(), super::RESIDUAL_CURVES.spec()],
-    params: &[BLEND.0, WEIGHTS.0, TOLERANCE.0, ITERATIONS.0],
+    params: &[BLEND.0, WEIGHTS.0, TOLERANCE.0, ITERATIONS.0, TOES.0],
     writes_files: false,
     version: 1,
 };
@@ -244,9 +273,11 @@ impl Node for FootLock {
                 max_iterations: usize::try_from(ctx.int(&ITERATIONS)?).unwrap_or(1),
                 ..SolveParams::default()
             },
+            toes: parse_toes(ctx.text_param(&TOES)?).map_err(|e| NodeError::param("toes", e))?,
         };
         let locked = foot_lock(&clip, &contacts, &params).map_err(|e| match e {
             FootLockError::Rig(RigError::UnknownJoint(_)) => NodeError::param("weights", e.to_string()),
+            FootLockError::UnknownToe(_) => NodeError::param("toes", e.to_string()),
             e => NodeError::input("contacts", e.to_string()),
         })?;
         let residuals: Vec<f64> = locked.frames.iter().map(|r| r.residual_m).collect();

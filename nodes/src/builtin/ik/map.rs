@@ -41,8 +41,10 @@ use crate::node::{
 /// Why a bone map or a transfer failed.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum MapError {
-    /// The body parts of a skeleton could not be read from its shape.
-    #[error("cannot read the body of the {which} skeleton from its first frame: {why}")]
+    /// The body parts of a skeleton could not be read from its names or its shape.
+    #[error(
+        "cannot read the body of the {which} skeleton from its first frame: {why}. Set map_file to a bone map pairing the {which}'s joints (export.bone_map writes one to edit), with auto = none if the automatic pairs are wrong"
+    )]
     Roles {
         /// `source` or `target`.
         which: &'static str,
@@ -63,8 +65,10 @@ pub enum MapError {
     #[error("no joint of the target is mapped")]
     Empty,
     /// No leg lengths to scale the pelvis path by.
-    #[error("the legs of the skeletons are not known: set root_scale")]
-    NoRootScale,
+    #[error(
+        "the legs of the skeletons are not known, so the pelvis path cannot be scaled by leg length ({0}): map both legs' hip, knee and ankle in map_file, or set root_scale (the target's leg length over the source's)"
+    )]
+    NoRootScale(String),
     /// A clip without frames.
     #[error("the {0} clip has no frames")]
     NoFrames(&'static str),
@@ -232,6 +236,56 @@ fn best_rotation(pairs: &[(Vec3, Vec3)]) -> Quat {
     }
 }
 
+/// Limb joints of `roles` that are not below the joint before them in their limb (an IK
+/// rig's feet parented to the root), with that joint: `(joint, the limb joint it follows)`.
+pub fn detached_joints(skeleton: &Skeleton, roles: &BodyRoles) -> Vec<(usize, usize)> {
+    let mut out: Vec<(usize, usize)> = roles
+        .legs
+        .iter()
+        .chain(&roles.arms)
+        .flat_map(|l| l.chain.windows(2).map(|w| (w[1], w[0])))
+        .filter(|&(j, p)| !skeleton.is_ancestor(p, j))
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+/// The target's leg length over the source's, the target's legs found through `map` from
+/// the source's (read by name or shape): for a hand-written map on a rig whose body cannot be
+/// read.
+fn leg_ratio_through_map(source: &Clip, target: &Clip, map: &BoneMap) -> Result<f64, MapError> {
+    let roles = clip_roles(source, "source").map_err(|e| MapError::NoRootScale(e.to_string()))?;
+    let (s_ref, t_ref) = (reference(source, "source")?, reference(target, "target")?);
+    let (s_sk, t_sk) = (source.skeleton(), target.skeleton());
+    let mut missing = Vec::new();
+    let (mut s_len, mut t_len) = (0.0f32, 0.0f32);
+    for leg in &roles.legs {
+        let joints = leg.joints();
+        let mapped: Vec<Option<usize>> = joints
+            .iter()
+            .map(|&sj| {
+                let name = &s_sk.joints()[sj].name;
+                let t = map.joints.iter().find(|(_, s)| *s == name).and_then(|(t, _)| t_sk.index_of(t));
+                if t.is_none() {
+                    missing.push(name.clone());
+                }
+                t
+            })
+            .collect();
+        if let [Some(a), Some(b), Some(c)] = mapped[..] {
+            let [sa, sb, sc] = joints.map(|j| s_ref[j].translation);
+            s_len += sa.distance(sb) + sb.distance(sc);
+            t_len += t_ref[a].translation.distance(t_ref[b].translation)
+                + t_ref[b].translation.distance(t_ref[c].translation);
+        }
+    }
+    if !missing.is_empty() || s_len <= 1e-6 {
+        return Err(MapError::NoRootScale(format!("no target joint is mapped to the source's {}", missing.join(", "))));
+    }
+    Ok(f64::from(t_len / s_len))
+}
+
 /// A motion carried onto another skeleton.
 #[derive(Clone, Debug)]
 pub struct Transferred {
@@ -245,7 +299,8 @@ pub struct Transferred {
 
 /// Carries `source`'s motion onto `target`'s skeleton through `map` (see the module doc).
 /// `bodies` give the pelvis pair and the leg-length ratio; `root_scale` replaces the ratio.
-/// Without bodies the topmost mapped pair carries the path, and `root_scale` is needed.
+/// Without bodies the topmost mapped pair carries the path, and the ratio is that of the
+/// source's legs and the target joints `map` pairs with them (or `root_scale`).
 pub fn transfer(
     source: &Clip,
     target: &Clip,
@@ -262,7 +317,7 @@ pub fn transfer(
             let s_len = leg_length(&b.source, &s_ref);
             if s_len > 1e-6 { f64::from(leg_length(&b.target, &t_ref) / s_len) } else { 1.0 }
         }
-        (None, None) => return Err(MapError::NoRootScale),
+        (None, None) => leg_ratio_through_map(source, target, map)?,
     };
     // The pelvis pair carries the path: from the body roles, or else the topmost mapped joint.
     let pelvis = bodies.map_or(pairs[0], |b| (b.target.pelvis, b.source.pelvis));
@@ -276,10 +331,18 @@ pub fn transfer(
     for (j, joint) in t_sk.joints().iter().enumerate() {
         mapped_above[j] = joint.parent.and_then(|p| if driver[p].is_some() { Some(p) } else { mapped_above[p] });
     }
+    // Limb joints hanging elsewhere than below the joint before them in the limb (an IK
+    // rig's feet under the root) follow that joint: for the alignment and for their place.
+    let detached = bodies.map(|b| detached_joints(t_sk, &b.target)).unwrap_or_default();
+    let mut follows: Vec<Option<usize>> = vec![None; n];
+    for &(j, p) in &detached {
+        follows[j] = Some(p);
+    }
     // 1. Reference alignment per joint.
     let mut links: Vec<Vec<(Vec3, Vec3)>> = vec![Vec::new(); n];
     for c in 0..n {
-        let (Some(cs), Some(t)) = (driver[c], mapped_above[c]) else { continue };
+        let above = follows[c].filter(|&p| driver[p].is_some()).or(mapped_above[c]);
+        let (Some(cs), Some(t)) = (driver[c], above) else { continue };
         let Some(ts) = driver[t] else { continue };
         let (dt, ds) = (t_ref[c].translation - t_ref[t].translation, s_ref[cs].translation - s_ref[ts].translation);
         if let (Some(dt), Some(ds)) = (dt.try_normalize(), ds.try_normalize()) {
@@ -287,10 +350,18 @@ pub fn transfer(
         }
     }
     let mut align = vec![Quat::IDENTITY; n];
-    for j in 0..n {
-        let inherited = t_sk.joints()[j].parent.map_or(Quat::IDENTITY, |p| align[p]);
-        align[j] = if driver[j].is_some() && !links[j].is_empty() { best_rotation(&links[j]) } else { inherited };
+    // Twice: a detached joint may come before the joint it follows in the skeleton's order.
+    for _ in 0..if detached.is_empty() { 1 } else { 2 } {
+        for j in 0..n {
+            let inherited = follows[j].or(t_sk.joints()[j].parent).map_or(Quat::IDENTITY, |p| align[p]);
+            align[j] = if driver[j].is_some() && !links[j].is_empty() { best_rotation(&links[j]) } else { inherited };
+        }
     }
+    // Where each detached joint sits in the frame of the joint it follows, in the reference.
+    let held: Vec<(usize, usize, Vec3)> = detached
+        .iter()
+        .map(|&(j, p)| (j, p, t_ref[p].rotation.inverse() * (t_ref[j].translation - t_ref[p].translation)))
+        .collect();
     // Per mapped joint: W_t(f) = W_s(f) · offset, offset = W_s(0)⁻¹ · A · W_t(0).
     let offset: Vec<Quat> = (0..n)
         .map(|j| match driver[j] {
@@ -321,6 +392,15 @@ pub fn transfer(
         pose_world(t_sk, &rotations[start..], &translations[start..], &mut t_world);
         let goal = s_world[pelvis.1].translation * scale as f32;
         translations[start] += goal - t_world[pelvis.0].translation;
+        // Detached joints are put where the joint they follow carries them.
+        for &(j, p, offset) in &held {
+            pose_world(t_sk, &rotations[start..], &translations[start..], &mut t_world);
+            let goal = t_world[p].transform_point(offset);
+            translations[start + j] = match t_sk.joints()[j].parent {
+                Some(q) => t_world[q].rotation.inverse() * (goal - t_world[q].translation),
+                None => goal,
+            };
+        }
     }
     let unmapped = (0..n)
         .filter(|&j| driver[j].is_none() && !t_sk.joints()[j].end_site)
@@ -385,7 +465,7 @@ impl Node for MapSkeleton {
                 NodeError::input("source", e.to_string())
             }
             MapError::UnknownJoint { .. } | MapError::Empty => NodeError::param("map_file", e.to_string()),
-            MapError::NoRootScale => NodeError::param("root_scale", e.to_string()),
+            MapError::NoRootScale(_) => NodeError::param("root_scale", e.to_string()),
             e => NodeError::input("target", e.to_string()),
         };
         let root_scale = ctx.optional_float(&ROOT_SCALE)?;
@@ -393,7 +473,7 @@ impl Node for MapSkeleton {
         // The body roles are read once: for the automatic pairs, the pelvis and the scale.
         let bodies = match Bodies::of(&target, &source) {
             Ok(b) => Some(b),
-            Err(e) if auto || root_scale.is_none() => return Err(failed(e)),
+            Err(e) if auto => return Err(failed(e)),
             Err(_) => None,
         };
         let mut map = BoneMap::default();

@@ -81,6 +81,9 @@ pub struct GltfAsset {
     pub clips: Vec<GltfClip>,
     /// One mesh per node that carries a mesh, in node order (metres).
     pub meshes: Vec<Mesh>,
+    /// Per mesh of `meshes`: for a mesh without a skin whose node hangs under a skeleton
+    /// joint's node (a prop or armour plate parented to a bone), that joint; else `None`.
+    pub mesh_joints: Vec<Option<usize>>,
 }
 
 /// Reads a `.gltf` or `.glb` file from disk.
@@ -446,8 +449,11 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
         warnings.push("animations found but no skeleton could be formed; no clips read".to_string());
     }
 
-    let meshes = read_meshes(&doc, &tree, &joints, skeleton.as_ref(), skin_index, &mut warnings)?;
-    Ok(Loaded { value: GltfAsset { skeleton, joint_nodes: joints.nodes.clone(), clips, meshes }, warnings })
+    let (meshes, mesh_joints) = read_meshes(&doc, &tree, &joints, skeleton.as_ref(), skin_index, &mut warnings)?;
+    Ok(Loaded {
+        value: GltfAsset { skeleton, joint_nodes: joints.nodes.clone(), clips, meshes, mesh_joints },
+        warnings,
+    })
 }
 
 /// World similarity of every node for local transforms `local` (parents first).
@@ -893,7 +899,7 @@ fn read_meshes(
     skeleton: Option<&Arc<Skeleton>>,
     skin_index: Option<usize>,
     warnings: &mut Vec<String>,
-) -> Result<Vec<Mesh>, ReadError> {
+) -> Result<(Vec<Mesh>, Vec<Option<usize>>), ReadError> {
     let root = &doc.root;
     // Rest world matrices of all nodes (full scale) and of joints (similarity, unscaled).
     let mut world_mat = vec![Mat4::IDENTITY; tree.parent.len()];
@@ -908,6 +914,7 @@ fn read_meshes(
     world_similarities(tree, &tree.rest, &mut world_sim);
 
     let mut meshes = Vec::new();
+    let mut mesh_joints = Vec::new();
     for (node_index, node) in root.nodes.iter().enumerate() {
         let Some(mesh_ref) = node.mesh else { continue };
         let m = mesh_ref.value();
@@ -1050,9 +1057,22 @@ fn read_meshes(
             }
             None => transform_mesh(&mut mesh, world_mat[node_index]),
         }
+        // The joint an unskinned mesh's node hangs under (the node itself may be a joint).
+        let mut attached = None;
+        if mesh.skin.is_none() {
+            let mut at = Some(node_index);
+            while let Some(n) = at {
+                if let Some(j) = joints.joint_of_node.get(n).copied().flatten() {
+                    attached = Some(j);
+                    break;
+                }
+                at = tree.parent[n];
+            }
+        }
+        mesh_joints.push(attached);
         meshes.push(mesh);
     }
-    Ok(meshes)
+    Ok((meshes, mesh_joints))
 }
 
 /// Maps positions and normals of `mesh` through `m`.

@@ -145,6 +145,12 @@ pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, Fo
         match write_mesh(&mut b, clip, mesh, &mut warnings) {
             Ok(Some(node)) => {
                 skinned = mesh.skin.is_some();
+                if !skinned && frames > 1 {
+                    warnings.push(format!(
+                        "mesh '{}' has no skin: it is written standing still at the origin and will not follow the animated skeleton (load a skinned mesh, or bind it with skin.bind)",
+                        mesh.name
+                    ));
+                }
                 scene_nodes.push(node);
             }
             Ok(None) => {}
@@ -154,7 +160,7 @@ pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, Fo
     if !skinned {
         // A skin with no mesh marks the joints as a skeleton, so DCCs (Blender) import an
         // armature rather than a tree of empties.
-        let ibm: Vec<f32> = rest_world(skeleton).iter().flat_map(|t| t.to_mat4().inverse().to_cols_array()).collect();
+        let ibm: Vec<f32> = rest_world(skeleton).iter().flat_map(|t| t.inverse_to_mat4().to_cols_array()).collect();
         let inverse_bind_matrices = Some(b.accessor_f32(&ibm, Type::Mat4, None, Bounds::Omit));
         b.root.push(json::Skin {
             extensions: Default::default(),
