@@ -9,9 +9,11 @@
 //! | TetGen meshing of a box minus obstacles, Delaunay of points | `mesher` (feature `tetgen`) |
 //! | divergence, gradient, pressure solve | [`projection`] |
 //! | per-tet and per-node velocity, point sampling, advection | [`velocity`] |
+//! | buoyancy, per-tet smoke transfer across meshes, mass totals | [`smoke`] |
 
 pub mod mesh;
 #[cfg(feature = "tetgen")]
 pub mod mesher;
 pub mod projection;
+pub mod smoke;
 pub mod velocity;
