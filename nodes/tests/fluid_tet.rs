@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed expect is a failed test
 
 use glam::DVec3;
-use kinegraph_nodes::kernels::fluid::mesh::{NO_TET, TetMesh};
+use kinegraph_nodes::kernels::fluid::mesh::{MeshError, NO_TET, TetMesh};
 use kinegraph_nodes::kernels::fluid::mesher::{BoxMeshSpec, Obstacle, Tetrahedralisation, delaunay, mesh_box};
 use kinegraph_nodes::kernels::fluid::projection::{
     FaceCondition, PressureSolver, face_conditions, max_relative_divergence,
@@ -62,6 +62,7 @@ fn box_minus_cube_volume_and_boundary_area_match_the_analytic_values() {
         max_tet_volume_m3: 2e-3,
         max_radius_edge_ratio: 1.6,
         tetrahedralisation: Tetrahedralisation::Constrained,
+        max_tets: 1_000_000,
     };
     let mesh = mesh_box(&spec).expect("mesh");
     let stats = mesh.stats();
@@ -197,6 +198,7 @@ fn fluid_at_rest_under_gravity_stays_at_rest_with_hydrostatic_pressure() {
         max_tet_volume_m3: 4e-3,
         max_radius_edge_ratio: 1.5,
         tetrahedralisation: Tetrahedralisation::Delaunay,
+        max_tets: 1_000_000,
     };
     let mesh = mesh_box(&spec).expect("mesh");
     let stats = mesh.stats();
@@ -268,6 +270,7 @@ fn solid_body_rotation_keeps_its_spin_after_one_revolution() {
         max_tet_volume_m3: 5e-4,
         max_radius_edge_ratio: 1.4,
         tetrahedralisation: Tetrahedralisation::Delaunay,
+        max_tets: 1_000_000,
     };
     let mesh = mesh_box(&spec).expect("mesh");
     eprintln!("rotation mesh: {:?}", mesh.stats());
@@ -311,6 +314,7 @@ fn delaunay_mode_is_delaunay_and_carves_the_obstacle() {
         max_tet_volume_m3: 2e-3,
         max_radius_edge_ratio: 1.6,
         tetrahedralisation: Tetrahedralisation::Delaunay,
+        max_tets: 1_000_000,
     };
     let mesh = mesh_box(&spec).expect("mesh");
     let stats = mesh.stats();
@@ -329,6 +333,7 @@ fn unit_box(max_tet_volume_m3: f64) -> TetMesh {
         max_tet_volume_m3,
         max_radius_edge_ratio: 1.5,
         tetrahedralisation: Tetrahedralisation::Delaunay,
+        max_tets: 1_000_000,
     })
     .expect("mesh")
 }
@@ -399,4 +404,28 @@ fn uniform_heat_in_a_closed_box_stays_at_rest_and_a_hot_blob_rises() {
     let v = VelocityField::new(&mesh, &z).sample(&mesh, centre);
     eprintln!("hot blob: velocity at its centre {v} m/s, unopposed push {push} m/s");
     assert!(v.y > 0.1 * push && v.y < push, "{v}");
+}
+
+#[test]
+fn bad_domains_are_refused_with_typed_errors() {
+    let spec = |obstacle: Obstacle, max_tets: usize| BoxMeshSpec {
+        min_m: DVec3::ZERO,
+        max_m: DVec3::ONE,
+        obstacles: vec![obstacle],
+        max_tet_volume_m3: 1e-3,
+        max_radius_edge_ratio: 1.5,
+        tetrahedralisation: Tetrahedralisation::Delaunay,
+        max_tets,
+    };
+    let outside = mesh_box(&spec(cube(DVec3::new(0.95, 0.5, 0.5), 0.1), 1_000_000));
+    assert!(matches!(outside, Err(MeshError::ObstacleOutside { obstacle: 0, .. })), "{outside:?}");
+    let mut open = cube(DVec3::splat(0.5), 0.1);
+    open.triangles.pop();
+    let open = mesh_box(&spec(open, 1_000_000));
+    assert!(matches!(open, Err(MeshError::ObstacleNotClosed { obstacle: 0, .. })), "{open:?}");
+    // About 2.5 tets per max volume: 1 m³ / 1e-3 m³ asks for ~2500.
+    let many = mesh_box(&spec(cube(DVec3::splat(0.5), 0.1), 1000));
+    assert!(matches!(many, Err(MeshError::TooManyTets { max_tets: 1000, .. })), "{many:?}");
+    let fits = mesh_box(&spec(cube(DVec3::splat(0.5), 0.1), 4000)).expect("mesh");
+    assert!(fits.tet_count() <= 4000);
 }

@@ -42,6 +42,32 @@ pub enum MeshError {
         /// The face's node indices.
         nodes: [u32; 3],
     },
+    /// An obstacle reaches outside the domain box.
+    #[error("obstacle {obstacle} reaches outside the domain box (vertex {vertex} at {position_m} m)")]
+    ObstacleOutside {
+        /// Obstacle index.
+        obstacle: usize,
+        /// First vertex outside.
+        vertex: usize,
+        /// Its position.
+        position_m: glam::DVec3,
+    },
+    /// An obstacle's surface is not closed and consistently oriented.
+    #[error("obstacle {obstacle} is not a closed surface: edge {edge:?} has no opposite twin")]
+    ObstacleNotClosed {
+        /// Obstacle index.
+        obstacle: usize,
+        /// The open (or wrongly oriented) edge.
+        edge: [u32; 2],
+    },
+    /// The requested resolution needs more tets than `max_tets` allows.
+    #[error("the mesh needs about {tets} tetrahedra, more than max_tets = {max_tets}")]
+    TooManyTets {
+        /// Estimated or actual tet count.
+        tets: usize,
+        /// The limit.
+        max_tets: usize,
+    },
     /// The mesher failed or returned nothing usable.
     #[error("mesher failed: {0}")]
     Mesher(String),
