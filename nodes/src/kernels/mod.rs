@@ -23,6 +23,7 @@
 //! | generated figures (arm, mannequin) | [`arm`], [`mannequin`] |
 //! | loading clips, meshes and clip sets | [`load`], [`clip_set`] |
 //! | transition-graph types and search | [`transition_graph`] |
+//! | smoke on dynamic tetrahedral meshes (Klingner 2006) | [`fluid`] |
 
 pub mod align;
 pub mod analysis;
@@ -32,6 +33,7 @@ pub mod baseline;
 pub mod body;
 pub mod clip_set;
 pub mod contacts;
+pub mod fluid;
 pub mod join;
 pub mod load;
 pub mod mannequin;

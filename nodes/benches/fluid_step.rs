@@ -1,0 +1,73 @@
+//! One smoke step on tet meshes of a 1 m box with a 0.3 m cube obstacle at about 25k, 50k
+//! and 100k tets (issue 17's goal: < 2 s per step at 100k on the 2-core machine), split into
+//! meshing (TetGen quality mesh + Delaunay of its nodes), the pressure solve (assembly,
+//! Cholesky, one projection) and advection (velocity reconstruction + tracing every face).
+//! Run: `cargo bench -p kinegraph-nodes --bench fluid_step`.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use glam::DVec3;
+use kinegraph_nodes::kernels::fluid::mesher::{BoxMeshSpec, Obstacle, Tetrahedralisation, mesh_box};
+use kinegraph_nodes::kernels::fluid::projection::{FaceCondition, PressureSolver, face_conditions};
+use kinegraph_nodes::kernels::fluid::velocity::{VelocityField, advect_velocity, sample_faces};
+use std::hint::black_box;
+
+fn cube(centre: DVec3, half: f64) -> Obstacle {
+    let positions_m = (0..8)
+        .map(|i| {
+            centre
+                + DVec3::new(
+                    if i & 1 == 0 { -half } else { half },
+                    if i & 2 == 0 { -half } else { half },
+                    if i & 4 == 0 { -half } else { half },
+                )
+        })
+        .collect();
+    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+    Obstacle { positions_m, triangles: quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect() }
+}
+
+fn bench(c: &mut Criterion) {
+    for target in [25_000usize, 50_000, 100_000] {
+        let spec = BoxMeshSpec {
+            min_m: DVec3::ZERO,
+            max_m: DVec3::ONE,
+            obstacles: vec![cube(DVec3::splat(0.5), 0.15)],
+            max_tet_volume_m3: 2.5 * (1.0 - 0.027) / target as f64,
+            max_radius_edge_ratio: 1.5,
+            tetrahedralisation: Tetrahedralisation::Delaunay,
+            max_tets: 10 * target,
+        };
+        let mesh = mesh_box(&spec).unwrap();
+        eprintln!("fluid_step {target}: {:?}", mesh.stats());
+        let mut group = c.benchmark_group(format!("fluid_step_{}k", target / 1000));
+        group.sample_size(10);
+        group.bench_function("mesh", |b| b.iter(|| mesh_box(black_box(&spec)).unwrap()));
+        let conditions = face_conditions(&mesh, |_| FaceCondition::Wall);
+        let swirl = |p: DVec3| DVec3::new(p.z - 0.5, 0.3, 0.5 - p.x);
+        let z0: Vec<f64> = sample_faces(&mesh, swirl)
+            .iter()
+            .enumerate()
+            .map(|(f, z)| if mesh.is_boundary(f) { 0.0 } else { *z })
+            .collect();
+        group.bench_function("pressure_assemble_factor_project", |b| {
+            b.iter(|| {
+                let solver = PressureSolver::new(&mesh, &conditions).unwrap();
+                let mut z = z0.clone();
+                solver.project(&mesh, &mut z, 0.02, 1.2).unwrap();
+                z
+            })
+        });
+        group.bench_function("advect_velocity", |b| {
+            b.iter(|| {
+                let field = VelocityField::new(&mesh, &z0);
+                advect_velocity(&mesh, &field, &mesh, 0.02, |f| mesh.is_boundary(f))
+            })
+        });
+        group.finish();
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

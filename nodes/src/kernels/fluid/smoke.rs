@@ -1,0 +1,100 @@
+//! Smoke carried per tet: buoyancy from density and temperature, semi-Lagrangian transfer
+//! of per-tet quantities onto the next step's mesh, and the mass bookkeeping of a remesh.
+//!
+//! Buoyancy (Fedkiw et al. 2001, as Klingner et al. use it): f = (−α s + β (T − T_amb)) ŷ
+//! per unit mass (m/s²), s smoke density (kg/m³ of smoke, or any concentration), T in
+//! kelvin; added to the face velocities as Δt f·n with s and T the mean of the face's tets.
+
+use glam::DVec3;
+
+use super::mesh::{NO_TET, TetMesh};
+use super::velocity::VelocityField;
+
+/// Buoyancy constants.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Buoyancy {
+    /// Downward pull per unit smoke density, m/s² per (kg/m³).
+    pub alpha: f64,
+    /// Upward push per kelvin above ambient, m/s² per K.
+    pub beta: f64,
+    /// Ambient temperature, K.
+    pub ambient_k: f64,
+}
+
+impl Default for Buoyancy {
+    /// α = 0.1, β = 0.05, ambient 293.15 K.
+    fn default() -> Self {
+        Buoyancy { alpha: 0.1, beta: 0.05, ambient_k: 293.15 }
+    }
+}
+
+/// Adds Δt·buoyancy·n to every face velocity (m/s) that `fluid(face)` allows.
+pub fn add_buoyancy(
+    mesh: &TetMesh,
+    face_velocity_m_s: &mut [f64],
+    density: &[f64],
+    temperature_k: &[f64],
+    buoyancy: &Buoyancy,
+    dt_s: f64,
+    fluid: impl Fn(usize) -> bool,
+) {
+    for (f, z) in face_velocity_m_s.iter_mut().enumerate() {
+        if !fluid(f) {
+            continue;
+        }
+        let [a, b] = mesh.face_tets[f];
+        let (s, t) = if b == NO_TET {
+            (density[a as usize], temperature_k[a as usize])
+        } else {
+            (
+                0.5 * (density[a as usize] + density[b as usize]),
+                0.5 * (temperature_k[a as usize] + temperature_k[b as usize]),
+            )
+        };
+        let up = -buoyancy.alpha * s + buoyancy.beta * (t - buoyancy.ambient_k);
+        *z += dt_s * up * DVec3::Y.dot(mesh.face_normal[f]);
+    }
+}
+
+/// Per-node values of a per-tet quantity: the volume-weighted mean of the node's tets.
+pub fn node_values(mesh: &TetMesh, per_tet: &[f64]) -> Vec<f64> {
+    let mut sum = vec![0.0; mesh.nodes_m.len()];
+    let mut weight = vec![0.0; mesh.nodes_m.len()];
+    for (t, tet) in mesh.tets.iter().enumerate() {
+        for &v in tet {
+            sum[v as usize] += per_tet[t] * mesh.tet_volume_m3[t];
+            weight[v as usize] += mesh.tet_volume_m3[t];
+        }
+    }
+    sum.iter().zip(&weight).map(|(s, w)| if *w > 0.0 { s / w } else { 0.0 }).collect()
+}
+
+/// Total of a per-tet density over the mesh (Σ V_t s_t; kg for a density in kg/m³).
+pub fn total(mesh: &TetMesh, per_tet: &[f64]) -> f64 {
+    mesh.tet_volume_m3.iter().zip(per_tet).map(|(v, s)| v * s).sum()
+}
+
+/// Semi-Lagrangian transfer of a per-tet quantity onto `new_mesh`: each new tet's
+/// barycentre is traced back through `old_field` and takes the old quantity there
+/// (linear over the old tets, from [`node_values`]). With `dt_s = 0` this is the plain
+/// remesh transfer.
+pub fn advect_per_tet(
+    old_mesh: &TetMesh,
+    old_field: &VelocityField,
+    per_tet: &[f64],
+    new_mesh: &TetMesh,
+    dt_s: f64,
+) -> Vec<f64> {
+    use rayon::prelude::*;
+    let at_nodes = node_values(old_mesh, per_tet);
+    (0..new_mesh.tet_count())
+        .into_par_iter()
+        .map(|t| {
+            let from = old_field.trace_back(old_mesh, new_mesh.tet_centroid(t), dt_s);
+            match old_field.locator().locate(old_mesh, from) {
+                Some((old, l)) => (0..4).map(|k| at_nodes[old_mesh.tets[old][k] as usize] * l[k]).sum(),
+                None => 0.0,
+            }
+        })
+        .collect()
+}
