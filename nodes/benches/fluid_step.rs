@@ -14,18 +14,7 @@ use kinegraph_nodes::kernels::fluid::velocity::{VelocityField, advect_velocity, 
 use std::hint::black_box;
 
 fn cube(centre: DVec3, half: f64) -> Obstacle {
-    let positions_m = (0..8)
-        .map(|i| {
-            centre
-                + DVec3::new(
-                    if i & 1 == 0 { -half } else { half },
-                    if i & 2 == 0 { -half } else { half },
-                    if i & 4 == 0 { -half } else { half },
-                )
-        })
-        .collect();
-    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
-    Obstacle { positions_m, triangles: quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect() }
+    Obstacle::cuboid(centre, DVec3::splat(half))
 }
 
 fn bench(c: &mut Criterion) {

@@ -7,7 +7,9 @@
 
 use glam::DVec3;
 use kinegraph_nodes::kernels::fluid::mesh::{MeshError, NO_TET, TetMesh};
-use kinegraph_nodes::kernels::fluid::mesher::{BoxMeshSpec, Obstacle, Tetrahedralisation, delaunay, mesh_box};
+use kinegraph_nodes::kernels::fluid::mesher::{
+    BoxMeshSpec, Obstacle, Tetrahedralisation, box_corners, delaunay, mesh_box,
+};
 use kinegraph_nodes::kernels::fluid::projection::{
     FaceCondition, PressureSolver, face_conditions, max_relative_divergence,
 };
@@ -18,33 +20,12 @@ use rand_chacha::ChaCha8Rng;
 
 /// An axis-aligned cube obstacle, triangles facing outwards.
 fn cube(centre: DVec3, half: f64) -> Obstacle {
-    let positions_m = (0..8)
-        .map(|i| {
-            centre
-                + DVec3::new(
-                    if i & 1 == 0 { -half } else { half },
-                    if i & 2 == 0 { -half } else { half },
-                    if i & 4 == 0 { -half } else { half },
-                )
-        })
-        .collect();
-    // Quads (counter-clockwise from outside) split in two.
-    let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
-    let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
-    Obstacle { positions_m, triangles }
+    Obstacle::cuboid(centre, DVec3::splat(half))
 }
 
 fn random_points(seed: u64, count: usize, lo: DVec3, hi: DVec3) -> Vec<DVec3> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut points: Vec<DVec3> = (0..8)
-        .map(|i| {
-            DVec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            )
-        })
-        .collect();
+    let mut points: Vec<DVec3> = box_corners(lo, hi).to_vec();
     points.extend((0..count).map(|_| lo + (hi - lo) * DVec3::new(rng.r#gen(), rng.r#gen(), rng.r#gen())));
     points
 }

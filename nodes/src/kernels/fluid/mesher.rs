@@ -28,6 +28,29 @@ pub struct Obstacle {
     pub triangles: Vec<[u32; 3]>,
 }
 
+/// The eight corners of the axis-aligned box `lo`..`hi`; corner `i` takes `hi` on x, y, z
+/// where bits 0, 1, 2 of `i` are set.
+pub fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
+    std::array::from_fn(|i| {
+        DVec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
+}
+
+impl Obstacle {
+    /// An axis-aligned box obstacle (a dropped crate, a test solid) from its centre and half
+    /// extents, metres: twelve triangles, counter-clockwise seen from outside.
+    pub fn cuboid(centre_m: DVec3, half_m: DVec3) -> Obstacle {
+        let positions_m = box_corners(centre_m - half_m, centre_m + half_m).to_vec();
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+        Obstacle { positions_m, triangles }
+    }
+}
+
 /// Which tetrahedralisation of TetGen's quality nodes the fluid gets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Tetrahedralisation {
@@ -203,15 +226,7 @@ pub fn mesh_box(spec: &BoxMeshSpec) -> Result<TetMesh, MeshError> {
         return Err(MeshError::Mesher("max tet volume must be > 0 and radius-edge ratio ≥ 1".into()));
     }
     validate(spec)?;
-    let corners: Vec<DVec3> = (0..8)
-        .map(|i| {
-            DVec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            )
-        })
-        .collect();
+    let corners: Vec<DVec3> = box_corners(lo, hi).to_vec();
     let mut facets: Vec<Vec<usize>> = vec![
         vec![0, 2, 6, 4],
         vec![1, 5, 7, 3],
