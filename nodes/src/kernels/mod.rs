@@ -17,6 +17,7 @@
 //! | blend-and-splice, foot skate, join result | [`join`] |
 //! | the Motion-Graphs crossfade baseline | [`baseline`] |
 //! | motion quality measures and gates (skate, floor, spikes, pops) | [`quality`] |
+//! | ground / flight stages, ballistic gravity fit | [`stages`] |
 //! | resampling | [`resample`] |
 //! | skinning matrices, LBS, automatic weights | [`skinning`] |
 //! | pose vectors | [`pose_vector`] |
@@ -41,4 +42,5 @@ pub mod quality;
 pub mod resample;
 pub mod roles;
 pub mod skinning;
+pub mod stages;
 pub mod transition_graph;

@@ -3,6 +3,7 @@
 //! concatenation and the Motion-Graphs baseline it is compared with.
 
 pub mod concat;
+pub mod stages;
 
 use std::sync::Arc;
 
@@ -31,6 +32,7 @@ pub fn register(registry: &mut Registry) {
     registry.add(Box::new(Align));
     registry.add(Box::new(Concat));
     registry.add(Box::new(ConcatBaseline));
+    stages::register(registry);
 }
 
 const TOTAL_MASS: FloatParam = FloatParam::new("total_mass_kg", "Body mass of the performer.", 70.0, 1.0, 500.0, "kg");
@@ -87,14 +89,21 @@ fn momentum_of(
     ctx: &mut NodeContext<'_>,
     clip: &Clip,
 ) -> Result<(BodyModel, MomentumTrack, Vec<glam::DVec3>), NodeError> {
+    let (model, options) = mass_model_of(ctx, clip)?;
+    let (_, track, smoothed) = kinematics(clip, &model, options.smoothing_secs);
+    Ok((model, track, smoothed))
+}
+
+/// The body mass model of `clip` under the node's mass params (a warning when the names
+/// were not recognised), with the analysis options it came from.
+fn mass_model_of(ctx: &mut NodeContext<'_>, clip: &Clip) -> Result<(BodyModel, AnalysisOptions), NodeError> {
     let options = analysis_options(ctx)?;
     let model = body_model(clip.skeleton(), options.total_mass_kg, options.table, options.mass_override.as_ref())
         .map_err(|e| NodeError::Failed(e.to_string()))?;
     if model.method.starts_with("bone_length (") {
         ctx.warn(format!("mass model: {}", model.method));
     }
-    let (_, track, smoothed) = kinematics(clip, &model, options.smoothing_secs);
-    Ok((model, track, smoothed))
+    Ok((model, options))
 }
 
 /// Both clips of a two-clip node, the second at the first's rate, analysed with the node's
