@@ -18,6 +18,7 @@
 //! | the Motion-Graphs crossfade baseline | [`baseline`] |
 //! | motion quality measures and gates (skate, floor, spikes, pops) | [`quality`] |
 //! | ground / flight stages, ballistic gravity fit | [`stages`] |
+//! | momentum pre-fit: flight lines, ground B-splines | [`momentum_splines`] |
 //! | resampling | [`resample`] |
 //! | skinning matrices, LBS, automatic weights | [`skinning`] |
 //! | pose vectors | [`pose_vector`] |
@@ -36,6 +37,7 @@ pub mod contacts;
 pub mod join;
 pub mod load;
 pub mod mannequin;
+pub mod momentum_splines;
 pub mod phases;
 pub mod pose_vector;
 pub mod quality;

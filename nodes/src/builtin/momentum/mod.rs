@@ -3,6 +3,7 @@
 //! concatenation and the Motion-Graphs baseline it is compared with.
 
 pub mod concat;
+pub mod splines;
 pub mod stages;
 
 use std::sync::Arc;
@@ -33,6 +34,7 @@ pub fn register(registry: &mut Registry) {
     registry.add(Box::new(Concat));
     registry.add(Box::new(ConcatBaseline));
     stages::register(registry);
+    splines::register(registry);
 }
 
 const TOTAL_MASS: FloatParam = FloatParam::new("total_mass_kg", "Body mass of the performer.", 70.0, 1.0, 500.0, "kg");
