@@ -19,6 +19,7 @@
 //! | motion quality measures and gates (skate, floor, spikes, pops) | [`quality`] |
 //! | ground / flight stages, ballistic gravity fit | [`stages`] |
 //! | momentum pre-fit: flight lines, ground B-splines | [`momentum_splines`] |
+//! | ground-stage edits, the naive edit (initial guess), edit measures | [`momentum_edit`] |
 //! | resampling | [`resample`] |
 //! | skinning matrices, LBS, automatic weights | [`skinning`] |
 //! | pose vectors | [`pose_vector`] |
@@ -37,6 +38,7 @@ pub mod contacts;
 pub mod join;
 pub mod load;
 pub mod mannequin;
+pub mod momentum_edit;
 pub mod momentum_splines;
 pub mod phases;
 pub mod pose_vector;
