@@ -243,3 +243,36 @@ fn line_rms(points: &[DVec3], fps: f64) -> f64 {
     let sq: f64 = ts.iter().zip(points).map(|(t, p)| (mp + slope * (t - mt) - *p).length_squared()).sum();
     (sq / n).sqrt()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Stage;
+
+    #[test]
+    fn placements_turn_about_the_pivot_and_interpolate_over_flights() {
+        let stages = Stages {
+            fps: 10.0,
+            frame_count: 10,
+            stages: vec![
+                Stage { kind: StageKind::Ground, frames: FrameRange::new(0, 3) },
+                Stage { kind: StageKind::Flight, frames: FrameRange::new(3, 7) },
+                Stage { kind: StageKind::Ground, frames: FrameRange::new(7, 10) },
+            ],
+            gravity_mps2: 9.81,
+        };
+        let com = vec![DVec3::new(2.0, 1.0, 0.0); 10];
+        let turn = std::f64::consts::FRAC_PI_2;
+        let edits = [GroundEdit::default(), GroundEdit { offset_m: DVec3::new(0.0, 5.0, 1.0), turn_rad: turn }];
+        let p = placements(&stages, &com, &edits).unwrap();
+        // Ground stage 2: a point 1 m along +X from the pivot (2, 0, 0) turns a quarter about
+        // +Y to −Z, then shifts 1 m along +Z (the vertical part of the offset is dropped).
+        let moved = p[8].apply(DVec3::new(3.0, 0.0, 0.0));
+        assert!((moved - DVec3::new(2.0, 0.0, 0.0)).length() < 1e-12, "{moved}");
+        // Frame 5 lies 3/5 of the way from the last ground frame (2) to the next (7).
+        assert!((p[5].turn_rad - 0.6 * turn).abs() < 1e-12);
+        assert!((p[5].offset - DVec3::new(0.0, 0.0, 0.6)).length() < 1e-12);
+        assert_eq!(p[1], p[0]);
+        assert_eq!(placements(&stages, &com, &edits[..1]), Err(EditError::EditCount { got: 1, want: 2 }));
+    }
+}
