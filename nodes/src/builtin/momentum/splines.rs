@@ -98,7 +98,7 @@ impl Node for MomentumSplines {
             ));
         }
         let spacing = ctx.float(&KNOT_SPACING)?;
-        let (model, _) = mass_model_of(ctx, &clip)?;
+        let model = mass_model_of(ctx, &clip)?;
         let track = momentum_of_poses(&forward_kinematics(&clip), clip.fps(), &model);
         let linear: Vec<glam::DVec3> = track.com_velocity_mps.iter().map(|v| *v * model.total_mass_kg).collect();
         let fit =

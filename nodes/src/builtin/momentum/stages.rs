@@ -133,7 +133,7 @@ impl Node for FindStages {
         let clip = ctx.input(&CLIP)?;
         let contacts = ctx.optional_input(&CONTACTS)?;
         let borders = parse_borders(ctx.text_param(&BORDERS)?)?;
-        let (model, _) = mass_model_of(ctx, &clip)?;
+        let model = mass_model_of(ctx, &clip)?;
         let min_flight_secs = ctx.float(&MIN_FLIGHT)?;
         let staged = stage_clip_with(
             &clip,
