@@ -78,6 +78,7 @@ pub(crate) fn type_color(ty: PortType) -> Color32 {
         PortType::Clusters => Color32::from_rgb(150, 110, 230),
         PortType::TransitionGraph => Color32::from_rgb(90, 200, 160),
         PortType::BoneMap => Color32::from_rgb(200, 160, 90),
+        PortType::Stages => Color32::from_rgb(255, 130, 180),
     }
 }
 

@@ -5,7 +5,7 @@ use std::collections::BTreeSet;
 
 use egui::{CollapsingHeader, Color32, RichText, Ui};
 use egui_plot::{Legend, Line, Plot, Span};
-use kinegraph_nodes::model::{Contacts, Curves, FrameRange, Phases};
+use kinegraph_nodes::model::{Contacts, Curves, FrameRange, Phases, StageKind, Stages};
 use kinegraph_nodes::node::{PortSpec, Value};
 use serde_json::Value as Json;
 
@@ -49,6 +49,12 @@ pub(crate) fn show(ui: &mut Ui, state: &mut ResultsState, id: &str, ports: &[Por
                     .id_salt(&key)
                     .default_open(true)
                     .show(ui, |ui| phases_text(ui, phases));
+            }
+            Some(Value::Stages(stages)) => {
+                CollapsingHeader::new(format!("Stages ({})", port.name))
+                    .id_salt(&key)
+                    .default_open(true)
+                    .show(ui, |ui| stages_text(ui, stages));
             }
             Some(Value::Contacts(contacts)) => {
                 CollapsingHeader::new(format!("Contacts ({})", port.name))
@@ -169,4 +175,15 @@ fn contacts_text(ui: &mut Ui, contacts: &Contacts) {
         contacts.double_support.len(),
         total(&contacts.double_support)
     ));
+}
+
+fn stages_text(ui: &mut Ui, stages: &Stages) {
+    ui.label(format!("gravity fitted to the flights: {:.3} m/s²", stages.gravity_mps2));
+    for (i, stage) in stages.stages.iter().enumerate() {
+        let kind = match stage.kind {
+            StageKind::Ground => "ground",
+            StageKind::Flight => "flight",
+        };
+        ui.label(format!("{i}: {kind}, {}", seconds(stage.frames, stages.fps)));
+    }
 }

@@ -17,6 +17,9 @@
 //! | blend-and-splice, foot skate, join result | [`join`] |
 //! | the Motion-Graphs crossfade baseline | [`baseline`] |
 //! | motion quality measures and gates (skate, floor, spikes, pops) | [`quality`] |
+//! | ground / flight stages, ballistic gravity fit | [`stages`] |
+//! | momentum pre-fit: flight lines, ground B-splines | [`momentum_splines`] |
+//! | ground-stage edits, the naive edit (initial guess), edit measures | [`momentum_edit`] |
 //! | resampling | [`resample`] |
 //! | skinning matrices, LBS, automatic weights | [`skinning`] |
 //! | pose vectors | [`pose_vector`] |
@@ -37,10 +40,13 @@ pub mod fluid;
 pub mod join;
 pub mod load;
 pub mod mannequin;
+pub mod momentum_edit;
+pub mod momentum_splines;
 pub mod phases;
 pub mod pose_vector;
 pub mod quality;
 pub mod resample;
 pub mod roles;
 pub mod skinning;
+pub mod stages;
 pub mod transition_graph;

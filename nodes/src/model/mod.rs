@@ -12,6 +12,7 @@ pub mod mesh_sequence;
 pub mod names;
 pub mod report;
 pub mod skeleton;
+pub mod stages;
 pub mod units;
 
 pub use clip::{Clip, ClipError};
@@ -35,4 +36,5 @@ pub use mesh::{Mesh, Skin};
 pub use mesh_sequence::{MeshSequence, MeshSequenceError};
 pub use report::{Report, into_report};
 pub use skeleton::{Channel, Joint, JointLimits, Skeleton, SkeletonError};
+pub use stages::{Stage, StageKind, Stages};
 pub use units::{ImportScale, LengthUnit};

@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use crate::kernels::transition_graph::{Clusters, TransitionGraph};
-use crate::model::{BarNet, BoneMap, Clip, ClipSet, Contacts, Curves, Mesh, MeshSequence, Phases};
+use crate::model::{BarNet, BoneMap, Clip, ClipSet, Contacts, Curves, Mesh, MeshSequence, Phases, Stages};
 
 pub use crate::model::report::{Report, into_report};
 
@@ -44,6 +44,8 @@ pub enum PortType {
     TransitionGraph,
     /// Which joint of one skeleton drives which joint of another.
     BoneMap,
+    /// Alternating ground and flight stages of a clip, with the fitted gravity.
+    Stages,
 }
 
 impl PortType {
@@ -64,6 +66,7 @@ impl PortType {
             PortType::Clusters => "clusters",
             PortType::TransitionGraph => "transition_graph",
             PortType::BoneMap => "bone_map",
+            PortType::Stages => "stages",
         }
     }
 }
@@ -100,6 +103,8 @@ pub enum Value {
     TransitionGraph(Arc<TransitionGraph>),
     /// See [`PortType::BoneMap`].
     BoneMap(Arc<BoneMap>),
+    /// See [`PortType::Stages`].
+    Stages(Arc<Stages>),
 }
 
 impl Value {
@@ -120,6 +125,7 @@ impl Value {
             Value::Clusters(_) => PortType::Clusters,
             Value::TransitionGraph(_) => PortType::TransitionGraph,
             Value::BoneMap(_) => PortType::BoneMap,
+            Value::Stages(_) => PortType::Stages,
         }
     }
 }
@@ -166,3 +172,4 @@ port_value!(Arc<ClipSet>, ClipSet);
 port_value!(Arc<Clusters>, Clusters);
 port_value!(Arc<TransitionGraph>, TransitionGraph);
 port_value!(Arc<BoneMap>, BoneMap);
+port_value!(Arc<Stages>, Stages);

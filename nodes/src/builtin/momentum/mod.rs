@@ -3,6 +3,8 @@
 //! concatenation and the Motion-Graphs baseline it is compared with.
 
 pub mod concat;
+pub mod splines;
+pub mod stages;
 
 use std::sync::Arc;
 
@@ -31,6 +33,8 @@ pub fn register(registry: &mut Registry) {
     registry.add(Box::new(Align));
     registry.add(Box::new(Concat));
     registry.add(Box::new(ConcatBaseline));
+    stages::register(registry);
+    splines::register(registry);
 }
 
 const TOTAL_MASS: FloatParam = FloatParam::new("total_mass_kg", "Body mass of the performer.", 70.0, 1.0, 500.0, "kg");
@@ -58,6 +62,18 @@ const MASS_PARAMS: [ParamSpec; 4] = [TOTAL_MASS.0, MASS_TABLE.0, MASS_OVERRIDE.0
 
 /// The analysis settings every momentum node shares.
 fn analysis_options(ctx: &NodeContext<'_>) -> Result<AnalysisOptions, NodeError> {
+    let (total_mass_kg, table, mass_override) = mass_params(ctx)?;
+    Ok(AnalysisOptions {
+        total_mass_kg,
+        table,
+        mass_override,
+        smoothing_secs: ctx.float(&SMOOTHING)?,
+        ..AnalysisOptions::default()
+    })
+}
+
+/// The mass params: total mass (kg), table and override file.
+fn mass_params(ctx: &NodeContext<'_>) -> Result<(f64, MassTable, Option<MassOverride>), NodeError> {
     let table = MassTable::from_name(ctx.choice(&MASS_TABLE)?)
         .ok_or_else(|| NodeError::param("mass_table", "is not a known table"))?;
     let mass_override = match ctx.optional_input_path(&MASS_OVERRIDE)? {
@@ -71,13 +87,7 @@ fn analysis_options(ctx: &NodeContext<'_>) -> Result<AnalysisOptions, NodeError>
             )
         }
     };
-    Ok(AnalysisOptions {
-        total_mass_kg: ctx.float(&TOTAL_MASS)?,
-        table,
-        mass_override,
-        smoothing_secs: ctx.float(&SMOOTHING)?,
-        ..AnalysisOptions::default()
-    })
+    Ok((ctx.float(&TOTAL_MASS)?, table, mass_override))
 }
 
 /// The mass model, angular momentum and smoothed momentum of `clip` under the node's mass
@@ -87,14 +97,21 @@ fn momentum_of(
     ctx: &mut NodeContext<'_>,
     clip: &Clip,
 ) -> Result<(BodyModel, MomentumTrack, Vec<glam::DVec3>), NodeError> {
-    let options = analysis_options(ctx)?;
-    let model = body_model(clip.skeleton(), options.total_mass_kg, options.table, options.mass_override.as_ref())
+    let model = mass_model_of(ctx, clip)?;
+    let (_, track, smoothed) = kinematics(clip, &model, ctx.float(&SMOOTHING)?);
+    Ok((model, track, smoothed))
+}
+
+/// The body mass model of `clip` under the node's mass params (total mass, table,
+/// override; a warning when the names were not recognised).
+fn mass_model_of(ctx: &mut NodeContext<'_>, clip: &Clip) -> Result<BodyModel, NodeError> {
+    let (total_mass_kg, table, mass_override) = mass_params(ctx)?;
+    let model = body_model(clip.skeleton(), total_mass_kg, table, mass_override.as_ref())
         .map_err(|e| NodeError::Failed(e.to_string()))?;
     if model.method.starts_with("bone_length (") {
         ctx.warn(format!("mass model: {}", model.method));
     }
-    let (_, track, smoothed) = kinematics(clip, &model, options.smoothing_secs);
-    Ok((model, track, smoothed))
+    Ok(model)
 }
 
 /// Both clips of a two-clip node, the second at the first's rate, analysed with the node's
