@@ -23,6 +23,7 @@
 //! | generated figures (arm, mannequin) | [`arm`], [`mannequin`] |
 //! | loading clips, meshes and clip sets | [`load`], [`clip_set`] |
 //! | transition-graph types and search | [`transition_graph`] |
+//! | rigid-body physics on rapier3d: world, figures, controllers | [`physics`] |
 
 pub mod align;
 pub mod analysis;
@@ -36,6 +37,7 @@ pub mod join;
 pub mod load;
 pub mod mannequin;
 pub mod phases;
+pub mod physics;
 pub mod pose_vector;
 pub mod quality;
 pub mod resample;
