@@ -2,6 +2,8 @@
 //! period (exact elliptic-integral formula), conservation of angular momentum of a free
 //! articulated body, and bit-for-bit determinism.
 
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
 use kinegraph_nodes::kernels::physics::{World, WorldParams};
 use rapier3d::prelude::*;
 

@@ -30,6 +30,7 @@ use rapier3d::prelude::*;
 
 use super::{World, pose_to_rapier, rot_from_rapier, rot_to_rapier, to_rapier};
 use crate::kernels::body::{BodyError, MassTable, body_model, find_landmarks, limb_tip};
+use crate::math::quat_normalize_or_identity;
 use crate::model::Skeleton;
 use crate::model::fk::{Transform, pose_world, rest_world};
 
@@ -155,6 +156,9 @@ pub struct Figure {
     pub mass_method: String,
     /// Coulomb friction of the figure's shapes against the ground.
     pub friction: f32,
+    /// Height of the soles in the rest pose, metres: spawn the figure `−rest_sole_y_m` up to
+    /// stand it on a ground at 0.
+    pub rest_sole_y_m: f32,
 }
 
 /// Figure set-up values.
@@ -166,7 +170,9 @@ pub struct FigureParams {
     pub table: MassTable,
     /// Coulomb friction against the ground (default 0.9).
     pub friction: f32,
-    /// PD stiffness as a multiple of the gravity torque m_s·g·d per radian (default 6).
+    /// PD stiffness as a multiple of the gravity torque m_s·g·d per radian (default 40: a
+    /// joint sags 1/40 rad under the weight it holds; at 6 a CMU figure holding its rest pose
+    /// sank and fell within 4 s, at 20 it sank 10 cm in 5 s).
     pub stiffness_ratio: f32,
     /// Gravity used to scale the gains, m/s².
     pub gravity_m_s2: f32,
@@ -178,7 +184,7 @@ impl Default for FigureParams {
             total_mass_kg: 75.0,
             table: MassTable::DeLevaMale,
             friction: 0.9,
-            stiffness_ratio: 6.0,
+            stiffness_ratio: 40.0,
             gravity_m_s2: super::STANDARD_GRAVITY_M_S2,
         }
     }
@@ -313,19 +319,36 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams) -> Result<Figure
         end: usize,
     }
     let mut plans = Vec::new();
-    let trunk_end = abdomen.or(chest).unwrap_or(lm.neck);
-    plans.push(Plan { name: "pelvis".into(), role: BodyRole::Pelvis, side: None, joint: root, end: trunk_end });
+    // A trunk body reaches the first joint above it that is not on top of it (CMU's neck
+    // sits exactly on its chest joint).
+    let trunk_end = |from: usize, candidates: &[Option<usize>]| {
+        candidates.iter().flatten().copied().find(|&e| rest[e].distance(rest[from]) >= MIN_BONE_M).unwrap_or(lm.neck)
+    };
+    let above = [abdomen, chest, Some(lm.neck), Some(lm.head)];
+    plans.push(Plan {
+        name: "pelvis".into(),
+        role: BodyRole::Pelvis,
+        side: None,
+        joint: root,
+        end: trunk_end(root, &above),
+    });
     if let Some(a) = abdomen {
         plans.push(Plan {
             name: "abdomen".into(),
             role: BodyRole::Abdomen,
             side: None,
             joint: a,
-            end: chest.unwrap_or(lm.neck),
+            end: trunk_end(a, &above[1..]),
         });
     }
     if let Some(c) = chest {
-        plans.push(Plan { name: "chest".into(), role: BodyRole::Chest, side: None, joint: c, end: lm.neck });
+        plans.push(Plan {
+            name: "chest".into(),
+            role: BodyRole::Chest,
+            side: None,
+            joint: c,
+            end: trunk_end(c, &above[2..]),
+        });
     }
     let head_tip = limb_tip(skeleton, lm.head);
     plans.push(Plan { name: "head".into(), role: BodyRole::Head, side: None, joint: lm.neck, end: head_tip });
@@ -364,7 +387,7 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams) -> Result<Figure
             end = origin + up * 0.15 * stature;
             length = 0.15 * stature;
         }
-        if !(length >= MIN_BONE_M) {
+        if length.is_nan() || length < MIN_BONE_M {
             return Err(FigureError::ZeroLengthBone {
                 from: joints[plan.joint].name.clone(),
                 to: joints[plan.end].name.clone(),
@@ -510,6 +533,7 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams) -> Result<Figure
         left,
         mass_method: model.method,
         friction: params.friction,
+        rest_sole_y_m: lowest - 0.01 * stature,
     })
 }
 
@@ -639,6 +663,7 @@ impl Figure {
             }
             joints[i] = w.multibody_joints.insert(handles[p], handles[i], data, true);
         }
+        world.clear_articulation_damping(handles[0]);
         Spawned { handles, joints }
     }
 
@@ -672,7 +697,7 @@ impl Figure {
                 let b = self.owner[j];
                 let origin = rest[self.bodies[b].joint].translation;
                 Transform {
-                    rotation: (body_rot[b] * rest[j].rotation).normalize(),
+                    rotation: quat_normalize_or_identity(body_rot[b] * rest[j].rotation),
                     translation: body_pos[b] + body_rot[b] * (rest[j].translation - origin),
                 }
             })
