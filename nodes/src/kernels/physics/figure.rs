@@ -713,7 +713,10 @@ impl Figure {
         self.bodies
             .iter()
             .map(|b| {
-                ((world[b.joint].rotation * rest[b.joint].rotation.inverse()).normalize(), world[b.joint].translation)
+                (
+                    quat_normalize_or_identity(world[b.joint].rotation * rest[b.joint].rotation.inverse()),
+                    world[b.joint].translation,
+                )
             })
             .unzip()
     }
