@@ -27,6 +27,7 @@
 //! | loading clips, meshes and clip sets | [`load`], [`clip_set`] |
 //! | transition-graph types and search | [`transition_graph`] |
 //! | smoke on dynamic tetrahedral meshes (Klingner 2006) | [`fluid`] |
+//! | rigid-body physics on rapier3d: world, figures, controllers | [`physics`] |
 
 pub mod align;
 pub mod analysis;
@@ -43,6 +44,7 @@ pub mod mannequin;
 pub mod momentum_edit;
 pub mod momentum_splines;
 pub mod phases;
+pub mod physics;
 pub mod pose_vector;
 pub mod quality;
 pub mod resample;

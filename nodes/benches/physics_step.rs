@@ -1,0 +1,58 @@
+//! One simulation step of the standing 16-body figure built from a real CMU skeleton
+//! (02_01), with ground contacts and PD motors, at the default 1/300 s step (4 substeps);
+//! real-time factor = (1/300 s) / step cost. Also a bare chain of N capsules on ball joints
+//! (no contacts) for how the cost grows with the number of bodies.
+//! Run: `cargo bench -p kinegraph-nodes --bench physics_step`.
+
+#![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use glam::Vec3;
+use kinegraph_nodes::corpus::shared_data;
+use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
+use kinegraph_nodes::kernels::physics::figure::{FigureParams, build_figure};
+use kinegraph_nodes::kernels::physics::{World, WorldParams};
+use rapier3d::prelude::*;
+
+fn figure_step(c: &mut Criterion) {
+    let Some(data) = shared_data() else { return };
+    let (clip, _) = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value;
+    let skeleton = clip.skeleton().clone();
+    let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+    let mut world = World::new(WorldParams::default()).unwrap();
+    world.add_ground(0.0, 0.9);
+    figure.spawn(&mut world, &skeleton, Vec3::new(0.0, -figure.rest_sole_y_m, 0.0));
+    // Settle onto the ground first, so the contacts are in place.
+    for _ in 0..300 {
+        world.step();
+    }
+    c.bench_function("physics_step/cmu_figure_16_bodies", |b| b.iter(|| world.step()));
+}
+
+fn chain_step(c: &mut Criterion) {
+    let mut group = c.benchmark_group("physics_step/chain");
+    for n in [4usize, 8, 16, 32] {
+        let mut w = World::new(WorldParams { gravity_m_s2: 0.0, ..WorldParams::default() }).unwrap();
+        let mut handles = Vec::new();
+        for i in 0..n {
+            let body = w.inner.bodies.insert(RigidBodyBuilder::dynamic().can_sleep(false).translation(Vector::new(
+                0.0,
+                0.5 * i as f32,
+                0.0,
+            )));
+            w.inner.colliders.insert_with_parent(ColliderBuilder::capsule_y(0.15, 0.05), body, &mut w.inner.bodies);
+            handles.push(body);
+        }
+        for i in 1..n {
+            let joint = SphericalJointBuilder::new()
+                .local_anchor1(Vector::new(0.0, 0.25, 0.0))
+                .local_anchor2(Vector::new(0.0, -0.25, 0.0));
+            w.inner.multibody_joints.insert(handles[i - 1], handles[i], joint, true);
+        }
+        group.bench_with_input(BenchmarkId::from_parameter(n), &n, |b, _| b.iter(|| w.step()));
+    }
+    group.finish();
+}
+
+criterion_group!(benches, figure_step, chain_step);
+criterion_main!(benches);

@@ -1,0 +1,130 @@
+//! physics figure (kernels::physics::figure) on real skeletons: CMU BVH and Mixamo's Xbot.
+//! Needs `../shared/data` (skips without it outside CI).
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::Vec3;
+use kinegraph_nodes::corpus::shared_data;
+use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
+use kinegraph_nodes::formats::gltf::{GltfReadOptions, read_gltf_file};
+use kinegraph_nodes::kernels::physics::figure::{BodyShape, Figure, FigureError, FigureParams, build_figure};
+use kinegraph_nodes::kernels::physics::{World, WorldParams};
+use kinegraph_nodes::model::{Joint, Skeleton};
+
+fn cmu(data: &Path, name: &str) -> Arc<Skeleton> {
+    let (clip, _) = read_bvh_file(&data.join("bvh").join(name), BvhReadOptions::default()).unwrap().value;
+    clip.skeleton().clone()
+}
+
+fn xbot(data: &Path) -> Arc<Skeleton> {
+    let asset = read_gltf_file(&data.join("gltf/Xbot.glb"), &GltfReadOptions::default()).unwrap().value;
+    asset.skeleton.unwrap()
+}
+
+fn body<'a>(figure: &'a Figure, name: &str) -> &'a kinegraph_nodes::kernels::physics::figure::FigureBody {
+    &figure.bodies[figure.body_index(name).unwrap_or_else(|| panic!("no body {name}"))]
+}
+
+/// de Leva (1996) Table 4, male, mass shares in per cent (typed from the paper, not read
+/// from the kernel): each limb segment lands on its own body.
+#[test]
+fn cmu_and_xbot_figures_have_de_leva_limb_masses_and_bone_lengths() {
+    let Some(data) = shared_data() else { return };
+    for (label, skeleton) in [("cmu 02_01", cmu(&data, "cmu/02_01.bvh")), ("xbot", xbot(&data))] {
+        let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+        println!(
+            "{label}: {} bodies, stature {:.3} m, mass {:.2} kg ({}), forward {:?}",
+            figure.bodies.len(),
+            figure.stature_m,
+            figure.total_mass_kg,
+            figure.mass_method,
+            figure.forward
+        );
+        assert_eq!(figure.bodies.len(), 16, "{label}: {:?}", figure.bodies.iter().map(|b| &b.name).collect::<Vec<_>>());
+        for (name, share) in
+            [("left_thigh", 14.16), ("right_shank", 4.33), ("left_upper_arm", 2.71), ("right_forearm", 1.62)]
+        {
+            let m = body(&figure, name).mass_kg;
+            assert!((m - 0.75 * share).abs() < 0.01, "{label} {name}: {m} kg, de Leva {} kg", 0.75 * share);
+        }
+        // Thigh capsule length = hip → knee distance measured on the rest pose.
+        let rest = skeleton.rest_positions();
+        let thigh = body(&figure, "left_thigh");
+        let shank = body(&figure, "left_shank");
+        let measured = rest[thigh.joint].distance(rest[shank.joint]);
+        let BodyShape::Capsule { a, b, radius_m } = thigh.shape else { panic!("thigh is not a capsule") };
+        assert!(
+            ((b - a).length() + radius_m - measured).abs() < 1e-4,
+            "{label}: thigh {} vs {measured}",
+            (b - a).length()
+        );
+        // A human's stature, joint to joint (no skull top, no sole): 1.3–2.0 m.
+        assert!((1.3..2.0).contains(&figure.stature_m), "{label}: stature {}", figure.stature_m);
+        // Gains scale with the supported mass: a hip holds up more than an ankle's foot, a
+        // shoulder more than a wrist.
+        assert!(body(&figure, "left_thigh").kp > body(&figure, "left_hand").kp);
+        assert!(body(&figure, "left_upper_arm").kp > body(&figure, "left_hand").kp);
+    }
+}
+
+#[test]
+fn skeletons_that_cannot_become_figures_are_refused() {
+    let one = Skeleton::new(vec![Joint::new("Hips", None, Vec3::ZERO)]).unwrap();
+    assert_eq!(build_figure(&one, &FigureParams::default()), Err(FigureError::TooFewJoints { joints: 1 }));
+    let two = Skeleton::new(vec![Joint::new("a", None, Vec3::ZERO), Joint::new("b", Some(0), Vec3::Y)]).unwrap();
+    assert!(matches!(build_figure(&two, &FigureParams::default()), Err(FigureError::NotHumanoid { .. })));
+    let Some(data) = shared_data() else { return };
+    // Collapse the left shank: the knee sits on the ankle.
+    let skeleton = cmu(&data, "cmu/02_01.bvh");
+    let mut joints = skeleton.joints().to_vec();
+    let foot = skeleton.index_of("LeftFoot").unwrap();
+    joints[foot].rest_offset = Vec3::ZERO;
+    let broken = Skeleton::new(joints).unwrap();
+    match build_figure(&broken, &FigureParams::default()) {
+        Err(FigureError::ZeroLengthBone { from, to, .. }) => {
+            assert_eq!((from.as_str(), to.as_str()), ("LeftLeg", "LeftFoot"))
+        }
+        other => panic!("expected a zero-length bone, got {other:?}"),
+    }
+}
+
+/// Stands the rest-pose figure on the ground and holds the pose with the PD motors alone;
+/// returns the pelvis height per step and the head body's first and last heights.
+fn stand(skeleton: &Skeleton, seconds: f32) -> (Vec<f32>, f32, f32) {
+    let figure = build_figure(skeleton, &FigureParams::default()).unwrap();
+    let mut world = World::new(WorldParams::default()).unwrap();
+    world.add_ground(0.0, 0.9);
+    let spawned = figure.spawn(&mut world, skeleton, Vec3::new(0.0, -figure.rest_sole_y_m, 0.0));
+    let head = figure.body_index("head").unwrap();
+    let steps = (seconds / world.dt_secs()).round() as usize;
+    let mut pelvis = Vec::with_capacity(steps);
+    let head_start = figure.read_poses(&world, &spawned).1[head].y;
+    for _ in 0..steps {
+        world.step();
+        let (_, pos) = figure.read_poses(&world, &spawned);
+        pelvis.push(pos[0].y);
+    }
+    let (_, pos) = figure.read_poses(&world, &spawned);
+    (pelvis, head_start, pos[head].y)
+}
+
+#[test]
+fn a_pd_held_figure_stands_unpushed_for_five_seconds() {
+    let Some(data) = shared_data() else { return };
+    for (label, skeleton) in [("cmu 02_01", cmu(&data, "cmu/02_01.bvh")), ("xbot", xbot(&data))] {
+        let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+        // Spawned with its soles on the ground: the pelvis starts at its height above the soles.
+        let rest_pelvis = skeleton.rest_positions()[0].y - figure.rest_sole_y_m;
+        let (pelvis, head_start, head_end) = stand(&skeleton, 5.0);
+        let lowest = pelvis.iter().copied().fold(f32::MAX, f32::min);
+        println!(
+            "{label}: pelvis {rest_pelvis:.3} m at rest, lowest {lowest:.3} m over 5 s; head body {head_start:.3} → {head_end:.3} m"
+        );
+        // Standing: neither the pelvis nor the head drops by more than 10 %.
+        assert!(lowest > 0.9 * rest_pelvis, "{label}: pelvis dropped to {lowest} m from {rest_pelvis} m");
+        assert!(head_end > 0.9 * head_start, "{label}: head dropped to {head_end} m from {head_start} m");
+    }
+}
