@@ -3,9 +3,10 @@
 use std::sync::Arc;
 
 use crate::formats::Loaded;
-use crate::formats::bvh::write_bvh;
+use crate::formats::bvh::{BvhUnit, BvhWriteOptions, write_bvh_with};
 use crate::formats::gltf::write_glb;
 use crate::kernels::load::{ClipLoadOptions, UpAxis, load_clip};
+use crate::kernels::resample::resample;
 use crate::model::{Clip, Mesh};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output,
@@ -86,6 +87,19 @@ const FILE_OUT: Output<Arc<std::path::PathBuf>> =
     Output::new("file", "The written file, relative to the output folder.");
 const BVH_FILE: OutputPathParam =
     OutputPathParam::new("file", "Where to write, relative to the run's output folder.", "bvh", "clip.bvh");
+const BVH_UNIT: ChoiceParam = ChoiceParam::new(
+    "unit",
+    "Length unit of the file: \"as_read\" keeps the unit the clip was loaded in (metres for glTF or generated clips), \"cm\" centimetres, \"m\" metres.",
+    &["as_read", "cm", "m"],
+    "as_read",
+);
+const BVH_FPS: FloatParam = FloatParam::optional(
+    "fps",
+    "Frame rate of the file: the clip is resampled to it first (same duration; rotations slerped). Unset keeps the clip's rate.",
+    1.0,
+    1000.0,
+    "fps",
+);
 
 /// `export.bvh`: writes a clip as BVH.
 pub struct ExportBvh;
@@ -93,12 +107,13 @@ pub struct ExportBvh;
 static EXPORT_BVH: NodeSchema = NodeSchema {
     kind: "export.bvh",
     category: "io",
-    doc: "Writes a clip as a BVH file in the unit it was read in, keeping each joint's channel layout.",
+    doc: "Writes a clip as a BVH file, by default in the unit it was read in and at its frame rate, keeping each joint's channel layout and writing end sites as End Site blocks. The root's OFFSET is zero and its channels carry its whole position, so every reader puts the hips in the same place.",
     inputs: &[CLIP_IN.spec()],
     outputs: &[FILE_OUT.spec()],
-    params: &[BVH_FILE.0],
+    params: &[BVH_FILE.0, BVH_UNIT.0, BVH_FPS.0],
     writes_files: true,
-    version: 1,
+    // 2: zero root OFFSET, `_EndSite` leaves as End Sites, unit and frame rate.
+    version: 2,
 };
 
 impl Node for ExportBvh {
@@ -107,7 +122,16 @@ impl Node for ExportBvh {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP_IN)?;
-        let written = write_bvh(&clip);
+        let unit = match ctx.choice(&BVH_UNIT)? {
+            "cm" => BvhUnit::Centimetre,
+            "m" => BvhUnit::Metre,
+            _ => BvhUnit::AsRead,
+        };
+        let clip = match ctx.optional_float(&BVH_FPS)? {
+            Some(fps) => Arc::new(resample(&clip, fps).map_err(|e| NodeError::param(BVH_FPS.0.name, e.to_string()))?),
+            None => clip,
+        };
+        let written = write_bvh_with(&clip, BvhWriteOptions { unit });
         ctx.warn_all(written.warnings);
         let relative = ctx.write_output(&BVH_FILE, written.value.as_bytes())?;
         ctx.set_output(&FILE_OUT, Arc::new(relative));
