@@ -503,7 +503,7 @@ fn read_meshes(
             warnings.push(format!("{}: mesh '{name}' has no triangles; skipped", path.display()));
             continue;
         }
-        if !has_normals || normals.iter().any(|n| *n == Vec3::ZERO) {
+        if !has_normals || normals.contains(&Vec3::ZERO) {
             normals = Mesh::compute_normals(&positions, &triangles);
         }
         let skin = skin.map(|_| Skin {
