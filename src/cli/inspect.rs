@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
+use kinegraph_nodes::formats::fbx::{FbxReadOptions, read_fbx_file};
 use kinegraph_nodes::formats::gltf::{GltfReadOptions, read_gltf_file};
 use kinegraph_nodes::formats::obj::read_obj_file;
 use kinegraph_nodes::model::{Clip, Mesh};
@@ -70,6 +71,27 @@ pub fn inspect(path: &Path) -> Result<Value, String> {
                 "warnings": loaded.warnings,
             }))
         }
+        "fbx" => {
+            let loaded = read_fbx_file(path, &FbxReadOptions::default()).map_err(|e| e.to_string())?;
+            let asset = &loaded.value;
+            Ok(json!({
+                "format": "fbx",
+                "skeleton_joints": asset.skeleton.len(),
+                "root_joint": asset.skeleton.joints().first().map(|j| j.name.clone()),
+                "source_metres_per_unit": asset.source.metres_per_unit,
+                "source_up_axis": asset.source.up_axis,
+                "source_fps": asset.source.fps,
+                "takes": asset.clips.iter().map(|c| {
+                    let mut f = clip_facts(&c.clip);
+                    f["name"] = json!(c.name);
+                    f["index"] = json!(c.take_index);
+                    f["take_duration_secs"] = json!(c.duration_secs);
+                    f
+                }).collect::<Vec<_>>(),
+                "summary": asset.describe(),
+                "warnings": loaded.warnings,
+            }))
+        }
         "obj" => {
             let loaded = read_obj_file(path, None).map_err(|e| e.to_string())?;
             Ok(json!({
@@ -78,7 +100,7 @@ pub fn inspect(path: &Path) -> Result<Value, String> {
                 "warnings": loaded.warnings,
             }))
         }
-        _ => Err(format!("{}: kg inspect reads .bvh, .gltf, .glb and .obj files", path.display())),
+        _ => Err(format!("{}: kg inspect reads .bvh, .gltf, .glb, .fbx and .obj files", path.display())),
     }
 }
 

@@ -186,15 +186,15 @@ enum Command {
     },
     /// Describe a motion or mesh file: joints, frames, rate, units, meshes, skins.
     Inspect {
-        /// A .bvh, .gltf, .glb or .obj file.
+        /// A .bvh, .gltf, .glb, .fbx or .obj file.
         file: PathBuf,
         /// Print JSON.
         #[arg(long)]
         json: bool,
     },
-    /// Convert a clip between formats (BVH, glTF/GLB → BVH or GLB) through the engine.
+    /// Convert a clip between formats (BVH, glTF/GLB, FBX → BVH or GLB) through the engine.
     Convert {
-        /// Input clip (.bvh, .gltf, .glb).
+        /// Input clip (.bvh, .gltf, .glb, .fbx).
         input: PathBuf,
         /// Output file (.bvh or .glb).
         output: PathBuf,

@@ -22,8 +22,8 @@ pub fn register(registry: &mut Registry) {
 
 const PATH: InputPathParam = InputPathParam::new(
     "path",
-    "Motion file to read: BVH, or glTF/GLB. Relative paths start at the graph file's folder.",
-    &["bvh", "gltf", "glb"],
+    "Motion file to read: BVH, glTF/GLB or FBX (converted to metres, Y up; Mixamo downloads work as they are). Relative paths start at the graph file's folder.",
+    &["bvh", "gltf", "glb", "fbx"],
 );
 const SCALE: FloatParam = FloatParam::optional(
     "metres_per_unit",
@@ -32,11 +32,15 @@ const SCALE: FloatParam = FloatParam::optional(
     1e6,
     "m",
 );
-const ANIMATION: IntParam =
-    IntParam::optional("animation", "Which animation of a glTF file to load (0 = first).", 0, 10_000);
+const ANIMATION: IntParam = IntParam::optional(
+    "animation",
+    "Which animation of a glTF file, or take of an FBX file, to load (0 = first).",
+    0,
+    10_000,
+);
 const SAMPLE_FPS: FloatParam = FloatParam::optional(
     "sample_fps",
-    "glTF only: frame rate to sample the animation at; unset infers it from the key spacing.",
+    "glTF and FBX: frame rate to sample the animation at; unset infers it from the key spacing (glTF) or uses the file's frame rate (FBX).",
     1.0,
     1000.0,
     "fps",

@@ -1,9 +1,10 @@
-//! Reading and writing the files users have: BVH, glTF/GLB and OBJ.
+//! Reading and writing the files users have: BVH, glTF/GLB and OBJ; reading FBX.
 
 pub mod atomic;
 pub mod bone_map;
 pub mod bvh;
 pub mod error;
+pub mod fbx;
 pub mod gltf;
 pub mod obj;
 

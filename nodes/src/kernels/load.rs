@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use crate::formats::bvh::{BvhReadOptions, read_bvh_file};
+use crate::formats::fbx::{FbxReadOptions, read_fbx_file};
 use crate::formats::gltf::{GltfReadOptions, read_gltf_file};
 use crate::formats::{FormatError, FormatErrorKind, Loaded};
 use crate::model::fk::rest_world;
@@ -14,9 +15,10 @@ use crate::model::{Clip, Mesh, Skin};
 pub struct ClipLoadOptions {
     /// BVH only: metres per file unit; `None` detects it.
     pub metres_per_unit: Option<f64>,
-    /// glTF only: which animation (default the first).
+    /// glTF and FBX: which animation (FBX: which take; default the first).
     pub animation: Option<usize>,
-    /// glTF only: sampling rate; `None` infers it from the key spacing.
+    /// glTF and FBX: sampling rate; `None` infers it from the key spacing (glTF) or uses
+    /// the file's frame rate (FBX).
     pub sample_fps: Option<f64>,
     /// BVH only: the file's up axis; Z-up files are turned to kinegraph's Y up.
     pub up_axis: UpAxis,
@@ -38,8 +40,9 @@ fn looks_z_up(clip: &Clip) -> bool {
     e.z >= e.max_element() && e.z > 1.5 * e.y
 }
 
-/// Reads a clip from a BVH, glTF or GLB file (by extension), with the warnings found,
-/// including the unit a BVH was taken to be in.
+/// Reads a clip from a BVH, glTF, GLB or FBX file (by extension), with the warnings found,
+/// including the unit a BVH was taken to be in and what an FBX declared (unit, up axis,
+/// frame rate, takes) before its conversion to metres, Y up.
 pub fn load_clip(path: &Path, options: ClipLoadOptions) -> Result<Loaded<Clip>, FormatError> {
     let ext = crate::formats::extension(path);
     match ext.as_str() {
@@ -106,7 +109,31 @@ pub fn load_clip(path: &Path, options: ClipLoadOptions) -> Result<Loaded<Clip>, 
             };
             Ok(Loaded { value: clip, warnings })
         }
-        _ => Err(FormatError::file(path, FormatErrorKind::Unsupported, "expected a .bvh, .gltf or .glb file")),
+        "fbx" => {
+            let fbx_options = FbxReadOptions { take: options.animation, sample_fps: options.sample_fps, meshes: false };
+            let Loaded { value: asset, mut warnings } = read_fbx_file(path, &fbx_options)?;
+            if options.metres_per_unit.is_some() {
+                warnings.push("metres_per_unit is ignored for FBX, which states its unit".into());
+            }
+            if options.up_axis != UpAxis::Y {
+                warnings.push("up_axis is ignored for FBX, which states its axes".into());
+            }
+            warnings.push(format!("{}: {}", path.display(), asset.describe()));
+            let wanted = options.animation.unwrap_or(0);
+            match asset.clips.into_iter().find(|c| c.take_index == wanted) {
+                Some(c) => Ok(Loaded { value: c.clip, warnings }),
+                None => Err(FormatError::file(
+                    path,
+                    FormatErrorKind::Structure,
+                    format!(
+                        "has no take {wanted} to animate its skeleton of {} bones (takes found: [{}])",
+                        asset.skeleton.len(),
+                        asset.source.takes.join(", ")
+                    ),
+                )),
+            }
+        }
+        _ => Err(FormatError::file(path, FormatErrorKind::Unsupported, "expected a .bvh, .gltf, .glb or .fbx file")),
     }
 }
 

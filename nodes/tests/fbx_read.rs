@@ -1,0 +1,313 @@
+//! The FBX reader (ufbx) on the three Mixamo downloads of the shared corpus, checked
+//! against what Blender 3.4 read from the same files (shared/data/README.md: 65 bones rooted
+//! at `mixamorig:Hips`, takes of 36 / 65 / 36 frames), against human proportions in metres
+//! (hips height, feet on the floor), and through a round trip FBX → `export.glb` → Khronos
+//! validator → our glTF reader; plus broken files that must give located errors.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed unwrap is a failed test
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use kinegraph_nodes::corpus::shared_data;
+use kinegraph_nodes::formats::FormatErrorKind;
+use kinegraph_nodes::formats::fbx::{FbxAsset, FbxReadOptions, read_fbx, read_fbx_file};
+use kinegraph_nodes::formats::gltf::{GltfReadOptions, read_gltf_file, write_glb_file};
+use kinegraph_nodes::kernels::load::{ClipLoadOptions, load_clip};
+use kinegraph_nodes::model::forward_kinematics;
+
+/// (file, frames Blender reads in its one action)
+const FILES: [(&str, usize); 3] = [("standard_walk.fbx", 36), ("jab_cross.fbx", 65), ("jumping.fbx", 36)];
+
+fn fbx_dir() -> Option<PathBuf> {
+    shared_data().map(|d| d.join("fbx"))
+}
+
+fn read(path: &Path) -> FbxAsset {
+    read_fbx_file(path, &FbxReadOptions::default()).unwrap_or_else(|e| panic!("{e}")).value
+}
+
+#[test]
+fn mixamo_skeletons_takes_and_units() {
+    let Some(dir) = fbx_dir() else { return };
+    for (file, blender_frames) in FILES {
+        let path = dir.join(file);
+        let asset = read(&path);
+        let skeleton = &asset.skeleton;
+        eprintln!("{file}: {} joints; {}", skeleton.len(), asset.describe());
+
+        // Blender: one armature of 65 bones rooted at mixamorig:Hips; prefix kept.
+        assert_eq!(skeleton.len(), 65, "{file}");
+        let joints = skeleton.joints();
+        assert_eq!(joints[0].name, "mixamorig:Hips", "{file}");
+        assert_eq!(joints[0].parent, None);
+        assert!(joints[1..].iter().all(|j| j.parent.is_some()), "{file}: one root");
+        assert!(joints.iter().all(|j| j.name.starts_with("mixamorig:")), "{file}");
+        for name in ["mixamorig:LeftFoot", "mixamorig:RightFoot", "mixamorig:Head", "mixamorig:LeftHand"] {
+            assert!(skeleton.index_of(name).is_some(), "{file}: {name} missing");
+        }
+
+        // The files' GlobalSettings (read with a hex dump): UnitScaleFactor 100 (cm per unit,
+        // i.e. metres), UpAxis 1 (Y), TimeMode 6 (30 fps).
+        assert!((asset.source.metres_per_unit - 1.0).abs() < 1e-9, "{file}: {}", asset.source.metres_per_unit);
+        assert_eq!(asset.source.fps, 30.0, "{file}");
+        assert_eq!(asset.source.up_axis, "+Y", "{file}");
+        assert_eq!(asset.source.takes.len(), 1, "{file}");
+
+        // One take, as many frames as Blender's action; frames span the take's length.
+        assert_eq!(asset.clips.len(), 1, "{file}");
+        let take = &asset.clips[0];
+        let clip = &take.clip;
+        assert_eq!(clip.fps(), asset.source.fps);
+        assert_eq!(clip.frame_count(), blender_frames, "{file}: {} s at {} fps", take.duration_secs, clip.fps());
+        assert!(
+            ((clip.frame_count() - 1) as f64 / clip.fps() - take.duration_secs).abs() < 0.5 / clip.fps(),
+            "{file}: frames × frame time ≠ take length {}",
+            take.duration_secs
+        );
+
+        // Metres, Y up: hips of a standing human 0.8–1.1 m up, feet (ankles) near the floor,
+        // head above the hips.
+        let poses = forward_kinematics(clip);
+        let at = |name: &str, f: usize| poses.position(f, skeleton.index_of(name).unwrap());
+        let hips = at("mixamorig:Hips", 0);
+        assert!((0.8..=1.1).contains(&hips.y), "{file}: hips at {hips}");
+        let lowest_foot = (0..clip.frame_count())
+            .map(|f| at("mixamorig:LeftFoot", f).y.min(at("mixamorig:RightFoot", f).y))
+            .fold(f32::INFINITY, f32::min);
+        assert!((0.0..=0.2).contains(&lowest_foot), "{file}: lowest ankle {lowest_foot} m");
+        assert!(at("mixamorig:Head", 0).y > hips.y + 0.4, "{file}: head {}", at("mixamorig:Head", 0));
+    }
+}
+
+#[test]
+fn walk_is_an_in_place_stepping_cycle() {
+    let Some(dir) = fbx_dir() else { return };
+    let asset = read(&dir.join("standard_walk.fbx"));
+    let clip = &asset.clips[0].clip;
+    let poses = forward_kinematics(clip);
+    let sk = clip.skeleton();
+    let (l, r) = (sk.index_of("mixamorig:LeftFoot").unwrap(), sk.index_of("mixamorig:RightFoot").unwrap());
+    // Mixamo's download is "in place": the hips stay over the start point, while the feet
+    // swing past each other along the walking direction (+Z, the character's front).
+    let mut hips_drift = 0.0f32;
+    let (mut ahead_min, mut ahead_max) = (f32::INFINITY, f32::NEG_INFINITY);
+    for f in 0..clip.frame_count() {
+        let h = poses.position(f, 0) - poses.position(0, 0);
+        hips_drift = hips_drift.max((h.x * h.x + h.z * h.z).sqrt());
+        let ahead = poses.position(f, l).z - poses.position(f, r).z;
+        ahead_min = ahead_min.min(ahead);
+        ahead_max = ahead_max.max(ahead);
+    }
+    println!("walk: hips drift {hips_drift} m, left ankle ahead of right by {ahead_min} .. {ahead_max} m");
+    assert!(hips_drift < 0.2, "{hips_drift}");
+    assert!(ahead_min < -0.2 && ahead_max > 0.2, "{ahead_min} .. {ahead_max}");
+}
+
+#[test]
+fn load_clip_dispatches_fbx_and_reports_the_source() {
+    let Some(dir) = fbx_dir() else { return };
+    let path = dir.join("jumping.fbx");
+    let loaded = load_clip(&path, ClipLoadOptions::default()).unwrap();
+    assert_eq!(loaded.value.joint_count(), 65);
+    let report = loaded.warnings.join("\n");
+    assert!(report.contains("'m'") && report.contains("+Y up") && report.contains("fps"), "{report}");
+    let err = load_clip(&path, ClipLoadOptions { animation: Some(3), ..Default::default() }).unwrap_err();
+    assert_eq!(err.file, path);
+    assert!(err.to_string().contains("take 3"), "{err}");
+}
+
+/// FBX walk → `export.glb` → Khronos validator (when installed) → our glTF reader: the
+/// world joint positions of every frame come back within 0.1 mm.
+#[test]
+fn walk_round_trips_through_glb() {
+    let Some(dir) = fbx_dir() else { return };
+    let asset = read(&dir.join("standard_walk.fbx"));
+    let clip = &asset.clips[0].clip;
+    let tmp = tempfile::tempdir().unwrap();
+    let glb = tmp.path().join("walk.glb");
+    let warnings = write_glb_file(&glb, clip, None).unwrap();
+    eprintln!("export warnings: {warnings:?}");
+    validate(&glb);
+
+    let back =
+        read_gltf_file(&glb, &GltfReadOptions { sample_fps: Some(clip.fps()), ..Default::default() }).unwrap().value;
+    let again = &back.clips[0].clip;
+    assert_eq!(again.frame_count(), clip.frame_count());
+    let (a, b) = (forward_kinematics(clip), forward_kinematics(again));
+    let mut worst = 0.0f32;
+    for f in 0..clip.frame_count() {
+        for (j, joint) in clip.skeleton().joints().iter().enumerate() {
+            let k = again.skeleton().index_of(&joint.name).unwrap();
+            worst = worst.max(a.position(f, j).distance(b.position(f, k)));
+        }
+    }
+    eprintln!("walk FBX → GLB → read: worst joint position difference {worst:e} m");
+    assert!(worst < 1e-4, "{worst}");
+}
+
+/// The Khronos validator on `file` (skipped without it, unless `CI` is set).
+fn validate(file: &Path) {
+    let tools = std::env::var_os("KG_TOOLS_DIR")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".cache/kinegraph-tools")));
+    let dir = std::env::var_os("KG_GLTF_VALIDATOR_DIR")
+        .map(PathBuf::from)
+        .or_else(|| tools.map(|t| t.join("khronos-validator")))
+        .unwrap_or_default();
+    let node_ok = Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
+    if !(node_ok && dir.join("node_modules/gltf-validator").is_dir()) {
+        let why = format!("node or gltf-validator missing (looked in {}; set KG_GLTF_VALIDATOR_DIR)", dir.display());
+        assert!(std::env::var_os("CI").is_none(), "{why}; CI requires the validator");
+        eprintln!("skipping validation: {why}");
+        return;
+    }
+    let script = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/tools/validate_gltf.mjs"));
+    let out = Command::new("node").arg(&script).arg(file).env("KG_GLTF_VALIDATOR_DIR", dir).output().unwrap();
+    let report = String::from_utf8_lossy(&out.stdout);
+    eprintln!("{report}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "validator reported errors:\n{report}");
+    assert!(report.contains("errors=0"), "{report}");
+}
+
+#[test]
+fn broken_files_give_located_errors() {
+    let name = Path::new("broken.fbx");
+    let opts = FbxReadOptions::default();
+    // Random bytes (seeded xorshift), empty file, and an FBX header with nothing after it.
+    let mut x = 0x9E37_79B9_7F4A_7C15u64;
+    let random: Vec<u8> = (0..4096)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x as u8
+        })
+        .collect();
+    let mut header_only = b"Kaydara FBX Binary  \x00\x1a\x00".to_vec();
+    header_only.extend_from_slice(&7400u32.to_le_bytes());
+    for bytes in [random, Vec::new(), header_only] {
+        let err = read_fbx(&bytes, name, &opts).unwrap_err();
+        assert_eq!(err.file, name);
+        assert!(err.to_string().starts_with("broken.fbx"), "{err}");
+        eprintln!("{err}");
+    }
+    let missing = read_fbx_file(Path::new("no/such/file.fbx"), &opts).unwrap_err();
+    assert_eq!(missing.kind, FormatErrorKind::Io);
+
+    // A real Mixamo file cut at several places: an error or (if ufbx can recover) a
+    // consistent result, never a panic.
+    let Some(dir) = fbx_dir() else { return };
+    let whole = std::fs::read(dir.join("standard_walk.fbx")).unwrap();
+    for cut in [27, 1000, whole.len() / 3, whole.len() / 2, whole.len() - 100] {
+        match read_fbx(&whole[..cut], name, &opts) {
+            Err(e) => {
+                assert_eq!(e.file, name);
+                eprintln!("cut at {cut}: {e}");
+            }
+            Ok(asset) => eprintln!("cut at {cut}: read {} joints", asset.value.skeleton.len()),
+        }
+    }
+    let err = read_fbx(&whole[..whole.len() / 2], name, &opts).unwrap_err();
+    assert_eq!(err.kind, FormatErrorKind::Truncated, "{err}");
+}
+
+/// Issue 18, Mixamo in: the FBX walk maps onto the Mixamo Xbot (glTF) by its bone names,
+/// every pair joining equal names, and the leg-length scale agrees with the legs measured
+/// here from both rest poses.
+#[test]
+fn fbx_walk_maps_onto_xbot() {
+    use kinegraph_nodes::builtin::ik::map::{Bodies, map_by_roles, transfer};
+    use kinegraph_nodes::model::Clip;
+
+    let Some(data) = shared_data() else { return };
+    let walk = read(&data.join("fbx/standard_walk.fbx")).clips.remove(0).clip;
+    let xbot = read_gltf_file(&data.join("gltf/Xbot.glb"), &GltfReadOptions::default()).unwrap().value;
+    let target = Clip::rest_pose(xbot.clips[0].clip.skeleton().clone(), 30.0, 1).unwrap();
+    let bodies = Bodies::of(&target, &walk).unwrap();
+    let map = map_by_roles(target.skeleton(), &bodies.target, walk.skeleton(), &bodies.source);
+    println!("FBX walk → Xbot: {} pairs", map.joints.len());
+    // End joints differ by rig (one side `Head_end`, `LeftHandMiddle3_end`; the other
+    // `HeadTop_End`, `LeftHandMiddle4`); every other pair joins equal names.
+    let is_end = |n: &str| n.to_ascii_lowercase().ends_with("_end");
+    assert!(map.joints.iter().all(|(t, s)| t == s || is_end(t) || is_end(s)), "{:?}", map.joints);
+    assert!(map.joints.iter().filter(|(t, s)| t == s).count() >= 25, "{:?}", map.joints);
+    for side in ["Left", "Right"] {
+        for part in ["UpLeg", "Leg", "Foot", "Arm", "ForeArm", "Hand"] {
+            let name = format!("mixamorig:{side}{part}");
+            assert!(map.joints.contains_key(&name), "{name} not mapped");
+        }
+    }
+    let out = transfer(&walk, &target, &map, Some(&bodies), None).unwrap();
+
+    // Leg length (hip → knee → ankle, both sides) from each rest pose, by hand.
+    let leg = |clip: &Clip| {
+        let rest = clip.skeleton().rest_positions();
+        let at = |n: &str| rest[clip.skeleton().index_of(n).unwrap()];
+        ["Left", "Right"]
+            .iter()
+            .map(|s| {
+                let (hip, knee, ankle) = (
+                    at(&format!("mixamorig:{s}UpLeg")),
+                    at(&format!("mixamorig:{s}Leg")),
+                    at(&format!("mixamorig:{s}Foot")),
+                );
+                (hip.distance(knee) + knee.distance(ankle)) as f64
+            })
+            .sum::<f64>()
+            / 2.0
+    };
+    let ratio = leg(&target) / leg(&walk);
+    println!("root scale {:.4}, leg-length ratio {ratio:.4}", out.root_scale);
+    assert!((out.root_scale / ratio - 1.0).abs() < 0.05, "{} vs {ratio}", out.root_scale);
+    assert_eq!(out.clip.frame_count(), walk.frame_count());
+}
+
+/// The Mixamo character's skinned mesh: one mesh of Blender's 9,112 vertices (here split
+/// where normals/UVs differ), four normalised weights per vertex, exactly affine inverse
+/// bind matrices, standing on the floor in metres; the walk with it exports to a GLB the
+/// Khronos validator accepts.
+#[test]
+fn mixamo_skinned_mesh() {
+    let Some(dir) = fbx_dir() else { return };
+    let path = dir.join("standard_walk.fbx");
+    let asset = read_fbx_file(&path, &FbxReadOptions { meshes: true, ..Default::default() }).unwrap().value;
+    assert_eq!(asset.meshes.len(), 1, "{:?}", asset.meshes.iter().map(|m| &m.name).collect::<Vec<_>>());
+    let mesh = &asset.meshes[0];
+    let skin = mesh.skin.as_ref().expect("skinned");
+    let (lo, hi) = mesh
+        .positions
+        .iter()
+        .fold((glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    println!(
+        "mesh '{}': {} vertices, {} triangles, bounds {lo} .. {hi}",
+        mesh.name,
+        mesh.positions.len(),
+        mesh.triangles.len()
+    );
+    assert!(mesh.positions.len() >= 9112, "{}", mesh.positions.len());
+    assert!((1.4..=2.1).contains(&hi.y), "top of the head at {} m", hi.y);
+    assert!((-0.03..=0.05).contains(&lo.y), "soles at {} m", lo.y);
+    assert_eq!(skin.inverse_bind_matrices.len(), asset.skeleton.len());
+    for m in &skin.inverse_bind_matrices {
+        assert_eq!(m.row(3), glam::Vec4::new(0.0, 0.0, 0.0, 1.0));
+    }
+    for (j, w) in skin.joints.iter().zip(&skin.weights) {
+        assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-5, "{w:?}");
+        assert!(j.iter().all(|&j| (j as usize) < asset.skeleton.len()));
+    }
+    // The ankles sit above the soles and inside the mesh's footprint.
+    let rest = asset.skeleton.rest_positions();
+    let ankle = rest[asset.skeleton.index_of("mixamorig:LeftFoot").unwrap()];
+    assert!(ankle.y > lo.y && ankle.y - lo.y < 0.2, "ankle {ankle}, soles {}", lo.y);
+
+    let tmp = tempfile::tempdir().unwrap();
+    let glb = tmp.path().join("walk_skinned.glb");
+    write_glb_file(&glb, &asset.clips[0].clip, Some(mesh)).unwrap();
+    validate(&glb);
+    let back = read_gltf_file(&glb, &GltfReadOptions::default()).unwrap().value;
+    assert_eq!(back.meshes.len(), 1);
+    let worst = back.meshes[0].positions.iter().zip(&mesh.positions).map(|(a, b)| a.distance(*b)).fold(0.0, f32::max);
+    println!("rest-pose vertices after GLB round trip: worst difference {worst:e} m");
+    assert!(worst < 1e-5, "{worst}");
+}
