@@ -233,6 +233,13 @@ fn a_retry_while_the_task_runs_is_refused_and_keeps_the_running_attempts_staging
     assert!(staging.join("clip.glb").is_file(), "the running attempt's staging folder was removed");
     assert!(!out.join("reports/a.json").exists());
     drop(lease);
+    // A kg started by another test thread at that moment may hold a copy of the lease's
+    // descriptor between its fork and its exec: wait until the lock is really free.
+    let waited = std::time::Instant::now();
+    while std::fs::File::open(&lease_path).unwrap().try_lock().is_err() {
+        assert!(waited.elapsed().as_secs() < 10, "the lease stays locked after its holder let go");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
     let o = run_task(dir.path(), 0);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(!staging.exists(), "a dead attempt's staging folder is left");
