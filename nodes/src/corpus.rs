@@ -21,6 +21,17 @@ pub fn shared_data() -> Option<PathBuf> {
     None
 }
 
+/// The real jumps, hops and flips of the corpus (paths under the corpus folder) that the
+/// momentum-editing tests measure: CMU 16_01, 13_32, 01_01, 90_05, 88_01, MASS backflip.
+pub const JUMP_CLIPS: [&str; 6] = [
+    "bvh/cmu/16_01.bvh",
+    "bvh/cmu_daz/13_32.bvh",
+    "bvh/cmu/01_01.bvh",
+    "bvh/cmu/90_05.bvh",
+    "bvh/cmu/88_01.bvh",
+    "bvh/mass_humanik/backflip.bvh",
+];
+
 /// Every file under `dir` (recursively) whose extension is `ext`, sorted (see
 /// [`files_under`]; no limit).
 pub fn files_with_extension(dir: &std::path::Path, ext: &str) -> Vec<PathBuf> {

@@ -5,26 +5,17 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use kinegraph_nodes::builtin::momentum::splines::border_jumps;
-use kinegraph_nodes::corpus::shared_data;
+use kinegraph_nodes::corpus::{JUMP_CLIPS, shared_data};
 use kinegraph_nodes::kernels::body::{MassTable, body_model};
 use kinegraph_nodes::kernels::load::{ClipLoadOptions, load_clip};
 use kinegraph_nodes::kernels::momentum_splines::{CHANNELS, fit_momentum};
 use kinegraph_nodes::kernels::stages::stage_clip;
 use kinegraph_nodes::model::StageKind;
 
-const JUMPS: [&str; 6] = [
-    "bvh/cmu/16_01.bvh",
-    "bvh/cmu_daz/13_32.bvh",
-    "bvh/cmu/01_01.bvh",
-    "bvh/cmu/90_05.bvh",
-    "bvh/cmu/88_01.bvh",
-    "bvh/mass_humanik/backflip.bvh",
-];
-
 #[test]
 fn fitted_momentum_is_c1_at_the_borders_except_vertical_at_landings() {
     let Some(data) = shared_data() else { return };
-    for name in JUMPS {
+    for name in JUMP_CLIPS {
         let clip = load_clip(&data.join(name), ClipLoadOptions::default()).unwrap().value;
         let model = body_model(clip.skeleton(), 70.0, MassTable::DeLevaMale, None).unwrap();
         let staged = stage_clip(&clip, &model, None, None).unwrap();

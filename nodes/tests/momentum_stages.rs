@@ -7,7 +7,7 @@
 use std::sync::Arc;
 
 use glam::{DVec3, Quat, Vec3};
-use kinegraph_nodes::corpus::shared_data;
+use kinegraph_nodes::corpus::{JUMP_CLIPS, shared_data};
 use kinegraph_nodes::kernels::body::{MassTable, body_model};
 use kinegraph_nodes::kernels::load::{ClipLoadOptions, load_clip};
 use kinegraph_nodes::kernels::stages::stage_clip;
@@ -140,20 +140,10 @@ fn a_synthetic_backflip_gives_back_its_stages_gravity_and_spin() {
     assert!((detected.fit.gravity_mps2 - g).abs() < 0.005 * g, "{}", detected.fit.gravity_mps2);
 }
 
-/// The real jumps, hops and flips of the corpus named in issue 15.
-pub const JUMPS: [&str; 6] = [
-    "bvh/cmu/16_01.bvh",
-    "bvh/cmu_daz/13_32.bvh",
-    "bvh/cmu/01_01.bvh",
-    "bvh/cmu/90_05.bvh",
-    "bvh/cmu/88_01.bvh",
-    "bvh/mass_humanik/backflip.bvh",
-];
-
 #[test]
 fn real_jumps_have_flights_near_earth_gravity() {
     let Some(data) = shared_data() else { return };
-    for name in JUMPS {
+    for name in JUMP_CLIPS {
         let clip = load_clip(&data.join(name), ClipLoadOptions::default()).unwrap().value;
         let model = body_model(clip.skeleton(), 70.0, MassTable::DeLevaMale, None).unwrap();
         let staged = stage_clip(&clip, &model, None, None).unwrap();
