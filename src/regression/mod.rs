@@ -209,6 +209,40 @@ fn close(a: f64, b: f64, tolerance: f64) -> bool {
     (a - b).abs() <= tolerance * b.abs().max(1.0)
 }
 
+/// One output's field-by-field comparison: a line in `problems` per differing field.
+struct FieldDiff<'a> {
+    key: &'a str,
+    tol: f64,
+    problems: &'a mut Vec<String>,
+}
+
+impl FieldDiff<'_> {
+    fn differ(&mut self, name: &str, want: String, got: String) {
+        self.problems.push(format!("{}.{name}: expected {want}, got {got}", self.key));
+    }
+
+    /// Counts, flags and hashes: equal or different.
+    fn exact<T: PartialEq + std::fmt::Display>(&mut self, name: &str, want: &T, got: &T) {
+        if want != got {
+            self.differ(name, want.to_string(), got.to_string());
+        }
+    }
+
+    /// Real numbers: equal within the expectation's relative tolerance.
+    fn near(&mut self, name: &str, want: f64, got: f64) {
+        if !close(want, got, self.tol) {
+            self.differ(name, want.to_string(), got.to_string());
+        }
+    }
+
+    /// Vectors of real numbers, compared element by element.
+    fn near_all(&mut self, name: &str, want: &[f64], got: &[f64]) {
+        if want.len() != got.len() || want.iter().zip(got).any(|(a, b)| !close(*a, *b, self.tol)) {
+            self.differ(name, format!("{want:?}"), format!("{got:?}"));
+        }
+    }
+}
+
 /// Differences between expected and actual facts, one line each.
 pub fn compare(expected: &Expectation, actual: &BTreeMap<String, Facts>) -> Vec<String> {
     let tol = expected.tolerance;
@@ -218,11 +252,7 @@ pub fn compare(expected: &Expectation, actual: &BTreeMap<String, Facts>) -> Vec<
             problems.push(format!("{key}: expected an output, the run produced none"));
             continue;
         };
-        let mut field = |name: &str, ok: bool, want: String, got: String| {
-            if !ok {
-                problems.push(format!("{key}.{name}: expected {want}, got {got}"));
-            }
-        };
+        let mut d = FieldDiff { key, tol, problems: &mut problems };
         match (want, got) {
             (
                 Facts::Clip { frames, joints, fps, duration_secs, root_travel_m, mean_joint_height_m },
@@ -235,57 +265,44 @@ pub fn compare(expected: &Expectation, actual: &BTreeMap<String, Facts>) -> Vec<
                     mean_joint_height_m: h2,
                 },
             ) => {
-                field("frames", frames == f2, frames.to_string(), f2.to_string());
-                field("joints", joints == j2, joints.to_string(), j2.to_string());
-                field("fps", close(*fps, *fps2, tol), fps.to_string(), fps2.to_string());
-                field("duration_secs", close(*duration_secs, *d2, tol), duration_secs.to_string(), d2.to_string());
-                field("root_travel_m", close(*root_travel_m, *r2, tol), root_travel_m.to_string(), r2.to_string());
-                field(
-                    "mean_joint_height_m",
-                    close(*mean_joint_height_m, *h2, tol),
-                    mean_joint_height_m.to_string(),
-                    h2.to_string(),
-                );
+                d.exact("frames", frames, f2);
+                d.exact("joints", joints, j2);
+                d.near("fps", *fps, *fps2);
+                d.near("duration_secs", *duration_secs, *d2);
+                d.near("root_travel_m", *root_travel_m, *r2);
+                d.near("mean_joint_height_m", *mean_joint_height_m, *h2);
             }
             (
                 Facts::Mesh { vertices, triangles, skinned, extent_m },
                 Facts::Mesh { vertices: v2, triangles: t2, skinned: s2, extent_m: e2 },
             ) => {
-                field("vertices", vertices == v2, vertices.to_string(), v2.to_string());
-                field("triangles", triangles == t2, triangles.to_string(), t2.to_string());
-                field("skinned", skinned == s2, skinned.to_string(), s2.to_string());
-                let ok = extent_m.iter().zip(e2).all(|(a, b)| close(*a, *b, tol));
-                field("extent_m", ok, format!("{extent_m:?}"), format!("{e2:?}"));
+                d.exact("vertices", vertices, v2);
+                d.exact("triangles", triangles, t2);
+                d.exact("skinned", skinned, s2);
+                d.near_all("extent_m", extent_m, e2);
             }
-            (Facts::Scalar(a), Facts::Scalar(b)) => field("value", close(*a, *b, tol), a.to_string(), b.to_string()),
+            (Facts::Scalar(a), Facts::Scalar(b)) => d.near("value", *a, *b),
             (
                 Facts::MeshSequence { frames, vertices, extent_m, mean_displacement_m },
                 Facts::MeshSequence { frames: f2, vertices: v2, extent_m: e2, mean_displacement_m: m2 },
             ) => {
-                field("frames", frames == f2, frames.to_string(), f2.to_string());
-                field("vertices", vertices == v2, vertices.to_string(), v2.to_string());
-                let ok = extent_m.iter().zip(e2).all(|(a, b)| close(*a, *b, tol));
-                field("extent_m", ok, format!("{extent_m:?}"), format!("{e2:?}"));
-                field(
-                    "mean_displacement_m",
-                    close(*mean_displacement_m, *m2, tol),
-                    mean_displacement_m.to_string(),
-                    m2.to_string(),
-                );
+                d.exact("frames", frames, f2);
+                d.exact("vertices", vertices, v2);
+                d.near_all("extent_m", extent_m, e2);
+                d.near("mean_displacement_m", *mean_displacement_m, *m2);
             }
             (
                 Facts::BarNet { nodes, free, bars, total_force_density },
                 Facts::BarNet { nodes: n2, free: f2, bars: b2, total_force_density: q2 },
             ) => {
-                field("nodes", nodes == n2, nodes.to_string(), n2.to_string());
-                field("free", free == f2, free.to_string(), f2.to_string());
-                field("bars", bars == b2, bars.to_string(), b2.to_string());
-                let ok = close(*total_force_density, *q2, tol);
-                field("total_force_density", ok, total_force_density.to_string(), q2.to_string());
+                d.exact("nodes", nodes, n2);
+                d.exact("free", free, f2);
+                d.exact("bars", bars, b2);
+                d.near("total_force_density", *total_force_density, *q2);
             }
             (Facts::File { bytes, sha256 }, Facts::File { bytes: b2, sha256: s2 }) => {
-                field("bytes", bytes == b2, bytes.to_string(), b2.to_string());
-                field("sha256", sha256 == s2, sha256.clone(), s2.clone());
+                d.exact("bytes", bytes, b2);
+                d.exact("sha256", sha256, s2);
             }
             (Facts::Data(want), Facts::Data(got)) => compare_data(key, want, got, tol, &mut problems),
             (want, got) => problems.push(format!("{key}: expected {want:?}, got {got:?}")),

@@ -210,17 +210,14 @@ impl<'a> NodeContext<'a> {
         if bytes <= limit {
             return Ok(());
         }
+        let is_input = self.schema.input(culprit).is_some();
         let message = format!(
             "needs about {} of memory, more than the limit of {} (80 % of the machine's memory, or kg --max-memory); {}",
             gib(bytes),
             gib(limit),
-            if self.schema.input(culprit).is_some() { "give a smaller one" } else { "lower it" }
+            if is_input { "give a smaller one" } else { "lower it" }
         );
-        Err(if self.schema.input(culprit).is_some() {
-            NodeError::input(culprit, message)
-        } else {
-            NodeError::param(culprit, message)
-        })
+        Err(if is_input { NodeError::input(culprit, message) } else { NodeError::param(culprit, message) })
     }
 
     /// The run's stop request, for kernels that work long enough to poll it themselves.

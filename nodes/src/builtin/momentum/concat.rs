@@ -144,7 +144,7 @@ fn effector_apex(a: &Analysis) -> Option<usize> {
 /// keeps it anyway, so the apex is protected only when two distinct actions are asked for.
 fn protected_frame(a: &Analysis, side: Side, apex: bool) -> usize {
     let peak = a.phases.main_frame;
-    match (side, effector_apex(a).filter(|_| apex)) {
+    match (side, if apex { effector_apex(a) } else { None }) {
         (Side::First, Some(apex)) => peak.max(apex),
         (Side::Second, Some(apex)) => peak.min(apex),
         (_, None) => peak,
@@ -162,9 +162,8 @@ enum Side {
 /// peak, so a clip concatenated with itself under the forward rule joins at its peak), or
 /// from after the effector apex when that comes later. When the apex leaves fewer than
 /// `min_frames` of the phase, the period runs on into the posterior phase.
-fn main_after_peak(a: &Analysis, min_frames: usize, apex: bool) -> FrameRange {
+fn main_after_peak(a: &Analysis, keep: usize, min_frames: usize) -> FrameRange {
     let p = &a.phases;
-    let keep = protected_frame(a, Side::First, apex);
     let start = if keep == p.main_frame { keep.max(p.main.start) } else { keep + 1 };
     let end = p.main.end.max(start + min_frames).min(p.frame_count);
     FrameRange::new(start.min(end), end)
@@ -172,21 +171,28 @@ fn main_after_peak(a: &Analysis, min_frames: usize, apex: bool) -> FrameRange {
 
 /// The initial half of the main phase: up to and including its peak frame t_m, or up to
 /// just before the effector apex when that comes earlier.
-fn main_before_peak(a: &Analysis, apex: bool) -> FrameRange {
+fn main_before_peak(a: &Analysis, keep: usize) -> FrameRange {
     let p = &a.phases;
-    let keep = protected_frame(a, Side::Second, apex);
     let end = if keep == p.main_frame { keep + 1 } else { keep };
     FrameRange::new(p.main.start, end.min(p.main.end).max(p.main.start))
 }
 
-fn cases(rule: Rule, a: &Analysis, b: &Analysis, min_frames: usize, apex: bool) -> Result<Vec<Case>, ConcatError> {
+/// The blendable periods per rule; `keep` holds each clip's protected frame
+/// ([`protected_frame`]: first clip, second clip).
+fn cases(
+    rule: Rule,
+    a: &Analysis,
+    b: &Analysis,
+    keep: (usize, usize),
+    min_frames: usize,
+) -> Result<Vec<Case>, ConcatError> {
     let (pa, pb) = (&a.phases, &b.phases);
     let out = match rule {
         Rule::Forward => {
             vec![Case {
                 name: "main -> main",
-                first: main_after_peak(a, min_frames, apex),
-                second: main_before_peak(b, apex),
+                first: main_after_peak(a, keep.0, min_frames),
+                second: main_before_peak(b, keep.1),
             }]
         }
         Rule::Reverse => {
@@ -194,12 +200,16 @@ fn cases(rule: Rule, a: &Analysis, b: &Analysis, min_frames: usize, apex: bool) 
             if let Some(prep) = pb.preparatory {
                 v.push(Case {
                     name: "main -> preparatory",
-                    first: main_after_peak(a, min_frames, apex),
+                    first: main_after_peak(a, keep.0, min_frames),
                     second: prep.second_half(),
                 });
             }
             if let Some(post) = pa.posterior {
-                v.push(Case { name: "posterior -> main", first: post.first_half(), second: main_before_peak(b, apex) });
+                v.push(Case {
+                    name: "posterior -> main",
+                    first: post.first_half(),
+                    second: main_before_peak(b, keep.1),
+                });
             }
             v
         }
@@ -486,8 +496,11 @@ pub fn concatenate(
     let scale = 0.5 * (a.smoothed_peak().powi(2) + b.smoothed_peak().powi(2)).max(f64::MIN_POSITIVE);
     let min_frames = ((params.min_blend_secs * fps).round() as usize).max(2);
     let mut best: Option<(Case, Allowed, Timing)> = None;
+    // The frames the blend must stay clear of (the effector apexes only when two distinct
+    // actions are asked for): found once, used by the periods and the window's growth.
     let apex = params.min_peak_gap_secs > 0.0;
-    for case in cases(params.rule, a, b, min_frames, apex)? {
+    let keep = (protected_frame(a, Side::First, apex), protected_frame(b, Side::Second, apex));
+    for case in cases(params.rule, a, b, keep, min_frames)? {
         let Some(mask) = allowed(&case, a, b, params.support, min_frames) else { continue };
         let timing = TimingSearch {
             first: TimingSide { momentum: &a.smoothed, arms_m: &a.track.arms_m, allowed: &mask.first },
@@ -548,8 +561,7 @@ pub fn concatenate(
     // beyond the blendable periods (anywhere both clips have frames), towards the side
     // whose momenta agree better.
     // It never reaches either clip's protected action frames (momentum peak, effector apex).
-    let keep_first = protected_frame(a, Side::First, apex) as isize;
-    let keep_second = protected_frame(b, Side::Second, apex) as isize;
+    let (keep_first, keep_second) = (keep.0 as isize, keep.1 as isize);
     let inside = |f: isize| {
         f >= 0
             && (f as usize) < mask.first.len()
