@@ -89,6 +89,10 @@ pub(super) fn task_command(
             return EXIT_BUSY;
         }
     };
+    // Under the lease no other attempt runs: what a killed one left goes first, also
+    // when this attempt then finds the task done (a kill can land while a report of
+    // "skipped" is being written).
+    remove_stale_attempts(out, task);
     let report_path = TaskReport::path(out, task);
     let previous = TaskReport::read(&report_path);
     if let Some(previous) = previous.filter(|r| r.is_up_to_date(task, &plan.graph.sha256, &input_hashes, out)) {
@@ -107,7 +111,6 @@ pub(super) fn task_command(
         return finish(&report, out, json);
     }
 
-    remove_stale_attempts(out, task);
     // A fresh folder under a random name (`mkdir` fails on anything planted there).
     let staging = match tempfile::Builder::new()
         .prefix(&format!("{}{}-", staging_prefix(task), std::process::id()))
