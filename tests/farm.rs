@@ -407,3 +407,41 @@ fn slurm_runs_the_emitted_array_for_real() {
         Command::new("sbatch").arg("--wait").arg(file).current_dir(dir).output().unwrap()
     });
 }
+
+/// The image farm submissions name, built from `Containerfile` and running one planned task
+/// (opt-in: `KG_CONTAINER=1`; `KG_CONTAINER_ENGINE` picks the engine, podman by default).
+/// The task's output inside the container must be the bytes the host's kg writes.
+#[test]
+fn the_container_image_runs_a_planned_task_like_the_host() {
+    if std::env::var_os("KG_CONTAINER").is_none() {
+        eprintln!("skipping: set KG_CONTAINER=1 (and have podman or docker) to build the image and run a task in it");
+        return;
+    }
+    let engine = std::env::var("KG_CONTAINER_ENGINE").unwrap_or_else(|_| "podman".into());
+    assert!(on_path(&engine).is_some(), "KG_CONTAINER is set but `{engine}` is not on PATH");
+    let tag = "kinegraph:test";
+    let built = Command::new(&engine)
+        .args(["build", "-t", tag, "-f", "Containerfile", "."])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    assert!(built.status.success(), "{engine} build: {}", stderr(&built));
+    let work = Work::new();
+    let mount = format!("{}:/work", work.path().display());
+    let ran = Command::new(&engine)
+        .args(["run", "--rm", "--user", "0", "-v", &mount, "-w", "/work", tag])
+        .args(["kg", "run", "--plan", "plans/plan.json", "--task-index", "0", "--out", "in_container"])
+        .output()
+        .unwrap();
+    assert_eq!(ran.status.code(), Some(0), "{engine} run: {}", stderr(&ran));
+    let host = work.kg(&["run", "--plan", "plans/plan.json", "--task-index", "0", "--out", "on_host"]);
+    assert_eq!(host.status.code(), Some(0), "{}", stderr(&host));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(work.path().join("in_container/reports/a.json")).unwrap()).unwrap();
+    assert_eq!(report["status"], "ok", "{report:#}");
+    for file in ["a/clip.glb"] {
+        let inside = std::fs::read(work.path().join("in_container").join(file)).unwrap();
+        let outside = std::fs::read(work.path().join("on_host").join(file)).unwrap();
+        assert!(inside == outside, "{file} differs between the container and the host");
+    }
+}
