@@ -346,7 +346,7 @@ fn limits_of(limits: Option<JointLimits>, axis: usize) -> (f64, f64) {
 
 /// The state an IK solve changes: every joint's local rotation and translation, plus the
 /// Euler angles of the rig joints (which take precedence over their rotations).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct IkPose {
     /// Local rotation per skeleton joint (used for joints outside the rig).
     pub rotations: Vec<DQuat>,
@@ -354,6 +354,20 @@ pub struct IkPose {
     pub translations: Vec<DVec3>,
     /// Euler angles `[X, Y, Z]` (radians) per rig joint.
     pub euler: Vec<[f64; 3]>,
+}
+
+/// Written out so that `clone_from` reuses the buffers (the derived one allocates anew),
+/// which keeps the per-solve scratch poses allocation-free.
+impl Clone for IkPose {
+    fn clone(&self) -> Self {
+        IkPose { rotations: self.rotations.clone(), translations: self.translations.clone(), euler: self.euler.clone() }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        self.rotations.clone_from(&source.rotations);
+        self.translations.clone_from(&source.translations);
+        self.euler.clone_from(&source.euler);
+    }
 }
 
 #[cfg(test)]

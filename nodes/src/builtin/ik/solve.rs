@@ -22,8 +22,12 @@
 //!
 //! The solver owns every buffer it needs: a solve allocates nothing.
 
+use faer::diag::Diag;
+use faer::dyn_stack::{MemStack, StackReq};
+use faer::linalg::evd::{ComputeEigenvectors, self_adjoint_evd, self_adjoint_evd_scratch};
+use faer::{Mat, Par};
 use glam::{DQuat, DVec3};
-use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use nalgebra::{DMatrix, DVector};
 
 use std::sync::Arc;
 
@@ -77,6 +81,56 @@ pub struct SolveReport {
     pub converged: bool,
 }
 
+/// Buffers of faer's symmetric eigen-decomposition for `m × m` matrices. nalgebra's
+/// `SymmetricEigen` takes its matrix by value and allocates its results, which a solve
+/// with several effectors paid on every iteration.
+#[derive(Clone, Debug)]
+struct EigenBuffers {
+    matrix: Mat<f64>,
+    vectors: Mat<f64>,
+    values: Diag<f64>,
+    scratch: Vec<std::mem::MaybeUninit<u8>>,
+}
+
+impl EigenBuffers {
+    fn new(m: usize) -> Self {
+        let req: StackReq = self_adjoint_evd_scratch::<f64>(m, ComputeEigenvectors::Yes, Par::Seq, Default::default());
+        EigenBuffers {
+            matrix: Mat::zeros(m, m),
+            vectors: Mat::zeros(m, m),
+            values: Diag::zeros(m),
+            scratch: vec![std::mem::MaybeUninit::new(0); req.unaligned_bytes_required()],
+        }
+    }
+
+    /// Eigenvectors (columns of `basis`) and eigenvalues of the symmetric `a`. If the
+    /// iteration does not converge (not seen on finite input) the eigenvalues are zero, so
+    /// every direction gets the full damping instead of a NaN.
+    fn decompose(&mut self, a: &DMatrix<f64>, basis: &mut DMatrix<f64>, values: &mut DVector<f64>) {
+        let m = a.nrows();
+        for c in 0..m {
+            for r in 0..m {
+                self.matrix[(r, c)] = a[(r, c)];
+            }
+        }
+        let stack = MemStack::new(&mut self.scratch);
+        let solved = self_adjoint_evd(
+            self.matrix.as_ref(),
+            self.values.as_mut(),
+            Some(self.vectors.as_mut()),
+            Par::Seq,
+            stack,
+            Default::default(),
+        );
+        for c in 0..m {
+            values[c] = if solved.is_ok() { self.values[c] } else { 0.0 };
+            for r in 0..m {
+                basis[(r, c)] = self.vectors[(r, c)];
+            }
+        }
+    }
+}
+
 /// The weighted IK solver: a rig and the buffers for its Jacobian and solves.
 #[derive(Clone, Debug)]
 pub struct IkSolver {
@@ -94,6 +148,9 @@ pub struct IkSolver {
     sigma_sq: DVector<f64>,
     /// Damped inverse per eigen-direction.
     inverse: DVector<f64>,
+    /// The eigen-decomposition's input, outputs and scratch memory, made once per rig so a
+    /// solve with any number of effectors allocates nothing.
+    eigen: EigenBuffers,
     /// Goal offsets `X_g − X`, stacked.
     pub(crate) dx: DVector<f64>,
     /// Goal offsets of a trial pose.
@@ -124,6 +181,7 @@ impl IkSolver {
             basis: DMatrix::zeros(m, m),
             sigma_sq: DVector::zeros(m),
             inverse: DVector::zeros(m),
+            eigen: EigenBuffers::new(m),
             dx: DVector::zeros(m),
             trial_dx: DVector::zeros(m),
             y: DVector::zeros(m),
@@ -214,16 +272,7 @@ impl IkSolver {
             row *= *w;
         }
         self.jwjt.gemm_tr(1.0, &self.jt, &self.wjt, 0.0);
-        if self.jwjt.nrows() == 3 {
-            // One effector: a fixed-size decomposition, no allocation.
-            let eig = SymmetricEigen::new(self.jwjt.fixed_view::<3, 3>(0, 0).into_owned());
-            self.basis.copy_from(&eig.eigenvectors);
-            self.sigma_sq.copy_from(&eig.eigenvalues);
-        } else {
-            let eig = SymmetricEigen::new(self.jwjt.clone());
-            self.basis.copy_from(&eig.eigenvectors);
-            self.sigma_sq.copy_from(&eig.eigenvalues);
-        }
+        self.eigen.decompose(&self.jwjt, &mut self.basis, &mut self.sigma_sq);
         let s_max = self.sigma_sq.max().max(0.0).sqrt();
         let s_min = self.sigma_sq.min().max(0.0).sqrt();
         for i in 0..self.sigma_sq.len() {
