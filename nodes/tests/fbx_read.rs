@@ -311,3 +311,22 @@ fn mixamo_skinned_mesh() {
     println!("rest-pose vertices after GLB round trip: worst difference {worst:e} m");
     assert!(worst < 1e-5, "{worst}");
 }
+
+/// `load.clip_set` over a folder of Mixamo FBX downloads: the three takes become one set
+/// on one skeleton, each as long as the file says (Blender's frame counts at the file's
+/// 30 fps) once resampled to 30 fps.
+#[test]
+fn a_folder_of_fbx_takes_loads_as_one_clip_set() {
+    let Some(dir) = fbx_dir() else { return };
+    let loaded = kinegraph_nodes::kernels::clip_set::load_clip_set(&dir, "*.fbx", 30.0, None).unwrap();
+    assert!(loaded.left_out.is_empty(), "{:?}", loaded.left_out);
+    let mut names: Vec<&str> = loaded.set.clips().iter().map(|c| c.name.as_str()).collect();
+    names.sort_unstable();
+    assert_eq!(names, ["jab_cross", "jumping", "standard_walk"]);
+    for clip in loaded.set.clips() {
+        let (_, blender_frames) = FILES.iter().find(|(f, _)| f.starts_with(&clip.name)).unwrap();
+        assert_eq!(clip.clip.fps(), 30.0, "{}", clip.name);
+        assert_eq!(clip.clip.frame_count(), *blender_frames, "{}", clip.name);
+        assert_eq!(clip.clip.skeleton().len(), 65, "{}", clip.name);
+    }
+}

@@ -99,7 +99,7 @@ pub const MAX_FOLDER_ENTRIES: usize = 200_000;
 /// Actions are named by file stem, or by their path under `folder` when two stems clash.
 pub fn load_clip_set(folder: &Path, patterns: &str, fps: f64, family: Option<&str>) -> Result<LoadedClipSet, String> {
     let patterns: Vec<&str> = patterns.split(',').map(str::trim).filter(|p| !p.is_empty()).collect();
-    let mut files: Vec<_> = crate::corpus::files_under(folder, &["bvh", "glb", "gltf"], MAX_FOLDER_ENTRIES)?
+    let mut files: Vec<_> = crate::corpus::files_under(folder, &["bvh", "glb", "gltf", "fbx"], MAX_FOLDER_ENTRIES)?
         .into_iter()
         .filter(|p| {
             let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();

@@ -44,7 +44,7 @@ const FOLDER: InputFolderParam = InputFolderParam::new(
     "folder",
     "Folder to read clips from (sub-folders included). Relative paths start at the graph file's folder.",
     // The clip files, and the buffers a .gltf may keep beside it.
-    &["bvh", "glb", "gltf", "bin"],
+    &["bvh", "glb", "gltf", "fbx", "bin"],
     ".",
 );
 const PATTERN: TextParam = TextParam::new(
