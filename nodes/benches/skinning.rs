@@ -90,9 +90,10 @@ fn bench(c: &mut Criterion) {
     ] {
         let model = PoseSpaceModel::train(&mesh, &samples, params).unwrap();
         let pose = pose_vector(clip.skeleton(), clip.frame_rotations(frame));
+        let mut scratch = model.scratch(n);
         group.bench_function(name, |b| {
             b.iter(|| {
-                model.deform_frame(&mesh, skin, black_box(&pose), affine, &mut out_p);
+                model.deform_frame(&mesh, skin, black_box(&pose), affine, &mut out_p, &mut scratch);
                 black_box(Mesh::compute_normals(&out_p, &mesh.triangles))
             })
         });

@@ -1,14 +1,20 @@
 //! The solvers that run per frame allocate nothing once set up (issue 23): a counting
 //! global allocator (the `allocation-counter` crate, per thread) around a weighted IK solve
-//! with one and with several effectors, and around frames of online retargeting.
+//! with one and with several effectors, around frames of online retargeting, and around
+//! PSD and WPSD frames (Rhee et al.) on the bar-net arm.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::sync::Arc;
 
 use glam::{DVec3, Quat, Vec3};
+use kinegraph_nodes::builtin::barnet::{LoadParams, Selection, build, deform_net};
 use kinegraph_nodes::builtin::ik::retarget::{OnlineRetargeter, RetargetParams};
 use kinegraph_nodes::builtin::ik::{IkRig, IkSolver, SolveParams};
+use kinegraph_nodes::builtin::pose_space::{PoseDistance, PoseSpaceModel, PoseSpaceParams};
+use kinegraph_nodes::kernels::arm::{SAMPLE_POSES, arm_clip, arm_flex_clip, arm_mesh};
+use kinegraph_nodes::kernels::pose_vector::pose_vector;
+use kinegraph_nodes::kernels::skinning::{AutoWeightParams, BindMode, bind, clip_skinning_matrices};
 use kinegraph_nodes::model::{Joint, Skeleton};
 
 /// A pelvis with a root translation and two 6-DOF legs; the toes are effectors
@@ -96,4 +102,48 @@ fn online_retargeting_allocates_nothing_per_frame() {
     });
     assert!(worst < 0.02, "the filter tracked the goals (worst {worst} m), so the frames did real work");
     assert_eq!(info.count_total, 0);
+}
+
+#[test]
+fn psd_and_wpsd_frames_allocate_nothing() {
+    // The benchmark's arm (6,434 vertices here), 8 bar-net bulge samples, a flexing clip.
+    let clip = arm_flex_clip(12, 24.0).unwrap();
+    let mesh =
+        Arc::new(bind(&arm_mesh(200, 32), clip.skeleton(), BindMode::Automatic, AutoWeightParams::default()).unwrap());
+    let skin = mesh.skin.as_ref().unwrap();
+    let biceps = Selection::Box(Vec3::new(0.11, 1.34, 0.012), Vec3::new(0.31, 1.46, 0.1));
+    let net = build(mesh.clone(), &biceps, 1.0, 1.0).unwrap();
+    let loads = LoadParams { driver: Some(2), ramp_start_rad: 0.2, ramp_full_rad: 2.0, bulge_n: 0.05, pressure_n: 0.0 };
+    let samples = deform_net(&net, &Arc::new(arm_clip(&SAMPLE_POSES, 24.0).unwrap()), &loads).unwrap();
+    let joints = clip.joint_count();
+    let matrices = clip_skinning_matrices(&clip, skin);
+    let poses: Vec<Vec<Vec3>> =
+        (0..clip.frame_count()).map(|f| pose_vector(clip.skeleton(), clip.frame_rotations(f))).collect();
+    // One worker, the test's own thread: the per-thread counter then sees all the work.
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).use_current_thread().build().unwrap();
+    let seen = allocation_counter::measure(|| {
+        pool.install(|| {
+            use rayon::prelude::*;
+            (0..4).into_par_iter().for_each(|i| drop(std::hint::black_box(vec![i as u8; 16])));
+        })
+    });
+    assert_eq!(seen.count_total, 4, "allocations inside the pool's parallel loops are counted");
+    let psd = PoseSpaceParams { distance: PoseDistance::Uniform, ..PoseSpaceParams::default() };
+    for (name, params) in [("PSD", psd), ("WPSD", PoseSpaceParams::default())] {
+        let model = PoseSpaceModel::train(&mesh, &samples, params).unwrap();
+        let mut scratch = model.scratch(mesh.positions.len());
+        let mut out = vec![Vec3::ZERO; mesh.positions.len()];
+        let mut moved = 0.0f32;
+        let info = allocation_counter::measure(|| {
+            pool.install(|| {
+                for (f, pose) in poses.iter().enumerate() {
+                    let m = &matrices[f * joints..(f + 1) * joints];
+                    model.deform_frame(&mesh, skin, pose, m, &mut out, &mut scratch);
+                    moved = moved.max(out.iter().zip(&mesh.positions).map(|(a, b)| a.distance(*b)).fold(0.0, f32::max));
+                }
+            })
+        });
+        assert!(moved > 0.05, "{name}: the arm flexed ({moved} m), so the frames did real work");
+        assert_eq!(info.count_total, 0, "{name}");
+    }
 }

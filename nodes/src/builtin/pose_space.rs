@@ -92,6 +92,8 @@ struct VertexRbf {
 /// A trained pose-space deformer.
 pub struct PoseSpaceModel {
     samples: usize,
+    /// Entries of a pose vector (the samples' skeleton joints).
+    joints: usize,
     sample_poses: Vec<Vec<Vec3>>,
     /// Displacement basis, `components × vertices` (rest space, metres).
     basis: Vec<Vec3>,
@@ -123,9 +125,16 @@ fn rbf_inverse(d: &DMatrix<f64>, width_scale: f64) -> (f32, Option<Vec<f32>>) {
     }
 }
 
-/// Squared distance terms per joint between a pose and a sample: `‖p_j − p_kj‖²`.
-fn joint_terms(pose: &[Vec3], sample: &[Vec3]) -> Vec<f32> {
-    pose.iter().zip(sample).map(|(a, b)| (*a - *b).length_squared()).collect()
+/// Working memory of [`PoseSpaceModel::deform_frame`] for one mesh, made once by
+/// [`PoseSpaceModel::scratch`] and reused for every frame, so evaluation allocates nothing.
+#[derive(Clone, Debug)]
+pub struct PoseSpaceScratch {
+    /// `‖p_j − p_kj‖²` per sample `k` and joint `j` (sample-major).
+    terms: Vec<f32>,
+    /// The RBF weights shared by every vertex (PSD), then their kernel values (K each).
+    shared: Vec<f32>,
+    /// Per vertex chunk: RBF weights `r`, kernel values `φ` (K each) and PCA coefficients.
+    chunks: Vec<f32>,
 }
 
 impl PoseSpaceModel {
@@ -193,7 +202,7 @@ impl PoseSpaceModel {
                 })
                 .collect(),
         };
-        Ok(PoseSpaceModel { samples: k, sample_poses, basis, coeffs, components, mean, rbf })
+        Ok(PoseSpaceModel { samples: k, joints, sample_poses, basis, coeffs, components, mean, rbf })
     }
 
     /// Number of principal poses (displacement components) kept.
@@ -203,7 +212,7 @@ impl PoseSpaceModel {
 
     /// RBF weights r_k at a pose for one vertex's RBF data, into `out`; `phi` is scratch
     /// space of the same length (one per thread, so the hot loop never allocates).
-    fn weights(&self, rbf: &VertexRbf, terms: &[Vec<f32>], phi: &mut [f32], out: &mut [f32]) {
+    fn weights(&self, rbf: &VertexRbf, terms: &[f32], phi: &mut [f32], out: &mut [f32]) {
         let k = self.samples;
         let Some(lambda) = &rbf.lambda else {
             // No sample differs under this vertex's distance: their average is the best guess.
@@ -211,7 +220,8 @@ impl PoseSpaceModel {
             return;
         };
         for (i, p) in phi.iter_mut().enumerate() {
-            let gamma_sq: f32 = rbf.relevance.iter().map(|&(j, w)| w * terms[i][j as usize]).sum();
+            let terms = &terms[i * self.joints..(i + 1) * self.joints];
+            let gamma_sq: f32 = rbf.relevance.iter().map(|&(j, w)| w * terms[j as usize]).sum();
             *p = (-gamma_sq * rbf.inv_two_sigma_sq).exp();
         }
         for (row, r) in out.iter_mut().enumerate() {
@@ -219,8 +229,23 @@ impl PoseSpaceModel {
         }
     }
 
-    /// Deforms one frame: positions by `v = M (v₀ + d(p))`, normals recomputed from the
-    /// triangles (the displacement changes the surface, not just its placement).
+    /// Working memory for deforming a mesh of `vertices` vertices with this model.
+    pub fn scratch(&self, vertices: usize) -> PoseSpaceScratch {
+        let k = self.samples;
+        PoseSpaceScratch {
+            terms: vec![0.0; k * self.joints],
+            shared: vec![0.0; 2 * k],
+            chunks: vec![0.0; vertices.div_ceil(VERTEX_CHUNK) * self.chunk_scratch()],
+        }
+    }
+
+    /// Floats of scratch one vertex chunk uses: `r`, `φ` and the PCA coefficients.
+    fn chunk_scratch(&self) -> usize {
+        2 * self.samples + self.components
+    }
+
+    /// Deforms one frame: positions by `v = M (v₀ + d(p))`. `scratch` comes from
+    /// [`PoseSpaceModel::scratch`] for this mesh.
     pub fn deform_frame(
         &self,
         mesh: &Mesh,
@@ -228,44 +253,52 @@ impl PoseSpaceModel {
         pose: &[Vec3],
         matrices: &[Affine3A],
         positions_m: &mut [Vec3],
+        scratch: &mut PoseSpaceScratch,
     ) {
         let k = self.samples;
-        let terms: Vec<Vec<f32>> = self.sample_poses.iter().map(|s| joint_terms(pose, s)).collect();
+        for (terms, sample) in scratch.terms.chunks_exact_mut(self.joints).zip(&self.sample_poses) {
+            for ((t, a), b) in terms.iter_mut().zip(pose).zip(sample) {
+                *t = (*a - *b).length_squared();
+            }
+        }
+        let terms = scratch.terms.as_slice();
         let shared = (self.rbf.len() == 1).then(|| {
-            let mut r = vec![0f32; k];
-            self.weights(&self.rbf[0], &terms, &mut vec![0f32; k], &mut r);
-            r
+            let (r, phi) = scratch.shared.split_at_mut(k);
+            self.weights(&self.rbf[0], terms, phi, r);
+            &*r
         });
         let n = mesh.positions.len();
-        positions_m.par_chunks_mut(VERTEX_CHUNK).enumerate().for_each(|(chunk, out)| {
-            let mut r = vec![0f32; k];
-            let mut phi = vec![0f32; k];
-            let mut c = vec![0f32; self.components];
-            for (i, p) in out.iter_mut().enumerate() {
-                let v = chunk * VERTEX_CHUNK + i;
-                let r = match &shared {
-                    Some(shared) => shared.as_slice(),
-                    None => {
-                        self.weights(&self.rbf[v], &terms, &mut phi, &mut r);
-                        r.as_slice()
+        let per_chunk = self.chunk_scratch();
+        positions_m.par_chunks_mut(VERTEX_CHUNK).zip(scratch.chunks.par_chunks_mut(per_chunk)).enumerate().for_each(
+            |(chunk, (out, work))| {
+                let (r, rest) = work.split_at_mut(k);
+                let (phi, c) = rest.split_at_mut(k);
+                for (i, p) in out.iter_mut().enumerate() {
+                    let v = chunk * VERTEX_CHUNK + i;
+                    let r: &[f32] = match shared {
+                        Some(shared) => shared,
+                        None => {
+                            self.weights(&self.rbf[v], terms, phi, r);
+                            r
+                        }
+                    };
+                    c.iter_mut().for_each(|x| *x = 0.0);
+                    let mut r_sum = 0.0;
+                    for (s, rs) in r.iter().enumerate() {
+                        r_sum += rs;
+                        for (m, cm) in c.iter_mut().enumerate() {
+                            *cm += rs * self.coeffs[s * self.components + m];
+                        }
                     }
-                };
-                c.iter_mut().for_each(|x| *x = 0.0);
-                let mut r_sum = 0.0;
-                for (s, rs) in r.iter().enumerate() {
-                    r_sum += rs;
-                    for (m, cm) in c.iter_mut().enumerate() {
-                        *cm += rs * self.coeffs[s * self.components + m];
+                    let mut d = self.mean[v] * r_sum;
+                    for (m, cm) in c.iter().enumerate() {
+                        d += self.basis[m * n + v] * *cm;
                     }
+                    let blend = blend_matrices(matrices, &skin.joints[v], &skin.weights[v]);
+                    *p = blend.transform_point3(mesh.positions[v] + d);
                 }
-                let mut d = self.mean[v] * r_sum;
-                for (m, cm) in c.iter().enumerate() {
-                    d += self.basis[m * n + v] * *cm;
-                }
-                let blend = blend_matrices(matrices, &skin.joints[v], &skin.weights[v]);
-                *p = blend.transform_point3(mesh.positions[v] + d);
-            }
-        });
+            },
+        );
     }
 }
 
@@ -364,10 +397,11 @@ pub fn deform(
     let matrices = clip_skinning_matrices(clip, skin);
     let mut positions = vec![Vec3::ZERO; n * clip.frame_count()];
     let mut normals = Vec::with_capacity(n * clip.frame_count());
+    let mut scratch = model.scratch(n);
     for f in 0..clip.frame_count() {
         let pose = pose_vector(clip.skeleton(), clip.frame_rotations(f));
         let out = &mut positions[f * n..(f + 1) * n];
-        model.deform_frame(mesh, skin, &pose, &matrices[f * joints..(f + 1) * joints], out);
+        model.deform_frame(mesh, skin, &pose, &matrices[f * joints..(f + 1) * joints], out, &mut scratch);
         normals.extend(if mesh.triangles.is_empty() {
             rest_normals(mesh)
         } else {
