@@ -23,10 +23,10 @@ fn legs(both_feet: bool) -> IkRig {
     let mut joints = vec![Joint::new("pelvis", None, Vec3::new(0.0, 0.9, 0.0))];
     for (side, x) in [("l", 0.1), ("r", -0.1)] {
         let hip = joints.len();
-        joints.push(Joint::new(&format!("hip_{side}"), Some(0), Vec3::new(x, 0.0, 0.0)));
-        joints.push(Joint::new(&format!("knee_{side}"), Some(hip), Vec3::new(0.0, -0.45, 0.0)));
-        joints.push(Joint::new(&format!("ankle_{side}"), Some(hip + 1), Vec3::new(0.0, -0.42, 0.0)));
-        joints.push(Joint::new(&format!("toe_{side}"), Some(hip + 2), Vec3::new(0.0, -0.05, 0.15)));
+        joints.push(Joint::new(format!("hip_{side}"), Some(0), Vec3::new(x, 0.0, 0.0)));
+        joints.push(Joint::new(format!("knee_{side}"), Some(hip), Vec3::new(0.0, -0.45, 0.0)));
+        joints.push(Joint::new(format!("ankle_{side}"), Some(hip + 1), Vec3::new(0.0, -0.42, 0.0)));
+        joints.push(Joint::new(format!("toe_{side}"), Some(hip + 2), Vec3::new(0.0, -0.05, 0.15)));
     }
     let mut rig = IkRig::new(Arc::new(Skeleton::new(joints).unwrap()));
     rig.add_root_translation(0.3);
