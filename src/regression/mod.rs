@@ -182,6 +182,8 @@ pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
         Value::TransitionGraph(graph) => Facts::Data(graph.summary()),
         Value::BoneMap(map) => Facts::Data(serde_json::to_value(&map.joints).unwrap_or_default()),
         Value::Stages(stages) => Facts::Data(serde_json::to_value(stages.as_ref()).unwrap_or_default()),
+        Value::FluidDomain(domain) => Facts::Data(serde_json::to_value(domain.as_ref()).unwrap_or_default()),
+        Value::VolumeSequence(volumes) => Facts::Data(volumes.summary()),
         Value::File(relative) => {
             let bytes = std::fs::read(out_dir.join(relative.as_path())).unwrap_or_default();
             Facts::File { bytes: bytes.len() as u64, sha256: crate::digest::sha256_hex(&bytes) }
