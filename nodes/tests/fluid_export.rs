@@ -67,7 +67,10 @@ fn vdb_grids_read_back_by_openvdb_hold_the_written_values() {
         for v in voxels {
             let v: Vec<f64> = v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
             let c = IVec3::new(v[0] as i32, v[1] as i32, v[2] as i32) - grid.origin;
-            assert!(c.cmpge(IVec3::ZERO).all() && (c.as_uvec3().to_array().iter().zip(grid.dims).all(|(a, d)| (*a as usize) < d)));
+            assert!(
+                c.cmpge(IVec3::ZERO).all()
+                    && (c.as_uvec3().to_array().iter().zip(grid.dims).all(|(a, d)| (*a as usize) < d))
+            );
             let n = grid.index(c.x as usize, c.y as usize, c.z as usize);
             let want = expected(n);
             assert_eq!(v.len(), 3 + width);

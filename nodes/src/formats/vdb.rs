@@ -241,7 +241,14 @@ pub fn write_vdb(grid: &crate::model::volume::VoxelGrid, grids: &[VdbGrid<'_>]) 
             GridValues::Vec3(v) => v.iter().flatten().for_each(|x| mix(&x.to_le_bytes())),
         }
     }
-    let uuid = format!("{:08x}-{:04x}-4{:03x}-8{:03x}-{:012x}", hash >> 32, (hash >> 16) & 0xffff, hash & 0xfff, (hash >> 4) & 0xfff, hash & 0xffff_ffff_ffff);
+    let uuid = format!(
+        "{:08x}-{:04x}-4{:03x}-8{:03x}-{:012x}",
+        hash >> 32,
+        (hash >> 16) & 0xffff,
+        hash & 0xfff,
+        (hash >> 4) & 0xfff,
+        hash & 0xffff_ffff_ffff
+    );
     out.extend(uuid.as_bytes());
     put_u32(&mut out, 0);
     put_u32(&mut out, grids.len() as u32);

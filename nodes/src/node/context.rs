@@ -188,7 +188,12 @@ impl<'a> NodeContext<'a> {
     /// Writes frame `frame` of a sequence atomically beside the output file named by `p`:
     /// `dir/name.ext` becomes `dir/name_0007.ext` (four digits, more when needed), and
     /// returns that path relative to the output folder.
-    pub fn write_output_frame(&mut self, p: &OutputPathParam, frame: usize, bytes: &[u8]) -> Result<PathBuf, NodeError> {
+    pub fn write_output_frame(
+        &mut self,
+        p: &OutputPathParam,
+        frame: usize,
+        bytes: &[u8],
+    ) -> Result<PathBuf, NodeError> {
         let named = PathBuf::from(self.text(p.0.name)?);
         let stem = named.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let extension = named.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();

@@ -18,8 +18,8 @@ use std::collections::HashMap;
 
 use glam::{DVec3, IVec3};
 
-use super::mesh::{MeshError, TetMesh};
-use super::mesher::{Obstacle, box_corners, delaunay, winding_number};
+use super::mesh::{MeshError, TetMesh, signed_volume};
+use super::mesher::{Obstacle, box_corners, delaunay_tets, winding_number};
 use crate::model::volume::Sizing;
 
 /// Closest accepted spacing between two nodes, as a fraction of μ.
@@ -63,19 +63,21 @@ impl SpatialHash {
 }
 
 /// An obstacle with its bounding box, for quick inside tests.
-struct Solid<'a> {
+pub(super) struct Solid<'a> {
     surface: &'a Obstacle,
     lo: DVec3,
     hi: DVec3,
 }
 
 impl Solid<'_> {
-    fn contains(&self, p: DVec3) -> bool {
+    /// Whether `p` is inside (winding number > ½), tested only within the bounding box.
+    pub(super) fn contains(&self, p: DVec3) -> bool {
         p.cmpge(self.lo).all() && p.cmple(self.hi).all() && winding_number(self.surface, p) > 0.5
     }
 }
 
-fn solids(obstacles: &[Obstacle]) -> Vec<Solid<'_>> {
+/// The obstacles with their bounding boxes.
+pub(super) fn solids(obstacles: &[Obstacle]) -> Vec<Solid<'_>> {
     obstacles
         .iter()
         .map(|o| Solid {
@@ -155,7 +157,11 @@ pub fn place_nodes(
             return Err(too_many(nodes.fixed.len() + nodes.free.len() + 1));
         }
         hash.insert(p);
-        if fixed { nodes.fixed.push(p) } else { nodes.free.push(p) }
+        if fixed {
+            nodes.fixed.push(p)
+        } else {
+            nodes.free.push(p)
+        }
         Ok(())
     };
     for c in box_corners(lo, hi) {
@@ -234,8 +240,8 @@ pub fn place_nodes(
                         (f64::from(c) * 0.618_034).fract(),
                         (f64::from(c) * 0.414_214).fract(),
                         (f64::from(c) * 0.732_051).fract(),
-                    ) * 0.2
-                        - 0.1;
+                    ) * 0.5
+                        - 0.25;
                     let p = corner + (DVec3::new(f64::from(a), f64::from(b), f64::from(d)) + 0.5 + jitter) * sub;
                     offer(p, &mut nodes, &mut hash)?;
                 }
@@ -245,18 +251,64 @@ pub fn place_nodes(
     Ok(nodes)
 }
 
-/// The Delaunay mesh of `nodes`, tets whose barycentre lies inside an obstacle removed.
+/// The Delaunay tets of `points`, without those whose barycentre lies inside an obstacle
+/// and without flat ones (TetGen fills the cocircular squares of the box-face lattices with
+/// zero-volume tets; dropping one leaves the other diagonal of its square on the boundary).
 pub fn carve(points: &[DVec3], obstacles: &[Obstacle]) -> Result<TetMesh, MeshError> {
-    let full = delaunay(points)?;
+    let (nodes, tets) = delaunay_tets(points)?;
     let solids = solids(obstacles);
-    let tets = full.tets.iter().enumerate().filter(|(t, _)| !solids.iter().any(|s| s.contains(full.tet_centroid(*t))));
-    TetMesh::new(full.nodes_m.clone(), tets.map(|(_, tet)| *tet).collect())
+    let keep = |tet: &[u32; 4]| {
+        let [a, b, c, d] = tet.map(|i| nodes[i as usize]);
+        let longest = [b - a, c - a, d - a, c - b, d - b, d - c].iter().map(|e| e.length()).fold(0.0, f64::max);
+        let flat = signed_volume(a, b, c, d).abs() <= 1e-9 * longest.powi(3);
+        !flat && !solids.iter().any(|s| s.contains((a + b + c + d) * 0.25))
+    };
+    let kept: Vec<[u32; 4]> = tets.into_iter().filter(keep).collect();
+    let mesh = TetMesh::new(nodes, kept)?;
+    largest_component(mesh)
+}
+
+/// The mesh's largest face-connected part. Obstacles that touch or overlap (a character's
+/// limbs) can seal off pockets of air; such a pocket has no open face, so its pressure is
+/// undetermined and its walls' fluxes need not balance: it is treated as solid.
+fn largest_component(mesh: TetMesh) -> Result<TetMesh, MeshError> {
+    let n = mesh.tet_count();
+    let mut component = vec![u32::MAX; n];
+    let mut sizes = Vec::new();
+    for seed in 0..n {
+        if component[seed] != u32::MAX {
+            continue;
+        }
+        let id = sizes.len() as u32;
+        let mut stack = vec![seed];
+        component[seed] = id;
+        let mut size = 0usize;
+        while let Some(t) = stack.pop() {
+            size += 1;
+            for &f in &mesh.tet_faces[t] {
+                for other in mesh.face_tets[f as usize] {
+                    if other != super::mesh::NO_TET && component[other as usize] == u32::MAX {
+                        component[other as usize] = id;
+                        stack.push(other as usize);
+                    }
+                }
+            }
+        }
+        sizes.push(size);
+    }
+    if sizes.len() <= 1 {
+        return Ok(mesh);
+    }
+    let largest = (0..sizes.len()).max_by_key(|&c| sizes[c]).unwrap_or(0) as u32;
+    let tets = mesh.tets.iter().zip(&component).filter(|(_, c)| **c == largest).map(|(t, _)| *t).collect();
+    TetMesh::new(mesh.nodes_m, tets)
 }
 
 /// Meshes the nodes: Delaunay and carve, move every free node to the volume-weighted
-/// average of the barycentres of its tets (once), Delaunay and carve again. Fails with
+/// average of the barycentres of its tets (once; `nodes.free` keeps the moved positions,
+/// the next step's warm start), Delaunay and carve again. Fails with
 /// [`MeshError::TooManyTets`] above `max_tets`.
-pub fn mesh_nodes(nodes: &Nodes, obstacles: &[Obstacle], max_tets: usize) -> Result<TetMesh, MeshError> {
+pub fn mesh_nodes(nodes: &mut Nodes, obstacles: &[Obstacle], max_tets: usize) -> Result<TetMesh, MeshError> {
     let mut points: Vec<DVec3> = nodes.fixed.iter().chain(&nodes.free).copied().collect();
     let first = carve(&points, obstacles)?;
     let fixed = nodes.fixed.len();
@@ -274,6 +326,7 @@ pub fn mesh_nodes(nodes: &Nodes, obstacles: &[Obstacle], max_tets: usize) -> Res
             points[i] = sum[i] / weight[i];
         }
     }
+    nodes.free.copy_from_slice(&points[fixed..]);
     let mesh = carve(&points, obstacles)?;
     if mesh.tet_count() > max_tets {
         return Err(MeshError::TooManyTets { tets: mesh.tet_count(), max_tets });

@@ -14,9 +14,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::mesh::{MeshError, MeshStats, TetMesh};
-use super::mesher::{Obstacle, winding_number};
+use super::mesher::Obstacle;
 use super::projection::{FaceCondition, PressureSolver, ProjectionError, face_conditions};
-use super::remesh::{Nodes, ObstacleDistance, mesh_nodes, place_nodes, tet_vorticity};
+use super::remesh::{Nodes, ObstacleDistance, mesh_nodes, place_nodes, solids, tet_vorticity};
 use super::smoke::{Buoyancy, add_buoyancy, advect_per_tet, node_values, total};
 use super::velocity::{VelocityField, advect_velocity};
 use crate::cancel::{Cancel, Cancelled};
@@ -42,8 +42,8 @@ pub struct SimSettings {
     pub substeps: usize,
     /// Density of the air, kg/m³ (pressure scale only).
     pub air_density_kg_m3: f64,
-    /// Largest distance, in smallest edge lengths, anything (fluid or obstacle surface) may
-    /// move in one step before the step is refused as unstable.
+    /// Largest distance, in smallest edge lengths, an obstacle's surface may move in one
+    /// step before the step is refused as unstable (the mesh could not follow it).
     pub max_cells_per_step: f64,
     /// Seed of the particle emission.
     pub seed: u64,
@@ -66,6 +66,9 @@ pub struct StepReport {
     pub advect_s: f64,
     /// Seconds assembling, factoring and applying the pressure projection.
     pub pressure_s: f64,
+    /// The air's largest speed at the start of the step, in smallest edges per step: the
+    /// semi-Lagrangian tracing stays stable beyond 1, but loses detail (the caller warns).
+    pub fluid_cells_per_step: f64,
     /// Relative change of the smoke total by the transfer onto the new mesh (advection
     /// and remeshing together, before this step's sources).
     pub transfer_mass_change: f64,
@@ -90,15 +93,13 @@ pub enum SimError {
         /// What went wrong.
         source: ProjectionError,
     },
-    /// Something moves too far in one step.
+    /// An obstacle moves too far in one step.
     #[error(
-        "step {step}: the {what} moves {speed_m_s:.3} m/s, {cells:.1} smallest edges per step (at most {limit}): use more substeps or a larger minimum edge"
+        "step {step}: an obstacle moves at up to {speed_m_s:.3} m/s, {cells:.1} smallest edges per step (at most {limit}): use more substeps or a larger minimum edge"
     )]
     Unstable {
         /// Step number.
         step: usize,
-        /// "fluid" or "obstacle".
-        what: &'static str,
         /// Its largest speed.
         speed_m_s: f64,
         /// Distance per step in smallest edges.
@@ -138,10 +139,6 @@ pub fn domain_grid(domain: &FluidDomain) -> VoxelGrid {
     VoxelGrid { origin: first, dims: [dims.x as usize, dims.y as usize, dims.z as usize], voxel_m: voxel as f32 }
 }
 
-fn inside_any(obstacles: &[MovingObstacle], p: DVec3) -> bool {
-    obstacles.iter().any(|o| winding_number(&o.surface, p) > 0.5)
-}
-
 /// Builds one step's mesh: μ from the previous fields (if any), nodes warm-started from the
 /// previous step's free nodes.
 fn remesh(
@@ -176,8 +173,8 @@ fn remesh(
         sizing.edge_m(d, s, w)
     };
     let warm: &[DVec3] = previous.map_or(&[], |(state, _)| &state.nodes.free);
-    let nodes = place_nodes(lo, hi, &surfaces, warm, &sizing, &mu, domain.max_tets)?;
-    let mesh = mesh_nodes(&nodes, &surfaces, domain.max_tets)?;
+    let mut nodes = place_nodes(lo, hi, &surfaces, warm, &sizing, &mu, domain.max_tets)?;
+    let mesh = mesh_nodes(&mut nodes, &surfaces, domain.max_tets)?;
     Ok((mesh, nodes))
 }
 
@@ -238,11 +235,13 @@ fn sample_frame(
     use rayon::prelude::*;
     let density_at_nodes = node_values(&state.mesh, &state.density);
     let heat_at_nodes = node_values(&state.mesh, &state.heat_k);
+    let surfaces: Vec<Obstacle> = obstacles.iter().map(|o| o.surface.clone()).collect();
+    let solids = solids(&surfaces);
     let samples: Vec<(f32, f32, [f32; 3])> = (0..grid.len())
         .into_par_iter()
         .map(|n| {
             let p = grid.centre_m(n).as_dvec3();
-            if !(p.cmpge(lo).all() && p.cmple(hi).all()) || inside_any(obstacles, p) {
+            if !(p.cmpge(lo).all() && p.cmple(hi).all()) || solids.iter().any(|s| s.contains(p)) {
                 return (0.0, 0.0, [0.0; 3]);
             }
             let Some((t, l)) = field.locator().locate(&state.mesh, p) else { return (0.0, 0.0, [0.0; 3]) };
@@ -295,12 +294,12 @@ pub fn simulate(
         let obstacles = obstacles_at(time);
         let limit = settings.max_cells_per_step;
         let cell = domain.sizing.min_edge_m;
-        let check = |what: &'static str, speed_m_s: f64| {
-            let cells = speed_m_s * dt / cell;
-            if cells > limit { Err(SimError::Unstable { step, what, speed_m_s, cells, limit }) } else { Ok(()) }
-        };
-        check("obstacle", obstacles.iter().flat_map(|o| &o.velocity_m_s).map(|v| v.length()).fold(0.0, f64::max))?;
-        check("fluid", field.node_velocity_m_s.iter().map(|v| v.length()).fold(0.0, f64::max))?;
+        let speed_m_s = obstacles.iter().flat_map(|o| &o.velocity_m_s).map(|v| v.length()).fold(0.0, f64::max);
+        let cells = speed_m_s * dt / cell;
+        if cells > limit {
+            return Err(SimError::Unstable { step, speed_m_s, cells, limit });
+        }
+        let fluid_speed = field.node_velocity_m_s.iter().map(|v| v.length()).fold(0.0, f64::max);
 
         let clock = Instant::now();
         let (mesh, nodes) =
@@ -339,6 +338,8 @@ pub fn simulate(
             .map_err(|source| SimError::Projection { step, source })?;
         let pressure_s = clock.elapsed().as_secs_f64();
         let new_field = VelocityField::new(&mesh, &z);
+        let surfaces: Vec<Obstacle> = obstacles.iter().map(|o| o.surface.clone()).collect();
+        let solids = solids(&surfaces);
 
         // Particles: midpoint rule through the new field; those leaving the fluid are dropped.
         let mut particles: Vec<DVec3> = state
@@ -348,7 +349,7 @@ pub fn simulate(
                 let mid = *p + new_field.sample(&mesh, *p) * (0.5 * dt);
                 *p + new_field.sample(&mesh, mid) * dt
             })
-            .filter(|p| p.cmpgt(lo).all() && p.cmplt(hi).all() && !inside_any(&obstacles, *p))
+            .filter(|p| p.cmpgt(lo).all() && p.cmplt(hi).all() && !solids.iter().any(|s| s.contains(*p)))
             .collect();
         for source in &domain.sources {
             let centre = DVec3::from(source.centre_m);
@@ -372,6 +373,7 @@ pub fn simulate(
             mesh_s,
             advect_s,
             pressure_s,
+            fluid_cells_per_step: fluid_speed * dt / domain.sizing.min_edge_m,
             transfer_mass_change: if before > 0.0 { (after - before) / before } else { 0.0 },
         };
         state = State { mesh, nodes, face_velocity_m_s: z, density, heat_k: heat, particles_m: particles };
