@@ -50,10 +50,10 @@ impl SpatialHash {
         for dz in -reach..=reach {
             for dy in -reach..=reach {
                 for dx in -reach..=reach {
-                    if let Some(nodes) = self.cells.get(&(c + IVec3::new(dx, dy, dz))) {
-                        if nodes.iter().any(|q| (*q - p).length_squared() < r_m * r_m) {
-                            return true;
-                        }
+                    if let Some(nodes) = self.cells.get(&(c + IVec3::new(dx, dy, dz)))
+                        && nodes.iter().any(|q| (*q - p).length_squared() < r_m * r_m)
+                    {
+                        return true;
                     }
                 }
             }

@@ -100,7 +100,8 @@ pub fn advect_per_tet(
             let corners = new_mesh.tets[t].map(|i| new_mesh.nodes_m[i as usize]);
             let sum: f64 = (0..4)
                 .map(|k| {
-                    let point = corners.iter().enumerate().map(|(j, c)| *c * if j == k { QUADRATURE_A } else { b }).sum();
+                    let point =
+                        corners.iter().enumerate().map(|(j, c)| *c * if j == k { QUADRATURE_A } else { b }).sum();
                     let from = old_field.trace_back(old_mesh, point, dt_s);
                     match old_field.locator().locate(old_mesh, from) {
                         Some((old, l)) => (0..4).map(|m| at_nodes[old_mesh.tets[old][m] as usize] * l[m]).sum(),
