@@ -79,6 +79,8 @@ pub(crate) fn type_color(ty: PortType) -> Color32 {
         PortType::TransitionGraph => Color32::from_rgb(90, 200, 160),
         PortType::BoneMap => Color32::from_rgb(200, 160, 90),
         PortType::Stages => Color32::from_rgb(255, 130, 180),
+        PortType::FluidDomain => Color32::from_rgb(120, 200, 255),
+        PortType::VolumeSequence => Color32::from_rgb(200, 200, 230),
     }
 }
 

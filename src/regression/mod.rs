@@ -151,7 +151,13 @@ pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
         }
         Value::Phases(phases) => Facts::Data(serde_json::to_value(phases.as_ref()).unwrap_or_default()),
         Value::Contacts(contacts) => Facts::Data(serde_json::to_value(contacts.as_ref()).unwrap_or_default()),
-        Value::Report(report) => Facts::Data(serde_json::Value::Object(report.as_ref().clone())),
+        Value::Report(report) => {
+            // A report's "timings" (wall-clock seconds, e.g. fluid.simulate's per step) differ
+            // from run to run: they are not facts.
+            let mut facts = report.as_ref().clone();
+            facts.remove("timings");
+            Facts::Data(serde_json::Value::Object(facts))
+        }
         Value::MeshSequence(seq) => {
             let all = seq.positions_m();
             let (lo, hi) = all
@@ -182,6 +188,8 @@ pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
         Value::TransitionGraph(graph) => Facts::Data(graph.summary()),
         Value::BoneMap(map) => Facts::Data(serde_json::to_value(&map.joints).unwrap_or_default()),
         Value::Stages(stages) => Facts::Data(serde_json::to_value(stages.as_ref()).unwrap_or_default()),
+        Value::FluidDomain(domain) => Facts::Data(serde_json::to_value(domain.as_ref()).unwrap_or_default()),
+        Value::VolumeSequence(volumes) => Facts::Data(volumes.summary()),
         Value::File(relative) => {
             let bytes = std::fs::read(out_dir.join(relative.as_path())).unwrap_or_default();
             Facts::File { bytes: bytes.len() as u64, sha256: crate::digest::sha256_hex(&bytes) }

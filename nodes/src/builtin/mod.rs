@@ -8,6 +8,8 @@ pub mod barnet;
 pub mod clip_edit;
 pub mod clip_io;
 pub mod contacts;
+#[cfg(feature = "tetgen")]
+pub mod fluid;
 pub mod ik;
 pub mod mannequin;
 pub mod mesh_io;
@@ -43,6 +45,8 @@ pub fn register(registry: &mut Registry) {
     barnet::register(registry);
     transitions::register(registry);
     quality::register(registry);
+    #[cfg(feature = "tetgen")]
+    fluid::register(registry);
 }
 
 #[cfg(test)]

@@ -1,4 +1,5 @@
-//! Reading and writing the files users have: BVH, glTF/GLB and OBJ; reading FBX.
+//! Reading and writing the files users have: BVH, glTF/GLB and OBJ; reading FBX; writing
+//! OpenVDB volumes and PLY points.
 
 pub mod atomic;
 pub mod bone_map;
@@ -7,6 +8,8 @@ pub mod error;
 pub mod fbx;
 pub mod gltf;
 pub mod obj;
+pub mod ply;
+pub mod vdb;
 
 pub use error::{FormatError, FormatErrorKind, Loaded, Location};
 

@@ -14,6 +14,7 @@ pub mod report;
 pub mod skeleton;
 pub mod stages;
 pub mod units;
+pub mod volume;
 
 pub use clip::{Clip, ClipError};
 pub use clip_set::{ClipSet, ClipSetError, NamedClip};
@@ -38,3 +39,4 @@ pub use report::{Report, into_report};
 pub use skeleton::{Channel, Joint, JointLimits, Skeleton, SkeletonError};
 pub use stages::{Stage, StageKind, Stages};
 pub use units::{ImportScale, LengthUnit};
+pub use volume::{FluidDomain, VolumeSequence};

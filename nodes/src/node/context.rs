@@ -171,6 +171,10 @@ impl<'a> NodeContext<'a> {
     /// folder, and returns the path relative to that folder.
     pub fn write_output(&mut self, p: &OutputPathParam, bytes: &[u8]) -> Result<PathBuf, NodeError> {
         let relative = PathBuf::from(self.text(p.0.name)?);
+        self.write_relative(relative, bytes)
+    }
+
+    fn write_relative(&mut self, relative: PathBuf, bytes: &[u8]) -> Result<PathBuf, NodeError> {
         let out_dir = self
             .services
             .out_dir
@@ -179,6 +183,21 @@ impl<'a> NodeContext<'a> {
         let path = write_within(out_dir, &relative, bytes)?;
         self.files_written.push(path);
         Ok(relative)
+    }
+
+    /// Writes frame `frame` of a sequence atomically beside the output file named by `p`:
+    /// `dir/name.ext` becomes `dir/name_0007.ext` (four digits, more when needed), and
+    /// returns that path relative to the output folder.
+    pub fn write_output_frame(
+        &mut self,
+        p: &OutputPathParam,
+        frame: usize,
+        bytes: &[u8],
+    ) -> Result<PathBuf, NodeError> {
+        let named = PathBuf::from(self.text(p.0.name)?);
+        let stem = named.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        let extension = named.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
+        self.write_relative(named.with_file_name(format!("{stem}_{frame:04}.{extension}")), bytes)
     }
 
     /// Records a warning: something odd that does not stop the run.

@@ -4,6 +4,7 @@ use std::sync::Arc;
 
 use crate::kernels::transition_graph::{Clusters, TransitionGraph};
 use crate::model::{BarNet, BoneMap, Clip, ClipSet, Contacts, Curves, Mesh, MeshSequence, Phases, Stages};
+use crate::model::{FluidDomain, VolumeSequence};
 
 pub use crate::model::report::{Report, into_report};
 
@@ -46,6 +47,10 @@ pub enum PortType {
     BoneMap,
     /// Alternating ground and flight stages of a clip, with the fitted gravity.
     Stages,
+    /// A box of air with its mesh sizing and smoke sources, for `fluid.simulate`.
+    FluidDomain,
+    /// Smoke density, temperature and velocity on a voxel grid per frame, plus particles.
+    VolumeSequence,
 }
 
 impl PortType {
@@ -67,6 +72,8 @@ impl PortType {
             PortType::TransitionGraph => "transition_graph",
             PortType::BoneMap => "bone_map",
             PortType::Stages => "stages",
+            PortType::FluidDomain => "fluid_domain",
+            PortType::VolumeSequence => "volume_sequence",
         }
     }
 }
@@ -105,6 +112,10 @@ pub enum Value {
     BoneMap(Arc<BoneMap>),
     /// See [`PortType::Stages`].
     Stages(Arc<Stages>),
+    /// See [`PortType::FluidDomain`].
+    FluidDomain(Arc<FluidDomain>),
+    /// See [`PortType::VolumeSequence`].
+    VolumeSequence(Arc<VolumeSequence>),
 }
 
 impl Value {
@@ -126,6 +137,8 @@ impl Value {
             Value::TransitionGraph(_) => PortType::TransitionGraph,
             Value::BoneMap(_) => PortType::BoneMap,
             Value::Stages(_) => PortType::Stages,
+            Value::FluidDomain(_) => PortType::FluidDomain,
+            Value::VolumeSequence(_) => PortType::VolumeSequence,
         }
     }
 }
@@ -173,3 +186,5 @@ port_value!(Arc<Clusters>, Clusters);
 port_value!(Arc<TransitionGraph>, TransitionGraph);
 port_value!(Arc<BoneMap>, BoneMap);
 port_value!(Arc<Stages>, Stages);
+port_value!(Arc<FluidDomain>, FluidDomain);
+port_value!(Arc<VolumeSequence>, VolumeSequence);

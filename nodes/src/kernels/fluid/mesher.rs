@@ -183,7 +183,8 @@ fn tetgen_error(what: &str, e: &str) -> MeshError {
     MeshError::Mesher(format!("TetGen {what}: {e}"))
 }
 
-type RawMesh = (Vec<DVec3>, Vec<[u32; 4]>);
+/// Nodes and tets as TetGen returns them.
+pub type RawMesh = (Vec<DVec3>, Vec<[u32; 4]>);
 
 fn read_output(tetgen: &Tetgen) -> Result<RawMesh, MeshError> {
     let npoint = tetgen.out_npoint();
@@ -198,7 +199,9 @@ fn read_output(tetgen: &Tetgen) -> Result<RawMesh, MeshError> {
     Ok((nodes, tets))
 }
 
-fn delaunay_raw(points_m: &[DVec3]) -> Result<RawMesh, MeshError> {
+/// The Delaunay tetrahedralisation of `points_m` as TetGen returns it (nodes and tets, flat
+/// hull tets included), for callers that filter tets before building a [`TetMesh`].
+pub fn delaunay_tets(points_m: &[DVec3]) -> Result<RawMesh, MeshError> {
     let _guard = TETGEN_LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
     let mut tetgen = Tetgen::new(points_m.len(), None, None, None).map_err(|e| tetgen_error("input", e))?;
     for (i, p) in points_m.iter().enumerate() {
@@ -210,7 +213,7 @@ fn delaunay_raw(points_m: &[DVec3]) -> Result<RawMesh, MeshError> {
 
 /// Delaunay tetrahedralisation of `points_m` (its convex hull filled).
 pub fn delaunay(points_m: &[DVec3]) -> Result<TetMesh, MeshError> {
-    let (nodes, tets) = delaunay_raw(points_m)?;
+    let (nodes, tets) = delaunay_tets(points_m)?;
     TetMesh::new(nodes, tets)
 }
 
@@ -255,7 +258,7 @@ pub fn mesh_box(spec: &BoxMeshSpec) -> Result<TetMesh, MeshError> {
     match spec.tetrahedralisation {
         Tetrahedralisation::Constrained => TetMesh::new(nodes, tets),
         Tetrahedralisation::Delaunay => {
-            let (nodes, tets) = delaunay_raw(&nodes)?;
+            let (nodes, tets) = delaunay_tets(&nodes)?;
             let fluid = tets
                 .into_iter()
                 .filter(|tet| {

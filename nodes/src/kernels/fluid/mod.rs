@@ -10,10 +10,16 @@
 //! | divergence, gradient, pressure solve | [`projection`] |
 //! | per-tet and per-node velocity, point sampling, advection | [`velocity`] |
 //! | buoyancy, per-tet smoke transfer across meshes, mass totals | [`smoke`] |
+//! | sizing field, node placement warm-started from the last step, relaxation | `remesh` (feature `tetgen`) |
+//! | the step loop: remesh, advect, sources, obstacles, projection, particles, resampling | `sim` (feature `tetgen`) |
 
 pub mod mesh;
 #[cfg(feature = "tetgen")]
 pub mod mesher;
 pub mod projection;
+#[cfg(feature = "tetgen")]
+pub mod remesh;
+#[cfg(feature = "tetgen")]
+pub mod sim;
 pub mod smoke;
 pub mod velocity;

@@ -1,0 +1,272 @@
+//! The smoke simulation loop and its nodes (issue 17): remeshing by the sizing field keeps
+//! the smoke (against the analytic integral of a Gaussian puff), air at rest under uniform
+//! heat stays at rest (the hydrostatic balance), an obstacle moving through still air drags
+//! the air next to it at its own speed (the no-through boundary condition), and bad input
+//! is refused with errors naming the port, param or step. Coarse meshes: seconds in debug.
+#![cfg(feature = "tetgen")]
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed expect is a failed test
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use glam::DVec3;
+use kinegraph_nodes::cancel::Cancel;
+use kinegraph_nodes::kernels::fluid::mesh::MeshError;
+use kinegraph_nodes::kernels::fluid::mesher::Obstacle;
+use kinegraph_nodes::kernels::fluid::remesh::{mesh_nodes, place_nodes};
+use kinegraph_nodes::kernels::fluid::sim::{MovingObstacle, SimError, SimSettings, simulate};
+use kinegraph_nodes::kernels::fluid::smoke::{advect_per_tet, total};
+use kinegraph_nodes::kernels::fluid::velocity::VelocityField;
+use kinegraph_nodes::model::Mesh;
+use kinegraph_nodes::model::volume::{FluidDomain, Sizing, SmokeSource};
+use kinegraph_nodes::node::{NodeContext, NodeError, ParamValue, RunServices, Value};
+
+fn sizing(k0: f64, max: f64) -> Sizing {
+    Sizing { k0_m: k0, kd: 0.5, ks_m: 0.0, kw_m_s: 0.0, min_edge_m: k0, max_edge_m: max }
+}
+
+fn domain(open_top: bool, sources: Vec<SmokeSource>) -> FluidDomain {
+    FluidDomain {
+        min_m: [0.0; 3],
+        max_m: [1.0; 3],
+        sizing: sizing(0.1, 0.2),
+        max_radius_edge_ratio: 2.0,
+        max_tets: 200_000,
+        open_top,
+        sources,
+        buoyancy_alpha: 0.1,
+        buoyancy_beta: 0.05,
+        ambient_k: 293.15,
+        voxel_m: 0.1,
+    }
+}
+
+fn settings(frames: usize) -> SimSettings {
+    SimSettings { fps: 24.0, frames, substeps: 1, air_density_kg_m3: 1.2, max_cells_per_step: 3.0, seed: 3 }
+}
+
+fn still(obstacles: Vec<MovingObstacle>) -> impl Fn(f64) -> Vec<MovingObstacle> {
+    move |_| obstacles.clone()
+}
+
+fn cube_at(centre: DVec3, half: f64, velocity: DVec3) -> MovingObstacle {
+    let surface = Obstacle::cuboid(centre, DVec3::splat(half));
+    let velocity_m_s = vec![velocity; surface.positions_m.len()];
+    MovingObstacle { surface, velocity_m_s }
+}
+
+#[test]
+fn smoke_mass_is_kept_across_sizing_field_remeshes() {
+    let sigma: f64 = 0.1;
+    let centre = DVec3::splat(0.5);
+    let blob = |p: DVec3| (-(p - centre).length_squared() / (2.0 * sigma * sigma)).exp();
+    // ∫ blob = (2π)^{3/2} σ³ (the box holds all but e^-12.5 of it).
+    let analytic = (2.0 * std::f64::consts::PI).powf(1.5) * sigma.powi(3);
+    // μ refined where there is smoke: 0.12 m in clear air down to 0.04 m in the puff.
+    let s = Sizing { k0_m: 0.12, kd: 0.0, ks_m: -0.08, kw_m_s: 0.0, min_edge_m: 0.04, max_edge_m: 0.12 };
+    let mu = move |p: DVec3| s.edge_m(0.0, blob(p), 0.0);
+    let (lo, hi) = (DVec3::ZERO, DVec3::ONE);
+    let mut nodes = place_nodes(lo, hi, &[], &[], &s, &mu, 1_000_000).unwrap();
+    let mut mesh = mesh_nodes(&mut nodes, &[], 1_000_000).unwrap();
+    let mut free = nodes.free;
+    let mut smoke: Vec<f64> = (0..mesh.tet_count()).map(|t| blob(mesh.tet_centroid(t))).collect();
+    let start = total(&mesh, &smoke);
+    eprintln!("sizing mesh: {:?}, mass {start:.6} vs analytic {analytic:.6}", mesh.stats());
+    assert!((start - analytic).abs() < 0.03 * analytic, "{start} vs {analytic}");
+    let mut worst: f64 = 0.0;
+    let mut previous = start;
+    for step in 1..=4 {
+        let mut nodes = place_nodes(lo, hi, &[], &free, &s, &mu, 1_000_000).unwrap();
+        let new = mesh_nodes(&mut nodes, &[], 1_000_000).unwrap();
+        let still = VelocityField::new(&mesh, &vec![0.0; mesh.faces.len()]);
+        smoke = advect_per_tet(&mesh, &still, &smoke, &new, 0.0);
+        let mass = total(&new, &smoke);
+        let change = (mass - previous) / previous;
+        let stats = new.stats();
+        eprintln!(
+            "remesh {step}: {} tets, min dihedral {:.2}°, max radius-edge {:.2}, mass change {:+.4} %",
+            stats.tet_count,
+            stats.min_dihedral_deg,
+            stats.max_radius_edge_ratio,
+            100.0 * change
+        );
+        assert_eq!(stats.non_delaunay_faces, 0);
+        worst = worst.max(change.abs());
+        previous = mass;
+        mesh = new;
+        free = nodes.free;
+    }
+    eprintln!("total change over 4 remeshes {:+.4} %", 100.0 * (previous - start) / start);
+    // Issue 17's bound: < 0.5 % per remesh (measured −0.09 to −0.02 %, −0.24 % over four).
+    assert!(worst < 0.005, "worst mass change per remesh {worst}");
+}
+
+#[test]
+fn uniformly_heated_air_in_a_closed_box_with_an_obstacle_stays_at_rest() {
+    // A source covering the whole box keeps the air uniformly 10 K warm and smoke-free: the
+    // buoyancy is uniform and the pressure balances it exactly (hydrostatic), so nothing moves.
+    let heat =
+        SmokeSource { centre_m: [0.5; 3], radius_m: 2.0, density: 0.0, temperature_k: 303.15, particles_per_step: 0 };
+    let d = domain(false, vec![heat]);
+    let obstacle = cube_at(DVec3::new(0.5, 0.4, 0.5), 0.15, DVec3::ZERO);
+    let (volumes, steps) =
+        simulate(&d, &settings(5), &still(vec![obstacle]), Cancel::NEVER, &mut |_, _, _| {}).unwrap();
+    let impulse = (1.0 / 24.0) * d.buoyancy_beta * 10.0;
+    let fastest = volumes
+        .frames
+        .iter()
+        .flat_map(|f| &f.velocity_m_s)
+        .map(|v| DVec3::from(v.map(f64::from)).length())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "heated box: {} steps of {:?} tets, fastest voxel {fastest:e} m/s against one step's impulse {impulse} m/s",
+        steps.len(),
+        steps.iter().map(|s| s.tets).collect::<Vec<_>>()
+    );
+    // Exact but for the clamped dual lengths of near-cospherical ties, whose residual adds
+    // up over the steps (fluid_tet measures ~2 % of the impulse per step on TetGen meshes):
+    // at most 3 % of one step's impulse per step.
+    assert!(fastest < 0.03 * impulse * steps.len() as f64, "{fastest} of {impulse}");
+}
+
+/// A closed sphere (a subdivided octahedron), triangles counter-clockwise from outside.
+fn sphere(centre: DVec3, radius: f64, levels: usize) -> Obstacle {
+    let mut positions: Vec<DVec3> = vec![DVec3::X, -DVec3::X, DVec3::Y, -DVec3::Y, DVec3::Z, -DVec3::Z];
+    let mut triangles: Vec<[u32; 3]> =
+        vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
+    for _ in 0..levels {
+        let mut middle: BTreeMap<(u32, u32), u32> = BTreeMap::new();
+        let mut split = |a: u32, b: u32, positions: &mut Vec<DVec3>| {
+            *middle.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                positions.push((positions[a as usize] + positions[b as usize]).normalize());
+                positions.len() as u32 - 1
+            })
+        };
+        triangles = triangles
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let (ab, bc, ca) =
+                    (split(a, b, &mut positions), split(b, c, &mut positions), split(c, a, &mut positions));
+                [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    Obstacle { positions_m: positions.iter().map(|p| centre + *p * radius).collect(), triangles }
+}
+
+#[test]
+fn a_sphere_started_through_still_air_sets_up_the_potential_flow_around_it() {
+    // An impulsively started sphere in inviscid air: after the first projection the air
+    // moves by the potential flow, on the axis ahead u(r) = U R³/r³ (Lamb §92). The box
+    // walls 0.35 m away and the mesh (0.04 m edges at the sphere) are the approximations.
+    let mut d = domain(true, Vec::new());
+    d.sizing = Sizing { k0_m: 0.04, kd: 0.6, ks_m: 0.0, kw_m_s: 0.0, min_edge_m: 0.04, max_edge_m: 0.2 };
+    d.voxel_m = 0.05;
+    let (speed, radius, centre) = (0.5, 0.15, DVec3::splat(0.5));
+    let moving = move |t: f64| {
+        let surface = sphere(centre + DVec3::X * speed * t, radius, 3);
+        let velocity_m_s = vec![DVec3::X * speed; surface.positions_m.len()];
+        vec![MovingObstacle { surface, velocity_m_s }]
+    };
+    let mut s = settings(2);
+    s.fps = 240.0; // a short step: the sphere moves 2 mm
+    let (volumes, steps) = simulate(&d, &s, &moving, Cancel::NEVER, &mut |_, _, _| {}).unwrap();
+    let grid = volumes.grid;
+    let last = volumes.frames.last().unwrap();
+    eprintln!("sphere: {:?}", steps[0]);
+    let mut worst: f64 = 0.0;
+    for r in [0.2, 0.25, 0.3] {
+        let p = centre + DVec3::X * (r + speed / 240.0);
+        let n = (0..grid.len()).min_by(|&a, &b| {
+            (grid.centre_m(a).as_dvec3() - p).length().total_cmp(&(grid.centre_m(b).as_dvec3() - p).length())
+        });
+        let v = last.velocity_m_s[n.unwrap()];
+        let expected = speed * (radius / r).powi(3);
+        let error = (f64::from(v[0]) - expected).abs() / speed;
+        eprintln!("  r = {r} m: u_x {:.4} m/s, potential flow {expected:.4} ({:.1} % of U)", v[0], 100.0 * error);
+        worst = worst.max(error);
+    }
+    // Measured 17.5, 6.6 and 5.0 % of U at 0.2, 0.25 and 0.3 m, all above the unbounded
+    // flow (the walls' blockage pushes the air round the sphere faster); tolerance 20 % of U.
+    assert!(worst < 0.2, "{worst}");
+}
+
+#[test]
+fn a_too_fine_mesh_too_fast_an_obstacle_and_cancelling_are_typed_errors() {
+    let mut d = domain(true, Vec::new());
+    d.max_tets = 500;
+    let none = |_: f64| Vec::new();
+    let err = simulate(&d, &settings(2), &none, Cancel::NEVER, &mut |_, _, _| {}).unwrap_err();
+    assert!(matches!(err, SimError::Mesh { step: 0, source: MeshError::TooManyTets { max_tets: 500, .. } }), "{err}");
+
+    let d = domain(true, Vec::new());
+    let fast = |t: f64| vec![cube_at(DVec3::new(0.3 + 20.0 * t, 0.5, 0.5), 0.1, DVec3::X * 20.0)];
+    let err = simulate(&d, &settings(2), &fast, Cancel::NEVER, &mut |_, _, _| {}).unwrap_err();
+    assert!(matches!(err, SimError::Unstable { step: 1, .. }), "{err}");
+
+    let flag = AtomicBool::new(true);
+    let err = simulate(&d, &settings(3), &none, Cancel::on(&flag), &mut |_, _, _| {}).unwrap_err();
+    assert_eq!(err, SimError::Cancelled);
+}
+
+/// Runs `fluid.simulate` on `domain` with `params`, the static obstacle `mesh`.
+fn run_simulate(domain: FluidDomain, mesh: Mesh, params: &[(&str, ParamValue)]) -> Result<(), NodeError> {
+    let registry = kinegraph_nodes::builtin::registry();
+    let node = registry.get("fluid.simulate").unwrap();
+    let mut map: BTreeMap<String, ParamValue> = [
+        ("substeps", ParamValue::Int(1)),
+        ("max_cells_per_step", ParamValue::Float(3.0)),
+        ("seed", ParamValue::Int(1)),
+        ("frames", ParamValue::Int(2)),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect();
+    map.extend(params.iter().map(|(k, v)| (k.to_string(), v.clone())));
+    let cancel = AtomicBool::new(false);
+    let services =
+        RunServices { base_dir: Path::new("."), out_dir: None, cancel: &cancel, memory_limit_bytes: 1 << 32 };
+    let progress = |_: f32| {};
+    let inputs = vec![Some(Value::FluidDomain(Arc::new(domain))), None, Some(Value::Mesh(Arc::new(mesh)))];
+    let mut ctx = NodeContext::new(node.schema(), inputs, &map, &services, &progress);
+    node.eval(&mut ctx)
+}
+
+fn cube_mesh(centre: DVec3, half: f64) -> Mesh {
+    let o = Obstacle::cuboid(centre, DVec3::splat(half));
+    Mesh {
+        name: "cube".into(),
+        positions: o.positions_m.iter().map(|p| p.as_vec3()).collect(),
+        normals: vec![glam::Vec3::Y; 8],
+        uvs: None,
+        triangles: o.triangles,
+        skin: None,
+    }
+}
+
+#[test]
+fn fluid_simulate_names_the_port_or_param_of_bad_input() {
+    let outside = run_simulate(domain(true, Vec::new()), cube_mesh(DVec3::new(0.95, 0.5, 0.5), 0.1), &[]);
+    assert!(
+        matches!(&outside, Err(NodeError::Input { port: "static_obstacle", message }) if message.contains("outside the domain")),
+        "{outside:?}"
+    );
+    let mut open = cube_mesh(DVec3::splat(0.5), 0.1);
+    open.triangles.pop();
+    let open = run_simulate(domain(true, Vec::new()), open, &[]);
+    assert!(
+        matches!(&open, Err(NodeError::Input { port: "static_obstacle", message }) if message.contains("not a closed surface")),
+        "{open:?}"
+    );
+    let mut small = domain(true, Vec::new());
+    small.max_tets = 400;
+    let many = run_simulate(small, cube_mesh(DVec3::splat(0.5), 0.1), &[]);
+    assert!(
+        matches!(&many, Err(NodeError::Input { port: "domain", message }) if message.contains("max_tets = 400") && message.contains("step 0")),
+        "{many:?}"
+    );
+    let ok = run_simulate(domain(true, Vec::new()), cube_mesh(DVec3::splat(0.5), 0.1), &[]);
+    assert!(ok.is_ok(), "{ok:?}");
+}
