@@ -14,6 +14,7 @@ use kinegraph_nodes::kernels::load::{ClipLoadOptions, load_clip};
 use kinegraph_nodes::kernels::momentum_edit::{GroundEdit, measure_edit, naive_edit};
 use kinegraph_nodes::kernels::momentum_solve::{EditSetup, LIMIT_MARGIN_RAD, SolveError, SolveOptions, momentum_edit};
 use kinegraph_nodes::kernels::stages::{fit_ballistic, stage_clip};
+use kinegraph_nodes::math::quat_normalize_or_identity;
 use kinegraph_nodes::model::{Clip, FrameRange, Stage, StageKind, Stages, forward_kinematics};
 
 #[test]
@@ -132,7 +133,7 @@ fn joint_range_excess_rad(original: &Clip, edited: &Clip) -> f64 {
         let (qo, qe) = (of(original), of(edited));
         let sum =
             qo.iter().fold(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0), |a, q| a + if q.dot(qo[0]) < 0.0 { -*q } else { *q });
-        let mean = if sum.length() > 1e-6 { sum.normalize() } else { qo[0] };
+        let mean = if sum.length() > 1e-6 { quat_normalize_or_identity(sum) } else { qo[0] };
         let spread = qo.iter().map(|q| angle(*q, mean)).fold(0.0, f64::max);
         worst = worst.max(qe.iter().map(|q| angle(*q, mean) - spread).fold(f64::NEG_INFINITY, f64::max));
     }

@@ -650,7 +650,8 @@ impl<'a> Problem<'a> {
 
     /// Every constraint value in a stable order, with its group; with `jacobian`, also each
     /// row's entries (column, value).
-    #[allow(clippy::type_complexity)]
+    // `frames` is empty when no Jacobian is asked, so the loops index it by frame number.
+    #[allow(clippy::type_complexity, clippy::needless_range_loop)]
     fn constraints(
         &self,
         state: &State,
@@ -786,6 +787,8 @@ impl<'a> Problem<'a> {
     }
 
     /// Objective rows: similarity then balance, (value, entries).
+    // `frames` is empty when no Jacobian is asked, so the loop indexes it by frame number.
+    #[allow(clippy::needless_range_loop)]
     fn objective_rows(&self, state: &State, eval: &Eval, want: bool) -> Vec<(f64, Vec<(usize, f64)>)> {
         let mut rows = Vec::new();
         let frames = if want { FrameGeometry::all(self, eval) } else { Vec::new() };
