@@ -13,23 +13,31 @@ use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
 use kinegraph_nodes::kernels::load::{ClipLoadOptions, load_clip};
 use kinegraph_nodes::kernels::momentum_edit::{GroundEdit, measure_edit, naive_edit};
 use kinegraph_nodes::kernels::momentum_solve::{EditSetup, LIMIT_MARGIN_RAD, SolveError, SolveOptions, momentum_edit};
-use kinegraph_nodes::kernels::stages::{fit_ballistic, stage_clip};
+use kinegraph_nodes::kernels::stages::{StagedClip, fit_ballistic, stage_clip};
 use kinegraph_nodes::math::quat_normalize_or_identity;
 use kinegraph_nodes::model::{Clip, FrameRange, Stage, StageKind, Stages, forward_kinematics};
 
-#[test]
-fn naive_landing_shift_keeps_feet_planted_but_needs_an_impulse_at_take_off() {
-    let Some(data) = shared_data() else { return };
+/// CMU 16_01 with its body model and stages, and the jump's direction: the horizontal
+/// travel of the centre of mass over the flight.
+fn jump_16_01() -> Option<(Clip, BodyModel, StagedClip, DVec3)> {
+    let data = shared_data()?;
     let clip = load_clip(&data.join("bvh/cmu/16_01.bvh"), ClipLoadOptions::default()).unwrap().value;
     let model = body_model(clip.skeleton(), 70.0, MassTable::DeLevaMale, None).unwrap();
     let staged = stage_clip(&clip, &model, None, None).unwrap();
+    let flight = staged.stages.stages[1].frames;
+    let travel = staged.track.com_m[flight.end - 1] - staged.track.com_m[flight.start];
+    let forward = DVec3::new(travel.x, 0.0, travel.z).normalize_or_zero();
+    eprintln!("16_01 jump direction (COM travel in flight): {forward}");
+    Some((clip, model, staged, forward))
+}
+
+#[test]
+fn naive_landing_shift_keeps_feet_planted_but_needs_an_impulse_at_take_off() {
+    let Some((clip, model, staged, forward)) = jump_16_01() else { return };
     let stages = &staged.stages;
     let kinds: Vec<StageKind> = stages.stages.iter().map(|s| s.kind).collect();
     assert_eq!(kinds, vec![StageKind::Ground, StageKind::Flight, StageKind::Ground]);
-    // Land 0.5 m further along the jump's direction (the centre of mass travel in flight).
-    let flight = stages.stages[1].frames;
-    let travel = staged.track.com_m[flight.end - 1] - staged.track.com_m[flight.start];
-    let forward = DVec3::new(travel.x, 0.0, travel.z).normalize_or_zero();
+    // Land 0.5 m further along the jump's direction.
     let shift = 0.5 * forward;
     let edits = [GroundEdit::default(), GroundEdit { offset_m: shift, turn_rad: 0.0 }];
     let edited = naive_edit(&clip, stages, &model, &edits).unwrap();
@@ -55,6 +63,7 @@ fn naive_landing_shift_keeps_feet_planted_but_needs_an_impulse_at_take_off() {
     // …but the take-off and the landing each need an impulse m·|Δ|·fps/(frames between the
     // last ground frame before and the first after), which no force in the ground stage
     // supplies: what the spacetime optimisation must remove.
+    let flight = stages.stages[1].frames;
     let frames_between = (flight.end - (flight.start - 1)) as f64;
     let want = 70.0 * shift.length() * clip.fps() / frames_between;
     for jump in &naive.border_momentum_jump {
@@ -73,15 +82,9 @@ fn flight_spin_variation_pct(clip: &Clip, stages: &Stages, model: &BodyModel) ->
 
 #[test]
 fn optimised_landing_shift_is_ballistic_with_feet_planted_where_asked() {
-    let Some(data) = shared_data() else { return };
-    let clip = load_clip(&data.join("bvh/cmu/16_01.bvh"), ClipLoadOptions::default()).unwrap().value;
-    let model = body_model(clip.skeleton(), 70.0, MassTable::DeLevaMale, None).unwrap();
-    let staged = stage_clip(&clip, &model, None, None).unwrap();
+    let Some((clip, model, staged, forward)) = jump_16_01() else { return };
     let stages = &staged.stages;
     // 0.5 m further along the jump and 0.3 m to its left.
-    let flight = stages.stages[1].frames;
-    let travel = staged.track.com_m[flight.end - 1] - staged.track.com_m[flight.start];
-    let forward = DVec3::new(travel.x, 0.0, travel.z).normalize_or_zero();
     let side = DVec3::Y.cross(forward);
     let edits = [GroundEdit::default(), GroundEdit { offset_m: 0.5 * forward + 0.3 * side, turn_rad: 0.0 }];
     let feet = find_landmarks(clip.skeleton()).unwrap().feet();
