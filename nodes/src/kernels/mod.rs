@@ -42,6 +42,7 @@ pub mod join;
 pub mod load;
 pub mod mannequin;
 pub mod momentum_edit;
+pub mod momentum_solve;
 pub mod momentum_splines;
 pub mod phases;
 pub mod physics;

@@ -1,7 +1,7 @@
 //! Momentum-based editing, the part that exists so far (issue 15, step 3, partial): the
 //! user's edits of ground stages, the paper's initial guess (the *naive kinematic edit*),
 //! and the measures an edit is judged by. The spacetime optimisation that starts from this
-//! guess is not written yet.
+//! guess is [`momentum_solve`](super::momentum_solve).
 //!
 //! An edit moves ground stage i rigidly: X_i(p) = R_y(θ_i)(p − c_i) + c_i + Δ_i, with c_i the
 //! stage's centre of mass at its middle frame on the floor plane, Δ_i a horizontal offset
@@ -138,7 +138,8 @@ pub fn naive_edit(clip: &Clip, stages: &Stages, model: &BodyModel, edits: &[Grou
 #[derive(Clone, Debug, PartialEq)]
 pub struct EditMeasures {
     /// Per ground stage, the largest distance of a foot at the stage's first frame from
-    /// where the edit asked it to be (the original foot moved by the stage's edit), metres.
+    /// where the edit asked it to be (the original foot moved by the stage's edit, raised
+    /// onto the floor where the capture has it below), metres.
     pub placement_error_m: Vec<f64>,
     /// Largest drift of a planted foot during any of its contact intervals, metres (from
     /// its position at the interval's first frame).
@@ -171,17 +172,18 @@ pub fn measure_edit(
     let te = momentum_of_poses(&pe, edited.fps(), model);
     let place = placements(stages, &to.com_m, edits)?;
     let foot = |poses: &ClipPoses, f: usize, j: usize| poses.position(f, j).as_dvec3();
-    let floor = feet
-        .iter()
-        .map(|&j| super::contacts::ground_height(&(0..po.frame_count()).map(|f| foot(&po, f, j)).collect::<Vec<_>>()))
-        .fold(f64::INFINITY, f64::min);
+    let floor = floor_height(&po, feet);
     let grounds: Vec<FrameRange> =
         stages.stages.iter().filter(|s| s.kind == StageKind::Ground).map(|s| s.frames).collect();
     let placement_error_m = grounds
         .iter()
         .map(|r| {
             feet.iter()
-                .map(|&j| (foot(&pe, r.start, j) - place[r.start].apply(foot(&po, r.start, j))).length())
+                .map(|&j| {
+                    let mut asked = place[r.start].apply(foot(&po, r.start, j));
+                    asked.y = asked.y.max(floor);
+                    (foot(&pe, r.start, j) - asked).length()
+                })
                 .fold(0.0, f64::max)
         })
         .collect();
@@ -227,6 +229,17 @@ pub fn measure_edit(
         })
         .collect();
     Ok(EditMeasures { placement_error_m, planted_drift_m, below_floor_m, parabola_rms_m, border_momentum_jump })
+}
+
+/// The floor under `feet` in `poses`: the lowest of their resting heights
+/// ([`ground_height`](super::contacts::ground_height)), metres.
+pub fn floor_height(poses: &ClipPoses, feet: &[usize]) -> f64 {
+    feet.iter()
+        .map(|&j| {
+            let track: Vec<DVec3> = (0..poses.frame_count()).map(|f| poses.position(f, j).as_dvec3()).collect();
+            super::contacts::ground_height(&track)
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// RMS distance of `points` (one per frame) from their least-squares line in time.

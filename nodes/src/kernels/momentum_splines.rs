@@ -162,8 +162,13 @@ impl ChannelFit {
     /// The fitted value at `t` seconds (the piece whose interval holds `t`; a border
     /// belongs to the later piece).
     pub fn value(&self, t: f64) -> f64 {
-        let piece = self.pieces.iter().rev().find(|p| t >= p.span_secs().0).or(self.pieces.first());
-        piece.map_or(0.0, |p| p.value(t))
+        self.piece_at(t).map_or(0.0, |i| self.pieces[i].value(t))
+    }
+
+    /// The index of the piece whose interval holds `t` (a border belongs to the later
+    /// piece; times before the first piece belong to it).
+    pub fn piece_at(&self, t: f64) -> Option<usize> {
+        self.pieces.iter().rposition(|p| t >= p.span_secs().0).or((!self.pieces.is_empty()).then_some(0))
     }
 }
 

@@ -3,6 +3,7 @@
 //! concatenation and the Motion-Graphs baseline it is compared with.
 
 pub mod concat;
+pub mod edit;
 pub mod splines;
 pub mod stages;
 
@@ -35,6 +36,7 @@ pub fn register(registry: &mut Registry) {
     registry.add(Box::new(ConcatBaseline));
     stages::register(registry);
     splines::register(registry);
+    edit::register(registry);
 }
 
 const TOTAL_MASS: FloatParam = FloatParam::new("total_mass_kg", "Body mass of the performer.", 70.0, 1.0, 500.0, "kg");

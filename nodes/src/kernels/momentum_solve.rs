@@ -1,0 +1,1042 @@
+//! Momentum-based editing, the spacetime optimisation (issue 15, step 3): from the naive
+//! kinematic edit ([`naive_edit`]) to a clip whose momentum is physically plausible.
+//!
+//! Unknowns: per frame the root translation (3) and a rotation-vector increment ω_a (3) for
+//! every *active* joint a (one whose subtree carries at least [`MIN_SUBTREE_MASS`] of the
+//! body or holds a foot), applied in world axes about the joint: R_a ← W_pᵀ exp(ω) W_p R_a
+//! (W_p the parent's world rotation). A world increment has the simplest FK derivative,
+//! ∂p_j/∂ω_a = e × (p_j − p_a), and is re-linearised about the current pose each step.
+//! Plus G: the control points of the momentum splines (per mass, so in m/s and m²/s) and
+//! the value of every flight line, with the knots of [`fit_momentum`] fixed.
+//!
+//! Objective: Σ (δ_a / range_a)² over frames and active joints (δ_a the rotation vector
+//! from the initial guess's local rotation, range_a the joint's natural range in the
+//! original clip; the root translation likewise per axis) + the pseudo-balance term,
+//! ((c(f) − c_init(f)) / [`BALANCE_SCALE_M`])² at the first frame of the first ground stage,
+//! the last frame of the last and mid-frame of interior ones.
+//!
+//! Constraints: planted ankles on their edited places (the initial guess's position at the
+//! first frame of the contact, which is where the edit asked); both ankles at their edited
+//! places at each ground stage's first frame (the landing); ankles never below the floor;
+//! linear and angular momentum of Q (central differences, as [`momentum_of_poses`] measures
+//! them) equal to the splines of G at every interior frame; C1 between ground splines and
+//! flight lines (not the vertical momentum at a landing).
+//!
+//! Solver: an augmented Lagrangian whose subproblems are damped Gauss–Newton
+//! (Levenberg–Marquardt) steps on the sparse normal equations JᵀJ + λ diag(JᵀJ), factored by faer's
+//! sparse Cholesky (already a dependency). Why not clarabel's QP: every constraint here is
+//! an equality except the floor, the problem is a nonlinear least squares whose Gauss–Newton
+//! Hessian *is* JᵀJ, and one sparse Cholesky per step is all an SQP's QP would cost without
+//! the interior-point iterations on ~30 000 unknowns; the floor is a one-sided penalty.
+//!
+//! Joint limits: BVH clips carry none, so each active joint but the root (which the edit
+//! turns) keeps within its natural range in the original clip: the angle of its local
+//! rotation from the original's mean rotation stays under the largest such angle of the
+//! original plus [`LIMIT_MARGIN_RAD`]. One-sided like the floor, but soft: a fixed penalty
+//! whose final violation is reported, because as a hard constraint it stalled the solver
+//! (0.025 rad left after 120 steps on CMU 16_01 landing 0.58 m away).
+
+use std::time::Instant;
+
+use faer::sparse::linalg::matmul::sparse_sparse_matmul;
+use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Par, Side};
+use glam::{DMat3, DQuat, DVec3, Quat};
+
+use super::angular::{MomentumTrack, momentum_of_poses};
+use super::body::BodyModel;
+use super::momentum_edit::{EditError, GroundEdit, floor_height, naive_edit};
+use super::momentum_splines::{MomentumFit, Piece, SplineError, basis, fit_momentum};
+use crate::model::{Clip, ClipError, ClipPoses, FrameRange, StageKind, Stages, forward_kinematics};
+
+/// Joints whose subtree carries less than this share of the body mass (fingers, toes, the
+/// head's end) are left as the initial guess has them: they barely change the momentum.
+pub const MIN_SUBTREE_MASS: f64 = 0.005;
+
+/// Distance that makes one unit of the pseudo-balance term, metres.
+pub const BALANCE_SCALE_M: f64 = 0.02;
+
+/// Fewest frames an edit works on (two ground stages around a flight of a few frames).
+pub const MIN_FRAMES: usize = 12;
+
+/// The largest change of horizontal take-off speed an edit may ask for, m/s: beyond it the
+/// legs cannot push (the landing is unreachable).
+pub const MAX_EXTRA_SPEED_MPS: f64 = 4.0;
+
+/// Penalties grow at most this much above their start (beyond it the normal equations
+/// lose precision; the multipliers do the rest).
+const MAX_PENALTY_GROWTH: f64 = 100.0;
+
+/// How far past its natural range a joint may go, radians: an edit asks for a stronger
+/// push than the capture made, and a zero-width range (a joint the capture never moves)
+/// would make the limit's gradient undefined.
+pub const LIMIT_MARGIN_RAD: f64 = 0.1;
+
+/// Ankles are kept this far above the floor, metres (a margin for the one-sided penalty).
+const FLOOR_MARGIN_M: f64 = 2e-4;
+
+/// One kind of constraint: its name for reports and errors, tolerance and starting penalty.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Group {
+    name: &'static str,
+    unit: &'static str,
+    tolerance: f64,
+    penalty: f64,
+    /// A hard constraint must meet its tolerance (else the edit fails); a soft one is a
+    /// fixed penalty whose final violation is only reported.
+    hard: bool,
+}
+
+const FEET: usize = 0;
+const FLOOR: usize = 1;
+const LINEAR: usize = 2;
+const ANGULAR: usize = 3;
+const JOIN: usize = 4;
+const LIMITS: usize = 5;
+
+/// Groups whose constraints are inequalities g ≤ 0 (the value is the signed violation).
+fn one_sided(group: usize) -> bool {
+    group == FLOOR || group == LIMITS
+}
+
+/// The constraint groups (the floor and the joint limits one-sided), tolerances chosen from the acceptance measures: feet to 0.5 mm,
+/// linear momentum per mass to 5 mm/s (a parabola well under 1 cm), angular momentum per
+/// mass to 5·10⁻⁵ m²/s (3.5·10⁻³ kg·m²/s for 70 kg, a few % of a jump's flight spin).
+const GROUPS: [Group; 6] = [
+    Group { name: "planted feet", unit: "m", tolerance: 5e-4, penalty: 1e6, hard: true },
+    Group { name: "feet above the floor", unit: "m", tolerance: 5e-4, penalty: 1e6, hard: true },
+    Group { name: "linear momentum = splines", unit: "m/s", tolerance: 5e-3, penalty: 1e4, hard: true },
+    Group { name: "angular momentum = splines", unit: "m²/s", tolerance: 5e-5, penalty: 1e7, hard: true },
+    Group { name: "C1 splines at stage borders", unit: "m/s", tolerance: 5e-3, penalty: 1e4, hard: true },
+    Group { name: "joint limits", unit: "rad", tolerance: 1e-3, penalty: 1e4, hard: false },
+];
+
+/// What the optimisation may change.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SolveOptions {
+    /// Gravity in flight as a multiple of the fitted gravity (1 keeps it).
+    pub gravity_scale: f64,
+    /// Knot spacing of the ground-stage momentum splines, seconds.
+    pub knot_spacing_secs: f64,
+    /// Most Gauss–Newton steps.
+    pub max_iterations: usize,
+}
+
+impl Default for SolveOptions {
+    fn default() -> Self {
+        SolveOptions { gravity_scale: 1.0, knot_spacing_secs: 0.1, max_iterations: 120 }
+    }
+}
+
+/// One constraint's state at the end.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Violation {
+    /// The constraint.
+    pub constraint: &'static str,
+    /// Largest violation, in `unit`.
+    pub max: f64,
+    /// What counts as met.
+    pub tolerance: f64,
+    /// Unit of both.
+    pub unit: &'static str,
+}
+
+/// How the optimisation went.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolveReport {
+    /// Gauss–Newton steps taken (each one sparse Cholesky solve, accepted or not).
+    pub iterations: usize,
+    /// Wall-clock time of the whole edit, seconds.
+    pub seconds: f64,
+    /// Unknowns: DOFs of every frame plus spline control points.
+    pub unknowns: usize,
+    /// Active joints (rotation DOFs per frame / 3).
+    pub active_joints: usize,
+    /// Similarity term Σ (δ/range)².
+    pub similarity: f64,
+    /// Pseudo-balance term Σ (Δcom / BALANCE_SCALE_M)².
+    pub balance: f64,
+    /// Every constraint group at the end.
+    pub violations: Vec<Violation>,
+}
+
+/// Why an edit could not be optimised.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SolveError {
+    /// The edit itself is malformed.
+    #[error(transparent)]
+    Edit(#[from] EditError),
+    /// Too few frames.
+    #[error("the clip has {frames} frames; momentum editing needs at least {MIN_FRAMES}")]
+    TooShort {
+        /// Frames in the clip.
+        frames: usize,
+    },
+    /// Nothing to edit: no flight between ground stages.
+    #[error("the stages hold no flight between two ground stages; nothing is ballistic to edit")]
+    NoFlight,
+    /// The edit asks the legs for more than they can give.
+    #[error(
+        "ground stage {stage}: the edit needs {needed_mps:.2} m/s more take-off speed over the flight before it, more \
+         than {MAX_EXTRA_SPEED_MPS} m/s (the landing is unreachable)"
+    )]
+    Unreachable {
+        /// The ground stage whose edit is unreachable (0-based among ground stages).
+        stage: usize,
+        /// The change of horizontal speed asked, m/s.
+        needed_mps: f64,
+    },
+    /// A bad gravity scale.
+    #[error("gravity scale {0} must be positive and finite")]
+    GravityScale(f64),
+    /// The momentum splines could not be set up.
+    #[error(transparent)]
+    Splines(#[from] SplineError),
+    /// The optimisation stopped with a constraint violated.
+    #[error(
+        "the optimisation did not converge in {iterations} steps: '{constraint}' is left violated by {violation:.3e} \
+         {unit} (tolerance {tolerance:.1e})"
+    )]
+    NotConverged {
+        /// The worst violated constraint (relative to its tolerance).
+        constraint: &'static str,
+        /// Its largest violation.
+        violation: f64,
+        /// Its tolerance.
+        tolerance: f64,
+        /// Unit of both.
+        unit: &'static str,
+        /// Steps taken.
+        iterations: usize,
+    },
+    /// The linear algebra failed (a singular system even with damping).
+    #[error("sparse factorisation failed: {0}")]
+    Factor(String),
+    /// The optimised clip is unusable.
+    #[error(transparent)]
+    Clip(#[from] ClipError),
+}
+
+/// The edit to optimise.
+#[derive(Clone, Copy, Debug)]
+pub struct EditSetup<'a> {
+    /// The captured clip.
+    pub clip: &'a Clip,
+    /// Its stages (from `motion.stages`), gravity fitted.
+    pub stages: &'a Stages,
+    /// Its body model.
+    pub model: &'a BodyModel,
+    /// Ankle joints.
+    pub feet: [usize; 2],
+    /// Contacts of the original: (ankle joint, frames).
+    pub planted: &'a [(usize, FrameRange)],
+    /// One edit per ground stage.
+    pub edits: &'a [GroundEdit],
+}
+
+/// Fixed data of one optimisation.
+struct Problem<'a> {
+    setup: EditSetup<'a>,
+    n: usize,
+    joints: usize,
+    fps: f64,
+    mass: f64,
+    root: usize,
+    /// Active joints, and for each joint the active indices of its strict ancestors.
+    active: Vec<usize>,
+    ancestors: Vec<Vec<usize>>,
+    dof: usize,
+    range_rot: Vec<f64>,
+    range_root: DVec3,
+    /// Original local rotations' mean and natural range per active joint (joint limits).
+    limit: Vec<(DQuat, f64)>,
+    init_rot: Vec<DQuat>,
+    init_root: Vec<DVec3>,
+    /// (ankle, frame, target).
+    pins: Vec<(usize, usize, DVec3)>,
+    floor: f64,
+    balance: Vec<(usize, DVec3)>,
+    fit: MomentumFit,
+    /// Per channel, per piece, the first column of its unknowns within G.
+    g_cols: Vec<Vec<usize>>,
+    g_count: usize,
+    slope_per_mass: Vec<f64>,
+}
+
+/// The unknowns.
+#[derive(Clone)]
+struct State {
+    rot: Vec<DQuat>,
+    root: Vec<DVec3>,
+    g: Vec<f64>,
+}
+
+/// Forward kinematics and momentum of a state.
+struct Eval {
+    clip: Clip,
+    poses: ClipPoses,
+    track: MomentumTrack,
+}
+
+/// Optimises `setup`'s edit: returns the edited clip and the report.
+pub fn momentum_edit(setup: EditSetup<'_>, options: &SolveOptions) -> Result<(Clip, SolveReport), SolveError> {
+    let started = Instant::now();
+    let (problem, mut state) = Problem::new(setup, options)?;
+    let mut penalty: Vec<f64> = GROUPS.iter().map(|g| g.penalty).collect();
+    let mut eval = problem.eval(&state)?;
+    let constraint_count = problem.constraints(&state, &eval, None).0.len();
+    let mut multipliers = vec![0.0; constraint_count];
+    let mut lambda = 1e-3;
+    let mut iterations = 0;
+    let mut symbolic: Option<(Vec<usize>, Vec<usize>, SymbolicLlt<usize>)> = None;
+    let mut worst = problem.worst(&state, &eval);
+    while iterations < options.max_iterations && worst.1 > 1.0 {
+        // Inner: Levenberg–Marquardt on the augmented Lagrangian until it stalls.
+        let mut merit = problem.merit(&state, &eval, &multipliers, &penalty);
+        for _ in 0..4 {
+            let (residuals, triplets) = problem.system(&state, &eval, &multipliers, &penalty);
+            let mut accepted = false;
+            while iterations < options.max_iterations {
+                iterations += 1;
+                let step = solve_step(&triplets, &residuals, problem.unknowns(), lambda, &mut symbolic)?;
+                let trial = problem.apply(&state, &eval, &step);
+                let trial_eval = problem.eval(&trial)?;
+                let trial_merit = problem.merit(&trial, &trial_eval, &multipliers, &penalty);
+                if trial_merit < merit {
+                    let gain = (merit - trial_merit) / merit.max(f64::MIN_POSITIVE);
+                    (state, eval, merit) = (trial, trial_eval, trial_merit);
+                    lambda = (lambda / 3.0).max(1e-9);
+                    accepted = gain > 1e-4;
+                    break;
+                }
+                lambda *= 10.0;
+                if lambda > 1e8 {
+                    break;
+                }
+            }
+            if !accepted {
+                break;
+            }
+        }
+        // Outer: first-order multiplier update; raise the penalty of groups that lag.
+        let (values, groups) = problem.constraints(&state, &eval, None);
+        for ((y, c), g) in multipliers.iter_mut().zip(&values).zip(&groups) {
+            if !GROUPS[*g].hard {
+                continue;
+            }
+            *y += penalty[*g] * c;
+            if one_sided(*g) {
+                *y = y.max(0.0);
+            }
+        }
+        let now = problem.worst(&state, &eval);
+        for (g, p) in penalty.iter_mut().enumerate() {
+            let lagging = problem.group_violation(&values, &groups, g) > GROUPS[g].tolerance && now.1 > 0.25 * worst.1;
+            if lagging && GROUPS[g].hard && *p < MAX_PENALTY_GROWTH * GROUPS[g].penalty {
+                *p *= 10.0;
+            }
+        }
+        worst = now;
+        lambda = lambda.max(1e-6);
+    }
+    let violations: Vec<Violation> = {
+        let (values, groups) = problem.constraints(&state, &eval, None);
+        GROUPS
+            .iter()
+            .enumerate()
+            .map(|(g, group)| Violation {
+                constraint: group.name,
+                max: problem.group_violation(&values, &groups, g),
+                tolerance: group.tolerance,
+                unit: group.unit,
+            })
+            .collect()
+    };
+    if worst.1 > 1.0 {
+        let v = &violations[worst.0];
+        return Err(SolveError::NotConverged {
+            constraint: v.constraint,
+            violation: v.max,
+            tolerance: v.tolerance,
+            unit: v.unit,
+            iterations,
+        });
+    }
+    let (similarity, balance) = problem.objective_terms(&state, &eval);
+    let report = SolveReport {
+        iterations,
+        seconds: started.elapsed().as_secs_f64(),
+        unknowns: problem.unknowns(),
+        active_joints: problem.active.len(),
+        similarity,
+        balance,
+        violations,
+    };
+    Ok((eval.clip, report))
+}
+
+/// Rotation vector of a unit quaternion (shortest way), radians.
+fn rotation_vector(q: DQuat) -> DVec3 {
+    let q = if q.w < 0.0 { -q } else { q };
+    let (axis, angle) = q.to_axis_angle();
+    if angle.is_finite() { axis * angle } else { DVec3::ZERO }
+}
+
+/// The local rotation of joint `j` at every frame, f64.
+fn rotations_of(clip: &Clip, j: usize) -> Vec<DQuat> {
+    let joints = clip.joint_count();
+    (0..clip.frame_count()).map(|f| clip.rotations()[f * joints + j].as_dquat()).collect()
+}
+
+/// Sign-aligned normalised mean of `qs`, and the largest angle of any from it.
+fn mean_and_spread(qs: &[DQuat]) -> (DQuat, f64) {
+    let first = qs.first().copied().unwrap_or(DQuat::IDENTITY);
+    let sum: DQuat =
+        qs.iter().fold(DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0), |acc, q| acc + if q.dot(first) < 0.0 { -*q } else { *q });
+    let mean = if sum.length() > 1e-9 { sum.normalize() } else { first };
+    let spread = qs.iter().map(|q| rotation_vector(*q * mean.inverse()).length()).fold(0.0, f64::max);
+    (mean, spread)
+}
+
+impl<'a> Problem<'a> {
+    fn new(setup: EditSetup<'a>, options: &SolveOptions) -> Result<(Problem<'a>, State), SolveError> {
+        let EditSetup { clip, stages, model, feet, planted, edits } = setup;
+        let n = clip.frame_count();
+        if n < MIN_FRAMES {
+            return Err(SolveError::TooShort { frames: n });
+        }
+        if !(options.gravity_scale.is_finite() && options.gravity_scale > 0.0) {
+            return Err(SolveError::GravityScale(options.gravity_scale));
+        }
+        let interior_flight = stages.stages.windows(3).any(|w| {
+            w[0].kind == StageKind::Ground && w[1].kind == StageKind::Flight && w[2].kind == StageKind::Ground
+        });
+        if !interior_flight {
+            return Err(SolveError::NoFlight);
+        }
+        let fps = clip.fps();
+        let grounds: Vec<FrameRange> =
+            stages.stages.iter().filter(|s| s.kind == StageKind::Ground).map(|s| s.frames).collect();
+        for (i, w) in grounds.windows(2).enumerate() {
+            if let (Some(a), Some(b)) = (edits.get(i), edits.get(i + 1)) {
+                let secs = (w[1].start + 1 - w[0].end) as f64 / fps;
+                let shift = b.offset_m - a.offset_m;
+                let needed_mps = DVec3::new(shift.x, 0.0, shift.z).length() / secs;
+                if needed_mps > MAX_EXTRA_SPEED_MPS {
+                    return Err(SolveError::Unreachable { stage: i + 1, needed_mps });
+                }
+            }
+        }
+        let guess = naive_edit(clip, stages, model, edits)?;
+        let skeleton = clip.skeleton();
+        let joints = clip.joint_count();
+        let parents: Vec<Option<usize>> = skeleton.joints().iter().map(|j| j.parent).collect();
+        let root = parents.iter().position(Option::is_none).unwrap_or(0);
+        // Mass carried below each joint, and the feet's ancestors.
+        let mut below = vec![0.0; joints];
+        for s in &model.segments {
+            for &(j, w) in &s.com_weights {
+                let mut a = parents[j];
+                while let Some(p) = a {
+                    below[p] += s.mass_kg * f64::from(w);
+                    a = parents[p];
+                }
+            }
+        }
+        let mut holds_foot = vec![false; joints];
+        for &foot in &feet {
+            let mut a = parents[foot];
+            while let Some(p) = a {
+                holds_foot[p] = true;
+                a = parents[p];
+            }
+        }
+        let mass = model.total_mass_kg;
+        let active: Vec<usize> =
+            (0..joints).filter(|&j| holds_foot[j] || below[j] >= MIN_SUBTREE_MASS * mass).collect();
+        let mut index_of = vec![usize::MAX; joints];
+        for (k, &j) in active.iter().enumerate() {
+            index_of[j] = k;
+        }
+        let ancestors: Vec<Vec<usize>> = (0..joints)
+            .map(|j| {
+                let mut out = Vec::new();
+                let mut a = parents[j];
+                while let Some(p) = a {
+                    if index_of[p] != usize::MAX {
+                        out.push(index_of[p]);
+                    }
+                    a = parents[p];
+                }
+                out
+            })
+            .collect();
+        let limit: Vec<(DQuat, f64)> = active.iter().map(|&j| mean_and_spread(&rotations_of(clip, j))).collect();
+        let range_rot: Vec<f64> = limit.iter().map(|(_, spread)| spread.max(0.2)).collect();
+        let root_path: Vec<DVec3> = (0..n).map(|f| clip.translations()[f * joints + root].as_dvec3()).collect();
+        let lo = root_path.iter().fold(DVec3::INFINITY, |a, b| a.min(*b));
+        let hi = root_path.iter().fold(DVec3::NEG_INFINITY, |a, b| a.max(*b));
+        let range_root = (hi - lo).max(DVec3::splat(0.1));
+        let poses = forward_kinematics(&guess);
+        let floor = floor_height(&forward_kinematics(clip), &feet);
+        let at = |f: usize, j: usize| poses.position(f, j).as_dvec3();
+        // Where the edit asks a foot to be, lifted onto the floor where the capture has it
+        // poking through (the floor is a percentile of the ankle heights).
+        let asked = |f: usize, j: usize| {
+            let p = at(f, j);
+            DVec3::new(p.x, p.y.max(floor + FLOOR_MARGIN_M), p.z)
+        };
+        let mut pins = Vec::new();
+        let ground_of = |f: usize| grounds.iter().any(|r| r.contains(f));
+        for &(j, r) in planted {
+            let frames: Vec<usize> = (r.start..r.end.min(n)).filter(|&f| ground_of(f)).collect();
+            if let Some(&first) = frames.first() {
+                let target = asked(first, j);
+                pins.extend(frames.iter().map(|&f| (j, f, target)));
+            }
+        }
+        for r in &grounds {
+            for &j in &feet {
+                if !pins.iter().any(|&(pj, pf, _)| pj == j && pf == r.start) {
+                    pins.push((j, r.start, asked(r.start, j)));
+                }
+            }
+        }
+        let track = momentum_of_poses(&poses, fps, model);
+        let mut balance = Vec::new();
+        for (i, r) in grounds.iter().enumerate() {
+            if i == 0 {
+                balance.push(r.start);
+            }
+            if i + 1 == grounds.len() {
+                balance.push(r.end - 1);
+            }
+            if i > 0 && i + 1 < grounds.len() {
+                balance.push(r.start + r.len() / 2);
+            }
+        }
+        let balance: Vec<(usize, DVec3)> = balance.into_iter().map(|f| (f, track.com_m[f])).collect();
+        let scaled = Stages { gravity_mps2: stages.gravity_mps2 * options.gravity_scale, ..stages.clone() };
+        let linear: Vec<DVec3> = track.com_velocity_mps.iter().map(|v| *v * mass).collect();
+        let fit = fit_momentum(&scaled, &linear, &track.momentum, mass, options.knot_spacing_secs)?;
+        let mut g_cols = Vec::new();
+        let mut g = Vec::new();
+        let mut slope_per_mass = Vec::new();
+        for ch in &fit.channels {
+            let mut cols = Vec::new();
+            for piece in &ch.pieces {
+                cols.push(g.len());
+                match piece {
+                    Piece::Line { value, slope, .. } => {
+                        g.push(value / mass);
+                        slope_per_mass.push(slope / mass);
+                    }
+                    Piece::Spline { spline, .. } => g.extend(spline.control.iter().map(|c| c / mass)),
+                }
+            }
+            g_cols.push(cols);
+        }
+        let init_rot: Vec<DQuat> = guess.rotations().iter().map(|q| q.as_dquat()).collect();
+        let init_root: Vec<DVec3> = (0..n).map(|f| guess.translations()[f * joints + root].as_dvec3()).collect();
+        let state = State { rot: init_rot.clone(), root: init_root.clone(), g };
+        let g_count = state.g.len();
+        let problem = Problem {
+            setup,
+            n,
+            joints,
+            fps,
+            mass,
+            root,
+            dof: 3 + 3 * active.len(),
+            active,
+            ancestors,
+            range_rot,
+            range_root,
+            limit,
+            init_rot,
+            init_root,
+            pins,
+            floor,
+            balance,
+            fit,
+            g_cols,
+            g_count,
+            slope_per_mass,
+        };
+        Ok((problem, state))
+    }
+
+    fn unknowns(&self) -> usize {
+        self.n * self.dof + self.g_count
+    }
+
+    fn col(&self, f: usize, k: usize) -> usize {
+        f * self.dof + k
+    }
+
+    fn g_col(&self, i: usize) -> usize {
+        self.n * self.dof + i
+    }
+
+    fn eval(&self, state: &State) -> Result<Eval, SolveError> {
+        let clip = self.setup.clip;
+        let mut translations = clip.translations().to_vec();
+        for f in 0..self.n {
+            translations[f * self.joints + self.root] = state.root[f].as_vec3();
+        }
+        let rotations: Vec<Quat> = state.rot.iter().map(|q| q.as_quat()).collect();
+        let clip = Clip::new(clip.skeleton().clone(), self.fps, rotations, translations, clip.import_scale)?;
+        let poses = forward_kinematics(&clip);
+        let track = momentum_of_poses(&poses, self.fps, self.setup.model);
+        Ok(Eval { clip, poses, track })
+    }
+
+    /// The model momentum of channel `c` at frame `f` (per mass) and its G entries.
+    fn model_row(&self, state: &State, c: usize, f: usize) -> (f64, Vec<(usize, f64)>) {
+        let t = f as f64 / self.fps;
+        let ch = &self.fit.channels[c];
+        let Some(i) = ch.piece_at(t) else { return (0.0, Vec::new()) };
+        let base = self.g_cols[c][i];
+        match &ch.pieces[i] {
+            Piece::Line { start_secs, .. } => {
+                let slope = self.line_slope(c, i);
+                (state.g[base] + slope * (t - start_secs), vec![(base, 1.0)])
+            }
+            Piece::Spline { spline, .. } => {
+                let b = basis(&spline.knots, t);
+                let v = b.iter().enumerate().map(|(k, w)| w * state.g[base + k]).sum();
+                (v, b.iter().enumerate().filter(|(_, w)| **w != 0.0).map(|(k, w)| (base + k, *w)).collect())
+            }
+        }
+    }
+
+    /// Slope per mass of the line piece `i` of channel `c`.
+    fn line_slope(&self, c: usize, i: usize) -> f64 {
+        let lines_before = self.fit.channels[..c]
+            .iter()
+            .map(|ch| ch.pieces.iter().filter(|p| matches!(p, Piece::Line { .. })).count())
+            .sum::<usize>()
+            + self.fit.channels[c].pieces[..i].iter().filter(|p| matches!(p, Piece::Line { .. })).count();
+        self.slope_per_mass[lines_before]
+    }
+
+    /// The C1 rows between ground splines and flight lines: (constant, [(g index, coefficient)]),
+    /// the constraint being constant + Σ coefficient · g = 0.
+    fn join_rows(&self) -> Vec<(f64, Vec<(usize, f64)>)> {
+        let mut rows = Vec::new();
+        for (c, ch) in self.fit.channels.iter().enumerate() {
+            for (i, piece) in ch.pieces.iter().enumerate() {
+                let Piece::Spline { start_secs: a, end_secs: b, spline } = piece else { continue };
+                let base = self.g_cols[c][i];
+                let m = spline.control.len();
+                let k = &spline.knots;
+                if let (Some(Piece::Line { start_secs, end_secs, .. }), true) =
+                    (i.checked_sub(1).map(|p| &ch.pieces[p]), c != 1)
+                {
+                    let (line, slope) = (self.g_cols[c][i - 1], self.line_slope(c, i - 1));
+                    rows.push((-slope * (end_secs - start_secs), vec![(base, 1.0), (line, -1.0)]));
+                    rows.push((-slope * (k[4] - a) / 3.0, vec![(base + 1, 1.0), (base, -1.0)]));
+                }
+                if let Some(Piece::Line { .. }) = ch.pieces.get(i + 1) {
+                    let (line, slope) = (self.g_cols[c][i + 1], self.line_slope(c, i + 1));
+                    rows.push((0.0, vec![(base + m - 1, 1.0), (line, -1.0)]));
+                    rows.push((-slope * (b - k[m - 1]) / 3.0, vec![(base + m - 1, 1.0), (base + m - 2, -1.0)]));
+                }
+            }
+        }
+        rows
+    }
+
+    /// Every constraint value in a stable order, with its group; with `jacobian`, also each
+    /// row's entries (column, value).
+    // `frames` is empty when no Jacobian is asked, so the loops index it by frame number.
+    #[allow(clippy::type_complexity, clippy::needless_range_loop)]
+    fn constraints(
+        &self,
+        state: &State,
+        eval: &Eval,
+        mut jacobian: Option<&mut Vec<Vec<(usize, f64)>>>,
+    ) -> (Vec<f64>, Vec<usize>) {
+        let mut values = Vec::new();
+        let mut groups = Vec::new();
+        let frames = if jacobian.is_some() { FrameGeometry::all(self, eval) } else { Vec::new() };
+        let mut push = |v: f64, g: usize, row: Vec<(usize, f64)>, jac: &mut Option<&mut Vec<Vec<(usize, f64)>>>| {
+            values.push(v);
+            groups.push(g);
+            if let Some(j) = jac.as_mut() {
+                j.push(row);
+            }
+        };
+        let want = jacobian.is_some();
+        for &(j, f, target) in &self.pins {
+            let d = eval.poses.position(f, j).as_dvec3() - target;
+            for i in 0..3 {
+                let row = if want { self.point_row(&frames[f], f, j, i, 1.0) } else { Vec::new() };
+                push(d[i], FEET, row, &mut jacobian);
+            }
+        }
+        for f in 0..self.n {
+            for &j in &self.setup.feet {
+                let below = self.floor + FLOOR_MARGIN_M - f64::from(eval.poses.position(f, j).y);
+                let row = if want { self.point_row(&frames[f], f, j, 1, -1.0) } else { Vec::new() };
+                push(below, FLOOR, row, &mut jacobian);
+            }
+        }
+        for f in 1..self.n - 1 {
+            for c in 0..6 {
+                let (model, g_entries) = self.model_row(state, c, f);
+                let measured =
+                    if c < 3 { eval.track.com_velocity_mps[f][c] } else { eval.track.momentum[f][c - 3] / self.mass };
+                let mut row = Vec::new();
+                if want {
+                    row = if c < 3 { self.linear_row(&frames, f, c) } else { self.angular_row(&frames, f, c - 3) };
+                    row.extend(g_entries.iter().map(|&(i, w)| (self.g_col(i), -w)));
+                }
+                push(measured - model, if c < 3 { LINEAR } else { ANGULAR }, row, &mut jacobian);
+            }
+        }
+        for f in 0..self.n {
+            for (k, &j) in self.active.iter().enumerate() {
+                if j == self.root {
+                    continue;
+                }
+                let (mean, spread) = self.limit[k];
+                let v = rotation_vector(state.rot[f * self.joints + j] * mean.inverse());
+                let excess = v.length() - spread - LIMIT_MARGIN_RAD;
+                let mut row = Vec::new();
+                if want {
+                    // Left increments δ = W_pᵀω change |v| by v̂·δ = (W_p v̂)·ω.
+                    let d = frames[f].parent_rotation[k] * v.normalize_or_zero();
+                    row = (0..3).map(|a| (self.col(f, 3 + 3 * k + a), d[a])).collect();
+                }
+                push(excess, LIMITS, row, &mut jacobian);
+            }
+        }
+        for (constant, entries) in self.join_rows() {
+            let v = constant + entries.iter().map(|&(i, w)| w * state.g[i]).sum::<f64>();
+            let row = if want { entries.iter().map(|&(i, w)| (self.g_col(i), w)).collect() } else { Vec::new() };
+            push(v, JOIN, row, &mut jacobian);
+        }
+        (values, groups)
+    }
+
+    /// Entries of component `i` of joint `j`'s world position at frame `f`, times `scale`.
+    fn point_row(&self, geo: &FrameGeometry, f: usize, j: usize, i: usize, scale: f64) -> Vec<(usize, f64)> {
+        let mut row = vec![(self.col(f, i), scale)];
+        let p = geo.positions[j];
+        for &k in &self.ancestors[j] {
+            let arm = p - geo.positions[self.active[k]];
+            for a in 0..3 {
+                row.push((self.col(f, 3 + 3 * k + a), scale * axis(a).cross(arm)[i]));
+            }
+        }
+        row
+    }
+
+    /// Entries of COM velocity component `i` at frame `f` (central difference).
+    fn linear_row(&self, frames: &[FrameGeometry], f: usize, i: usize) -> Vec<(usize, f64)> {
+        let half = 0.5 * self.fps;
+        let mut row = Vec::new();
+        for (h, s) in [(f - 1, -half), (f + 1, half)] {
+            row.push((self.col(h, i), s));
+            for (k, d) in frames[h].com_arm.iter().enumerate() {
+                for a in 0..3 {
+                    row.push((self.col(h, 3 + 3 * k + a), s * axis(a).cross(*d)[i]));
+                }
+            }
+        }
+        row
+    }
+
+    /// Entries of (angular momentum / mass) component `i` at frame `f`:
+    /// δL = Σ m_s ((δx_s × u_s) + r_s × δv_s), the centre's own terms cancelling (Σ m_s u_s =
+    /// Σ m_s r_s = 0), so root translations do not enter.
+    fn angular_row(&self, frames: &[FrameGeometry], f: usize, i: usize) -> Vec<(usize, f64)> {
+        let half = 0.5 * self.fps;
+        let masses = &self.setup.model.segments;
+        let k_count = self.active.len();
+        let geo = &frames[f];
+        let com = geo.com;
+        let mut row = Vec::new();
+        let u: Vec<DVec3> = (0..masses.len())
+            .map(|s| {
+                (frames[f + 1].segments[s] - frames[f - 1].segments[s]) * half
+                    - (frames[f + 1].com - frames[f - 1].com) * half
+            })
+            .collect();
+        let r: Vec<DVec3> = geo.segments.iter().map(|x| *x - com).collect();
+        for k in 0..k_count {
+            for a in 0..3 {
+                let e = axis(a);
+                let mut now = DVec3::ZERO;
+                let mut next = DVec3::ZERO;
+                let mut prev = DVec3::ZERO;
+                for (s, seg) in masses.iter().enumerate() {
+                    let m = seg.mass_kg / self.mass;
+                    now += m * e.cross(geo.seg_arm[s * k_count + k]).cross(u[s]);
+                    next += m * r[s].cross(e.cross(frames[f + 1].seg_arm[s * k_count + k]));
+                    prev += m * r[s].cross(e.cross(frames[f - 1].seg_arm[s * k_count + k]));
+                }
+                row.push((self.col(f, 3 + 3 * k + a), now[i]));
+                row.push((self.col(f + 1, 3 + 3 * k + a), half * next[i]));
+                row.push((self.col(f - 1, 3 + 3 * k + a), -half * prev[i]));
+            }
+        }
+        row
+    }
+
+    /// Objective rows: similarity then balance, (value, entries).
+    // `frames` is empty when no Jacobian is asked, so the loop indexes it by frame number.
+    #[allow(clippy::needless_range_loop)]
+    fn objective_rows(&self, state: &State, eval: &Eval, want: bool) -> Vec<(f64, Vec<(usize, f64)>)> {
+        let mut rows = Vec::new();
+        let frames = if want { FrameGeometry::all(self, eval) } else { Vec::new() };
+        for f in 0..self.n {
+            let d = state.root[f] - self.init_root[f];
+            for i in 0..3 {
+                rows.push((d[i] / self.range_root[i], vec![(self.col(f, i), 1.0 / self.range_root[i])]));
+            }
+            for (k, &j) in self.active.iter().enumerate() {
+                let idx = f * self.joints + j;
+                let delta = rotation_vector(state.rot[idx] * self.init_rot[idx].inverse()) / self.range_rot[k];
+                for i in 0..3 {
+                    let entries = if want {
+                        let wp = frames[f].parent_rotation[k];
+                        (0..3).map(|a| (self.col(f, 3 + 3 * k + a), wp.col(i)[a] / self.range_rot[k])).collect()
+                    } else {
+                        Vec::new()
+                    };
+                    rows.push((delta[i], entries));
+                }
+            }
+        }
+        for &(f, target) in &self.balance {
+            let d = (eval.track.com_m[f] - target) / BALANCE_SCALE_M;
+            for i in 0..3 {
+                let mut entries = Vec::new();
+                if want {
+                    entries.push((self.col(f, i), 1.0 / BALANCE_SCALE_M));
+                    for (k, arm) in frames[f].com_arm.iter().enumerate() {
+                        for a in 0..3 {
+                            entries.push((self.col(f, 3 + 3 * k + a), axis(a).cross(*arm)[i] / BALANCE_SCALE_M));
+                        }
+                    }
+                }
+                rows.push((d[i], entries));
+            }
+        }
+        rows
+    }
+
+    fn objective_terms(&self, state: &State, eval: &Eval) -> (f64, f64) {
+        let rows = self.objective_rows(state, eval, false);
+        let split = rows.len() - 3 * self.balance.len();
+        let sq = |r: &[(f64, Vec<(usize, f64)>)]| r.iter().map(|(v, _)| v * v).sum::<f64>();
+        (sq(&rows[..split]), sq(&rows[split..]))
+    }
+
+    /// ½‖objective‖² + Σ_g μ_g/2 ‖c + y/μ_g‖² (inequalities: only the part above zero).
+    fn merit(&self, state: &State, eval: &Eval, multipliers: &[f64], penalty: &[f64]) -> f64 {
+        let (s, b) = self.objective_terms(state, eval);
+        let (values, groups) = self.constraints(state, eval, None);
+        let c: f64 = values
+            .iter()
+            .zip(&groups)
+            .zip(multipliers)
+            .map(|((v, g), y)| penalty[*g] * shifted(*v, *y, penalty[*g], *g).powi(2))
+            .sum();
+        0.5 * (s + b + c)
+    }
+
+    /// Residuals and Jacobian triplets of the least-squares subproblem.
+    fn system(
+        &self,
+        state: &State,
+        eval: &Eval,
+        multipliers: &[f64],
+        penalty: &[f64],
+    ) -> (Vec<f64>, Vec<Triplet<usize, usize, f64>>) {
+        let mut residuals = Vec::new();
+        let mut triplets = Vec::new();
+        for (v, entries) in self.objective_rows(state, eval, true) {
+            let r = residuals.len();
+            triplets.extend(entries.into_iter().map(|(c, w)| Triplet::new(r, c, w)));
+            residuals.push(v);
+        }
+        let mut rows = Vec::new();
+        let (values, groups) = self.constraints(state, eval, Some(&mut rows));
+        for (((v, g), y), entries) in values.iter().zip(&groups).zip(multipliers).zip(rows) {
+            let shift = shifted(*v, *y, penalty[*g], *g);
+            // An inactive inequality keeps its entries as zeros: JᵀJ keeps its pattern.
+            let s = if one_sided(*g) && shift == 0.0 { 0.0 } else { penalty[*g].sqrt() };
+            let r = residuals.len();
+            triplets.extend(entries.into_iter().map(|(c, w)| Triplet::new(r, c, s * w)));
+            residuals.push(penalty[*g].sqrt() * shift);
+        }
+        (residuals, triplets)
+    }
+
+    /// Largest violation of group `g` among `values`.
+    fn group_violation(&self, values: &[f64], groups: &[usize], g: usize) -> f64 {
+        let violation = |v: f64| if one_sided(g) { v.max(0.0) } else { v.abs() };
+        values.iter().zip(groups).filter(|(_, gg)| **gg == g).map(|(v, _)| violation(*v)).fold(0.0, f64::max)
+    }
+
+    /// The hard group furthest beyond its tolerance, and by what ratio.
+    fn worst(&self, state: &State, eval: &Eval) -> (usize, f64) {
+        let (values, groups) = self.constraints(state, eval, None);
+        (0..GROUPS.len())
+            .filter(|g| GROUPS[*g].hard)
+            .map(|g| (g, self.group_violation(&values, &groups, g) / GROUPS[g].tolerance))
+            .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
+    }
+
+    /// The state moved by a solved step.
+    fn apply(&self, state: &State, eval: &Eval, step: &[f64]) -> State {
+        let mut next = state.clone();
+        for f in 0..self.n {
+            let base = f * self.dof;
+            next.root[f] += DVec3::new(step[base], step[base + 1], step[base + 2]);
+            let frame = eval.poses.frame(f);
+            for (k, &j) in self.active.iter().enumerate() {
+                let o = base + 3 + 3 * k;
+                let w = DVec3::new(step[o], step[o + 1], step[o + 2]);
+                let wp = self.setup.clip.skeleton().joints()[j]
+                    .parent
+                    .map_or(DQuat::IDENTITY, |p| frame[p].rotation.as_dquat().normalize());
+                let idx = f * self.joints + j;
+                next.rot[idx] = (wp.inverse() * DQuat::from_scaled_axis(w) * wp * state.rot[idx]).normalize();
+            }
+        }
+        for (i, g) in next.g.iter_mut().enumerate() {
+            *g += step[self.g_col(i)];
+        }
+        next
+    }
+}
+
+/// The augmented-Lagrangian residual of a constraint with value `v`, multiplier `y` and
+/// penalty `mu`, divided by √mu: v + y/mu, or for an inequality its part above zero.
+fn shifted(v: f64, y: f64, mu: f64, group: usize) -> f64 {
+    let s = v + y / mu;
+    if one_sided(group) { s.max(0.0) } else { s }
+}
+
+/// e_x, e_y or e_z.
+fn axis(a: usize) -> DVec3 {
+    [DVec3::X, DVec3::Y, DVec3::Z][a]
+}
+
+/// Per-frame quantities the Jacobian rows share.
+struct FrameGeometry {
+    positions: Vec<DVec3>,
+    /// World rotation of each active joint's parent (identity for the root).
+    parent_rotation: Vec<DMat3>,
+    /// Segment centres of mass.
+    segments: Vec<DVec3>,
+    com: DVec3,
+    /// Per (segment, active joint): Σ w (p_j − p_a) over the segment's joints below a, so
+    /// that δx_s = ω_a × seg_arm.
+    seg_arm: Vec<DVec3>,
+    /// Per active joint: the body COM's arm, Σ m_s seg_arm / M.
+    com_arm: Vec<DVec3>,
+}
+
+impl FrameGeometry {
+    fn all(p: &Problem<'_>, eval: &Eval) -> Vec<FrameGeometry> {
+        let segments = &p.setup.model.segments;
+        let k_count = p.active.len();
+        let skeleton = p.setup.clip.skeleton();
+        (0..p.n)
+            .map(|f| {
+                let frame = eval.poses.frame(f);
+                let positions: Vec<DVec3> = frame.iter().map(|t| t.translation.as_dvec3()).collect();
+                let parent_rotation = p
+                    .active
+                    .iter()
+                    .map(|&j| {
+                        skeleton.joints()[j]
+                            .parent
+                            .map_or(DMat3::IDENTITY, |q| DMat3::from_quat(frame[q].rotation.as_dquat().normalize()))
+                    })
+                    .collect();
+                let mut seg_arm = vec![DVec3::ZERO; segments.len() * k_count];
+                let mut seg_pos = Vec::with_capacity(segments.len());
+                for (s, seg) in segments.iter().enumerate() {
+                    let mut x = DVec3::ZERO;
+                    for &(j, w) in &seg.com_weights {
+                        let w = f64::from(w);
+                        x += w * positions[j];
+                        for &k in &p.ancestors[j] {
+                            seg_arm[s * k_count + k] += w * (positions[j] - positions[p.active[k]]);
+                        }
+                    }
+                    seg_pos.push(x);
+                }
+                let com = eval.track.com_m[f];
+                let com_arm = (0..k_count)
+                    .map(|k| {
+                        segments
+                            .iter()
+                            .enumerate()
+                            .map(|(s, seg)| seg.mass_kg * seg_arm[s * k_count + k])
+                            .sum::<DVec3>()
+                            / p.mass
+                    })
+                    .collect();
+                FrameGeometry { positions, parent_rotation, segments: seg_pos, com, seg_arm, com_arm }
+            })
+            .collect()
+    }
+}
+
+/// One damped Gauss–Newton step: (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr by sparse Cholesky. The symbolic
+/// factorisation is kept while the pattern of JᵀJ stays the same.
+fn solve_step(
+    triplets: &[Triplet<usize, usize, f64>],
+    residuals: &[f64],
+    unknowns: usize,
+    lambda: f64,
+    symbolic: &mut Option<(Vec<usize>, Vec<usize>, SymbolicLlt<usize>)>,
+) -> Result<Vec<f64>, SolveError> {
+    let rows = residuals.len();
+    let factor = |e: &dyn std::fmt::Debug| SolveError::Factor(format!("{e:?}"));
+    let j = SparseColMat::<usize, f64>::try_new_from_triplets(rows, unknowns, triplets).map_err(|e| factor(&e))?;
+    let transposed: Vec<Triplet<usize, usize, f64>> =
+        triplets.iter().map(|t| Triplet::new(t.col, t.row, t.val)).collect();
+    let jt = SparseColMat::<usize, f64>::try_new_from_triplets(unknowns, rows, &transposed).map_err(|e| factor(&e))?;
+    let mut h = sparse_sparse_matmul(jt.as_ref(), j.as_ref(), 1.0, Par::Seq).map_err(|e| factor(&e))?;
+    let col_ptr = h.symbolic().col_ptr().to_vec();
+    let row_idx = h.symbolic().row_idx().to_vec();
+    let mut has_diagonal = vec![false; unknowns];
+    {
+        let values = h.val_mut();
+        for c in 0..unknowns {
+            for p in col_ptr[c]..col_ptr[c + 1] {
+                if row_idx[p] == c {
+                    // Marquardt's scaling: the damping follows each unknown's own curvature,
+                    // so the penalties' large rows do not swamp it.
+                    values[p] += lambda * values[p] + 1e-9;
+                    has_diagonal[c] = true;
+                }
+            }
+        }
+    }
+    if let Some(c) = has_diagonal.iter().position(|d| !d) {
+        return Err(SolveError::Factor(format!("unknown {c} enters no residual")));
+    }
+    let reuse = matches!(symbolic, Some((cp, ri, _)) if *cp == col_ptr && *ri == row_idx);
+    if !reuse {
+        let s = SymbolicLlt::try_new(h.symbolic(), Side::Lower).map_err(|e| factor(&e))?;
+        *symbolic = Some((col_ptr, row_idx, s));
+    }
+    let Some((_, _, s)) = symbolic.as_ref() else { return Err(SolveError::Factor("no symbolic factor".into())) };
+    let llt = Llt::try_new_with_symbolic(s.clone(), h.as_ref(), Side::Lower).map_err(|e| factor(&e))?;
+    let mut rhs = faer::Mat::<f64>::zeros(unknowns, 1);
+    for t in triplets {
+        rhs[(t.col, 0)] -= t.val * residuals[t.row];
+    }
+    faer::linalg::solvers::Solve::solve_in_place(&llt, rhs.as_mut());
+    Ok((0..unknowns).map(|i| rhs[(i, 0)]).collect())
+}
