@@ -92,8 +92,7 @@ fn node_worlds(doc: &gltf::Document, buffers: &[gltf::buffer::Data], frames: usi
                 w[i] = Some(m);
                 m
             }
-            let local =
-                |i: usize, f: usize| Mat4::from_scale_rotation_translation(s[i][f], r[i][f].normalize(), t[i][f]);
+            let local = |i: usize, f: usize| Mat4::from_scale_rotation_translation(s[i][f], r[i][f], t[i][f]);
             (0..nodes.len()).map(|i| resolve(i, f, &parent, &local, &mut world)).collect()
         })
         .collect()

@@ -26,6 +26,8 @@
 //! leg's reach). Between two contacts `d` eases from one plant's value to the next's (a
 //! smoothstep); before the first and after the last it holds theirs, so a swinging foot
 //! keeps the offset of the plants around it instead of dropping into place at touch-down.
+//! [`Ground::AboveFloor`] does the same from the feet's joints, lifting only: a plant's
+//! `d = max(0, floor − min lowest joint)`.
 //! The ankle's goal becomes the clip's ankle plus `c + d·ŷ`; with the foot's world
 //! orientation kept, the sole moves by the same vector. The root moves up or down by the
 //! lower of the two feet's `d` in each frame (the part both share: a rig whose ankles sit
@@ -79,6 +81,13 @@ impl Default for FootLockParams {
 pub enum Ground {
     /// At the clip's heights: only horizontal drift is removed.
     Clip,
+    /// At the clip's heights, but a plant whose lowest joint (ankle or below) goes under
+    /// the floor is lifted by that much: what a blend of two clips' legs needs, where
+    /// interpolated joint angles can shorten a standing leg. Floating plants stay.
+    AboveFloor {
+        /// The floor's height in the clip's metres.
+        floor_height_m: f64,
+    },
     /// With the lowest vertex of each foot's skinned sole on the floor through every contact.
     Soles {
         /// A mesh skinned to the clip's skeleton.
@@ -151,12 +160,16 @@ pub enum FootLockError {
 
 /// Per frame, the vertical move `d(f)` that stands each plant's sole on the floor (see the
 /// module doc), from the sole's lowest height per frame and the foot's contacts.
-fn ground_offsets(sole_m: &[f64], floor_m: f64, intervals: &[FrameRange]) -> Vec<f64> {
+/// With `lift_only` a plant is only ever moved up (never down onto the floor).
+fn ground_offsets(sole_m: &[f64], floor_m: f64, intervals: &[FrameRange], lift_only: bool) -> Vec<f64> {
     let n = sole_m.len();
     let mut plants: Vec<(FrameRange, f64)> = intervals
         .iter()
         .filter(|r| r.end > r.start && r.end <= n)
-        .map(|r| (*r, floor_m - sole_m[r.start..r.end].iter().copied().fold(f64::INFINITY, f64::min)))
+        .map(|r| {
+            let d = floor_m - sole_m[r.start..r.end].iter().copied().fold(f64::INFINITY, f64::min);
+            (*r, if lift_only { d.max(0.0) } else { d })
+        })
         .collect();
     plants.sort_by_key(|p| p.0.start);
     let (Some(&(first, d_first)), Some(&(last, d_last))) = (plants.first(), plants.last()) else {
@@ -224,9 +237,25 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
                 .zip(&contacts.feet)
                 .map(|(sole, foot)| {
                     let sole = sole.ok_or_else(|| FootLockError::NoSole(foot.foot.clone()))?;
-                    Ok(ground_offsets(&sole, *floor_height_m, &foot.intervals))
+                    Ok(ground_offsets(&sole, *floor_height_m, &foot.intervals, false))
                 })
                 .collect::<Result<_, FootLockError>>()?
+        }
+        Ground::AboveFloor { floor_height_m } => {
+            let poses = forward_kinematics(clip);
+            ankles
+                .iter()
+                .zip(&contacts.feet)
+                .map(|(&a, foot)| {
+                    let joints = foot_joints(skeleton, a);
+                    let lowest: Vec<f64> = (0..clip.frame_count())
+                        .map(|f| {
+                            joints.iter().map(|&j| f64::from(poses.position(f, j).y)).fold(f64::INFINITY, f64::min)
+                        })
+                        .collect();
+                    ground_offsets(&lowest, *floor_height_m, &foot.intervals, true)
+                })
+                .collect()
         }
     };
 
@@ -405,15 +434,19 @@ mod tests {
         // it eases from −0.01 to 0.01 by the smoothstep 3u² − 2u³ at u = 1/4, 1/2, 3/4
         // (0.15625, 0.5, 0.84375 of the 0.02 step).
         let sole = [0.03, 0.02, 0.01, 0.02, 0.05, 0.10, 0.05, 0.04, -0.01, -0.02];
-        let d = ground_offsets(&sole, 0.0, &[FrameRange::new(7, 9), FrameRange::new(1, 4)]);
+        let d = ground_offsets(&sole, 0.0, &[FrameRange::new(7, 9), FrameRange::new(1, 4)], false);
         let want = [-0.01, -0.01, -0.01, -0.01, -0.006875, 0.0, 0.006875, 0.01, 0.01, 0.01];
         for (f, (got, want)) in d.iter().zip(want).enumerate() {
             assert!((got - want).abs() < 1e-12, "frame {f}: {got} vs {want}");
         }
         // A raised floor lifts every frame by its height; no plants, no move.
-        let raised = ground_offsets(&sole, 0.5, &[FrameRange::new(7, 9), FrameRange::new(1, 4)]);
+        let raised = ground_offsets(&sole, 0.5, &[FrameRange::new(7, 9), FrameRange::new(1, 4)], false);
         assert!(raised.iter().zip(&d).all(|(r, d)| (r - d - 0.5).abs() < 1e-12));
-        assert_eq!(ground_offsets(&sole, 0.0, &[]), vec![0.0; 10]);
+        assert_eq!(ground_offsets(&sole, 0.0, &[], false), vec![0.0; 10]);
+        // Lifting only: the first plant floats 1 cm and stays; the second is 1 cm under.
+        let lifted = ground_offsets(&sole, 0.0, &[FrameRange::new(7, 9), FrameRange::new(1, 4)], true);
+        assert_eq!(lifted[2], 0.0);
+        assert!((lifted[8] - 0.01).abs() < 1e-12 && (lifted[5] - 0.005).abs() < 1e-12);
     }
 
     #[test]
