@@ -14,11 +14,11 @@ use kinegraph_nodes::builtin::clip_edit::trim;
 use kinegraph_nodes::builtin::ik::gait::{GaitParams, GaitPreset, procedural_gait};
 use kinegraph_nodes::builtin::ik::retarget::{Effectors, RetargetParams, retarget_clip};
 use kinegraph_nodes::builtin::ik::scale::{parse_rules, scale_clip};
-use kinegraph_nodes::builtin::ik::{IkRig, IkSolver, SolveParams};
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
 use kinegraph_nodes::kernels::body::find_landmarks;
 use kinegraph_nodes::kernels::contacts::{ContactThresholds, detect_contacts};
+use kinegraph_nodes::kernels::ik::{IkRig, IkSolver, SolveParams};
 use kinegraph_nodes::kernels::mannequin::mannequin_skeleton;
 use kinegraph_nodes::model::{Joint, Skeleton, forward_kinematics};
 

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use glam::{DVec3, Quat, Vec3};
 use kinegraph_nodes::builtin::barnet::{LoadParams, Selection, build, deform_net};
 use kinegraph_nodes::builtin::ik::retarget::{OnlineRetargeter, RetargetParams};
-use kinegraph_nodes::builtin::ik::{IkRig, IkSolver, SolveParams};
+use kinegraph_nodes::kernels::ik::{IkPose, IkRig, IkSolver, SolveParams};
 use kinegraph_nodes::builtin::pose_space::{PoseDistance, PoseSpaceModel, PoseSpaceParams};
 use kinegraph_nodes::kernels::arm::{SAMPLE_POSES, arm_clip, arm_flex_clip, arm_mesh};
 use kinegraph_nodes::kernels::pose_vector::pose_vector;
@@ -49,7 +49,7 @@ fn goals(t: f64, both_feet: bool) -> Vec<DVec3> {
     if both_feet { vec![left, right] } else { vec![left] }
 }
 
-fn rest_pose(rig: &IkRig) -> kinegraph_nodes::builtin::ik::IkPose {
+fn rest_pose(rig: &IkRig) -> IkPose {
     let rest: Vec<Vec3> = rig.skeleton().joints().iter().map(|j| j.rest_offset).collect();
     rig.pose_from(&vec![Quat::IDENTITY; rest.len()], &rest)
 }

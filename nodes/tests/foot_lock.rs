@@ -5,11 +5,11 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use kinegraph_nodes::builtin::clip_edit::trim;
-use kinegraph_nodes::builtin::ik::foot_lock::{FootLockParams, foot_lock};
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
 use kinegraph_nodes::kernels::body::{find_landmarks, limb_tip};
 use kinegraph_nodes::kernels::contacts::{ContactThresholds, detect_contacts, ground_height};
+use kinegraph_nodes::kernels::ik::foot_lock::{FootLockParams, foot_lock};
 use kinegraph_nodes::model::forward_kinematics;
 
 #[test]

@@ -345,8 +345,8 @@ fn named_feet_find_the_contacts_detection_cannot() {
 /// named feet and toes moves every joint exactly as locking it on the original Xbot does.
 #[test]
 fn named_toes_lock_like_the_original() {
-    use kinegraph_nodes::builtin::ik::foot_lock::{FootLockParams, foot_lock};
     use kinegraph_nodes::kernels::contacts::{ContactThresholds, NamedFeet, contacts_of, contacts_with};
+    use kinegraph_nodes::kernels::ik::foot_lock::{FootLockParams, foot_lock};
     let Some(Setup { walk, xbot }) = setup() else { return };
     let (_, _, original) = carry(&walk, (*xbot).clone());
     let clip = original.clip.slice(0, 120);

@@ -9,13 +9,13 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use kinegraph_nodes::builtin::clip_edit::trim;
-use kinegraph_nodes::builtin::ik::foot_lock::planted_travel_m;
-use kinegraph_nodes::builtin::ik::retarget::{Effectors, PelvisTask, Plants, RetargetParams, retarget_clip};
+use kinegraph_nodes::builtin::ik::retarget::{Effectors, PelvisTask, RetargetParams, retarget_clip};
 use kinegraph_nodes::builtin::ik::scale::{parse_rules, scale_clip};
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
 use kinegraph_nodes::kernels::body::{find_landmarks, limb_tip};
 use kinegraph_nodes::kernels::contacts::{ContactThresholds, detect_contacts, ground_height};
+use kinegraph_nodes::kernels::ik::foot_lock::{Plants, planted_travel_m};
 use kinegraph_nodes::model::{Clip, Contacts, forward_kinematics};
 
 /// Horizontal travel of each foot's toe tip summed over the contact frames where the toe is

@@ -54,6 +54,9 @@ pub enum ConcatError {
     /// Building a clip failed.
     #[error(transparent)]
     Clip(#[from] ClipError),
+    /// The feet could not be held after the blend.
+    #[error("the foot clean-up after the blend failed: {0} (set foot_lock off to skip it)")]
+    FootLock(String),
 }
 
 /// Concatenation result: the clip and the report of every decision.

@@ -20,8 +20,10 @@
 //! | ground / flight stages, ballistic gravity fit | [`stages`] |
 //! | momentum pre-fit: flight lines, ground B-splines | [`momentum_splines`] |
 //! | ground-stage edits, the naive edit (initial guess), edit measures | [`momentum_edit`] |
+//! | IK rig, weighted Jacobian solver, foot lock | [`ik`] |
 //! | resampling | [`resample`] |
 //! | skinning matrices, LBS, automatic weights | [`skinning`] |
+//! | skinned soles: the lowest vertex of each foot per frame | [`soles`] |
 //! | pose vectors | [`pose_vector`] |
 //! | generated figures (arm, mannequin) | [`arm`], [`mannequin`] |
 //! | loading clips, meshes and clip sets | [`load`], [`clip_set`] |
@@ -38,6 +40,7 @@ pub mod body;
 pub mod clip_set;
 pub mod contacts;
 pub mod fluid;
+pub mod ik;
 pub mod join;
 pub mod load;
 pub mod mannequin;
@@ -51,5 +54,6 @@ pub mod quality;
 pub mod resample;
 pub mod roles;
 pub mod skinning;
+pub mod soles;
 pub mod stages;
 pub mod transition_graph;

@@ -47,7 +47,8 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 use super::contacts::{ContactThresholds, contacts_of};
-use super::skinning::{blend_matrices, check_skin, clip_skinning_matrices};
+use super::skinning::SkinError;
+use super::soles::{foot_joints, lowest_sole_heights};
 use crate::model::{Clip, Contacts, FrameRange, Mesh, forward_kinematics};
 
 /// A foot more than this far under the floor (metres) counts as below it: capture noise
@@ -306,7 +307,7 @@ fn feet_of(clip: &Clip, contacts: &Contacts, window: FrameRange, findings: &mut 
                 findings.push(format!("the contacts name a foot '{}' the clip's skeleton lacks", c.foot));
                 return None;
             };
-            let joints = (0..skeleton.len()).filter(|&j| j == ankle || skeleton.is_ancestor(ankle, j)).collect();
+            let joints = foot_joints(skeleton, ankle);
             let intervals = c.intervals.iter().filter_map(|r| r.intersect(&window)).collect();
             Some(Foot { name: c.foot.clone(), joints, intervals })
         })
@@ -332,36 +333,24 @@ fn lowest_heights(
         .collect();
     let joints_only = vec![false; feet.len()];
     let Some(mesh) = mesh else { return (lowest, joints_only) };
-    let Some(skin) = mesh.skin.as_ref() else {
-        findings.push("the mesh is not skinned, so its soles are not measured".into());
-        return (lowest, joints_only);
+    let joint_sets: Vec<Vec<usize>> = feet.iter().map(|f| f.joints.clone()).collect();
+    let soles = match lowest_sole_heights(clip, mesh, &joint_sets) {
+        Ok(soles) => soles,
+        Err(SkinError::NotSkinned) => {
+            findings.push("the mesh is not skinned, so its soles are not measured".into());
+            return (lowest, joints_only);
+        }
+        Err(why) => {
+            findings.push(format!("the mesh's soles are not measured: {why}"));
+            return (lowest, joints_only);
+        }
     };
-    if let Err(why) = check_skin(skin, clip.skeleton(), mesh.positions.len()) {
-        findings.push(format!("the mesh's soles are not measured: {why}"));
-        return (lowest, joints_only);
-    }
-    let heaviest = |v: usize| {
-        let (joints, weights) = (&skin.joints[v], &skin.weights[v]);
-        (0..4).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).map(|k| usize::from(joints[k]))
-    };
-    let soles: Vec<Vec<usize>> = feet
-        .iter()
-        .map(|foot| {
-            (0..mesh.positions.len()).filter(|&v| heaviest(v).is_some_and(|j| foot.joints.contains(&j))).collect()
-        })
-        .collect();
-    let matrices = clip_skinning_matrices(clip, skin);
-    let joints = clip.joint_count();
     for (per_frame, sole) in lowest.iter_mut().zip(&soles) {
-        for (f, low) in per_frame.iter_mut().enumerate() {
-            let frame_matrices = &matrices[f * joints..(f + 1) * joints];
-            for &v in sole {
-                let m = blend_matrices(frame_matrices, &skin.joints[v], &skin.weights[v]);
-                *low = low.min(f64::from(m.transform_point3(mesh.positions[v]).y));
-            }
+        for (low, sole_low) in per_frame.iter_mut().zip(sole.iter().flatten()) {
+            *low = low.min(*sole_low);
         }
     }
-    (lowest, soles.iter().map(|s| !s.is_empty()).collect())
+    (lowest, soles.iter().map(Option::is_some).collect())
 }
 
 /// The sum of the skates (cm), 0 for none (an empty float sum is −0).

@@ -62,9 +62,8 @@ use std::sync::Arc;
 use glam::{DQuat, DVec3, Quat, Vec3};
 use serde_json::json;
 
-use super::rig::{DofKind, IkRig, RigError};
-use super::solve::{IkSolver, SolveParams};
 use crate::kernels::body::{find_legs, limb_tip};
+use crate::kernels::ik::{DofKind, IkRig, IkSolver, RigError, SolveParams};
 use crate::kernels::mannequin::mannequin_skeleton;
 use crate::math::smoothstep;
 use crate::model::fk::{forward_kinematics, rest_world};

@@ -1,17 +1,13 @@
-//! Inverse kinematics and what is built on it: the weighted Jacobian solver and the
-//! procedural walk (Meredith & Maddock), online retargeting (Choi & Ko 2000) and skeleton
+//! The IK nodes (the solver, rig and foot lock are in [`crate::kernels::ik`]): `ik.solve`,
+//! the foot lock, the procedural walk (Meredith & Maddock), online retargeting (Choi & Ko 2000) and skeleton
 //! edits to make test characters.
 
-pub mod rig;
-pub mod solve;
-
-pub use rig::{Dof, DofKind, IkPose, IkRig, RigError};
-pub use solve::{IkSolver, SolveParams, SolveReport};
 pub mod foot_lock;
 pub mod gait;
 pub mod map;
 pub mod retarget;
 pub mod scale;
+pub mod solve;
 
 use std::sync::Arc;
 

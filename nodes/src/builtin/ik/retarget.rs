@@ -24,12 +24,12 @@ use nalgebra::DVector;
 
 use std::f64::consts::PI;
 
-use super::rig::{DofKind, IkPose, IkRig};
 use super::scale;
-use super::solve::IkSolver;
 use crate::kernels::body::{find_landmarks, limb_tip};
+use crate::kernels::ik::foot_lock::Plants;
+use crate::kernels::ik::{DofKind, IkPose, IkRig, IkSolver};
 use crate::model::fk::pose_world;
-use crate::model::{Clip, Contacts, FootContacts, FrameRange, Skeleton, Transform};
+use crate::model::{Clip, Contacts, FootContacts, Skeleton, Transform};
 use crate::node::into_report;
 use crate::node::{ChoiceParam, FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Report};
 use serde_json::json;
@@ -241,7 +241,7 @@ pub enum RetargetError {
     Landmarks(String),
     /// Building the rig failed.
     #[error(transparent)]
-    Rig(#[from] super::rig::RigError),
+    Rig(#[from] crate::kernels::ik::RigError),
     /// Building the clip failed.
     #[error(transparent)]
     Clip(#[from] crate::model::ClipError),
@@ -371,45 +371,6 @@ pub fn retarget_clip(
     Ok(Retargeted { clip, frames: reports, effectors: effector_joints })
 }
 
-/// Where a point is planted during each contact of one foot, and how strongly at a frame.
-///
-/// The place is the point's horizontal position at the frame of the interval where it is
-/// lowest (the moment it is surely down: contacts begin at heel strike, while the toe may
-/// still be moving). The weight ramps linearly from 0 to 1 over `blend` frames at both
-/// edges of the interval, so goals do not jump.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Plants {
-    spans: Vec<(FrameRange, DVec3)>,
-    blend: usize,
-}
-
-impl Plants {
-    /// The planted places of joint `point` of `clip` over `intervals`.
-    pub fn new(clip: &Clip, point: usize, intervals: &[FrameRange], blend: usize) -> Self {
-        let mut world = vec![Transform::IDENTITY; clip.joint_count()];
-        let mut at = |f: usize| {
-            pose_world(clip.skeleton(), clip.frame_rotations(f), clip.frame_translations(f), &mut world);
-            world[point].translation.as_dvec3()
-        };
-        let spans = intervals
-            .iter()
-            .filter(|r| r.end > r.start && r.end <= clip.frame_count())
-            .map(|r| {
-                let place = (r.start..r.end).map(&mut at).min_by(|a, b| a.y.total_cmp(&b.y)).unwrap_or_default();
-                (*r, place)
-            })
-            .collect();
-        Plants { spans, blend: blend.max(1) }
-    }
-
-    /// The planted place and its weight in (0, 1] at `frame`, if the point is planted.
-    pub fn at(&self, frame: usize) -> Option<(DVec3, f64)> {
-        let (r, place) = self.spans.iter().find(|(r, _)| r.contains(frame))?;
-        let from_edge = (frame - r.start + 1).min(r.end - frame);
-        Some((*place, (from_edge as f64 / self.blend as f64).min(1.0)))
-    }
-}
-
 const SOURCE: Input<Arc<Clip>> = Input::required("source", "The captured motion to carry over.");
 const TARGET: Input<Arc<Clip>> = Input::required(
     "target",
@@ -529,7 +490,7 @@ impl Node for RetargetOnline {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::Joint;
+    use crate::model::{FrameRange, Joint};
 
     /// A long synthetic stream (a leg swinging for 100 000 frames): the filter's buffers do
     /// not grow, and it keeps tracking.

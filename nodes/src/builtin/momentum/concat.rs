@@ -20,6 +20,12 @@
 //! 5. Blend linearly (eq. 8; slerp for rotations), then rescale time over the window by s
 //!    (eq. 9), read here as the mean of the end magnitudes over the window's mean |L| —
 //!    the norm of the sum the paper prints vanishes under the reverse rule.
+//! 6. The paper's clean-up: blending two clips' legs makes planted feet slide, so the feet
+//!    in contact (detected on the result) during every plant that touches the window are
+//!    held where they were put down by the foot lock ([`crate::kernels::ik::foot_lock`]):
+//!    the whole plant, so a foot is never released mid-plant; a planted foot the blend puts
+//!    under the floor (y = 0) is lifted onto it. Frames outside those plants are the clips'
+//!    own ([`ConcatParams::foot_lock`] turns it off).
 
 use std::sync::Arc;
 
@@ -28,9 +34,11 @@ use serde_json::json;
 
 use crate::kernels::align::{Rule, alignment_yaw, facing_difference, place, torso_facing, yaw_rotation};
 use crate::kernels::analysis::{Analysis, AnalysisOptions, analyse};
+use crate::kernels::contacts::contacts_of;
+use crate::kernels::ik::foot_lock::{FootLockParams, Ground, foot_lock};
 use crate::kernels::join::{ConcatError, Concatenated, foot_skate_m, same_skeleton, splice};
 use crate::kernels::resample::push_sample;
-use crate::model::{Clip, ClipError, FrameRange, into_report};
+use crate::model::{Clip, ClipError, Contacts, FootContacts, FrameRange, forward_kinematics, into_report};
 
 /// Which frames of the blendable periods may be blended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,6 +95,8 @@ pub struct ConcatParams {
     /// and then the blend also stays clear of each action's effector apex (a kick's toe at
     /// its highest), running on into the first clip's posterior phase if it must.
     pub min_peak_gap_secs: f64,
+    /// Hold the feet planted through the plants that touch the blend window (step 6).
+    pub foot_lock: bool,
 }
 
 impl Default for ConcatParams {
@@ -101,8 +111,25 @@ impl Default for ConcatParams {
             max_facing_rad: std::f64::consts::FRAC_PI_4,
             time_scale_range: (0.5, 2.0),
             min_peak_gap_secs: 0.0,
+            foot_lock: true,
         }
     }
+}
+
+/// The floor the clean-up keeps planted feet above, metres (the corpus's ground).
+const FLOOR_HEIGHT_M: f64 = 0.0;
+
+/// The contacts of `contacts` that overlap `window`, whole; the others dropped.
+fn plants_touching(contacts: &Contacts, window: FrameRange) -> Contacts {
+    let feet = contacts
+        .feet
+        .iter()
+        .map(|c| FootContacts {
+            foot: c.foot.clone(),
+            intervals: c.intervals.iter().filter(|r| r.intersect(&window).is_some()).copied().collect(),
+        })
+        .collect();
+    Contacts { feet, double_support: Vec::new(), ..contacts.clone() }
 }
 
 /// One way to pair the clips' blendable periods.
@@ -608,6 +635,25 @@ pub fn concatenate(
         (blended, blended_analysis)
     };
     let window_out = FrameRange::new(f0, f0 + new_len + 1);
+    // 6. Feet held through the plants the blend touches.
+    let plants = if params.foot_lock {
+        let (detected, _) = contacts_of(&out, &forward_kinematics(&out), &options.contacts)
+            .map_err(|e| ConcatError::FootLock(e.to_string()))?;
+        plants_touching(&detected, window_out)
+    } else {
+        Contacts { feet: Vec::new(), double_support: Vec::new(), fps, frame_count: out.frame_count() }
+    };
+    let locked_plants: usize = plants.feet.iter().map(|c| c.intervals.len()).sum();
+    let (out, result) = if locked_plants > 0 {
+        let ground = Ground::AboveFloor { floor_height_m: FLOOR_HEIGHT_M };
+        let locked = foot_lock(&out, &plants, &FootLockParams { ground, ..FootLockParams::default() })
+            .map_err(|e| ConcatError::FootLock(e.to_string()))?;
+        let out = Arc::new(locked.clip);
+        let result = a.reanalysed(out.clone(), options);
+        (out, result)
+    } else {
+        (out, result)
+    };
     let skate = foot_skate_m(&result, window_out, options.contacts.enter_height_m);
     let secs = |frames: f64| frames / fps;
     let report = json!({
@@ -644,6 +690,7 @@ pub fn concatenate(
         "peak_momentum_second": b.smoothed_peak(),
         "peak_momentum_in_blend": peak_in(&result, window_out),
         "foot_skate_in_blend_m": skate,
+        "plants_locked": locked_plants,
     });
     Ok(Concatenated { clip: Arc::unwrap_or_clone(out), report: into_report(report) })
 }

@@ -432,6 +432,13 @@ const MIN_GAP: FloatParam = FloatParam::new(
     60.0,
     "s",
 );
+const FOOT_LOCK: ChoiceParam = ChoiceParam::new(
+    "foot_lock",
+    "The paper's clean-up after the blend: feet planted during the blend (whole plants touching the window) are \
+     held where they were put down by the foot lock's IK, so the blended legs do not slide them ('off' keeps the raw blend).",
+    &["on", "off"],
+    "on",
+);
 const W_DM: FloatParam = FloatParam::new("weight_momentum", "Weight of F_dm (eq. 4).", 1.0, 0.0, 1e6, "");
 const W_INERTIA: FloatParam = FloatParam::new("weight_inertia", "Weight of F_inertia (eq. 6).", 1.0, 0.0, 1e6, "");
 const W_TIME: FloatParam = FloatParam::new("weight_time", "Weight of F_time (eq. 7).", 1.0, 0.0, 1e6, "");
@@ -464,6 +471,7 @@ static CONCAT: NodeSchema = NodeSchema {
         MIN_SCALE.0,
         MAX_SCALE.0,
         MIN_GAP.0,
+        FOOT_LOCK.0,
         W_DM.0,
         W_INERTIA.0,
         W_TIME.0,
@@ -473,7 +481,7 @@ static CONCAT: NodeSchema = NodeSchema {
         SMOOTHING.0,
     ],
     writes_files: false,
-    version: 1,
+    version: 2,
 };
 
 fn set_joined(ctx: &mut NodeContext<'_>, joined: Concatenated) {
@@ -519,6 +527,7 @@ impl Node for Concat {
             max_facing_rad: ctx.float(&MAX_FACING)?.to_radians(),
             time_scale_range: (ctx.float(&MIN_SCALE)?, ctx.float(&MAX_SCALE)?),
             min_peak_gap_secs: ctx.float(&MIN_GAP)?,
+            foot_lock: ctx.choice(&FOOT_LOCK)? == "on",
         };
         ctx.check_cancelled()?;
         let joined = concatenate(&a, &b, &params, &options).map_err(|e| NodeError::Failed(e.to_string()))?;
