@@ -12,6 +12,7 @@ pub mod ik;
 pub mod mannequin;
 pub mod mesh_io;
 pub mod momentum;
+pub mod physics;
 pub mod pose_space;
 pub mod quality;
 pub mod scalar;
@@ -43,6 +44,7 @@ pub fn register(registry: &mut Registry) {
     barnet::register(registry);
     transitions::register(registry);
     quality::register(registry);
+    physics::register(registry);
 }
 
 #[cfg(test)]
