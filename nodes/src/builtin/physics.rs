@@ -31,17 +31,15 @@ const SCRIPT: InputPathParam = InputPathParam::new(
      upper_arm, forearm, hand.",
     &["ron"],
 );
-const FRAME: IntParam =
-    IntParam::optional("frame", "Frame of the clip used as the initial pose; unset stands the rest pose.", 0, 10_000_000);
-const FPS: FloatParam = FloatParam::new("fps", "Frame rate of the simulated clip.", 30.0, 1.0, 1000.0, "fps");
-const DT: FloatParam = FloatParam::new(
-    "dt_secs",
-    "Physics time step (stable from 1/2000 to 1/60 s).",
-    1.0 / 300.0,
-    1e-6,
-    1.0,
-    "s",
+const FRAME: IntParam = IntParam::optional(
+    "frame",
+    "Frame of the clip used as the initial pose; unset stands the rest pose.",
+    0,
+    10_000_000,
 );
+const FPS: FloatParam = FloatParam::new("fps", "Frame rate of the simulated clip.", 30.0, 1.0, 1000.0, "fps");
+const DT: FloatParam =
+    FloatParam::new("dt_secs", "Physics time step (stable from 1/2000 to 1/60 s).", 1.0 / 300.0, 1e-6, 1.0, "s");
 const MASS: FloatParam = FloatParam::new("total_mass_kg", "Body mass of the character.", 75.0, 20.0, 300.0, "kg");
 
 const OUT: Output<Arc<Clip>> = Output::new("clip", "The simulated motion, on the input skeleton, at `fps`.");

@@ -255,7 +255,9 @@ pub fn energy_bound_j(figure: &Figure, script: &Script, gravity_m_s2: f32) -> f3
     let pushes: f32 = script
         .pushes
         .iter()
-        .filter_map(|p| figure.body_index(&p.body).map(|b| p.impulse_ns * p.impulse_ns / (2.0 * figure.bodies[b].mass_kg)))
+        .filter_map(|p| {
+            figure.body_index(&p.body).map(|b| p.impulse_ns * p.impulse_ns / (2.0 * figure.bodies[b].mass_kg))
+        })
         .sum();
     10.0 * (fall + pushes)
 }
@@ -288,7 +290,11 @@ pub fn stage(skeleton: &Skeleton, pose: Option<(&[Quat], &[Vec3])>, params: &Sim
     let mut stand = Targets::rest(&figure);
     if let Some((rotations, translations)) = pose {
         if rotations.len() != skeleton.len() || translations.len() != skeleton.len() {
-            return Err(SimError::Pose(format!("{} joints posed, the skeleton has {}", rotations.len(), skeleton.len())));
+            return Err(SimError::Pose(format!(
+                "{} joints posed, the skeleton has {}",
+                rotations.len(),
+                skeleton.len()
+            )));
         }
         let (rot, pos) = figure.body_poses(skeleton, rotations, translations);
         for (i, body) in figure.bodies.iter().enumerate() {
@@ -428,7 +434,8 @@ pub fn simulate(
             return Err(SimError::BlowUp { time_secs: t, what });
         }
         min_head = min_head.min(state.head_clearance_m);
-        while body_frames.len() < frames && f64::from(t) + 0.5 * f64::from(dt) >= body_frames.len() as f64 / params.fps {
+        while body_frames.len() < frames && f64::from(t) + 0.5 * f64::from(dt) >= body_frames.len() as f64 / params.fps
+        {
             cancel.check().map_err(|_| SimError::Cancelled)?;
             body_frames.push((state.body_rot.clone(), state.body_pos.clone()));
             samples.push(sample(&state));
@@ -518,7 +525,8 @@ fn clip_of(
         for (j, joint) in joints.iter().enumerate() {
             match joint.parent {
                 Some(p) => {
-                    rotations.push(crate::math::quat_normalize_or_identity(world[p].rotation.inverse() * world[j].rotation));
+                    rotations
+                        .push(crate::math::quat_normalize_or_identity(world[p].rotation.inverse() * world[j].rotation));
                     translations.push(joint.rest_offset);
                 }
                 None => {

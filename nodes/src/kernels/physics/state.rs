@@ -80,7 +80,8 @@ impl FigureState {
                     let mut sum = Vec3::ZERO;
                     for sx in [-1.0, 1.0] {
                         for sz in [-1.0, 1.0] {
-                            let local = centre + rotation * Vec3::new(sx * half_extents.x, -half_extents.y, sz * half_extents.z);
+                            let local = centre
+                                + rotation * Vec3::new(sx * half_extents.x, -half_extents.y, sz * half_extents.z);
                             let w = p + q * local;
                             sum += w;
                             if w.y < CONTACT_HEIGHT_M {
@@ -166,7 +167,8 @@ pub fn convex_hull(points: &[Vec2]) -> Vec<Vec2> {
     let mut hull: Vec<Vec2> = Vec::with_capacity(2 * p.len());
     for pass in 0..2 {
         let start = hull.len();
-        let iter: Box<dyn Iterator<Item = &Vec2>> = if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
+        let iter: Box<dyn Iterator<Item = &Vec2>> =
+            if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
         for &v in iter {
             while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], v) <= 0.0 {
                 hull.pop();

@@ -1,18 +1,19 @@
 //! Balance: the inverted-pendulum ankle strategy with a hip strategy on top (the paper's
 //! balance controller, after Pai & Patton's region of balance without stepping).
 //!
-//! The legs hold the posture they had when balance took over (so it also balances after a
-//! protective step, feet apart); the ankles lean the body away from the capture point's
+//! The hips and ankles hold the posture they had when balance took over (so it also
+//! balances after a protective step, feet apart) and the knees straighten; the ankles lean the body away from the capture point's
 //! offset `u = ξ − c` (ξ the LIPM capture point, c the support centroid), proportionally:
 //! `θ_ankle = k_ankle·u` (clamped), and the hips add `k_hip·u` once `|u|` exceeds what the
 //! ankles can hold. Leaning the shanks by θ moves the COM by about `h·θ` and makes the
 //! ankle motors push the centre of pressure towards ξ, which is what brings ξ (and the COM)
 //! back over the support.
 //!
-//! Pre-condition: both feet down, trunk within 20° of vertical, COM at least 85 % of its
-//! standing height, capture point inside the support polygon. Expected performance: the
-//! capture point stays within [`FAIL_OUTSIDE_M`] of the polygon, both feet stay down and
-//! the trunk within 30°; no post-condition (balance holds until a request or a failure).
+//! Pre-condition: both feet down, trunk within 30° of vertical, COM at least 70 % of its
+//! standing height (a knee may still be bent after a step), capture point within
+//! [`ENTER_OUTSIDE_M`] of the support polygon. Expected performance: the
+//! capture point stays within [`FAIL_OUTSIDE_M`] of the polygon, no foot is off the ground
+//! for longer than [`FOOT_OFF_SECS`], the trunk stays within 40° and the COM above 60 %; no post-condition (balance holds until a request or a failure).
 
 use glam::Quat;
 
@@ -29,6 +30,9 @@ pub const K_HIP: f32 = 3.0;
 pub const HIP_FROM_M: f32 = 0.03;
 /// Largest ankle lean, radians.
 pub const MAX_ANKLE_RAD: f32 = 0.25;
+/// Balance takes over while the capture point is at most this far outside the support
+/// polygon, metres (a protective step ends within it).
+pub const ENTER_OUTSIDE_M: f32 = 0.01;
 /// Balance fails when the capture point is this far outside the support polygon, metres.
 pub const FAIL_OUTSIDE_M: f32 = 0.02;
 
@@ -36,15 +40,20 @@ pub const FAIL_OUTSIDE_M: f32 = 0.02;
 #[derive(Default)]
 pub struct Balance {
     hold: Option<Targets>,
+    /// Since when a foot has been off the ground, seconds.
+    foot_off_since: Option<f32>,
 }
 
-/// Whether the state is inside balance's region: both feet down, trunk upright, COM high,
-/// capture point inside the support (by `margin_m`).
-pub fn balanced(state: &FigureState, ctx: &ControlContext<'_>, margin_m: f32, tilt_cos: f32) -> bool {
-    state.foot_down[0]
-        && state.foot_down[1]
-        && state.trunk_upright > tilt_cos
-        && state.com.y > 0.85 * ctx.standing_com_height_m
+/// A foot may be off the ground this long (a trailing heel after a step) before balance
+/// declares failure, seconds.
+pub const FOOT_OFF_SECS: f32 = 0.2;
+
+/// Whether the state is inside balance's region: trunk within `acos(tilt_cos)` of vertical,
+/// COM above `height` times its standing height, capture point inside the support (by
+/// `margin_m`); the feet are checked by the caller.
+pub fn balanced(state: &FigureState, ctx: &ControlContext<'_>, margin_m: f32, tilt_cos: f32, height: f32) -> bool {
+    state.trunk_upright > tilt_cos
+        && state.com.y > height * ctx.standing_com_height_m
         && state.capture_distance_m < margin_m
 }
 
@@ -56,23 +65,29 @@ impl Controller for Balance {
         30
     }
     fn bid(&self, state: &FigureState, ctx: &ControlContext<'_>) -> u32 {
-        if balanced(state, ctx, 0.0, 20f32.to_radians().cos()) { BID_CAN_REACH } else { 0 }
+        let feet = state.foot_down[0] && state.foot_down[1];
+        if feet && balanced(state, ctx, ENTER_OUTSIDE_M, 30f32.to_radians().cos(), 0.7) { BID_CAN_REACH } else { 0 }
     }
     fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
-        // Legs keep their current posture; trunk, arms and head go back to standing.
+        // Hips and ankles keep their current posture (feet where a step put them), knees
+        // straighten to standing; trunk, arms and head go back to standing.
         let mut hold = ctx.stand.clone();
         for (i, b) in ctx.figure.bodies.iter().enumerate() {
-            if matches!(b.role, BodyRole::Thigh | BodyRole::Shank | BodyRole::Foot) {
+            if matches!(b.role, BodyRole::Thigh | BodyRole::Foot) {
                 hold.angles[i] = state.joint_coords[i];
             }
         }
         self.hold = Some(hold);
+        self.foot_off_since = None;
     }
     fn control(&mut self, state: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
-        if !balanced(state, ctx, FAIL_OUTSIDE_M, 30f32.to_radians().cos()) {
-            return Status::Failed(if !(state.foot_down[0] && state.foot_down[1]) {
-                "a foot left the ground".into()
-            } else if state.capture_distance_m >= FAIL_OUTSIDE_M {
+        if state.foot_down[0] && state.foot_down[1] {
+            self.foot_off_since = None;
+        } else if state.time_secs - *self.foot_off_since.get_or_insert(state.time_secs) > FOOT_OFF_SECS {
+            return Status::Failed("a foot left the ground".into());
+        }
+        if !balanced(state, ctx, FAIL_OUTSIDE_M, 40f32.to_radians().cos(), 0.6) {
+            return Status::Failed(if state.capture_distance_m >= FAIL_OUTSIDE_M {
                 format!("capture point {:.3} m outside the support", state.capture_distance_m)
             } else {
                 "the trunk tilted or the body sank".into()

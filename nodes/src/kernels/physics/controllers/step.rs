@@ -3,7 +3,8 @@
 //! capture point the COM comes to rest above it).
 //!
 //! The swing foot is the one on the capture point's side (no crossover steps). Its sole
-//! follows a smoothstep from where it was to the capture point (plus a small overshoot)
+//! follows a smoothstep from where it was to the capture point (plus a small overshoot;
+//! the target follows the moving capture point for most of the swing)
 //! over [`SWING_SECS`], lifted by `LIFT_M·sin(π·s)`; the leg's hip and knee angles come
 //! from the two-link inverse kinematics of the thigh and shank lengths, the knee pointing
 //! forward. The stance hip keeps the pelvis upright; the swing foot is kept level.
@@ -23,19 +24,30 @@ use crate::kernels::physics::state::FigureState;
 use crate::math::smoothstep;
 
 /// Swing duration, seconds.
-pub const SWING_SECS: f32 = 0.3;
+pub const SWING_SECS: f32 = 0.35;
 /// Swing foot clearance at mid-swing, metres.
-pub const LIFT_M: f32 = 0.08;
+pub const LIFT_M: f32 = 0.15;
 /// Farthest step, in leg lengths from the stance sole to the capture point.
 pub const REACH: f32 = 0.9;
-/// Capture point tolerance outside the new support at landing, metres.
-pub const LAND_MARGIN_M: f32 = 0.05;
+/// Capture point tolerance outside the new support at landing, metres: balance's entry
+/// margin, so the step's post-condition is inside balance's pre-condition.
+pub const LAND_MARGIN_M: f32 = crate::kernels::physics::controllers::balance::ENTER_OUTSIDE_M;
 /// The step fails when the foot is not down after this long, seconds.
 pub const TIMEOUT_SECS: f32 = 0.8;
-/// The target lies this share further along the COM → capture point line than ξ itself.
-pub const OVERSHOOT: f32 = 0.15;
+/// The swing foot moves by this multiple of the capture point's offset from the support
+/// centre.
+pub const STEP_GAIN: f32 = 2.0;
 /// Closest the swing sole may land to the stance sole, sideways, metres.
 pub const MIN_WIDTH_M: f32 = 0.12;
+/// Gain multiplier on the swing leg's joints, so the foot tracks its path in time.
+pub const SWING_GAIN: f32 = 3.0;
+/// The swing path is read this far ahead, seconds: the PD motors follow their targets
+/// with a lag of about kd/kp (≈ 0.07 s for the leg gains), which this compensates.
+pub const LEAD_SECS: f32 = 0.1;
+/// The target follows the capture point during this share of the swing.
+pub const RETARGET_UNTIL: f32 = 0.7;
+/// The swing foot counts as lifted once its sole centre is this high, metres.
+pub const LIFTED_M: f32 = 0.025;
 
 /// The protective step controller.
 #[derive(Default)]
@@ -49,6 +61,8 @@ struct Plan {
     swing: usize,
     from: Vec3,
     to: Vec3,
+    /// Support centroid at activation.
+    centre: Vec2,
     /// The swing foot has left the ground.
     lifted: bool,
 }
@@ -65,12 +79,22 @@ pub fn choose_feet(state: &FigureState, ctx: &ControlContext<'_>) -> (usize, usi
     (swing, 1 - swing)
 }
 
-/// Where the swing sole is put: ξ pushed [`OVERSHOOT`] further from the COM, kept at least
-/// [`MIN_WIDTH_M`] to the swing side of the stance sole.
-pub fn step_target(state: &FigureState, ctx: &ControlContext<'_>, swing: usize, stance: usize) -> Vec2 {
+/// Where the swing sole is put: moved from where it was by [`STEP_GAIN`] times the
+/// capture point's offset from `centre` (the double-support centroid before the step), so
+/// the stance keeps its width and the new support polygon reaches past ξ (moving one of two
+/// feet by D moves the polygon's edge between them by about D/2 at the middle); never
+/// closer than [`MIN_WIDTH_M`] sideways to the stance sole.
+/// `from` is where the swing sole was at the step's start.
+pub fn step_target(
+    state: &FigureState,
+    ctx: &ControlContext<'_>,
+    (swing, stance): (usize, usize),
+    from: Vec3,
+    centre: Vec2,
+) -> Vec2 {
     let (_, left) = facing(state, ctx);
-    let xi = state.capture_point;
-    let mut t = xi + (xi - state.com_xz()) * OVERSHOOT;
+    let from = Vec2::new(from.x, from.z);
+    let mut t = from + (state.capture_point - centre) * STEP_GAIN;
     let stance_xz = Vec2::new(state.sole_centre[stance].x, state.sole_centre[stance].z);
     let l = Vec2::new(left.x, left.z);
     let sign = if (state.sole_centre[swing] - state.sole_centre[stance]).dot(left) >= 0.0 { 1.0 } else { -1.0 };
@@ -103,24 +127,41 @@ impl Controller for Step {
     }
     fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
         let (swing, stance) = choose_feet(state, ctx);
-        let to = step_target(state, ctx, swing, stance);
+        let centre = state.support_centre();
         let from = state.sole_centre[swing];
-        self.plan =
-            Some(Plan { start_secs: state.time_secs, swing, from, to: Vec3::new(to.x, from.y, to.y), lifted: false });
+        let to = step_target(state, ctx, (swing, stance), from, centre);
+        self.plan = Some(Plan {
+            start_secs: state.time_secs,
+            swing,
+            from,
+            to: Vec3::new(to.x, from.y, to.y),
+            centre,
+            lifted: false,
+        });
     }
     fn control(&mut self, state: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
         let Some(plan) = self.plan.as_mut() else { return Status::Failed("not activated".into()) };
-        plan.lifted |= !state.foot_down[plan.swing];
+        plan.lifted |= !state.foot_down[plan.swing] || state.sole_centre[plan.swing].y > LIFTED_M;
+        // The capture point keeps moving while the figure pivots on one foot: follow it
+        // until the last part of the swing.
+        if state.time_secs - plan.start_secs < RETARGET_UNTIL * SWING_SECS {
+            let to = step_target(state, ctx, (plan.swing, 1 - plan.swing), plan.from, plan.centre);
+            plan.to = Vec3::new(to.x, plan.from.y, to.y);
+        }
         let plan = *plan;
         let tau = state.time_secs - plan.start_secs;
         if state.trunk_upright < 50f32.to_radians().cos() {
             return Status::Failed("the trunk tilted past 50°".into());
         }
-        if plan.lifted && tau > 0.5 * SWING_SECS && state.foot_down[plan.swing] {
+        let landed = state.foot_down[plan.swing] && state.sole_centre[plan.swing].y < 0.5 * LIFTED_M;
+        if plan.lifted && tau > 0.6 * SWING_SECS && landed {
             return if state.capture_distance_m < LAND_MARGIN_M {
                 Status::Succeeded
             } else {
-                Status::Failed(format!("capture point {:.3} m outside the support after the step", state.capture_distance_m))
+                Status::Failed(format!(
+                    "capture point {:.3} m outside the support after the step",
+                    state.capture_distance_m
+                ))
             };
         }
         if tau > TIMEOUT_SECS {
@@ -133,8 +174,9 @@ impl Controller for Step {
         };
         // Sole path: smoothstep in the plane, a sine arch up; aim past the end so the
         // foot is driven down onto the ground.
-        let s = smoothstep(f64::from((tau / SWING_SECS).min(1.0))) as f32;
-        let lift = if tau < SWING_SECS { LIFT_M * (std::f32::consts::PI * s).sin() } else { -0.03 };
+        let ahead = tau + LEAD_SECS;
+        let s = smoothstep(f64::from((ahead / SWING_SECS).min(1.0))) as f32;
+        let lift = if ahead < SWING_SECS { LIFT_M * (std::f32::consts::PI * s).sin() } else { -0.03 };
         let sole = plan.from.lerp(plan.to, s) + Vec3::Y * lift;
         // Two-link IK from the hip (the thigh body's origin) to the ankle (the foot's).
         let fig = ctx.figure;
@@ -157,9 +199,8 @@ impl Controller for Step {
         // Stance hip: the pelvis upright means the thigh relative to it is the thigh's own
         // current world rotation.
         targets.set_relative(fig, s_thigh, state.body_rot[s_thigh]);
-        targets.gain[thigh] = 1.0;
-        if std::env::var("KG_DEBUG_STEP").is_ok() {
-            eprintln!("tau {tau:.3} swing {} down {:?} sole {:?} want {:?} knee {:.2} coords {:?} cp {:.3}", plan.swing, state.foot_down, state.sole_centre[plan.swing], sole, targets.angles[shank][0], state.joint_coords[shank], state.capture_distance_m);
+        for b in [thigh, shank, foot] {
+            targets.gain[b] = SWING_GAIN;
         }
         Status::Running
     }
