@@ -246,7 +246,8 @@ const FALL_PUSH_NS: f32 = 120.0;
 #[test]
 fn larger_push_makes_a_protective_step_that_reaches_its_post_condition() {
     let Some(data) = shared_data() else { return };
-    for (label, skeleton) in [("cmu", cmu(&data))] {
+    let (label, skeleton) = ("cmu", cmu(&data));
+    {
         let r = run(&skeleton, &push_script(3.0, "chest", forward(&skeleton), STEP_PUSH_NS, None));
         let used = controllers_used(&r);
         println!("{label} step push: {used:?}");
@@ -341,6 +342,7 @@ fn push_table_over_eight_directions() {
     println!("largest chest impulse survived standing (N·s), CMU 02_01 figure, {:.1} kg", figure.total_mass_kg);
     println!("{:>10} | {:>8} | {:>12}", "direction", pools[0].0, pools[1].0);
     let mut best = [[0.0f32; 8]; 2];
+    #[allow(clippy::needless_range_loop)] // d is the direction index of the printed row too.
     for d in 0..8 {
         let angle = d as f32 * std::f32::consts::FRAC_PI_4;
         let dir = figure.forward * angle.cos() + figure.left * angle.sin();

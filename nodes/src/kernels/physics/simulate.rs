@@ -454,7 +454,7 @@ pub fn simulate(
         }
         for (p, &b) in script.pushes.iter().zip(&push_bodies) {
             if t >= p.at_secs && t < p.at_secs + p.duration_secs {
-                let force = Vec3::from_array(p.direction).normalize() * (p.impulse_ns / p.duration_secs);
+                let force = Vec3::from_array(p.direction).normalize_or_zero() * (p.impulse_ns / p.duration_secs);
                 world.inner.bodies[spawned.handles[b]].add_force(to_rapier(force), true);
             }
         }
