@@ -14,6 +14,7 @@ pub mod ik;
 pub mod mannequin;
 pub mod mesh_io;
 pub mod momentum;
+pub mod physics;
 pub mod pose_space;
 pub mod quality;
 pub mod scalar;
@@ -47,6 +48,7 @@ pub fn register(registry: &mut Registry) {
     quality::register(registry);
     #[cfg(feature = "tetgen")]
     fluid::register(registry);
+    physics::register(registry);
 }
 
 #[cfg(test)]

@@ -605,8 +605,25 @@ impl Figure {
         self.bodies.iter().position(|b| b.name == name)
     }
 
+    /// The direction of body `b`'s bone in the rest pose (world, unit): along its capsule,
+    /// or heel to toe for a foot.
+    pub fn bone_direction(&self, b: usize) -> Vec3 {
+        match self.bodies[b].shape {
+            BodyShape::Capsule { a, b, .. } => (b - a).try_normalize().unwrap_or(Vec3::Y),
+            BodyShape::Box { rotation, .. } => rotation * Vec3::X,
+        }
+    }
+
+    /// Length of body `b`'s bone at rest (joint to the next joint), metres.
+    pub fn bone_length(&self, b: usize) -> f32 {
+        match self.bodies[b].shape {
+            BodyShape::Capsule { a, b, radius_m } => (b - a).length() + radius_m,
+            BodyShape::Box { half_extents, .. } => 2.0 * half_extents.x,
+        }
+    }
+
     /// Puts the figure in `world` in its rest pose, root translated by `offset`; motors are
-    /// set to hold the rest pose. Use [`set_pose`](Self::set_pose) to start from another pose.
+    /// set to hold the rest pose.
     pub fn spawn(&self, world: &mut World, skeleton: &Skeleton, offset: Vec3) -> Spawned {
         let rest: Vec<Vec3> = rest_world(skeleton).iter().map(|t| t.translation).collect();
         let w = &mut world.inner;

@@ -13,8 +13,16 @@
 //! |---|---|
 //! | the world set-up: time step, solver, gravity, ground | this module |
 //! | skeleton → articulated figure | [`figure`] |
+//! | what the controllers sense (COM, support polygon, capture point) | [`state`] |
+//! | the controller contract and the supervisor (Faloutsos 2001) | [`controller`] |
+//! | the controllers: balance, protective step, protective fall, relax | [`controllers`] |
+//! | a scripted run: pushes, requests, blow-up detection, clip out | [`simulate`] |
 
+pub mod controller;
+pub mod controllers;
 pub mod figure;
+pub mod simulate;
+pub mod state;
 
 use rapier3d::prelude::*;
 

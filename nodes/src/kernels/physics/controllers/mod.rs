@@ -1,0 +1,92 @@
+//! The controller family of the paper's 3-D figure that is implemented so far: balance
+//! (ankle and hip strategy), protective step, protective fall, and the default controller
+//! that holds a relaxed pose when nothing else applies (the paper's "default").
+//!
+//! | controller | pre-condition (bid) | post-condition | expected performance |
+//! |---|---|---|---|
+//! | [`balance`] | both feet down, trunk upright, capture point inside the support | none: holds until a request or failure | capture point stays inside the support, feet stay down |
+//! | [`step`] | a foot down, trunk upright, capture point outside the support but within a step | swing foot down with the capture point inside the new support | foot down within 0.8 s, trunk upright |
+//! | [`fall`] | the figure is falling (capture point outside, or no foot down) and the head is up | at rest on the ground | the head never touches the ground |
+//! | [`Relax`] | always ([`BID_SENSIBLE`], lowest preference) | none | none |
+
+pub mod balance;
+pub mod fall;
+pub mod step;
+
+use glam::{Quat, Vec2, Vec3};
+
+use super::controller::{BID_SENSIBLE, ControlContext, Controller, Status, Targets};
+use super::figure::BodyRole;
+use super::state::FigureState;
+
+/// Names of every controller [`pool`] can build, in pool order.
+pub const NAMES: [&str; 4] = ["balance", "step", "fall", "relax"];
+
+/// The full pool, in a fixed order (ties in the supervisor go to the first).
+pub fn pool() -> Vec<Box<dyn Controller>> {
+    vec![
+        Box::new(balance::Balance::default()),
+        Box::new(step::Step::default()),
+        Box::new(fall::Fall::default()),
+        Box::new(Relax),
+    ]
+}
+
+/// The pool restricted to `names` (unknown names are left out; check against [`NAMES`]).
+pub fn pool_of(names: &[&str]) -> Vec<Box<dyn Controller>> {
+    pool().into_iter().filter(|c| names.contains(&c.name())).collect()
+}
+
+/// The default controller: holds the standing pose at a third of the gains, so a figure on
+/// the ground lies limp but joints do not flop through their limits.
+pub struct Relax;
+
+/// Gain multiplier of the relaxed pose.
+const RELAX_GAIN: f32 = 0.3;
+
+impl Controller for Relax {
+    fn name(&self) -> &'static str {
+        "relax"
+    }
+    fn preference(&self) -> u32 {
+        1
+    }
+    fn bid(&self, _: &FigureState, _: &ControlContext<'_>) -> u32 {
+        BID_SENSIBLE
+    }
+    fn activate(&mut self, _: &FigureState, _: &ControlContext<'_>) {}
+    fn control(&mut self, _: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
+        targets.clone_from(ctx.stand);
+        targets.gain.iter_mut().for_each(|g| *g = RELAX_GAIN);
+        Status::Running
+    }
+}
+
+/// The figure's current facing: (forward, left) horizontal unit vectors from the pelvis.
+pub fn facing(state: &FigureState, ctx: &ControlContext<'_>) -> (Vec3, Vec3) {
+    let q = state.body_rot[0];
+    let f = (q * ctx.figure.forward).with_y(0.0).try_normalize().unwrap_or(ctx.figure.forward);
+    (f, Vec3::Y.cross(f))
+}
+
+/// A horizontal `Vec2(x, z)` as a world vector at height 0.
+pub fn xz(v: Vec2) -> Vec3 {
+    Vec3::new(v.x, 0.0, v.y)
+}
+
+/// Rotation that tilts "up" by `angle_rad` towards the horizontal direction `dir`.
+pub fn tilt_towards(dir: Vec3, angle_rad: f32) -> Quat {
+    match Vec3::Y.cross(dir).try_normalize() {
+        Some(axis) => Quat::from_axis_angle(axis, angle_rad),
+        None => Quat::IDENTITY,
+    }
+}
+
+/// Body indices of one side's leg: (thigh, shank, foot).
+pub fn leg(ctx: &ControlContext<'_>, side: usize) -> Option<(usize, usize, usize)> {
+    Some((
+        ctx.body(BodyRole::Thigh, Some(side))?,
+        ctx.body(BodyRole::Shank, Some(side))?,
+        ctx.body(BodyRole::Foot, Some(side))?,
+    ))
+}

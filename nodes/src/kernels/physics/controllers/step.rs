@@ -1,0 +1,207 @@
+//! Protective step: when a push moves the capture point out of the support polygon but
+//! within a step's reach, swing a foot to it (the LIPM result: with its pivot at the
+//! capture point the COM comes to rest above it).
+//!
+//! The swing foot is the one on the capture point's side (no crossover steps). Its sole
+//! follows a smoothstep from where it was to the capture point (plus a small overshoot;
+//! the target follows the moving capture point for most of the swing)
+//! over [`SWING_SECS`], lifted by `LIFT_M·sin(π·s)`; the leg's hip and knee angles come
+//! from the two-link inverse kinematics of the thigh and shank lengths, the knee pointing
+//! forward. The stance hip keeps the pelvis upright; the swing foot is kept level.
+//!
+//! Pre-condition: a foot down, trunk within 35° of vertical, COM at least 75 % of its
+//! standing height, capture point outside the support and within [`REACH`] leg lengths of
+//! the stance sole. Post-condition: the swing foot, once lifted, is down again (after half
+//! the swing) with the
+//! capture point within [`LAND_MARGIN_M`] of the new support. Expected performance: the
+//! foot lands within [`TIMEOUT_SECS`] and the trunk stays within 50° of vertical.
+
+use glam::{Vec2, Vec3};
+
+use super::{facing, leg, xz};
+use crate::kernels::physics::controller::{BID_CAN_REACH, ControlContext, Controller, Status, Targets};
+use crate::kernels::physics::state::FigureState;
+use crate::math::smoothstep;
+
+/// Swing duration, seconds.
+pub const SWING_SECS: f32 = 0.35;
+/// Swing foot clearance at mid-swing, metres.
+pub const LIFT_M: f32 = 0.15;
+/// Farthest step, in leg lengths from the stance sole to the capture point.
+pub const REACH: f32 = 0.9;
+/// Capture point tolerance outside the new support at landing, metres: balance's entry
+/// margin, so the step's post-condition is inside balance's pre-condition.
+pub const LAND_MARGIN_M: f32 = crate::kernels::physics::controllers::balance::ENTER_OUTSIDE_M;
+/// The step fails when the foot is not down after this long, seconds.
+pub const TIMEOUT_SECS: f32 = 0.8;
+/// The swing foot moves by this multiple of the capture point's offset from the support
+/// centre.
+pub const STEP_GAIN: f32 = 2.0;
+/// Closest the swing sole may land to the stance sole, sideways, metres.
+pub const MIN_WIDTH_M: f32 = 0.12;
+/// Gain multiplier on the swing leg's joints, so the foot tracks its path in time.
+pub const SWING_GAIN: f32 = 3.0;
+/// The swing path is read this far ahead, seconds: the PD motors follow their targets
+/// with a lag of about kd/kp (≈ 0.07 s for the leg gains), which this compensates.
+pub const LEAD_SECS: f32 = 0.1;
+/// The target follows the capture point during this share of the swing.
+pub const RETARGET_UNTIL: f32 = 0.7;
+/// The swing foot counts as lifted once its sole centre is this high, metres.
+pub const LIFTED_M: f32 = 0.025;
+
+/// The protective step controller.
+#[derive(Default)]
+pub struct Step {
+    plan: Option<Plan>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Plan {
+    start_secs: f32,
+    swing: usize,
+    from: Vec3,
+    to: Vec3,
+    /// Support centroid at activation.
+    centre: Vec2,
+    /// The swing foot has left the ground.
+    lifted: bool,
+}
+
+/// The stance foot a step would pivot on, given the capture point: the foot away from ξ's
+/// side, and the swing foot towards it. Returns (swing, stance).
+pub fn choose_feet(state: &FigureState, ctx: &ControlContext<'_>) -> (usize, usize) {
+    let (_, left) = facing(state, ctx);
+    let mid = (state.sole_centre[0] + state.sole_centre[1]) * 0.5;
+    let side = xz(state.capture_point).dot(left) - mid.with_y(0.0).dot(left);
+    // Which sole is on the figure's left right now (side 0 is the left leg).
+    let zero_is_left = (state.sole_centre[0] - state.sole_centre[1]).dot(left) >= 0.0;
+    let swing = if (side >= 0.0) == zero_is_left { 0 } else { 1 };
+    (swing, 1 - swing)
+}
+
+/// Where the swing sole is put: moved from where it was by [`STEP_GAIN`] times the
+/// capture point's offset from `centre` (the double-support centroid before the step), so
+/// the stance keeps its width and the new support polygon reaches past ξ (moving one of two
+/// feet by D moves the polygon's edge between them by about D/2 at the middle); never
+/// closer than [`MIN_WIDTH_M`] sideways to the stance sole.
+/// `from` is where the swing sole was at the step's start.
+pub fn step_target(
+    state: &FigureState,
+    ctx: &ControlContext<'_>,
+    (swing, stance): (usize, usize),
+    from: Vec3,
+    centre: Vec2,
+) -> Vec2 {
+    let (_, left) = facing(state, ctx);
+    let from = Vec2::new(from.x, from.z);
+    let mut t = from + (state.capture_point - centre) * STEP_GAIN;
+    let stance_xz = Vec2::new(state.sole_centre[stance].x, state.sole_centre[stance].z);
+    let l = Vec2::new(left.x, left.z);
+    let sign = if (state.sole_centre[swing] - state.sole_centre[stance]).dot(left) >= 0.0 { 1.0 } else { -1.0 };
+    let width = (t - stance_xz).dot(l) * sign;
+    if width < MIN_WIDTH_M {
+        t += l * sign * (MIN_WIDTH_M - width);
+    }
+    t
+}
+
+impl Controller for Step {
+    fn name(&self) -> &'static str {
+        "step"
+    }
+    fn preference(&self) -> u32 {
+        20
+    }
+    fn bid(&self, state: &FigureState, ctx: &ControlContext<'_>) -> u32 {
+        if !(state.foot_down[0] || state.foot_down[1])
+            || state.trunk_upright < 35f32.to_radians().cos()
+            || state.com.y < 0.75 * ctx.standing_com_height_m
+            || state.capture_distance_m <= 0.0
+        {
+            return 0;
+        }
+        let (_, stance) = choose_feet(state, ctx);
+        let s = state.sole_centre[stance];
+        let reach = state.capture_point.distance(Vec2::new(s.x, s.z));
+        if reach < REACH * ctx.leg_length_m { BID_CAN_REACH } else { 0 }
+    }
+    fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
+        let (swing, stance) = choose_feet(state, ctx);
+        let centre = state.support_centre();
+        let from = state.sole_centre[swing];
+        let to = step_target(state, ctx, (swing, stance), from, centre);
+        self.plan = Some(Plan {
+            start_secs: state.time_secs,
+            swing,
+            from,
+            to: Vec3::new(to.x, from.y, to.y),
+            centre,
+            lifted: false,
+        });
+    }
+    fn control(&mut self, state: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
+        let Some(plan) = self.plan.as_mut() else { return Status::Failed("not activated".into()) };
+        plan.lifted |= !state.foot_down[plan.swing] || state.sole_centre[plan.swing].y > LIFTED_M;
+        // The capture point keeps moving while the figure pivots on one foot: follow it
+        // until the last part of the swing.
+        if state.time_secs - plan.start_secs < RETARGET_UNTIL * SWING_SECS {
+            let to = step_target(state, ctx, (plan.swing, 1 - plan.swing), plan.from, plan.centre);
+            plan.to = Vec3::new(to.x, plan.from.y, to.y);
+        }
+        let plan = *plan;
+        let tau = state.time_secs - plan.start_secs;
+        if state.trunk_upright < 50f32.to_radians().cos() {
+            return Status::Failed("the trunk tilted past 50°".into());
+        }
+        let landed = state.foot_down[plan.swing] && state.sole_centre[plan.swing].y < 0.5 * LIFTED_M;
+        if plan.lifted && tau > 0.6 * SWING_SECS && landed {
+            return if state.capture_distance_m < LAND_MARGIN_M {
+                Status::Succeeded
+            } else {
+                Status::Failed(format!(
+                    "capture point {:.3} m outside the support after the step",
+                    state.capture_distance_m
+                ))
+            };
+        }
+        if tau > TIMEOUT_SECS {
+            return Status::Failed("the swing foot did not land".into());
+        }
+        targets.clone_from(ctx.stand);
+        let (Some((thigh, shank, foot)), Some((s_thigh, _, _))) = (leg(ctx, plan.swing), leg(ctx, 1 - plan.swing))
+        else {
+            return Status::Failed("the figure has no legs".into());
+        };
+        // Sole path: smoothstep in the plane, a sine arch up; aim past the end so the
+        // foot is driven down onto the ground.
+        let ahead = tau + LEAD_SECS;
+        let s = smoothstep(f64::from((ahead / SWING_SECS).min(1.0))) as f32;
+        let lift = if ahead < SWING_SECS { LIFT_M * (std::f32::consts::PI * s).sin() } else { -0.03 };
+        let sole = plan.from.lerp(plan.to, s) + Vec3::Y * lift;
+        // Two-link IK from the hip (the thigh body's origin) to the ankle (the foot's).
+        let fig = ctx.figure;
+        let rest_sole_to_ankle = state.body_pos[foot] - state.sole_centre[plan.swing];
+        let ankle = sole + rest_sole_to_ankle.with_y(rest_sole_to_ankle.y.max(0.0));
+        let hip = state.body_pos[thigh];
+        let (l1, l2) = (fig.bone_length(thigh), fig.bone_length(shank));
+        let d = ankle - hip;
+        let reach = d.length().clamp(0.2 * (l1 + l2), 0.999 * (l1 + l2));
+        let dir = d.try_normalize().unwrap_or(Vec3::NEG_Y);
+        let (forward, _) = facing(state, ctx);
+        let bend = forward.reject_from(dir).try_normalize().unwrap_or(forward);
+        let cos_hip = ((l1 * l1 + reach * reach - l2 * l2) / (2.0 * l1 * reach)).clamp(-1.0, 1.0);
+        let knee = hip + (dir * cos_hip + bend * (1.0 - cos_hip * cos_hip).sqrt()) * l1;
+        let cos_knee = ((l1 * l1 + l2 * l2 - reach * reach) / (2.0 * l1 * l2)).clamp(-1.0, 1.0);
+        targets.aim(fig, thigh, state.body_rot[0], knee - hip);
+        targets.angles[shank] = [std::f32::consts::PI - cos_knee.acos(), 0.0, 0.0];
+        // Level foot: relative to the shank, the inverse of the shank's rotation.
+        targets.set_relative(fig, foot, state.body_rot[shank].inverse());
+        // Stance hip: the pelvis upright means the thigh relative to it is the thigh's own
+        // current world rotation.
+        targets.set_relative(fig, s_thigh, state.body_rot[s_thigh]);
+        for b in [thigh, shank, foot] {
+            targets.gain[b] = SWING_GAIN;
+        }
+        Status::Running
+    }
+}

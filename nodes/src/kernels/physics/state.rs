@@ -1,0 +1,203 @@
+//! What the controllers sense: the figure's centre of mass and its velocity, the support
+//! polygon of the soles touching the ground, the capture point of the linear inverted
+//! pendulum, the trunk's tilt and the head's height. The supervisor computes it once per
+//! step for every controller (the paper's "common sensor values").
+//!
+//! All positions are world metres, Y up, ground at `y = 0`; horizontal quantities are
+//! `Vec2(x, z)`.
+
+use glam::{Quat, Vec2, Vec3};
+
+use super::figure::{BodyRole, BodyShape, Figure, Spawned};
+use super::{World, from_rapier};
+
+/// A sole corner closer to the ground than this touches it, metres.
+pub const CONTACT_HEIGHT_M: f32 = 0.02;
+
+/// The figure's state as the controllers see it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FigureState {
+    /// Simulated time, seconds.
+    pub time_secs: f32,
+    /// Body rotations relative to the rest pose (world), by figure body.
+    pub body_rot: Vec<Quat>,
+    /// Body origins (their driving joints), world metres.
+    pub body_pos: Vec<Vec3>,
+    /// Whole-body centre of mass, metres.
+    pub com: Vec3,
+    /// Its velocity, m/s.
+    pub com_vel: Vec3,
+    /// Whether each foot (0 left, 1 right) has a sole corner on the ground.
+    pub foot_down: [bool; 2],
+    /// Each foot's sole centre, metres.
+    pub sole_centre: [Vec3; 2],
+    /// Convex hull (x, z), counter-clockwise seen from above, of the sole corners touching
+    /// the ground; empty when no foot does.
+    pub support: Vec<Vec2>,
+    /// Capture point of the linear inverted pendulum at the COM's height (x, z), metres.
+    pub capture_point: Vec2,
+    /// Signed distance of the COM's ground projection to the support polygon, metres
+    /// (negative inside; `+∞` without support).
+    pub com_support_distance_m: f32,
+    /// Signed distance of the capture point to the support polygon, metres.
+    pub capture_distance_m: f32,
+    /// Lowest point of the head body above the ground, metres.
+    pub head_clearance_m: f32,
+    /// Cosine of the chest's tilt from vertical (1 upright, 0 lying).
+    pub trunk_upright: f32,
+    /// Kinetic energy of the figure, joules.
+    pub kinetic_energy_j: f32,
+    /// Current joint coordinates per body, in the motors' units (see
+    /// [`Targets`](super::controller::Targets)); zeros for the root.
+    pub joint_coords: Vec<[f32; 3]>,
+}
+
+impl FigureState {
+    /// Reads the state of a spawned figure.
+    pub fn read(figure: &Figure, world: &World, spawned: &Spawned, gravity_m_s2: f32, time_secs: f32) -> FigureState {
+        let (body_rot, body_pos) = figure.read_poses(world, spawned);
+        let (mut m, mut com, mut mom, mut ke) = (0.0f32, Vec3::ZERO, Vec3::ZERO, 0.0f32);
+        for &h in &spawned.handles {
+            let rb = &world.inner.bodies[h];
+            let mass = rb.mass();
+            m += mass;
+            com += from_rapier(rb.center_of_mass()) * mass;
+            mom += from_rapier(rb.linvel()) * mass;
+            ke += rb.kinetic_energy();
+        }
+        let com = com / m.max(1e-6);
+        let com_vel = mom / m.max(1e-6);
+        let mut corners: Vec<Vec2> = Vec::new();
+        let mut foot_down = [false; 2];
+        let mut sole_centre = [Vec3::ZERO; 2];
+        let mut head_clearance_m = f32::INFINITY;
+        let mut trunk_upright = 1.0;
+        for (i, body) in figure.bodies.iter().enumerate() {
+            let (q, p) = (body_rot[i], body_pos[i]);
+            match (body.role, body.shape) {
+                (BodyRole::Foot, BodyShape::Box { centre, half_extents, rotation }) => {
+                    let side = body.side.unwrap_or(0).min(1);
+                    let mut sum = Vec3::ZERO;
+                    for sx in [-1.0, 1.0] {
+                        for sz in [-1.0, 1.0] {
+                            let local = centre
+                                + rotation * Vec3::new(sx * half_extents.x, -half_extents.y, sz * half_extents.z);
+                            let w = p + q * local;
+                            sum += w;
+                            if w.y < CONTACT_HEIGHT_M {
+                                foot_down[side] = true;
+                                corners.push(Vec2::new(w.x, w.z));
+                            }
+                        }
+                    }
+                    sole_centre[side] = sum * 0.25;
+                }
+                (BodyRole::Head, BodyShape::Capsule { a, b, radius_m }) => {
+                    head_clearance_m = (p + q * a).y.min((p + q * b).y) - radius_m;
+                }
+                (BodyRole::Chest, _) => trunk_upright = (q * Vec3::Y).y,
+                _ => {}
+            }
+        }
+        let joint_coords = spawned
+            .joints
+            .iter()
+            .map(|j| {
+                let Some((mb, link)) = j.and_then(|h| world.inner.multibody_joints.get(h)) else { return [0.0; 3] };
+                let Some(link) = mb.link(link) else { return [0.0; 3] };
+                let c = link.joint().coords();
+                // Linear coordinates first, then the angular ones about X, Y, Z.
+                [c[3], c[4], c[5]]
+            })
+            .collect();
+        let support = convex_hull(&corners);
+        let com_xz = Vec2::new(com.x, com.z);
+        let capture_point = capture_point(com_xz, Vec2::new(com_vel.x, com_vel.z), com.y, gravity_m_s2);
+        FigureState {
+            time_secs,
+            body_rot,
+            body_pos,
+            com,
+            com_vel,
+            foot_down,
+            sole_centre,
+            com_support_distance_m: signed_distance(&support, com_xz),
+            capture_distance_m: signed_distance(&support, capture_point),
+            support,
+            capture_point,
+            head_clearance_m,
+            trunk_upright,
+            kinetic_energy_j: ke,
+            joint_coords,
+        }
+    }
+
+    /// The COM's ground projection (x, z).
+    pub fn com_xz(&self) -> Vec2 {
+        Vec2::new(self.com.x, self.com.z)
+    }
+
+    /// Centroid of the support polygon's vertices, or the soles' midpoint without support.
+    pub fn support_centre(&self) -> Vec2 {
+        if self.support.is_empty() {
+            let c = (self.sole_centre[0] + self.sole_centre[1]) * 0.5;
+            return Vec2::new(c.x, c.z);
+        }
+        self.support.iter().copied().sum::<Vec2>() / self.support.len() as f32
+    }
+}
+
+/// Capture point of the linear inverted pendulum (Pratt et al. 2006): where the COM at
+/// height `height_m` moving at `vel` must put its pivot to come to rest above it,
+/// `x + ẋ·√(h/g)`.
+pub fn capture_point(com: Vec2, vel: Vec2, height_m: f32, gravity_m_s2: f32) -> Vec2 {
+    com + vel * (height_m.max(0.0) / gravity_m_s2.max(1e-3)).sqrt()
+}
+
+/// Convex hull (Andrew's monotone chain), counter-clockwise in the (x, z) plane's own
+/// orientation (positive `perp_dot` turns); collinear points dropped.
+pub fn convex_hull(points: &[Vec2]) -> Vec<Vec2> {
+    let mut p: Vec<Vec2> = points.iter().copied().filter(|v| v.is_finite()).collect();
+    p.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    p.dedup();
+    if p.len() < 3 {
+        return p;
+    }
+    let cross = |o: Vec2, a: Vec2, b: Vec2| (a - o).perp_dot(b - o);
+    let mut hull: Vec<Vec2> = Vec::with_capacity(2 * p.len());
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &Vec2>> =
+            if pass == 0 { Box::new(p.iter()) } else { Box::new(p.iter().rev()) };
+        for &v in iter {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], v) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(v);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+/// Signed distance from `p` to the convex polygon `poly` (as [`convex_hull`] returns it):
+/// negative inside (minus the distance to the nearest edge), positive outside, `+∞` for an
+/// empty polygon. One or two vertices are a point or a segment.
+pub fn signed_distance(poly: &[Vec2], p: Vec2) -> f32 {
+    if poly.is_empty() {
+        return f32::INFINITY;
+    }
+    let n = poly.len();
+    let mut nearest = f32::INFINITY;
+    let mut inside = n >= 3;
+    for i in 0..n {
+        let (a, b) = (poly[i], poly[(i + 1) % n]);
+        let ab = b - a;
+        let t = if ab.length_squared() > 0.0 { ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
+        nearest = nearest.min(p.distance(a + ab * t));
+        if ab.perp_dot(p - a) < 0.0 {
+            inside = false;
+        }
+    }
+    if inside { -nearest } else { nearest }
+}
