@@ -21,6 +21,17 @@ fn clip(data: &Path, name: &str, from_secs: f64, to_secs: f64) -> Arc<Clip> {
     Arc::new(trim(&clip, from_secs, Some(to_secs)).unwrap())
 }
 
+/// The two front kicks of CMU 144_05 (0.5–2.2 s and 2.2–3.9 s) and their join under `params`.
+fn double_kick(data: &Path, params: &ConcatParams) -> (Arc<Clip>, Arc<Clip>, Concatenated) {
+    let options = AnalysisOptions::default();
+    let first = clip(data, "cmu/144_05.bvh", 0.5, 2.2);
+    let second = clip(data, "cmu/144_05.bvh", 2.2, 3.9);
+    let (a, b) =
+        (analyse(first.clone(), &options, None, None).unwrap(), analyse(second.clone(), &options, None, None).unwrap());
+    let joined = concatenate(&a, &b, params, &options).unwrap();
+    (first, second, joined)
+}
+
 /// The error of a refused concatenation (a success prints its report, not its clip).
 fn refusal(result: Result<Concatenated, ConcatError>) -> ConcatError {
     match result {
@@ -204,13 +215,8 @@ fn kicking_toe(clip: &Clip) -> (usize, f32) {
 #[test]
 fn a_double_kick_keeps_both_kicks_apexes() {
     let Some(data) = shared_data() else { return };
-    let options = AnalysisOptions::default();
-    let first = clip(&data, "cmu/144_05.bvh", 0.5, 2.2);
-    let second = clip(&data, "cmu/144_05.bvh", 2.2, 3.9);
-    let (a, b) =
-        (analyse(first.clone(), &options, None, None).unwrap(), analyse(second.clone(), &options, None, None).unwrap());
-    let params = ConcatParams { min_peak_gap_secs: 0.5, ..ConcatParams::default() };
-    let joined = concatenate(&a, &b, &params, &options).unwrap();
+    let (first, second, joined) =
+        double_kick(&data, &ConcatParams { min_peak_gap_secs: 0.5, ..ConcatParams::default() });
     let ((toe, apex_first), (toe_second, apex_second)) = (kicking_toe(&first), kicking_toe(&second));
     assert_eq!(toe, toe_second, "the same foot kicks in both");
     let h = heights(&joined.clip, toe);
@@ -330,14 +336,9 @@ fn planted_slide_and_depth_cm(clip: &Clip, foot: &str, window: (usize, usize)) -
 #[test]
 fn a_double_kick_keeps_its_standing_foot_planted_through_the_blend() {
     let Some(data) = shared_data() else { return };
-    let options = AnalysisOptions::default();
-    let first = clip(&data, "cmu/144_05.bvh", 0.5, 2.2);
-    let second = clip(&data, "cmu/144_05.bvh", 2.2, 3.9);
-    let (a, b) =
-        (analyse(first.clone(), &options, None, None).unwrap(), analyse(second.clone(), &options, None, None).unwrap());
     let params = ConcatParams { min_peak_gap_secs: 0.5, ..ConcatParams::default() };
-    let joined = concatenate(&a, &b, &params, &options).unwrap();
-    let raw = concatenate(&a, &b, &ConcatParams { foot_lock: false, ..params }, &options).unwrap();
+    let (first, _, joined) = double_kick(&data, &params);
+    let (_, _, raw) = double_kick(&data, &ConcatParams { foot_lock: false, ..params });
     let r = &joined.report;
     let window = |i: usize| r["window_after_scaling_frames"][i].as_u64().unwrap() as usize;
     let window = (window(0), window(1));

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use glam::DVec3;
 use serde_json::json;
 
-use super::{MASS_OVERRIDE, MASS_TABLE, TOTAL_MASS, mass_model_of};
+use super::{MASS_OVERRIDE, MASS_TABLE, TOTAL_MASS, check_stages_fit, mass_model_of};
 use crate::kernels::contacts::{ContactThresholds, contacts_of};
 use crate::kernels::momentum_edit::{EditError, GroundEdit, measure_edit, naive_edit};
 use crate::kernels::momentum_solve::{EditSetup, SolveError, SolveOptions, momentum_edit};
@@ -159,12 +159,7 @@ impl Node for MomentumEdit {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
         let stages = ctx.input(&STAGES)?;
-        if stages.frame_count != clip.frame_count() {
-            return Err(NodeError::input(
-                "stages",
-                format!("describe {} frames, the clip has {}", stages.frame_count, clip.frame_count()),
-            ));
-        }
+        check_stages_fit(&clip, &stages)?;
         let grounds = stages.stages.iter().filter(|s| s.kind == StageKind::Ground).count();
         let offsets = parse_offsets(ctx.text_param(&OFFSETS)?, grounds)?;
         let turns = parse_turns(ctx.text_param(&TURNS)?, grounds)?;

@@ -104,6 +104,17 @@ fn momentum_of(
     Ok((model, track, smoothed))
 }
 
+/// Refuses stages read from another clip (the `stages` input must describe `clip`'s frames).
+fn check_stages_fit(clip: &Clip, stages: &crate::model::Stages) -> Result<(), NodeError> {
+    if stages.frame_count != clip.frame_count() {
+        return Err(NodeError::input(
+            "stages",
+            format!("describe {} frames, the clip has {}", stages.frame_count, clip.frame_count()),
+        ));
+    }
+    Ok(())
+}
+
 /// The body mass model of `clip` under the node's mass params (total mass, table,
 /// override; a warning when the names were not recognised).
 fn mass_model_of(ctx: &mut NodeContext<'_>, clip: &Clip) -> Result<BodyModel, NodeError> {

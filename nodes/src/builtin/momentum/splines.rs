@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use serde_json::json;
 
-use super::{MASS_OVERRIDE, MASS_TABLE, TOTAL_MASS, mass_model_of};
+use super::{MASS_OVERRIDE, MASS_TABLE, TOTAL_MASS, check_stages_fit, mass_model_of};
 use crate::kernels::angular::momentum_of_poses;
 use crate::kernels::momentum_splines::{CHANNELS, MomentumFit, SplineError, UNITS, fit_momentum};
 use crate::model::{Clip, Curves, CurvesError, Stages, forward_kinematics};
@@ -91,12 +91,7 @@ impl Node for MomentumSplines {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
         let stages = ctx.input(&STAGES)?;
-        if stages.frame_count != clip.frame_count() {
-            return Err(NodeError::input(
-                "stages",
-                format!("describe {} frames, the clip has {}", stages.frame_count, clip.frame_count()),
-            ));
-        }
+        check_stages_fit(&clip, &stages)?;
         let spacing = ctx.float(&KNOT_SPACING)?;
         let model = mass_model_of(ctx, &clip)?;
         let track = momentum_of_poses(&forward_kinematics(&clip), clip.fps(), &model);
