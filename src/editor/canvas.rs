@@ -529,14 +529,18 @@ pub(crate) fn catalogue_menu(
         }
     }
     let mut picked = None;
-    for (category, schemas) in groups {
-        ui.label(RichText::new(category).small().weak());
-        for s in schemas {
-            if ui.button(s.kind).on_hover_text(s.doc).clicked() {
-                picked = Some(s.kind);
+    // The catalogue is taller than a laptop screen: the list scrolls under the search field.
+    let max_height = ui.ctx().content_rect().height() * 0.7;
+    egui::ScrollArea::vertical().max_height(max_height).show(ui, |ui| {
+        for (category, schemas) in groups {
+            ui.label(RichText::new(category).small().weak());
+            for s in schemas {
+                if ui.button(s.kind).on_hover_text(s.doc).clicked() {
+                    picked = Some(s.kind);
+                }
             }
         }
-    }
+    });
     picked
 }
 
