@@ -11,7 +11,7 @@ use crate::formats::vdb::{GridValues, VdbGrid, write_vdb};
 use crate::kernels::fluid::mesh::MeshError;
 use crate::kernels::fluid::mesher::{Obstacle, open_edge};
 use crate::kernels::fluid::sim::{MovingObstacle, SimError, SimSettings, simulate};
-use crate::model::volume::{FluidDomain, Sizing, SmokeSource, VolumeSequence};
+use crate::model::volume::{FluidDomain, Sizing, SmokeSource, VolumeFrame, VolumeSequence};
 use crate::model::{Mesh, MeshSequence};
 use crate::node::{
     ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
@@ -413,6 +413,25 @@ const PLY_FILE: OutputPathParam = OutputPathParam::new(
 const LAST_FILE_OUT: Output<Arc<std::path::PathBuf>> =
     Output::new("file", "The last written file, relative to the output folder.");
 
+/// Writes one file per frame of `volumes` (encoded by `encode`) beside the file named by
+/// `param`, with progress, and outputs the last one written.
+fn write_frames(
+    ctx: &mut NodeContext<'_>,
+    param: &OutputPathParam,
+    volumes: &VolumeSequence,
+    encode: impl Fn(&VolumeFrame) -> Vec<u8>,
+) -> Result<(), NodeError> {
+    let mut last = None;
+    for (f, frame) in volumes.frames.iter().enumerate() {
+        last = Some(ctx.write_output_frame(param, f, &encode(frame))?);
+        ctx.progress((f + 1) as f32 / volumes.frames.len() as f32);
+    }
+    if let Some(path) = last {
+        ctx.set_output(&LAST_FILE_OUT, Arc::new(path));
+    }
+    Ok(())
+}
+
 /// `export.vdb`.
 pub struct ExportVdb;
 
@@ -433,23 +452,16 @@ impl Node for ExportVdb {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let volumes = ctx.input(&VOLUMES_IN)?;
-        let mut last = None;
-        for (f, frame) in volumes.frames.iter().enumerate() {
-            let bytes = write_vdb(
+        write_frames(ctx, &VDB_FILE, &volumes, |frame| {
+            write_vdb(
                 &volumes.grid,
                 &[
                     VdbGrid { name: "density", values: GridValues::Float(&frame.density) },
                     VdbGrid { name: "temperature", values: GridValues::Float(&frame.temperature_k) },
                     VdbGrid { name: "velocity", values: GridValues::Vec3(&frame.velocity_m_s) },
                 ],
-            );
-            last = Some(ctx.write_output_frame(&VDB_FILE, f, &bytes)?);
-            ctx.progress((f + 1) as f32 / volumes.frames.len() as f32);
-        }
-        if let Some(path) = last {
-            ctx.set_output(&LAST_FILE_OUT, Arc::new(path));
-        }
-        Ok(())
+            )
+        })
     }
 }
 
@@ -473,13 +485,6 @@ impl Node for ExportPoints {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let volumes = ctx.input(&VOLUMES_IN)?;
-        let mut last = None;
-        for (f, frame) in volumes.frames.iter().enumerate() {
-            last = Some(ctx.write_output_frame(&PLY_FILE, f, &write_points_ply(&frame.particles_m))?);
-        }
-        if let Some(path) = last {
-            ctx.set_output(&LAST_FILE_OUT, Arc::new(path));
-        }
-        Ok(())
+        write_frames(ctx, &PLY_FILE, &volumes, |frame| write_points_ply(&frame.particles_m))
     }
 }
