@@ -21,6 +21,7 @@ use crate::kernels::pose_vector::pose_vector;
 use crate::kernels::skinning::{
     SkinError, blend_matrices, check_skin, clip_skinning_matrices, joint_named, lbs_frame, rest_normals,
 };
+use crate::kernels::wrap as wrap_kernel;
 use crate::model::{BarNet, BarNetError, Clip, Mesh, MeshSequence};
 use crate::node::{FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Registry, TextParam};
 
@@ -380,115 +381,18 @@ pub fn deform_net(net: &BarNet, clip: &Arc<Clip>, loads: &LoadParams) -> Result<
     MeshSequence::new(control.clone(), clip.clone(), positions, normals).map_err(|e| SolveError::Size(e.to_string()))
 }
 
-/// Closest point on triangle `abc` to `p`, as barycentric weights (u, v, w) of a, b, c.
-fn closest_barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
-    // Voronoi regions of the vertices, edges and face, in that order.
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return Vec3::X;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return Vec3::Y;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let t = d1 / (d1 - d3);
-        return Vec3::new(1.0 - t, t, 0.0);
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return Vec3::Z;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let t = d2 / (d2 - d6);
-        return Vec3::new(1.0 - t, 0.0, t);
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return Vec3::new(0.0, 1.0 - t, t);
-    }
-    let denominator = va + vb + vc;
-    if denominator.abs() < 1e-20 {
-        return Vec3::X;
-    }
-    let (v, w) = (vb / denominator, vc / denominator);
-    Vec3::new(1.0 - v - w, v, w)
-}
-
-/// An orthonormal frame of a triangle (edge ab, normal, their cross), `None` if degenerate.
-fn triangle_frame(a: Vec3, b: Vec3, c: Vec3) -> Option<[Vec3; 3]> {
-    let e = (b - a).try_normalize()?;
-    let n = (b - a).cross(c - a).try_normalize()?;
-    Some([e, n, e.cross(n)])
-}
-
-/// One fine vertex's attachment to the control mesh.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct WrapBinding {
-    triangle: usize,
-    barycentric: Vec3,
-    /// Offset from the closest point, in the triangle's frame.
-    local_offset: Vec3,
-}
-
-/// Wrap deformer: each vertex of `fine` (modelled over `control.rest` at rest) is attached
-/// to the closest point of the nearest control triangle, keeping its offset in that
-/// triangle's frame; every frame, the offset is replayed on the deformed triangle.
+/// Wrap deformer (kernel in [`crate::kernels::wrap`]): each vertex of `fine` (modelled over
+/// `control.rest` at rest) keeps its place relative to the nearest control triangle.
 pub fn wrap(fine: &Arc<Mesh>, control: &MeshSequence) -> Result<MeshSequence, String> {
-    let rest = &control.rest;
-    if rest.triangles.is_empty() {
-        return Err("the control mesh has no triangles".into());
-    }
-    let tri = |positions: &[Vec3], t: usize| rest.triangles[t].map(|i| positions[i as usize]);
-    let bindings: Vec<WrapBinding> = {
-        use rayon::prelude::*;
-        fine.positions
-            .par_iter()
-            .map(|&p| {
-                let mut best = (f32::INFINITY, 0usize, Vec3::X);
-                for t in 0..rest.triangles.len() {
-                    let [a, b, c] = tri(&rest.positions, t);
-                    let bary = closest_barycentric(p, a, b, c);
-                    let d = (p - (a * bary.x + b * bary.y + c * bary.z)).length_squared();
-                    if d < best.0 && triangle_frame(a, b, c).is_some() {
-                        best = (d, t, bary);
-                    }
-                }
-                let [a, b, c] = tri(&rest.positions, best.1);
-                let frame = triangle_frame(a, b, c).unwrap_or([Vec3::X, Vec3::Y, Vec3::Z]);
-                let offset = p - (a * best.2.x + b * best.2.y + c * best.2.z);
-                WrapBinding {
-                    triangle: best.1,
-                    barycentric: best.2,
-                    local_offset: Vec3::new(offset.dot(frame[0]), offset.dot(frame[1]), offset.dot(frame[2])),
-                }
-            })
-            .collect()
-    };
+    let triangles = &control.rest.triangles;
+    let bindings = wrap_kernel::bind(&fine.positions, &control.rest.positions, triangles).map_err(|e| e.to_string())?;
     let n = fine.positions.len();
-    let mut positions = Vec::with_capacity(n * control.frame_count());
+    let mut positions = vec![Vec3::ZERO; n * control.frame_count()];
     let mut normals = Vec::with_capacity(n * control.frame_count());
-    for f in 0..control.frame_count() {
-        let deformed = control.frame_positions(f);
-        let start = positions.len();
-        positions.extend(bindings.iter().map(|b| {
-            let [pa, pb, pc] = tri(deformed, b.triangle);
-            let frame = triangle_frame(pa, pb, pc).unwrap_or([Vec3::X, Vec3::Y, Vec3::Z]);
-            let o = b.local_offset;
-            pa * b.barycentric.x
-                + pb * b.barycentric.y
-                + pc * b.barycentric.z
-                + frame[0] * o.x
-                + frame[1] * o.y
-                + frame[2] * o.z
-        }));
-        normals.extend(Mesh::compute_normals(&positions[start..], &fine.triangles));
+    let mut scratch = wrap_kernel::WrapScratch::default();
+    for (f, out) in positions.chunks_exact_mut(n.max(1)).enumerate().take(control.frame_count()) {
+        wrap_kernel::deform_frame(&bindings, control.frame_positions(f), triangles, &mut scratch, out);
+        normals.extend(Mesh::compute_normals(out, &fine.triangles));
     }
     let mut rest_fine = (**fine).clone();
     rest_fine.skin = None;

@@ -30,6 +30,7 @@
 //! | transition-graph types and search | [`transition_graph`] |
 //! | smoke on dynamic tetrahedral meshes (Klingner 2006) | [`fluid`] |
 //! | rigid-body physics on rapier3d: world, figures, controllers | [`physics`] |
+//! | wrap deformer: binding through a triangle hierarchy, per-frame replay | [`wrap`] |
 
 pub mod align;
 pub mod analysis;
@@ -57,3 +58,4 @@ pub mod skinning;
 pub mod soles;
 pub mod stages;
 pub mod transition_graph;
+pub mod wrap;
