@@ -111,6 +111,13 @@ fn run_writes_exports_and_a_json_report() {
         assert_eq!(report["nodes"][node]["status"], "ok", "{node}");
         assert!(report["nodes"][node]["seconds"].as_f64().unwrap() >= 0.0);
     }
+    // Output sizes: the loaded clip holds a rotation (16 bytes) and a translation (12 bytes)
+    // per joint and frame, counted here from the BVH text itself; exports hold no arrays.
+    let bvh = std::fs::read_to_string("assets/mannequin_walk.bvh").unwrap();
+    let joints = bvh.lines().filter(|l| matches!(l.split_whitespace().next(), Some("ROOT" | "JOINT"))).count();
+    let frames: u64 = bvh.lines().find_map(|l| l.strip_prefix("Frames:")).unwrap().trim().parse().unwrap();
+    assert_eq!(report["nodes"]["clip"]["output_bytes"].as_u64(), Some(frames * joints as u64 * 28));
+    assert_eq!(report["nodes"]["glb"]["output_bytes"].as_u64(), Some(0));
     // The loader reported the unit it detected.
     let warnings = report["nodes"]["clip"]["warnings"].as_array().unwrap();
     assert!(warnings.iter().any(|w| w.as_str().unwrap().contains("detected unit 'm'")));

@@ -425,10 +425,14 @@ impl Job<'_, '_> {
                 None => (Slot::Failed, Vec::new()),
             };
             let warnings = [warnings, cache_warnings].concat();
+            let output_bytes = match &slot {
+                Slot::Done { outputs } => outputs.iter().flatten().map(Value::array_bytes).sum(),
+                _ => 0,
+            };
             state.slots[index] = slot;
             state.reports.insert(
                 node.id.clone(),
-                NodeReport { kind: schema.kind.to_string(), status, seconds, warnings, error },
+                NodeReport { kind: schema.kind.to_string(), status, seconds, output_bytes, warnings, error },
             );
             for &d in &node.dependents {
                 if self.waits[d] {

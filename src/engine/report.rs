@@ -31,6 +31,8 @@ pub struct NodeReport {
     pub status: NodeStatus,
     /// Wall time spent in the node (0 when cached or not run), seconds.
     pub seconds: f64,
+    /// Bytes of the node's output arrays ([`Value::array_bytes`]; 0 when not run).
+    pub output_bytes: u64,
     /// Oddities the node reported.
     pub warnings: Vec<String>,
     /// The failure, for `error`, or what blocked it, for `blocked`.

@@ -141,6 +141,35 @@ impl Value {
             Value::VolumeSequence(_) => PortType::VolumeSequence,
         }
     }
+
+    /// Bytes of this value's sample arrays (poses, vertices, skin, curve samples, voxels,
+    /// particles), what `kg run --json` reports per node so a user sees what a graph will
+    /// cost. Metadata and small values count 0; a mesh sequence counts its own per-frame
+    /// vertices, not the rest mesh and clip it shares with the nodes that made them.
+    pub fn array_bytes(&self) -> u64 {
+        fn bytes<T>(items: &[T]) -> u64 {
+            std::mem::size_of_val(items) as u64
+        }
+        let clip = |c: &Clip| bytes(c.rotations()) + bytes(c.translations());
+        match self {
+            Value::Clip(c) => clip(c),
+            Value::Mesh(m) => {
+                let skin = m.skin.as_ref().map_or(0, |s| bytes(&s.joints) + bytes(&s.weights));
+                bytes(&m.positions) + bytes(&m.normals) + m.uvs.as_deref().map_or(0, bytes) + bytes(&m.triangles) + skin
+            }
+            Value::MeshSequence(s) => {
+                2 * (s.vertex_count() * s.frame_count() * std::mem::size_of::<glam::Vec3>()) as u64
+            }
+            Value::ClipSet(set) => set.clips().iter().map(|c| clip(&c.clip)).sum(),
+            Value::Curves(c) => c.channels().iter().map(|ch| bytes(&ch.values)).sum(),
+            Value::VolumeSequence(v) => v
+                .frames
+                .iter()
+                .map(|f| bytes(&f.density) + bytes(&f.temperature_k) + bytes(&f.velocity_m_s) + bytes(&f.particles_m))
+                .sum(),
+            _ => 0,
+        }
+    }
 }
 
 /// A Rust type that travels on a port of one [`PortType`].
