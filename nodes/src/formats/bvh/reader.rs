@@ -620,6 +620,32 @@ mod tests {
             assert_eq!(used, text.len(), "{text}");
             assert!((v - expected).abs() <= expected.abs() * f32::EPSILON, "{text}: {v} vs {expected}");
         }
+        // Random decimals of 1-15 digits with the point anywhere, followed by a separator
+        // or the end of the row.
+        let mut state = 0x853c_49e6_748f_ea9b_u64;
+        let mut next = move |n: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        };
+        for _ in 0..20_000 {
+            let digits = 1 + next(15) as usize;
+            let point = next(digits as u64 + 2) as usize;
+            let mut text = String::from(["", "-", "+"][next(3) as usize]);
+            for d in 0..digits {
+                if d == point {
+                    text.push('.');
+                }
+                text.push(char::from(b'0' + next(10) as u8));
+            }
+            let expected: f32 = text.parse().unwrap();
+            for tail in ["", " 1.5", "\t", "\r"] {
+                let (v, used) = parse_plain_decimal(format!("{text}{tail}").as_bytes()).unwrap();
+                assert_eq!(used, text.len(), "{text:?}{tail:?}");
+                assert!((v - expected).abs() <= expected.abs() * f32::EPSILON, "{text}: {v} vs {expected}");
+            }
+        }
         for text in ["1e5", "nan", "-", ".", "1234567890123456", "12345678901234567890123456789"] {
             assert!(parse_plain_decimal(text.as_bytes()).is_none_or(|(_, used)| used < text.len()), "{text}");
         }
