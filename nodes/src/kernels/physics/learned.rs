@@ -378,10 +378,8 @@ pub fn train(controller: &str, seed: u64, data: &[Labelled]) -> Result<LearnedPr
             .fit(&set)
             .map_err(|e| LearnError::Svm(e.to_string()))
     };
-    let (fit_rows, check_rows): (Vec<(usize, &Labelled)>, Vec<(usize, &Labelled)>) =
-        data.iter().enumerate().partition(|(i, _)| i % 4 != 3);
-    let fit_rows: Vec<&Labelled> = fit_rows.into_iter().map(|(_, d)| d).collect();
-    let check_rows: Vec<&Labelled> = check_rows.into_iter().map(|(_, d)| d).collect();
+    let fit_rows: Vec<&Labelled> = data.iter().enumerate().filter(|(i, _)| i % 4 != 3).map(|(_, d)| d).collect();
+    let check_rows: Vec<&Labelled> = data.iter().skip(3).step_by(4).collect();
     let mut best = (f64::NEG_INFINITY, EPS_GRID[0], C_GRID[0]);
     for eps in EPS_GRID {
         for c in C_GRID {
