@@ -1,16 +1,21 @@
 //! One simulation step of the standing 16-body figure built from a real CMU skeleton
 //! (02_01), with ground contacts and PD motors, at the default 1/300 s step (4 substeps);
 //! real-time factor = (1/300 s) / step cost. Also a bare chain of N capsules on ball joints
-//! (no contacts) for how the cost grows with the number of bodies.
+//! (no contacts) for how the cost grows with the number of bodies. And a whole
+//! `simulate` of a push script (3 s: a 45 N·s chest shove at 0.5 s, balance → step →
+//! …), which adds what the supervisor and the state sensing cost per step; its real-time
+//! factor is 3 s / the measured time, printed once before the measurement.
 //! Run: `cargo bench -p kinegraph-nodes --bench physics_step`.
 
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use glam::Vec3;
+use kinegraph_nodes::cancel::Cancel;
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
 use kinegraph_nodes::kernels::physics::figure::{FigureParams, build_figure};
+use kinegraph_nodes::kernels::physics::simulate::{Push, Script, SimParams, simulate};
 use kinegraph_nodes::kernels::physics::{World, WorldParams};
 use rapier3d::prelude::*;
 
@@ -54,5 +59,39 @@ fn chain_step(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, figure_step, chain_step);
+fn simulate_push(c: &mut Criterion) {
+    let Some(data) = shared_data() else { return };
+    let (clip, _) = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value;
+    let skeleton = clip.skeleton().clone();
+    let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+    let script = Script {
+        duration_secs: 3.0,
+        controllers: None,
+        requests: vec![],
+        pushes: vec![Push {
+            body: "chest".into(),
+            direction: figure.forward.to_array(),
+            impulse_ns: 45.0,
+            at_secs: 0.5,
+            duration_secs: 0.1,
+        }],
+    };
+    let params = SimParams::default();
+    let run = || simulate(&skeleton, None, &script, &params, Cancel::NEVER).unwrap();
+    let start = std::time::Instant::now();
+    let r = run();
+    let secs = start.elapsed().as_secs_f64();
+    println!(
+        "simulate 3 s push script: {} steps in {secs:.3} s, {:.1}× real time, {:.1} µs per step",
+        r.steps,
+        f64::from(script.duration_secs) / secs,
+        secs / r.steps as f64 * 1e6
+    );
+    let mut group = c.benchmark_group("physics_simulate");
+    group.sample_size(10);
+    group.bench_function("cmu_push_script_3s", |b| b.iter(run));
+    group.finish();
+}
+
+criterion_group!(benches, figure_step, chain_step, simulate_push);
 criterion_main!(benches);

@@ -17,10 +17,12 @@
 //! | the controller contract and the supervisor (Faloutsos 2001) | [`controller`] |
 //! | the controllers: balance, protective step, protective fall, relax | [`controllers`] |
 //! | a scripted run: pushes, requests, blow-up detection, clip out | [`simulate`] |
+//! | pre-conditions learned from trials (SVM) | [`learned`] |
 
 pub mod controller;
 pub mod controllers;
 pub mod figure;
+pub mod learned;
 pub mod simulate;
 pub mod state;
 

@@ -400,21 +400,7 @@ pub fn simulate(
     };
     let mut supervisor = Supervisor::new(controllers::pool_of(&names));
     let state0 = FigureState::read(&figure, &world, &spawned, g, 0.0);
-    let (thigh, foot) = (
-        figure.bodies.iter().position(|b| b.role == BodyRole::Thigh),
-        figure.bodies.iter().position(|b| b.role == BodyRole::Foot),
-    );
-    let leg_length_m = match (thigh, foot) {
-        (Some(t), Some(f)) => state0.body_pos[t].y - state0.sole_centre[figure.bodies[f].side.unwrap_or(0).min(1)].y,
-        _ => 0.5 * figure.stature_m,
-    };
-    let ctx = ControlContext {
-        figure: &figure,
-        gravity_m_s2: g,
-        standing_com_height_m: state0.com.y,
-        leg_length_m,
-        stand: &stand,
-    };
+    let ctx = context(&figure, &stand, &state0, g);
     let bound = energy_bound_j(&figure, script, g);
     let dt = world.dt_secs();
     let steps = (script.duration_secs / dt).round() as usize;
@@ -449,15 +435,7 @@ pub fn simulate(
         }
         supervisor.step(&state, &ctx, &mut targets);
         targets.apply(&figure, &mut world, &spawned);
-        for &h in &spawned.handles {
-            world.inner.bodies[h].reset_forces(false);
-        }
-        for (p, &b) in script.pushes.iter().zip(&push_bodies) {
-            if t >= p.at_secs && t < p.at_secs + p.duration_secs {
-                let force = Vec3::from_array(p.direction).normalize_or_zero() * (p.impulse_ns / p.duration_secs);
-                world.inner.bodies[spawned.handles[b]].add_force(to_rapier(force), true);
-            }
-        }
+        apply_pushes(&mut world, &spawned, &script.pushes, &push_bodies, t);
         world.step();
     }
     supervisor.finish(script.duration_secs);
@@ -476,6 +454,40 @@ pub fn simulate(
     }
     let clip = clip_of(&figure, skeleton, &body_frames, params.fps).map_err(|e| SimError::Pose(e.to_string()))?;
     Ok(SimResult { clip, timeline: supervisor.timeline, samples, figure, min_head_clearance_m: min_head, steps })
+}
+
+/// The controllers' context for a figure standing in `state0` (its initial state): the
+/// standing COM height is the initial one, the leg length the hip's height above its sole.
+pub fn context<'a>(
+    figure: &'a Figure,
+    stand: &'a Targets,
+    state0: &FigureState,
+    gravity_m_s2: f32,
+) -> ControlContext<'a> {
+    let (thigh, foot) = (
+        figure.bodies.iter().position(|b| b.role == BodyRole::Thigh),
+        figure.bodies.iter().position(|b| b.role == BodyRole::Foot),
+    );
+    let leg_length_m = match (thigh, foot) {
+        (Some(t), Some(f)) => state0.body_pos[t].y - state0.sole_centre[figure.bodies[f].side.unwrap_or(0).min(1)].y,
+        _ => 0.5 * figure.stature_m,
+    };
+    ControlContext { figure, gravity_m_s2, standing_com_height_m: state0.com.y, leg_length_m, stand }
+}
+
+/// Sets the external forces for the step that starts at `t`: each push acting then puts
+/// its force (impulse / duration, N) on its body (`bodies[i]` is push `i`'s figure body);
+/// every other force of the previous step is cleared.
+pub fn apply_pushes(world: &mut World, spawned: &Spawned, pushes: &[Push], bodies: &[usize], t: f32) {
+    for &h in &spawned.handles {
+        world.inner.bodies[h].reset_forces(false);
+    }
+    for (p, &b) in pushes.iter().zip(bodies) {
+        if t >= p.at_secs && t < p.at_secs + p.duration_secs {
+            let force = Vec3::from_array(p.direction).normalize_or_zero() * (p.impulse_ns / p.duration_secs);
+            world.inner.bodies[spawned.handles[b]].add_force(to_rapier(force), true);
+        }
+    }
 }
 
 /// What makes a state blown up, if anything: a non-finite body pose, or a kinetic energy
