@@ -110,10 +110,12 @@ impl Controller for Balance {
         let hip = lean(K_HIP, HIP_FROM_M, 0.4);
         for side in 0..2 {
             let Some((thigh, _, foot)) = leg(ctx, side) else { continue };
-            // Foot flat, shank leant: the foot relative to the shank is the lean's inverse,
-            // on top of the held posture.
+            // Foot flat, shank leant in world axes: the shank's world rotation becomes
+            // `ankle · held⁻¹`, so the foot relative to it is `held · ankle⁻¹` (the other
+            // order would lean each shank about its own turned axes, and two legs turned
+            // apart would push against each other).
             let held = ctx.figure.bodies[foot].joint_frame * glam::Vec3::from_array(hold.angles[foot]);
-            targets.set_relative(ctx.figure, foot, ankle.inverse() * Quat::from_scaled_axis(held));
+            targets.set_relative(ctx.figure, foot, Quat::from_scaled_axis(held) * ankle.inverse());
             // Pelvis leant by the hip lean: the thigh relative to the pelvis is its inverse.
             let held = ctx.figure.bodies[thigh].joint_frame * glam::Vec3::from_array(hold.angles[thigh]);
             targets.set_relative(ctx.figure, thigh, hip.inverse() * Quat::from_scaled_axis(held));
