@@ -168,6 +168,60 @@ fn supervisor_activates_the_best_bid_times_preference_and_reacts_to_failure_and_
     assert_eq!(sup.timeline.len(), 3);
 }
 
+/// The ankle strategy leans the body in world axes whatever the legs' held posture: with
+/// both thighs turned outwards by 0.3 rad about the forward axis (feet kept flat) and the
+/// capture point 5 cm ahead of the support, each foot's target makes its shank, seen from a
+/// flat foot, the held leg leant back by exactly `K_ANKLE · 5 cm` about the figure's left
+/// axis (the pendulum lean a straight leg would get), for both legs alike. Leaning each
+/// shank about its own turned axes instead would tilt the two legs apart sideways (0.03 rad
+/// off here); the left leg measures 7e-4 rad off, which the 2e-3 rad bound allows.
+#[test]
+fn balance_leans_turned_legs_about_the_same_world_axis() {
+    use glam::{Quat, Vec3};
+    use kinegraph_nodes::kernels::physics::controllers::balance::{Balance, K_ANKLE};
+    use kinegraph_nodes::kernels::physics::figure::BodyRole;
+    let Some(data) = shared_data() else { return };
+    let skeleton = cmu(&data);
+    let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+    let stand = Targets::rest(&figure);
+    let ctx = ControlContext {
+        figure: &figure,
+        gravity_m_s2: 9.80665,
+        standing_com_height_m: 1.0,
+        leg_length_m: 0.9,
+        stand: &stand,
+    };
+    let body = |role, side| figure.bodies.iter().position(|b| b.role == role && b.side == Some(side)).unwrap();
+    let mut held = Targets::rest(&figure);
+    let turns = [0.3f32, -0.3];
+    for side in 0..2 {
+        let turn = Quat::from_axis_angle(figure.forward, turns[side]);
+        held.set_relative(&figure, body(BodyRole::Thigh, side), turn);
+        held.set_relative(&figure, body(BodyRole::Foot, side), turn.inverse());
+    }
+    let mut state = blank_state(&figure);
+    state.joint_coords = held.angles.clone();
+    let offset_m = 0.05;
+    state.capture_point = Vec2::new(figure.forward.x, figure.forward.z) * offset_m;
+    let mut balance = Balance::default();
+    balance.activate(&state, &ctx);
+    let mut targets = stand.clone();
+    assert_eq!(balance.control(&state, &ctx, &mut targets), Status::Running);
+    // Leaning back: a rotation about the left axis by −k·u (see balance's doc).
+    let lean = Quat::from_axis_angle(figure.left, -K_ANKLE * offset_m);
+    for side in 0..2 {
+        let foot = body(BodyRole::Foot, side);
+        let rel = Quat::from_scaled_axis(figure.bodies[foot].joint_frame * Vec3::from_array(targets.angles[foot]));
+        // Flat foot (world rotation identity): the shank's world rotation is rel⁻¹, and
+        // the held shank was turned by `turn`.
+        let turn = Quat::from_axis_angle(figure.forward, turns[side]);
+        let got_lean = rel.inverse() * turn.inverse();
+        let err = got_lean.angle_between(lean);
+        println!("side {side}: lean error {err:.2e} rad (the lean is {:.3} rad)", K_ANKLE * offset_m);
+        assert!(err < 2e-3, "side {side}: the shank leans {err} rad off the world-axis lean");
+    }
+}
+
 fn blank_state(figure: &kinegraph_nodes::kernels::physics::figure::Figure) -> FigureState {
     let n = figure.bodies.len();
     FigureState {
