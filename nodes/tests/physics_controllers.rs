@@ -194,8 +194,8 @@ fn balance_leans_turned_legs_about_the_same_world_axis() {
     let body = |role, side| figure.bodies.iter().position(|b| b.role == role && b.side == Some(side)).unwrap();
     let mut held = Targets::rest(&figure);
     let turns = [0.3f32, -0.3];
-    for side in 0..2 {
-        let turn = Quat::from_axis_angle(figure.forward, turns[side]);
+    for (side, &angle) in turns.iter().enumerate() {
+        let turn = Quat::from_axis_angle(figure.forward, angle);
         held.set_relative(&figure, body(BodyRole::Thigh, side), turn);
         held.set_relative(&figure, body(BodyRole::Foot, side), turn.inverse());
     }
@@ -209,12 +209,12 @@ fn balance_leans_turned_legs_about_the_same_world_axis() {
     assert_eq!(balance.control(&state, &ctx, &mut targets), Status::Running);
     // Leaning back: a rotation about the left axis by −k·u (see balance's doc).
     let lean = Quat::from_axis_angle(figure.left, -K_ANKLE * offset_m);
-    for side in 0..2 {
+    for (side, &angle) in turns.iter().enumerate() {
         let foot = body(BodyRole::Foot, side);
         let rel = Quat::from_scaled_axis(figure.bodies[foot].joint_frame * Vec3::from_array(targets.angles[foot]));
         // Flat foot (world rotation identity): the shank's world rotation is rel⁻¹, and
         // the held shank was turned by `turn`.
-        let turn = Quat::from_axis_angle(figure.forward, turns[side]);
+        let turn = Quat::from_axis_angle(figure.forward, angle);
         let got_lean = rel.inverse() * turn.inverse();
         let err = got_lean.angle_between(lean);
         println!("side {side}: lean error {err:.2e} rad (the lean is {:.3} rad)", K_ANKLE * offset_m);
