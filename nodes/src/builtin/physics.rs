@@ -33,7 +33,8 @@ const SCRIPT: InputPathParam = InputPathParam::new(
 );
 const FRAME: IntParam = IntParam::optional(
     "frame",
-    "Frame of the clip used as the initial pose; unset stands the rest pose.",
+    "Frame of the clip used as the initial pose; unset stands the rest pose with the feet under the hips and \
+     the arms lowered.",
     0,
     10_000_000,
 );

@@ -27,6 +27,9 @@ pub const BID_SENSIBLE: u32 = 1;
 pub const BID_CAN_REACH: u32 = 2;
 /// How much a user request multiplies the requested controller's score.
 pub const REQUEST_BOOST: u32 = 1000;
+/// Angle of the upper arms from vertical in the standing pose, radians (hanging at the
+/// sides, clear of the trunk's capsules).
+pub const ARM_DOWN_RAD: f32 = 0.25;
 
 /// What an active controller reports after a control step.
 #[derive(Clone, Debug, PartialEq)]
@@ -54,6 +57,40 @@ impl Targets {
     /// The rest pose at the figure's gains.
     pub fn rest(figure: &Figure) -> Targets {
         Targets { angles: vec![[0.0; 3]; figure.bodies.len()], gain: vec![1.0; figure.bodies.len()] }
+    }
+
+    /// The standing pose a figure takes when no initial pose is given: each leg turned so
+    /// that its ankle is straight below its hip, foot flat, and arms lowered to
+    /// [`ARM_DOWN_RAD`] from vertical, out to their own side; everything else at rest.
+    /// Rest poses are made for skinning, not standing: CMU's has the legs splayed 20° (soles
+    /// 0.77 m apart) and most rigs hold the arms out in a T.
+    pub fn standing(figure: &Figure) -> Targets {
+        let mut t = Targets::rest(figure);
+        let child = |b: usize, role: BodyRole| figure.bodies.iter().position(|c| c.parent == Some(b) && c.role == role);
+        for (i, body) in figure.bodies.iter().enumerate() {
+            match body.role {
+                BodyRole::Thigh => {
+                    let Some(shank) = child(i, BodyRole::Shank) else { continue };
+                    let Some(foot) = child(shank, BodyRole::Foot) else { continue };
+                    let hip_to_ankle = figure.bodies[shank].anchor_in_parent + figure.bodies[foot].anchor_in_parent;
+                    let Some(dir) = hip_to_ankle.try_normalize() else { continue };
+                    let turn = Quat::from_rotation_arc(dir, Vec3::NEG_Y);
+                    t.set_relative(figure, i, turn);
+                    // The foot keeps its rest orientation in the world.
+                    t.set_relative(figure, foot, turn.inverse());
+                }
+                BodyRole::UpperArm => {
+                    let rest = figure.bone_direction(i);
+                    let Some(out) = rest.with_y(0.0).try_normalize() else { continue };
+                    let want = Vec3::NEG_Y * ARM_DOWN_RAD.cos() + out * ARM_DOWN_RAD.sin();
+                    if rest.angle_between(Vec3::NEG_Y) > ARM_DOWN_RAD {
+                        t.set_relative(figure, i, Quat::from_rotation_arc(rest, want));
+                    }
+                }
+                _ => {}
+            }
+        }
+        t
     }
 
     /// Sets body `b`'s target so that it is rotated by `relative` (a rotation in world axes

@@ -230,8 +230,10 @@ fn ball_limits(role: BodyRole, side: Option<usize>) -> [[f32; 2]; 3] {
         // Hip: flexion is a negative X rotation of a downward thigh (115° flexion, 20°
         // extension), abduction 45° / adduction 25°, rotation ±40°.
         BodyRole::Thigh => [[-2.0, 0.35], [-0.7, 0.7], [-0.45, 0.8]],
-        // Ankle: 20° dorsiflexion, 45° plantarflexion, ±20° rotation, ±20° inversion.
-        BodyRole::Foot => [[-0.35, 0.8], [-0.35, 0.35], [-0.35, 0.35]],
+        // Ankle: 20° dorsiflexion, 45° plantarflexion, ±20° rotation, ±30° inversion and
+        // eversion (ankle and subtalar joints together; a rig whose rest pose splays the
+        // legs by 20° needs that much to stand with its feet flat).
+        BodyRole::Foot => [[-0.35, 0.8], [-0.35, 0.35], [-0.52, 0.52]],
         // Spine segments: 45° forward bend, 25° back, ±30° twist, ±25° side bend.
         BodyRole::Abdomen | BodyRole::Chest => [[-0.45, 0.8], [-0.5, 0.5], [-0.45, 0.45]],
         // Neck: 50° flexion, 60° extension, ±70° rotation, ±40° side bend.

@@ -275,8 +275,9 @@ pub struct Stage {
 }
 
 /// Builds the figure for `skeleton`, puts it in a world with a ground at `y = 0` and poses
-/// it in the local joint `pose` (rotations, translations; the rest pose when `None`), its
-/// lowest sole corner on the ground. The pose's root position sets where it stands.
+/// it in the local joint `pose` (rotations, translations; when `None`, the rest skeleton in
+/// [`Targets::standing`]), its lowest sole corner on the ground. The pose's root position
+/// sets where it stands.
 pub fn stage(skeleton: &Skeleton, pose: Option<(&[Quat], &[Vec3])>, params: &SimParams) -> Result<Stage, SimError> {
     let figure = build_figure(skeleton, &params.figure)?;
     let mut world = World::new(params.world)?;
@@ -287,8 +288,8 @@ pub fn stage(skeleton: &Skeleton, pose: Option<(&[Quat], &[Vec3])>, params: &Sim
     world.inner.gravity = rapier3d::math::Vector::ZERO;
     world.step();
     world.inner.gravity = gravity;
-    let mut stand = Targets::rest(&figure);
-    if let Some((rotations, translations)) = pose {
+    let mut stand = Targets::standing(&figure);
+    let (root_rot, root_pos) = if let Some((rotations, translations)) = pose {
         if rotations.len() != skeleton.len() || translations.len() != skeleton.len() {
             return Err(SimError::Pose(format!(
                 "{} joints posed, the skeleton has {}",
@@ -302,12 +303,16 @@ pub fn stage(skeleton: &Skeleton, pose: Option<(&[Quat], &[Vec3])>, params: &Sim
                 stand.set_relative(&figure, i, rot[p].inverse() * rot[i]);
             }
         }
-        set_pose(&figure, &mut world, &spawned, &stand, rot[0], pos[0])?;
-        // Drop it onto the ground: the lowest sole corner at y = 0.
+        (rot[0], pos[0])
+    } else {
         let state = FigureState::read(&figure, &world, &spawned, params.world.gravity_m_s2, 0.0);
-        let lowest = lowest_sole(&figure, &state);
-        set_pose(&figure, &mut world, &spawned, &stand, rot[0], pos[0] - Vec3::Y * lowest)?;
-    }
+        (Quat::IDENTITY, state.body_pos[0])
+    };
+    set_pose(&figure, &mut world, &spawned, &stand, root_rot, root_pos)?;
+    // Drop it onto the ground: the lowest sole corner at y = 0.
+    let state = FigureState::read(&figure, &world, &spawned, params.world.gravity_m_s2, 0.0);
+    let lowest = lowest_sole(&figure, &state);
+    set_pose(&figure, &mut world, &spawned, &stand, root_rot, root_pos - Vec3::Y * lowest)?;
     stand.apply(&figure, &mut world, &spawned);
     Ok(Stage { figure, world, spawned, stand })
 }

@@ -137,13 +137,16 @@ impl FigureState {
         Vec2::new(self.com.x, self.com.z)
     }
 
-    /// Centroid of the support polygon's vertices, or the soles' midpoint without support.
+    /// Area centroid of the support polygon (the mean of its vertices for a point or a
+    /// segment), or the soles' midpoint without support. The area centroid, unlike the
+    /// vertex mean, does not jump when a collinear corner joins or leaves the hull.
     pub fn support_centre(&self) -> Vec2 {
         if self.support.is_empty() {
             let c = (self.sole_centre[0] + self.sole_centre[1]) * 0.5;
             return Vec2::new(c.x, c.z);
         }
-        self.support.iter().copied().sum::<Vec2>() / self.support.len() as f32
+        let mean = self.support.iter().copied().sum::<Vec2>() / self.support.len() as f32;
+        polygon_centroid(&self.support).unwrap_or(mean)
     }
 }
 
@@ -152,6 +155,19 @@ impl FigureState {
 /// `x + ẋ·√(h/g)`.
 pub fn capture_point(com: Vec2, vel: Vec2, height_m: f32, gravity_m_s2: f32) -> Vec2 {
     com + vel * (height_m.max(0.0) / gravity_m_s2.max(1e-3)).sqrt()
+}
+
+/// Area centroid of a simple polygon (shoelace formula), `None` when its area is (nearly)
+/// zero.
+pub fn polygon_centroid(poly: &[Vec2]) -> Option<Vec2> {
+    let (mut area2, mut c) = (0.0f32, Vec2::ZERO);
+    for i in 0..poly.len() {
+        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+        let cross = a.perp_dot(b);
+        area2 += cross;
+        c += (a + b) * cross;
+    }
+    (area2.abs() > 1e-8).then(|| c / (3.0 * area2))
 }
 
 /// Convex hull (Andrew's monotone chain), counter-clockwise in the (x, z) plane's own

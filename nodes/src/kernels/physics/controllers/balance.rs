@@ -40,9 +40,18 @@ pub const FAIL_OUTSIDE_M: f32 = 0.02;
 #[derive(Default)]
 pub struct Balance {
     hold: Option<Targets>,
+    /// The COM's ground projection (x, z, metres) and the time (seconds) when balance took
+    /// over: see [`SETTLE_SECS`].
+    start: Option<(glam::Vec2, f32)>,
     /// Since when a foot has been off the ground, seconds.
     foot_off_since: Option<f32>,
 }
+
+/// Balance drives the capture point towards a point that moves from the COM's ground
+/// projection at activation to the support centroid over this long, seconds: a figure
+/// standing still has its COM several centimetres behind the middle of its feet, and
+/// pulling it there at once jerks it off its heels.
+pub const SETTLE_SECS: f32 = 0.4;
 
 /// A foot may be off the ground this long (a trailing heel after a step) before balance
 /// declares failure, seconds.
@@ -79,6 +88,7 @@ impl Controller for Balance {
         }
         self.hold = Some(hold);
         self.foot_off_since = None;
+        self.start = Some((state.com_xz(), state.time_secs));
     }
     fn control(&mut self, state: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
         if state.foot_down[0] && state.foot_down[1] {
@@ -96,24 +106,32 @@ impl Controller for Balance {
         let hold = self.hold.get_or_insert_with(|| ctx.stand.clone());
         targets.clone_from(hold);
         let (forward, left) = facing(state, ctx);
-        let u = super::xz(state.capture_point - state.support_centre());
+        let centre = match self.start {
+            Some((com, t0)) => com.lerp(state.support_centre(), ((state.time_secs - t0) / SETTLE_SECS).clamp(0.0, 1.0)),
+            None => state.support_centre(),
+        };
+        let u = super::xz(state.capture_point - centre);
         let (u_f, u_l) = (u.dot(forward), u.dot(left));
         // Lean the body back when ξ is ahead (rotation about left by −θ tilts up backwards)
         // and to the right when ξ is to the left.
-        let lean = |k: f32, from: f32, max: f32| {
+        let lean = |k: f32, from: f32, max: f32, u_l: f32| {
             let shrink = |x: f32| x.signum() * (x.abs() - from).max(0.0);
             // Relative rotations are in the rest pose's axes.
             Quat::from_axis_angle(ctx.figure.left, (-k * shrink(u_f)).clamp(-max, max))
                 * Quat::from_axis_angle(ctx.figure.forward, (k * shrink(u_l)).clamp(-max, max))
         };
-        let ankle = lean(K_ANKLE, 0.0, MAX_ANKLE_RAD);
-        let hip = lean(K_HIP, HIP_FROM_M, 0.4);
+        let ankle = lean(K_ANKLE, 0.0, MAX_ANKLE_RAD, u_l);
+        // The hip strategy is sagittal only: rolling the pelvis sideways over two planted
+        // feet would raise one hip and lift the other foot off the ground.
+        let hip = lean(K_HIP, HIP_FROM_M, 0.4, 0.0);
         for side in 0..2 {
             let Some((thigh, _, foot)) = leg(ctx, side) else { continue };
-            // Foot flat, shank leant: the foot relative to the shank is the lean's inverse,
-            // on top of the held posture.
+            // Foot flat, shank leant in world axes: the shank's world rotation becomes
+            // `ankle · held⁻¹`, so the foot relative to it is `held · ankle⁻¹` (the other
+            // order would lean each shank about its own turned axes, and two legs turned
+            // apart would push against each other).
             let held = ctx.figure.bodies[foot].joint_frame * glam::Vec3::from_array(hold.angles[foot]);
-            targets.set_relative(ctx.figure, foot, ankle.inverse() * Quat::from_scaled_axis(held));
+            targets.set_relative(ctx.figure, foot, Quat::from_scaled_axis(held) * ankle.inverse());
             // Pelvis leant by the hip lean: the thigh relative to the pelvis is its inverse.
             let held = ctx.figure.bodies[thigh].joint_frame * glam::Vec3::from_array(hold.angles[thigh]);
             targets.set_relative(ctx.figure, thigh, hip.inverse() * Quat::from_scaled_axis(held));
