@@ -3,9 +3,10 @@
 //! optimised by [`momentum_edit`] in parallel (rayon). A sample that does not converge stays
 //! in the family marked failed, with its typed error, so a blend can refuse it by name.
 //!
-//! Frame of reference: the jump's direction `forward` runs from the pivot (mid-stage centre
-//! of mass on the floor, [`ground_pivots`]) of the earlier of the swept stage and its
-//! neighbouring ground stage to the later one's; `side` = Y × forward (the jump's left).
+//! Frame of reference: the jump's direction `forward` is the horizontal travel of the centre
+//! of mass over the flight between the swept stage and its neighbouring ground stage (the
+//! one before it, or after the first); `side` = Y × forward (the jump's left). Stages turn
+//! about their pivots (mid-stage centre of mass on the floor, [`ground_pivots`]).
 //! - line: offset = u · forward (u in metres);
 //! - grid: offset = u · forward + v · side (metres);
 //! - semicircle: the stage turns by u radians about the neighbouring stage's pivot C, so its
@@ -123,18 +124,21 @@ pub struct FamilyRun {
 /// swept pivot c), metres.
 fn frame_of_reference(setup: &EditSetup<'_>, stage: usize) -> Result<(DVec3, DVec3, DVec3, DVec3), FamilyError> {
     let track = momentum_of_poses(&forward_kinematics(setup.clip), setup.clip.fps(), setup.model);
-    let pivots: Vec<DVec3> = ground_pivots(setup.stages, &track.com_m).into_iter().map(|(_, p)| p).collect();
-    if pivots.len() < 2 {
-        return Err(FamilyError::OneGround { grounds: pivots.len() });
+    let grounds = ground_pivots(setup.stages, &track.com_m);
+    if grounds.len() < 2 {
+        return Err(FamilyError::OneGround { grounds: grounds.len() });
     }
-    if stage >= pivots.len() {
-        return Err(FamilyError::Stage { stage, grounds: pivots.len() });
+    if stage >= grounds.len() {
+        return Err(FamilyError::Stage { stage, grounds: grounds.len() });
     }
     let neighbour = if stage > 0 { stage - 1 } else { 1 };
-    let (earlier, later) = (pivots[stage.min(neighbour)], pivots[stage.max(neighbour)]);
-    // A hop on the spot has no direction: the default facing (+Z) stands in.
-    let forward = (later - earlier).normalize_or(DVec3::Z);
-    Ok((forward, DVec3::Y.cross(forward), pivots[neighbour], pivots[stage]))
+    let (earlier, later) = (grounds[stage.min(neighbour)].0, grounds[stage.max(neighbour)].0);
+    // The centre of mass's travel over the flight between them, on the floor plane; a hop
+    // on the spot has no direction, and the default facing (+Z) stands in.
+    let com = |f: usize| track.com_m.get(f).copied().unwrap_or(DVec3::ZERO);
+    let travel = com(later.start.saturating_sub(1)) - com(earlier.end);
+    let forward = DVec3::new(travel.x, 0.0, travel.z).normalize_or(DVec3::Z);
+    Ok((forward, DVec3::Y.cross(forward), grounds[neighbour].1, grounds[stage].1))
 }
 
 /// The swept stage's edit for the parameters `p` (one per axis).

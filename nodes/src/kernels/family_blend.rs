@@ -109,8 +109,11 @@ fn cell<'a>(family: &'a Family, params: &[f64]) -> Result<Cell<'a>, BlendError> 
     let mut corners = Vec::with_capacity(1 << n);
     let mut shares = Vec::with_capacity(1 << n);
     for c in 0..1usize << n {
-        let index: Vec<usize> =
-            spans.iter().enumerate().map(|(k, (lo, hi, _))| if c >> (n - 1 - k) & 1 == 1 { *hi } else { *lo }).collect();
+        let index: Vec<usize> = spans
+            .iter()
+            .enumerate()
+            .map(|(k, (lo, hi, _))| if c >> (n - 1 - k) & 1 == 1 { *hi } else { *lo })
+            .collect();
         let sample = family.sample_at(&index).ok_or_else(|| BlendError::Missing(index.clone()))?;
         let share = spans
             .iter()
@@ -352,7 +355,8 @@ mod tests {
             Skeleton::new(vec![Joint::new("Hips", None, Vec3::Y), Joint::new("Hand", Some(0), Vec3::X)]).unwrap(),
         );
         let axes = vec![vec![-0.5, 0.0, 0.5], vec![-0.4, 0.4]];
-        let samples = axes[0].iter().flat_map(|&u| axes[1].iter().map(|&v| sample(&skeleton, u, v)).collect::<Vec<_>>());
+        let samples =
+            axes[0].iter().flat_map(|&u| axes[1].iter().map(|&v| sample(&skeleton, u, v)).collect::<Vec<_>>());
         Family {
             kind: FamilyKind::Grid,
             stage: 1,

@@ -93,11 +93,8 @@ fn placements(stages: &Stages, com_m: &[DVec3], edits: &[GroundEdit]) -> Result<
         .iter()
         .zip(edits)
         .map(|((r, pivot), e)| {
-            let placement = Placement {
-                pivot: *pivot,
-                offset: DVec3::new(e.offset_m.x, 0.0, e.offset_m.z),
-                turn_rad: e.turn_rad,
-            };
+            let placement =
+                Placement { pivot: *pivot, offset: DVec3::new(e.offset_m.x, 0.0, e.offset_m.z), turn_rad: e.turn_rad };
             (*r, placement)
         })
         .collect();

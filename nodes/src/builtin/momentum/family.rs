@@ -113,11 +113,7 @@ fn family_located(e: FamilyError) -> NodeError {
 
 /// A sweep from the node's `from`, `to` and `count` params.
 fn sweep(ctx: &NodeContext<'_>, from: &FloatParam, to: &FloatParam, count: &IntParam) -> Result<AxisSweep, NodeError> {
-    Ok(AxisSweep {
-        from: ctx.float(from)?,
-        to: ctx.float(to)?,
-        count: usize::try_from(ctx.int(count)?).unwrap_or(1),
-    })
+    Ok(AxisSweep { from: ctx.float(from)?, to: ctx.float(to)?, count: usize::try_from(ctx.int(count)?).unwrap_or(1) })
 }
 
 impl Node for MotionFamily {
@@ -206,8 +202,14 @@ const U: FloatParam = FloatParam::new(
     10.0,
     "",
 );
-const V: FloatParam =
-    FloatParam::new("v", "Metres to the jump's left (grid families only), inside the sampled range.", 0.0, -10.0, 10.0, "m");
+const V: FloatParam = FloatParam::new(
+    "v",
+    "Metres to the jump's left (grid families only), inside the sampled range.",
+    0.0,
+    -10.0,
+    10.0,
+    "m",
+);
 
 /// The parameters of `u` and `v` a family of `family`'s kind takes.
 fn params_of(ctx: &NodeContext<'_>, family: &Family) -> Result<Vec<f64>, NodeError> {
