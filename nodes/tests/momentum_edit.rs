@@ -15,7 +15,7 @@ use kinegraph_nodes::kernels::body::{BodyModel, MassTable, body_model, find_land
 use kinegraph_nodes::kernels::load::{ClipLoadOptions, load_clip};
 use kinegraph_nodes::kernels::momentum_edit::{GroundEdit, measure_edit, naive_edit};
 use kinegraph_nodes::kernels::momentum_solve::{EditSetup, LIMIT_MARGIN_RAD, SolveError, SolveOptions, momentum_edit};
-use kinegraph_nodes::kernels::stages::{StagedClip, fit_ballistic, stage_clip};
+use kinegraph_nodes::kernels::stages::{fit_ballistic, stage_clip};
 use kinegraph_nodes::math::quat_normalize_or_identity;
 use kinegraph_nodes::model::{Clip, FrameRange, Stage, StageKind, Stages, forward_kinematics};
 

@@ -162,12 +162,15 @@ pub(super) fn solve_options(ctx: &NodeContext<'_>) -> Result<SolveOptions, NodeE
     })
 }
 
+/// The original's foot contacts: (ankle joint, frames).
+pub(super) type Planted = Vec<(usize, FrameRange)>;
+
 /// What an edit of `clip` needs besides the clip and its stages: the body model (the
 /// node's mass params), the ankle joints and the original's foot contacts.
 pub(super) fn solve_inputs(
     ctx: &mut NodeContext<'_>,
     clip: &Clip,
-) -> Result<(BodyModel, [usize; 2], Vec<(usize, FrameRange)>), NodeError> {
+) -> Result<(BodyModel, [usize; 2], Planted), NodeError> {
     let model = mass_model_of(ctx, clip)?;
     let (contacts, feet) = contacts_of(clip, &forward_kinematics(clip), &ContactThresholds::default())
         .map_err(|e| NodeError::input("clip", format!("the feet could not be found: {e}")))?;
