@@ -141,8 +141,9 @@ enum Command {
         #[arg(long, value_name = "NAME=GLOB")]
         input: Vec<Setting>,
         /// NAME=START:END:COUNT: a numeric graph input or node.param swept over COUNT evenly
-        /// spaced values, one task each; several --sweep give every combination (with every
-        /// --input binding), e.g. the samples of a motion.family grid, one per task.
+        /// spaced values, one task each; NAME,NAME2=… gives each value to all of them; several
+        /// --sweep give every combination (with every --input binding), e.g. the samples of a
+        /// motion.family grid, one per task.
         #[arg(long, value_name = "NAME=START:END:COUNT")]
         sweep: Vec<crate::farm::sweep::Sweep>,
         /// The output root the upstream plan's tasks write into (for NAME=@PLAN).

@@ -80,18 +80,19 @@ fn bindings(inputs: &[Setting], upstream_out: &Path, base: &Path) -> Result<Vec<
 }
 
 /// The points of the `--sweep` grid: every combination of the sweeps' values, the first
-/// sweep varying slowest, each point a list of settings.
-fn sweep_points(sweeps: &[Sweep]) -> Vec<Vec<Setting>> {
-    let mut product = vec![Vec::new()];
+/// sweep varying slowest, each point its label (`NAME=VALUE` per sweep) and settings.
+fn sweep_points(sweeps: &[Sweep]) -> Vec<(Vec<String>, Vec<Setting>)> {
+    let mut product = vec![(Vec::new(), Vec::new())];
     for sweep in sweeps {
         let values = sweep.values();
         product = product
             .into_iter()
-            .flat_map(|partial: Vec<Setting>| {
+            .flat_map(|partial: (Vec<String>, Vec<Setting>)| {
                 values.iter().map(move |v| {
-                    let mut next = partial.clone();
-                    next.push(Setting { name: sweep.name.clone(), value: v.clone() });
-                    next
+                    let (mut labels, mut settings) = partial.clone();
+                    labels.push(format!("{}={v}", sweep.names.join(",")));
+                    settings.extend(sweep.names.iter().map(|n| Setting { name: n.clone(), value: v.clone() }));
+                    (labels, settings)
                 })
             })
             .collect();
@@ -126,8 +127,8 @@ pub fn make_plan(
     for input in inputs {
         loaded.graph.resolve(&input.name).map_err(|e| format!("{}: --input {}: {e}", graph.display(), input.name))?;
     }
-    for sweep in sweeps {
-        loaded.graph.resolve(&sweep.name).map_err(|e| format!("{}: --sweep {}: {e}", graph.display(), sweep.name))?;
+    for name in sweeps.iter().flat_map(|s| &s.names) {
+        loaded.graph.resolve(name).map_err(|e| format!("{}: --sweep {name}: {e}", graph.display()))?;
     }
     let point_count = sweeps.iter().fold(1usize, |n, s| n.saturating_mul(s.count));
     if point_count > MAX_TASKS {
@@ -154,20 +155,19 @@ pub fn make_plan(
     }
     let graph_name = graph.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "graph".into());
     // Every binding at every sweep point, the sweeps varying fastest.
-    let runs: Vec<(Binding, Vec<Setting>)> = bindings(inputs, upstream_out, &base)?
+    let runs: Vec<(Binding, (Vec<String>, Vec<Setting>))> = bindings(inputs, upstream_out, &base)?
         .into_iter()
         .flat_map(|b| points.iter().map(move |p| (b.clone(), p.clone())))
         .collect();
     let raw_ids: Vec<String> = runs
         .iter()
-        .map(|(b, point)| {
-            let labels: Vec<String> =
-                b.labels.iter().cloned().chain(point.iter().map(|s| format!("{}={}", s.name, s.value))).collect();
+        .map(|(b, (point_labels, _))| {
+            let labels: Vec<String> = b.labels.iter().chain(point_labels).cloned().collect();
             if labels.is_empty() { graph_name.clone() } else { labels.join("+") }
         })
         .collect();
     let mut tasks = Vec::new();
-    for ((index, (binding, point)), id) in runs.into_iter().enumerate().zip(safe_unique_names(&raw_ids)) {
+    for ((index, (binding, (_, point))), id) in runs.into_iter().enumerate().zip(safe_unique_names(&raw_ids)) {
         let mut task_inputs = file_settings.clone();
         let mut depends_on = Vec::new();
         for file in &binding.files {

@@ -8,11 +8,12 @@ use std::str::FromStr;
 pub const MAX_SWEEP_VALUES: usize = 10_000;
 
 /// `NAME=START:END:COUNT`: `COUNT` evenly spaced values from `START` to `END` (just `START`
-/// when `COUNT` is 1) given to a graph input or `node.param`.
+/// when `COUNT` is 1) given to a graph input or `node.param`; `NAME,NAME2=…` gives each value
+/// to all of them (a family's sample and the blend that reads it back).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sweep {
-    /// Graph input name or `node.param`.
-    pub name: String,
+    /// Graph input names or `node.param`s, each taking every value.
+    pub names: Vec<String>,
     /// First value.
     pub start: f64,
     /// Last value.
@@ -31,13 +32,14 @@ impl FromStr for Sweep {
         let number = |t: &str| t.trim().parse::<f64>().ok().filter(|v| v.is_finite());
         let (Some(start), Some(end)) = (number(start), number(end)) else { return Err(bad()) };
         let count: usize = count.trim().parse().map_err(|_| bad())?;
-        if name.is_empty() {
+        let names: Vec<String> = name.split(',').map(|n| n.trim().to_string()).collect();
+        if names.iter().any(String::is_empty) {
             return Err(format!("'{s}' has an empty name"));
         }
         if count == 0 || count > MAX_SWEEP_VALUES {
             return Err(format!("'{s}': COUNT must lie in 1..={MAX_SWEEP_VALUES}"));
         }
-        Ok(Sweep { name: name.to_string(), start, end, count })
+        Ok(Sweep { names, start, end, count })
     }
 }
 
@@ -67,11 +69,14 @@ mod tests {
     fn sweeps_parse_and_space_their_values_evenly() {
         let s: Sweep = "family.u_from=-0.3:0.3:7".parse().unwrap();
         assert_eq!(s.values(), ["-0.3", "-0.2", "-0.1", "0", "0.1", "0.2", "0.3"]);
-        let one: Sweep = "edit.max_iterations=40:90:1".parse().unwrap();
-        assert_eq!(one.values(), ["40"]);
+        let one: Sweep = "family.u_from, blend.u=40:90:1".parse().unwrap();
+        assert_eq!(
+            (one.names.as_slice(), one.values()),
+            (["family.u_from".to_string(), "blend.u".into()].as_slice(), vec!["40".to_string()])
+        );
         let ints: Sweep = "n=1:9:5".parse().unwrap();
         assert_eq!(ints.values(), ["1", "3", "5", "7", "9"]);
-        for bad in ["x=1:2", "x=a:2:3", "=0:1:2", "x=0:1:0", "x=0:NaN:2", "x"] {
+        for bad in ["x=1:2", "x=a:2:3", "=0:1:2", "x,=0:1:2", "x=0:1:0", "x=0:NaN:2", "x"] {
             assert!(bad.parse::<Sweep>().is_err(), "{bad}");
         }
     }

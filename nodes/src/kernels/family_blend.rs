@@ -94,7 +94,9 @@ fn cell<'a>(family: &'a Family, params: &[f64]) -> Result<Cell<'a>, BlendError> 
     }
     let mut spans = Vec::with_capacity(params.len());
     for (axis, (values, &p)) in family.axes.iter().zip(params).enumerate() {
-        let (from, to) = (values.first().copied().unwrap_or(0.0), values.last().copied().unwrap_or(0.0));
+        let (Some(&from), Some(&to)) = (values.first(), values.last()) else {
+            return Err(BlendError::Missing(vec![0; axis + 1]));
+        };
         if !(p >= from - ON_AXIS_TOL && p <= to + ON_AXIS_TOL) {
             return Err(BlendError::Outside { axis, value: p, from, to });
         }
@@ -227,11 +229,10 @@ pub fn reach(family: &Family, target: &ReachTarget) -> Result<Reached, BlendErro
     if !target.target_m.is_finite() {
         return Err(BlendError::Target(target.target_m));
     }
-    let lower = DVec2::new(family.axes[0][0], family.axes.get(1).map_or(0.0, |a| a[0]));
-    let upper = DVec2::new(
-        family.axes[0].last().copied().unwrap_or(0.0),
-        family.axes.get(1).and_then(|a| a.last().copied()).unwrap_or(0.0),
-    );
+    let end = |k: usize, last: bool| {
+        family.axes.get(k).and_then(|a| if last { a.last() } else { a.first() }).copied().unwrap_or(0.0)
+    };
+    let (lower, upper) = (DVec2::new(end(0, false), end(1, false)), DVec2::new(end(0, true), end(1, true)));
     let mut scratch = Scratch::default();
     let mut position = |p: DVec2| -> Result<DVec3, BlendError> {
         let params = [p.x, p.y];
@@ -248,12 +249,17 @@ pub fn reach(family: &Family, target: &ReachTarget) -> Result<Reached, BlendErro
         }
     }
     let Some((mut p, _)) = best else {
-        let first = &family.samples[0];
-        let reason = match &first.outcome {
-            SampleOutcome::Failed(r) => r.clone(),
-            SampleOutcome::Solved(_) => String::new(),
-        };
-        return Err(BlendError::FailedSample { params: first.params.clone(), reason });
+        // No solved sample: the first one's failure says why.
+        return Err(match family.samples.first() {
+            Some(first) => BlendError::FailedSample {
+                params: first.params.clone(),
+                reason: match &first.outcome {
+                    SampleOutcome::Failed(r) => r.clone(),
+                    SampleOutcome::Solved(_) => String::new(),
+                },
+            },
+            None => BlendError::Missing(vec![0; dims]),
+        });
     };
     let span = (upper - lower).max(DVec2::splat(1e-12));
     let mut r = position(p)? - target.target_m;
