@@ -79,15 +79,18 @@ fn bindings(inputs: &[Setting], upstream_out: &Path, base: &Path) -> Result<Vec<
     Ok(product)
 }
 
+/// One point of the `--sweep` grid: its labels (`NAME=VALUE` per sweep) and settings.
+type SweepPoint = (Vec<String>, Vec<Setting>);
+
 /// The points of the `--sweep` grid: every combination of the sweeps' values, the first
-/// sweep varying slowest, each point its label (`NAME=VALUE` per sweep) and settings.
-fn sweep_points(sweeps: &[Sweep]) -> Vec<(Vec<String>, Vec<Setting>)> {
+/// sweep varying slowest.
+fn sweep_points(sweeps: &[Sweep]) -> Vec<SweepPoint> {
     let mut product = vec![(Vec::new(), Vec::new())];
     for sweep in sweeps {
         let values = sweep.values();
         product = product
             .into_iter()
-            .flat_map(|partial: (Vec<String>, Vec<Setting>)| {
+            .flat_map(|partial: SweepPoint| {
                 values.iter().map(move |v| {
                     let (mut labels, mut settings) = partial.clone();
                     labels.push(format!("{}={v}", sweep.names.join(",")));
@@ -155,7 +158,7 @@ pub fn make_plan(
     }
     let graph_name = graph.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "graph".into());
     // Every binding at every sweep point, the sweeps varying fastest.
-    let runs: Vec<(Binding, (Vec<String>, Vec<Setting>))> = bindings(inputs, upstream_out, &base)?
+    let runs: Vec<(Binding, SweepPoint)> = bindings(inputs, upstream_out, &base)?
         .into_iter()
         .flat_map(|b| points.iter().map(move |p| (b.clone(), p.clone())))
         .collect();
