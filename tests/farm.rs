@@ -245,6 +245,60 @@ fn a_plan_fed_by_another_plans_outputs_depends_on_its_tasks() {
 }
 
 #[test]
+fn a_sweep_plans_one_task_per_value_and_each_task_runs_with_its_value() {
+    let work = Work::new();
+    // Two clips × metres_per_unit 0.01, 0.02, 0.03 (the first --input slowest, the sweep fastest).
+    let out = work.kg(&[
+        "plan",
+        "to_glb.ron",
+        "--input",
+        "clip=clips/[ab].bvh",
+        "--sweep",
+        "load.metres_per_unit=0.01:0.03:3",
+        "--out",
+        "sweep.json",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    let plan = Plan::read(&work.path().join("sweep.json")).unwrap();
+    let ids: Vec<&str> = plan.tasks.iter().map(|t| t.id.as_str()).collect();
+    assert_eq!(
+        ids,
+        [
+            "a+load.metres_per_unit=0.01",
+            "a+load.metres_per_unit=0.02",
+            "a+load.metres_per_unit=0.03",
+            "b+load.metres_per_unit=0.01",
+            "b+load.metres_per_unit=0.02",
+            "b+load.metres_per_unit=0.03",
+        ]
+    );
+    assert_eq!(plan.tasks[4].set["load.metres_per_unit"], "0.02");
+    assert_eq!(plan.tasks[4].outputs, ["b+load.metres_per_unit=0.02/clip.glb"]);
+    // Each task runs with its own value: the same clip at 0.01 and at 0.02 m per unit gives
+    // GLBs whose root travels twice as far (read back by the GLB loader).
+    let travel = |index: usize| {
+        let ran = work.kg(&["run", "--plan", "sweep.json", "--task-index", &index.to_string(), "--out", "o"]);
+        assert_eq!(ran.status.code(), Some(0), "{}", stderr(&ran));
+        let glb = work.path().join("o").join(&plan.tasks[index].outputs[0]);
+        let clip = kinegraph_nodes::kernels::load::load_clip(&glb, Default::default()).unwrap().value;
+        let roots: Vec<glam::Vec3> = clip.root_translations().collect();
+        (roots[roots.len() - 1] - roots[0]).length()
+    };
+    let (single, double) = (travel(3), travel(4));
+    assert!(single > 0.0 && (double / single - 2.0).abs() < 1e-3, "{single} m vs {double} m");
+    // Names and values are checked at planning time, each error naming the setting.
+    let out = work.kg(&["plan", "to_glb.ron", "--sweep", "nope=0:1:2", "--out", "p.json"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("--sweep nope"), "{}", stderr(&out));
+    let out = work.kg(&["plan", "to_glb.ron", "--sweep", "load.metres_per_unit=-1:1:3", "--out", "p.json"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("load.metres_per_unit"), "{}", stderr(&out));
+    let out = work.kg(&["plan", "to_glb.ron", "--sweep", "load.metres_per_unit=1:2", "--out", "p.json"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("NAME=START:END:COUNT"), "{}", stderr(&out));
+}
+
+#[test]
 fn bad_task_indices_plans_and_globs_are_refused_with_exit_2() {
     let work = Work::new();
     let out = work.run_task(3);

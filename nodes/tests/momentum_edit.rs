@@ -5,35 +5,23 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
+use common::{Jump, jump_16_01};
 use glam::{DVec3, Quat};
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::kernels::angular::momentum_of_poses;
 use kinegraph_nodes::kernels::body::{BodyModel, MassTable, body_model, find_landmarks};
-use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
 use kinegraph_nodes::kernels::load::{ClipLoadOptions, load_clip};
 use kinegraph_nodes::kernels::momentum_edit::{GroundEdit, measure_edit, naive_edit};
 use kinegraph_nodes::kernels::momentum_solve::{EditSetup, LIMIT_MARGIN_RAD, SolveError, SolveOptions, momentum_edit};
-use kinegraph_nodes::kernels::stages::{StagedClip, fit_ballistic, stage_clip};
+use kinegraph_nodes::kernels::stages::{fit_ballistic, stage_clip};
 use kinegraph_nodes::math::quat_normalize_or_identity;
 use kinegraph_nodes::model::{Clip, FrameRange, Stage, StageKind, Stages, forward_kinematics};
 
-/// CMU 16_01 with its body model and stages, and the jump's direction: the horizontal
-/// travel of the centre of mass over the flight.
-fn jump_16_01() -> Option<(Clip, BodyModel, StagedClip, DVec3)> {
-    let data = shared_data()?;
-    let clip = load_clip(&data.join("bvh/cmu/16_01.bvh"), ClipLoadOptions::default()).unwrap().value;
-    let model = body_model(clip.skeleton(), 70.0, MassTable::DeLevaMale, None).unwrap();
-    let staged = stage_clip(&clip, &model, None, None).unwrap();
-    let flight = staged.stages.stages[1].frames;
-    let travel = staged.track.com_m[flight.end - 1] - staged.track.com_m[flight.start];
-    let forward = DVec3::new(travel.x, 0.0, travel.z).normalize_or_zero();
-    eprintln!("16_01 jump direction (COM travel in flight): {forward}");
-    Some((clip, model, staged, forward))
-}
-
 #[test]
 fn naive_landing_shift_keeps_feet_planted_but_needs_an_impulse_at_take_off() {
-    let Some((clip, model, staged, forward)) = jump_16_01() else { return };
+    let Some(Jump { clip, model, staged, forward, planted, .. }) = jump_16_01() else { return };
     let stages = &staged.stages;
     let kinds: Vec<StageKind> = stages.stages.iter().map(|s| s.kind).collect();
     assert_eq!(kinds, vec![StageKind::Ground, StageKind::Flight, StageKind::Ground]);
@@ -42,9 +30,6 @@ fn naive_landing_shift_keeps_feet_planted_but_needs_an_impulse_at_take_off() {
     let edits = [GroundEdit::default(), GroundEdit { offset_m: shift, turn_rad: 0.0 }];
     let edited = naive_edit(&clip, stages, &model, &edits).unwrap();
     let feet = find_landmarks(clip.skeleton()).unwrap().feet();
-    let (contacts, ankles) = contacts_of(&clip, &forward_kinematics(&clip), &ContactThresholds::default()).unwrap();
-    let planted: Vec<(usize, FrameRange)> =
-        contacts.feet.iter().zip(ankles).flat_map(|(c, j)| c.intervals.iter().map(move |r| (j, *r))).collect();
     let g = stages.gravity_mps2;
     let naive = measure_edit(&clip, &edited, stages, &model, &edits, &feet, &planted, g).unwrap();
     let unedited = measure_edit(&clip, &clip, stages, &model, &[GroundEdit::default(); 2], &feet, &planted, g).unwrap();
@@ -82,15 +67,12 @@ fn flight_spin_variation_pct(clip: &Clip, stages: &Stages, model: &BodyModel) ->
 
 #[test]
 fn optimised_landing_shift_is_ballistic_with_feet_planted_where_asked() {
-    let Some((clip, model, staged, forward)) = jump_16_01() else { return };
+    let Some(Jump { clip, model, staged, forward, planted, .. }) = jump_16_01() else { return };
     let stages = &staged.stages;
     // 0.5 m further along the jump and 0.3 m to its left.
     let side = DVec3::Y.cross(forward);
     let edits = [GroundEdit::default(), GroundEdit { offset_m: 0.5 * forward + 0.3 * side, turn_rad: 0.0 }];
     let feet = find_landmarks(clip.skeleton()).unwrap().feet();
-    let (contacts, ankles) = contacts_of(&clip, &forward_kinematics(&clip), &ContactThresholds::default()).unwrap();
-    let planted: Vec<(usize, FrameRange)> =
-        contacts.feet.iter().zip(ankles).flat_map(|(c, j)| c.intervals.iter().map(move |r| (j, *r))).collect();
     let setup = EditSetup { clip: &clip, stages, model: &model, feet, planted: &planted, edits: &edits };
     let (edited, report) = momentum_edit(setup, &SolveOptions::default()).unwrap();
     eprintln!("16_01 optimised: {report:#?}");

@@ -131,7 +131,7 @@ enum Command {
         #[command(flatten)]
         engine: EngineArgs,
     },
-    /// Plan a farm run: one task per input binding, with content hashes, as a plan file.
+    /// Plan a farm run: one task per input binding and sweep point, with content hashes, as a plan file.
     Plan {
         /// The graph file.
         graph: PathBuf,
@@ -140,6 +140,12 @@ enum Command {
         /// plan's tasks instead, and each task depends on the task making its file.
         #[arg(long, value_name = "NAME=GLOB")]
         input: Vec<Setting>,
+        /// NAME=START:END:COUNT: a numeric graph input or node.param swept over COUNT evenly
+        /// spaced values, one task each; NAME,NAME2=… gives each value to all of them; several
+        /// --sweep give every combination (with every --input binding), e.g. the samples of a
+        /// motion.family grid, one per task.
+        #[arg(long, value_name = "NAME=START:END:COUNT")]
+        sweep: Vec<crate::farm::sweep::Sweep>,
         /// The output root the upstream plan's tasks write into (for NAME=@PLAN).
         #[arg(long, default_value = "out")]
         upstream_out: PathBuf,
@@ -330,8 +336,8 @@ pub fn main() -> ExitCode {
                 }
             }
         }
-        Command::Plan { graph, input, upstream_out, set, out } => {
-            plan::plan_command(&graph, &input, &set, &upstream_out, &out)
+        Command::Plan { graph, input, sweep, upstream_out, set, out } => {
+            plan::plan_command(&graph, &input, &sweep, &set, &upstream_out, &out)
         }
         Command::Emit(args) => emit::emit_command(&args),
         Command::Merge { plan, out, summary, json } => merge::merge_command(&plan, &out, summary.as_deref(), json),

@@ -81,6 +81,7 @@ pub(crate) fn type_color(ty: PortType) -> Color32 {
         PortType::Stages => Color32::from_rgb(255, 130, 180),
         PortType::FluidDomain => Color32::from_rgb(120, 200, 255),
         PortType::VolumeSequence => Color32::from_rgb(200, 200, 230),
+        PortType::Family => Color32::from_rgb(255, 170, 110),
     }
 }
 

@@ -9,6 +9,7 @@ pub mod inputs;
 pub mod plan;
 pub mod planner;
 pub mod report;
+pub mod sweep;
 
 pub use emit::{EmitOptions, Target, emit};
 pub use plan::{Dependency, HashedFile, Plan, PlanError, Task};

@@ -1,6 +1,7 @@
 //! Planning a farm run: one task per binding of the graph's inputs to files (the
-//! cartesian product of the `--input` globs, or an upstream plan's outputs), each with the
-//! content hashes that make a retry idempotent and the files it will write.
+//! cartesian product of the `--input` globs, or an upstream plan's outputs) and per point of
+//! the `--sweep` parameter grid, each with the content hashes that make a retry idempotent
+//! and the files it will write.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -9,10 +10,14 @@ use kinegraph_nodes::node::Registry;
 
 use super::inputs::{expand_glob, run_folder_names};
 use super::plan::{PLAN_FORMAT, PLAN_VERSION, plan_dir, relative_to, sha256_file};
+use super::sweep::Sweep;
 use super::{Dependency, HashedFile, Plan, Task};
 use crate::engine::compile_file;
 use crate::graph::{GraphFile, Overrides, Setting, is_input_file};
 use crate::output::safe_unique_names;
+
+/// Most tasks the sweeps may make per input binding.
+pub const MAX_TASKS: usize = 100_000;
 
 /// A file bound to a graph input, and the upstream task that makes it, if any.
 #[derive(Clone)]
@@ -27,12 +32,6 @@ struct BoundFile {
 struct Binding {
     labels: Vec<String>,
     files: Vec<BoundFile>,
-}
-
-impl Binding {
-    fn id(&self) -> String {
-        self.labels.join("+")
-    }
 }
 
 /// The files one `--input` takes: the glob's matches, or with `NAME=@PLAN` every output
@@ -80,6 +79,30 @@ fn bindings(inputs: &[Setting], upstream_out: &Path, base: &Path) -> Result<Vec<
     Ok(product)
 }
 
+/// One point of the `--sweep` grid: its labels (`NAME=VALUE` per sweep) and settings.
+type SweepPoint = (Vec<String>, Vec<Setting>);
+
+/// The points of the `--sweep` grid: every combination of the sweeps' values, the first
+/// sweep varying slowest.
+fn sweep_points(sweeps: &[Sweep]) -> Vec<SweepPoint> {
+    let mut product = vec![(Vec::new(), Vec::new())];
+    for sweep in sweeps {
+        let values = sweep.values();
+        product = product
+            .into_iter()
+            .flat_map(|partial: SweepPoint| {
+                values.iter().map(move |v| {
+                    let (mut labels, mut settings) = partial.clone();
+                    labels.push(format!("{}={v}", sweep.names.join(",")));
+                    settings.extend(sweep.names.iter().map(|n| Setting { name: n.clone(), value: v.clone() }));
+                    (labels, settings)
+                })
+            })
+            .collect();
+    }
+    product
+}
+
 /// A file for the plan: an absolute path as given, a relative one (typed relative to the
 /// current folder) made relative to the plan's folder.
 fn plan_path_of(file: &Path, base: &Path) -> String {
@@ -91,11 +114,13 @@ fn hashed(file: &Path, base: &Path) -> Result<HashedFile, String> {
     Ok(HashedFile { path: plan_path_of(file, base), sha256: sha256_file(file).map_err(|e| e.to_string())?, size: None })
 }
 
-/// Builds the plan of `graph` over the `--input` bindings, for a plan file at `plan_path`;
-/// `upstream_out` is where the tasks of an upstream plan (`--input NAME=@PLAN`) write.
+/// Builds the plan of `graph` over the `--input` bindings and the `--sweep` grid, for a plan
+/// file at `plan_path`; `upstream_out` is where the tasks of an upstream plan
+/// (`--input NAME=@PLAN`) write.
 pub fn make_plan(
     graph: &Path,
     inputs: &[Setting],
+    sweeps: &[Sweep],
     settings: &[Setting],
     upstream_out: &Path,
     plan_path: &Path,
@@ -105,6 +130,17 @@ pub fn make_plan(
     for input in inputs {
         loaded.graph.resolve(&input.name).map_err(|e| format!("{}: --input {}: {e}", graph.display(), input.name))?;
     }
+    for name in sweeps.iter().flat_map(|s| &s.names) {
+        loaded.graph.resolve(name).map_err(|e| format!("{}: --sweep {name}: {e}", graph.display()))?;
+    }
+    let point_count = sweeps.iter().fold(1usize, |n, s| n.saturating_mul(s.count));
+    if point_count > MAX_TASKS {
+        return Err(format!(
+            "{}: the sweeps make {point_count} tasks per input binding, more than {MAX_TASKS}",
+            graph.display()
+        ));
+    }
+    let points = sweep_points(sweeps);
     let base = plan_dir(plan_path);
     let mut file_settings: BTreeMap<String, HashedFile> = BTreeMap::new();
     let mut set: BTreeMap<String, String> = BTreeMap::new();
@@ -121,11 +157,20 @@ pub fn make_plan(
         }
     }
     let graph_name = graph.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "graph".into());
-    let bindings = bindings(inputs, upstream_out, &base)?;
-    let raw_ids: Vec<String> =
-        bindings.iter().map(|b| if b.labels.is_empty() { graph_name.clone() } else { b.id() }).collect();
+    // Every binding at every sweep point, the sweeps varying fastest.
+    let runs: Vec<(Binding, SweepPoint)> = bindings(inputs, upstream_out, &base)?
+        .into_iter()
+        .flat_map(|b| points.iter().map(move |p| (b.clone(), p.clone())))
+        .collect();
+    let raw_ids: Vec<String> = runs
+        .iter()
+        .map(|(b, (point_labels, _))| {
+            let labels: Vec<String> = b.labels.iter().chain(point_labels).cloned().collect();
+            if labels.is_empty() { graph_name.clone() } else { labels.join("+") }
+        })
+        .collect();
     let mut tasks = Vec::new();
-    for ((index, binding), id) in bindings.into_iter().enumerate().zip(safe_unique_names(&raw_ids)) {
+    for ((index, (binding, (_, point))), id) in runs.into_iter().enumerate().zip(safe_unique_names(&raw_ids)) {
         let mut task_inputs = file_settings.clone();
         let mut depends_on = Vec::new();
         for file in &binding.files {
@@ -147,9 +192,12 @@ pub fn make_plan(
             .chain(
                 binding.files.iter().map(|f| Setting { name: f.name.clone(), value: f.path.to_string_lossy().into() }),
             )
+            .chain(point.iter().cloned())
             .collect();
         let outputs = expected_outputs(&loaded, &all, registry)?.into_iter().map(|f| format!("{id}/{f}")).collect();
-        tasks.push(Task { index, id, inputs: task_inputs, set: set.clone(), outputs, depends_on });
+        let mut task_set = set.clone();
+        task_set.extend(point.into_iter().map(|s| (s.name, s.value)));
+        tasks.push(Task { index, id, inputs: task_inputs, set: task_set, outputs, depends_on });
     }
     let mut after: Vec<String> = tasks.iter().flat_map(|t| t.depends_on.iter().map(|d| d.plan.clone())).collect();
     after.sort();

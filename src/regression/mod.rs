@@ -190,6 +190,7 @@ pub fn facts_of(value: &Value, out_dir: &Path) -> Facts {
         Value::Stages(stages) => Facts::Data(serde_json::to_value(stages.as_ref()).unwrap_or_default()),
         Value::FluidDomain(domain) => Facts::Data(serde_json::to_value(domain.as_ref()).unwrap_or_default()),
         Value::VolumeSequence(volumes) => Facts::Data(volumes.summary()),
+        Value::Family(family) => Facts::Data(family.summary()),
         Value::File(relative) => {
             let bytes = std::fs::read(out_dir.join(relative.as_path())).unwrap_or_default();
             Facts::File { bytes: bytes.len() as u64, sha256: crate::digest::sha256_hex(&bytes) }

@@ -20,6 +20,8 @@
 //! | ground / flight stages, ballistic gravity fit | [`stages`] |
 //! | momentum pre-fit: flight lines, ground B-splines | [`momentum_splines`] |
 //! | ground-stage edits, the naive edit (initial guess), edit measures | [`momentum_edit`] |
+//! | motion families: one stage swept, samples optimised in parallel | [`family`] |
+//! | family blend of the 2^n nearest samples, inverse control | [`family_blend`] |
 //! | IK rig, weighted Jacobian solver, foot lock | [`ik`] |
 //! | resampling | [`resample`] |
 //! | skinning matrices, LBS, automatic weights | [`skinning`] |
@@ -40,6 +42,8 @@ pub mod baseline;
 pub mod body;
 pub mod clip_set;
 pub mod contacts;
+pub mod family;
+pub mod family_blend;
 pub mod fluid;
 pub mod ik;
 pub mod join;

@@ -69,23 +69,32 @@ pub enum EditError {
     Clip(#[from] ClipError),
 }
 
+/// Each ground stage's frames and pivot: its centre of mass at its middle frame, dropped
+/// onto the floor plane (Y = 0), metres. An edit turns the stage about this point.
+pub fn ground_pivots(stages: &Stages, com_m: &[DVec3]) -> Vec<(FrameRange, DVec3)> {
+    stages
+        .stages
+        .iter()
+        .filter(|s| s.kind == StageKind::Ground)
+        .map(|s| {
+            let mid = com_m.get(s.frames.start + s.frames.len() / 2).copied().unwrap_or(DVec3::ZERO);
+            (s.frames, DVec3::new(mid.x, 0.0, mid.z))
+        })
+        .collect()
+}
+
 /// The placement of every frame for `edits` (one per ground stage, in time order).
 fn placements(stages: &Stages, com_m: &[DVec3], edits: &[GroundEdit]) -> Result<Vec<Placement>, EditError> {
-    let grounds: Vec<FrameRange> =
-        stages.stages.iter().filter(|s| s.kind == StageKind::Ground).map(|s| s.frames).collect();
+    let grounds = ground_pivots(stages, com_m);
     if grounds.len() != edits.len() {
         return Err(EditError::EditCount { got: edits.len(), want: grounds.len() });
     }
     let anchors: Vec<(FrameRange, Placement)> = grounds
         .iter()
         .zip(edits)
-        .map(|(r, e)| {
-            let mid = com_m.get(r.start + r.len() / 2).copied().unwrap_or(DVec3::ZERO);
-            let placement = Placement {
-                pivot: DVec3::new(mid.x, 0.0, mid.z),
-                offset: DVec3::new(e.offset_m.x, 0.0, e.offset_m.z),
-                turn_rad: e.turn_rad,
-            };
+        .map(|((r, pivot), e)| {
+            let placement =
+                Placement { pivot: *pivot, offset: DVec3::new(e.offset_m.x, 0.0, e.offset_m.z), turn_rad: e.turn_rad };
             (*r, placement)
         })
         .collect();

@@ -5,6 +5,7 @@ pub mod bone_map;
 pub mod clip;
 pub mod clip_set;
 pub mod curves;
+pub mod family;
 pub mod fk;
 pub mod intervals;
 pub mod mesh;
@@ -31,6 +32,7 @@ pub fn coordinate_in_range(v: glam::Vec3) -> bool {
 pub use barnet::{BarNet, BarNetError};
 pub use bone_map::BoneMap;
 pub use curves::{CurveChannel, Curves, CurvesError};
+pub use family::{Family, FamilyKind, FamilySample, SampleOutcome};
 pub use fk::{ClipPoses, Transform, forward_kinematics};
 pub use intervals::{Contacts, FootContacts, FrameRange, Phases};
 pub use mesh::{Mesh, Skin};

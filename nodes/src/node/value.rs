@@ -4,7 +4,7 @@ use std::sync::Arc;
 
 use crate::kernels::transition_graph::{Clusters, TransitionGraph};
 use crate::model::{BarNet, BoneMap, Clip, ClipSet, Contacts, Curves, Mesh, MeshSequence, Phases, Stages};
-use crate::model::{FluidDomain, VolumeSequence};
+use crate::model::{Family, FluidDomain, VolumeSequence};
 
 pub use crate::model::report::{Report, into_report};
 
@@ -51,6 +51,8 @@ pub enum PortType {
     FluidDomain,
     /// Smoke density, temperature and velocity on a voxel grid per frame, plus particles.
     VolumeSequence,
+    /// Edits of one clip sampled over a line, grid or semicircle of one stage's placements.
+    Family,
 }
 
 impl PortType {
@@ -74,6 +76,7 @@ impl PortType {
             PortType::Stages => "stages",
             PortType::FluidDomain => "fluid_domain",
             PortType::VolumeSequence => "volume_sequence",
+            PortType::Family => "family",
         }
     }
 }
@@ -116,6 +119,8 @@ pub enum Value {
     FluidDomain(Arc<FluidDomain>),
     /// See [`PortType::VolumeSequence`].
     VolumeSequence(Arc<VolumeSequence>),
+    /// See [`PortType::Family`].
+    Family(Arc<Family>),
 }
 
 impl Value {
@@ -139,6 +144,7 @@ impl Value {
             Value::Stages(_) => PortType::Stages,
             Value::FluidDomain(_) => PortType::FluidDomain,
             Value::VolumeSequence(_) => PortType::VolumeSequence,
+            Value::Family(_) => PortType::Family,
         }
     }
 
@@ -217,3 +223,4 @@ port_value!(Arc<BoneMap>, BoneMap);
 port_value!(Arc<Stages>, Stages);
 port_value!(Arc<FluidDomain>, FluidDomain);
 port_value!(Arc<VolumeSequence>, VolumeSequence);
+port_value!(Arc<Family>, Family);

@@ -7,6 +7,7 @@ use glam::DVec3;
 use serde_json::json;
 
 use super::{MASS_OVERRIDE, MASS_TABLE, TOTAL_MASS, check_stages_fit, mass_model_of};
+use crate::kernels::body::BodyModel;
 use crate::kernels::contacts::{ContactThresholds, contacts_of};
 use crate::kernels::momentum_edit::{EditError, GroundEdit, measure_edit, naive_edit};
 use crate::kernels::momentum_solve::{EditSetup, SolveError, SolveOptions, momentum_edit};
@@ -44,7 +45,7 @@ const TURNS: TextParam = TextParam::new(
      order. Empty: no turns.",
     "",
 );
-const GRAVITY_SCALE: FloatParam = FloatParam::new(
+pub(super) const GRAVITY_SCALE: FloatParam = FloatParam::new(
     "gravity_scale",
     "Gravity in flight as a multiple of the gravity fitted to the capture (0.5: a moon-like, floatier jump).",
     1.0,
@@ -52,7 +53,7 @@ const GRAVITY_SCALE: FloatParam = FloatParam::new(
     5.0,
     "",
 );
-const KNOT_SPACING: FloatParam = FloatParam::new(
+pub(super) const KNOT_SPACING: FloatParam = FloatParam::new(
     "knot_spacing_secs",
     "Spacing of the momentum spline knots in ground stages: smaller lets the momentum change faster.",
     0.1,
@@ -60,7 +61,7 @@ const KNOT_SPACING: FloatParam = FloatParam::new(
     1.0,
     "s",
 );
-const MAX_STEPS: IntParam =
+pub(super) const MAX_STEPS: IntParam =
     IntParam::new("max_iterations", "Most Gauss–Newton steps before the edit is declared not converged.", 120, 1, 1000);
 
 /// `motion.momentum_edit`.
@@ -137,7 +138,7 @@ fn parse_turns(text: &str, count: usize) -> Result<Vec<f64>, NodeError> {
 }
 
 /// The kernel's error, located on the node's port or param.
-fn located(e: SolveError) -> NodeError {
+pub(super) fn located(e: SolveError) -> NodeError {
     match e {
         SolveError::Unreachable { .. } => NodeError::param("offsets_m", e.to_string()),
         SolveError::GravityScale(_) => NodeError::param("gravity_scale", e.to_string()),
@@ -150,6 +151,31 @@ fn located(e: SolveError) -> NodeError {
             NodeError::Failed(e.to_string())
         }
     }
+}
+
+/// The solver settings of the node's params.
+pub(super) fn solve_options(ctx: &NodeContext<'_>) -> Result<SolveOptions, NodeError> {
+    Ok(SolveOptions {
+        gravity_scale: ctx.float(&GRAVITY_SCALE)?,
+        knot_spacing_secs: ctx.float(&KNOT_SPACING)?,
+        max_iterations: usize::try_from(ctx.int(&MAX_STEPS)?).unwrap_or(1),
+    })
+}
+
+/// The original's foot contacts: (ankle joint, frames).
+pub(super) type Planted = Vec<(usize, FrameRange)>;
+
+/// What an edit of `clip` needs besides the clip and its stages: the body model (the
+/// node's mass params), the ankle joints and the original's foot contacts.
+pub(super) fn solve_inputs(
+    ctx: &mut NodeContext<'_>,
+    clip: &Clip,
+) -> Result<(BodyModel, [usize; 2], Planted), NodeError> {
+    let model = mass_model_of(ctx, clip)?;
+    let (contacts, feet) = contacts_of(clip, &forward_kinematics(clip), &ContactThresholds::default())
+        .map_err(|e| NodeError::input("clip", format!("the feet could not be found: {e}")))?;
+    let planted = contacts.feet.iter().zip(feet).flat_map(|(c, j)| c.intervals.iter().map(move |r| (j, *r))).collect();
+    Ok((model, feet, planted))
 }
 
 impl Node for MomentumEdit {
@@ -165,16 +191,8 @@ impl Node for MomentumEdit {
         let turns = parse_turns(ctx.text_param(&TURNS)?, grounds)?;
         let edits: Vec<GroundEdit> =
             offsets.iter().zip(&turns).map(|(o, t)| GroundEdit { offset_m: *o, turn_rad: *t }).collect();
-        let options = SolveOptions {
-            gravity_scale: ctx.float(&GRAVITY_SCALE)?,
-            knot_spacing_secs: ctx.float(&KNOT_SPACING)?,
-            max_iterations: usize::try_from(ctx.int(&MAX_STEPS)?).unwrap_or(1),
-        };
-        let model = mass_model_of(ctx, &clip)?;
-        let (contacts, feet) = contacts_of(&clip, &forward_kinematics(&clip), &ContactThresholds::default())
-            .map_err(|e| NodeError::input("clip", format!("the feet could not be found: {e}")))?;
-        let planted: Vec<(usize, FrameRange)> =
-            contacts.feet.iter().zip(feet).flat_map(|(c, j)| c.intervals.iter().map(move |r| (j, *r))).collect();
+        let options = solve_options(ctx)?;
+        let (model, feet, planted) = solve_inputs(ctx, &clip)?;
         let setup = EditSetup { clip: &clip, stages: &stages, model: &model, feet, planted: &planted, edits: &edits };
         let (edited, report) = momentum_edit(setup, &options).map_err(located)?;
         let naive = naive_edit(&clip, &stages, &model, &edits).map_err(|e| located(e.into()))?;

@@ -4,6 +4,7 @@
 
 pub mod concat;
 pub mod edit;
+pub mod family;
 pub mod splines;
 pub mod stages;
 
@@ -37,6 +38,7 @@ pub fn register(registry: &mut Registry) {
     stages::register(registry);
     splines::register(registry);
     edit::register(registry);
+    family::register(registry);
 }
 
 const TOTAL_MASS: FloatParam = FloatParam::new("total_mass_kg", "Body mass of the performer.", 70.0, 1.0, 500.0, "kg");
