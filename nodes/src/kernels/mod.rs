@@ -20,6 +20,7 @@
 //! | ground / flight stages, ballistic gravity fit | [`stages`] |
 //! | momentum pre-fit: flight lines, ground B-splines | [`momentum_splines`] |
 //! | ground-stage edits, the naive edit (initial guess), edit measures | [`momentum_edit`] |
+//! | the edit's solver: augmented Lagrangian, Gauss-Newton, sparse Cholesky | [`momentum_solve`] |
 //! | motion families: one stage swept, samples optimised in parallel | [`family`] |
 //! | family blend of the 2^n nearest samples, inverse control | [`family_blend`] |
 //! | IK rig, weighted Jacobian solver, foot lock | [`ik`] |

@@ -4,7 +4,7 @@ use std::sync::Arc;
 
 use crate::kernels::transition_graph::{Clusters, TransitionGraph};
 use crate::model::{BarNet, BoneMap, Clip, ClipSet, Contacts, Curves, Mesh, MeshSequence, Phases, Stages};
-use crate::model::{Family, FluidDomain, VolumeSequence};
+use crate::model::{Family, FluidDomain, SampleOutcome, VolumeSequence};
 
 pub use crate::model::report::{Report, into_report};
 
@@ -167,6 +167,14 @@ impl Value {
                 2 * (s.vertex_count() * s.frame_count() * std::mem::size_of::<glam::Vec3>()) as u64
             }
             Value::ClipSet(set) => set.clips().iter().map(|c| clip(&c.clip)).sum(),
+            Value::Family(f) => f
+                .samples
+                .iter()
+                .map(|s| match &s.outcome {
+                    SampleOutcome::Solved(c) => clip(c),
+                    SampleOutcome::Failed(_) => 0,
+                })
+                .sum(),
             Value::Curves(c) => c.channels().iter().map(|ch| bytes(&ch.values)).sum(),
             Value::VolumeSequence(v) => v
                 .frames
