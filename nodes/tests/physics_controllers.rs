@@ -123,19 +123,22 @@ impl Controller for Mock {
     }
 }
 
+/// A control context with round figures (standing COM 1 m, legs 0.9 m, standard gravity),
+/// for tests that call the supervisor or a controller directly.
+fn unit_context<'a>(
+    figure: &'a kinegraph_nodes::kernels::physics::figure::Figure,
+    stand: &'a Targets,
+) -> ControlContext<'a> {
+    ControlContext { figure, gravity_m_s2: 9.80665, standing_com_height_m: 1.0, leg_length_m: 0.9, stand }
+}
+
 #[test]
 fn supervisor_activates_the_best_bid_times_preference_and_reacts_to_failure_and_requests() {
     let Some(data) = shared_data() else { return };
     let skeleton = cmu(&data);
     let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
     let stand = Targets::rest(&figure);
-    let ctx = ControlContext {
-        figure: &figure,
-        gravity_m_s2: 9.8,
-        standing_com_height_m: 1.0,
-        leg_length_m: 0.9,
-        stand: &stand,
-    };
+    let ctx = unit_context(&figure, &stand);
     // a: 2 × 5 = 10 wins over b: 1 × 8 = 8 and c: 0 × 100; a fails at 1 s, then b;
     // a request for c is refused while c bids 0, a request for b... b is active anyway.
     let pool: Vec<Box<dyn Controller>> = vec![
@@ -184,13 +187,7 @@ fn balance_leans_turned_legs_about_the_same_world_axis() {
     let skeleton = cmu(&data);
     let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
     let stand = Targets::rest(&figure);
-    let ctx = ControlContext {
-        figure: &figure,
-        gravity_m_s2: 9.80665,
-        standing_com_height_m: 1.0,
-        leg_length_m: 0.9,
-        stand: &stand,
-    };
+    let ctx = unit_context(&figure, &stand);
     let body = |role, side| figure.bodies.iter().position(|b| b.role == role && b.side == Some(side)).unwrap();
     let mut held = Targets::rest(&figure);
     let turns = [0.3f32, -0.3];
