@@ -484,7 +484,7 @@ fn bad_scripts_and_steps_are_typed_errors() {
     assert!(matches!(sim(&s, &unstable), Err(SimError::World(PhysicsError::UnstableTimeStep { .. }))));
     // Blow-up detection on hand-made states: a NaN pose, and an energy past the bound.
     let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
-    let bound = energy_bound_j(&figure, &s, 9.80665);
+    let bound = energy_bound_j(&figure, &s.pushes, 9.80665);
     let mut state = blank_state(&figure);
     assert_eq!(blown_up(&state, bound), None);
     state.kinetic_energy_j = 1.01 * bound;

@@ -414,6 +414,9 @@ impl Job<'_, '_> {
         };
         let seconds =
             if matches!(status, NodeStatus::Ok | NodeStatus::Error) { started.elapsed().as_secs_f64() } else { 0.0 };
+        // Counted before taking the lock: a volume or family output has many arrays.
+        let output_bytes: u64 =
+            outcome.as_ref().map_or(0, |o| o.outputs.iter().flatten().map(Value::array_bytes).sum());
         let mut ready = Vec::new();
         {
             let mut state = self.lock();
@@ -425,10 +428,6 @@ impl Job<'_, '_> {
                 None => (Slot::Failed, Vec::new()),
             };
             let warnings = [warnings, cache_warnings].concat();
-            let output_bytes = match &slot {
-                Slot::Done { outputs } => outputs.iter().flatten().map(Value::array_bytes).sum(),
-                _ => 0,
-            };
             state.slots[index] = slot;
             state.reports.insert(
                 node.id.clone(),

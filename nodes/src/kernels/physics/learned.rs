@@ -30,7 +30,7 @@ use serde::{Deserialize, Serialize};
 
 use super::controller::{BID_CAN_REACH, ControlContext, Controller, Status, Targets};
 use super::controllers::{self, facing, step::choose_feet, xz};
-use super::simulate::{Push, SimError, SimParams, apply_pushes, blown_up, context, stage};
+use super::simulate::{Push, SimError, SimParams, apply_pushes, blown_up, context, energy_bound_j, stage};
 use super::state::FigureState;
 use crate::model::Skeleton;
 
@@ -231,10 +231,7 @@ pub fn run_trial(
         at_secs: SHOVE_AT_SECS,
         duration_secs: SHOVE_SECS,
     }];
-    // Energy bound of a run with this shove (see simulate::energy_bound_j).
-    let bound = 10.0
-        * (s.figure.total_mass_kg * g * s.figure.stature_m
-            + trial.impulse_ns * trial.impulse_ns / (2.0 * s.figure.bodies[chest].mass_kg));
+    let bound = energy_bound_j(&s.figure, &push, g);
     let dt = world.dt_secs();
     let hand_over = SHOVE_AT_SECS + SHOVE_SECS + trial.delay_secs;
     let end = hand_over + setup.run_secs;

@@ -250,10 +250,9 @@ pub fn check_script(script: &Script, figure: &Figure) -> Result<(), ScriptError>
 /// A bound on the kinetic energy a sane run can reach, joules: ten times the energy of
 /// the figure falling its own stature plus ten times what the pushes can give (an impulse
 /// J on a body of mass m gives at most J²/2m).
-pub fn energy_bound_j(figure: &Figure, script: &Script, gravity_m_s2: f32) -> f32 {
+pub fn energy_bound_j(figure: &Figure, pushes: &[Push], gravity_m_s2: f32) -> f32 {
     let fall = figure.total_mass_kg * gravity_m_s2 * figure.stature_m;
-    let pushes: f32 = script
-        .pushes
+    let pushes: f32 = pushes
         .iter()
         .filter_map(|p| {
             figure.body_index(&p.body).map(|b| p.impulse_ns * p.impulse_ns / (2.0 * figure.bodies[b].mass_kg))
@@ -406,7 +405,7 @@ pub fn simulate(
     let mut supervisor = Supervisor::new(controllers::pool_of(&names));
     let state0 = FigureState::read(&figure, &world, &spawned, g, 0.0);
     let ctx = context(&figure, &stand, &state0, g);
-    let bound = energy_bound_j(&figure, script, g);
+    let bound = energy_bound_j(&figure, &script.pushes, g);
     let dt = world.dt_secs();
     let steps = (script.duration_secs / dt).round() as usize;
     let frames = (f64::from(script.duration_secs) * params.fps).floor() as usize + 1;

@@ -145,8 +145,8 @@ impl FigureState {
             let c = (self.sole_centre[0] + self.sole_centre[1]) * 0.5;
             return Vec2::new(c.x, c.z);
         }
-        let mean = self.support.iter().copied().sum::<Vec2>() / self.support.len() as f32;
-        polygon_centroid(&self.support).unwrap_or(mean)
+        polygon_centroid(&self.support)
+            .unwrap_or_else(|| self.support.iter().copied().sum::<Vec2>() / self.support.len() as f32)
     }
 }
 
