@@ -27,7 +27,7 @@ use faer::dyn_stack::{MemStack, StackReq};
 use faer::linalg::evd::{ComputeEigenvectors, self_adjoint_evd, self_adjoint_evd_scratch};
 use faer::{Mat, Par};
 use glam::{DQuat, DVec3};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, SMatrix, SymmetricEigen};
 
 use super::rig::{DofKind, IkPose, IkRig};
 
@@ -74,9 +74,39 @@ pub struct SolveReport {
     pub converged: bool,
 }
 
+/// [`EigenBuffers::decompose`] for the fixed sizes listed, on the stack (nalgebra's static
+/// `SymmetricEigen`), with the same fallback: zero eigenvalues if it does not converge.
+/// Returns false for any other size. A macro because nalgebra's eigen-decomposition is
+/// only implemented for concrete dimensions, not over a const generic.
+macro_rules! decompose_fixed {
+    ($a:expr, $basis:expr, $values:expr, $($m:literal),+) => {
+        match $a.nrows() {
+            $($m => {
+                /// QR sweeps allowed; a 15 × 15 matrix converges in a few dozen.
+                const MAX_SWEEPS: usize = 1000;
+                let fixed = SMatrix::<f64, $m, $m>::from_fn(|r, c| $a[(r, c)]);
+                match SymmetricEigen::try_new(fixed, f64::EPSILON, MAX_SWEEPS) {
+                    Some(eigen) => {
+                        $basis.copy_from(&eigen.eigenvectors);
+                        $values.copy_from(&eigen.eigenvalues);
+                    }
+                    None => {
+                        $basis.fill_with_identity();
+                        $values.fill(0.0);
+                    }
+                }
+                true
+            })+
+            _ => false,
+        }
+    };
+}
+
 /// Buffers of faer's symmetric eigen-decomposition for `m × m` matrices. nalgebra's
-/// `SymmetricEigen` takes its matrix by value and allocates its results, which a solve
-/// with several effectors paid on every iteration.
+/// `SymmetricEigen` on a dynamic matrix allocates its results, which a solve with several
+/// effectors paid on every iteration; on a fixed-size matrix it lives on the stack and, for
+/// the 3–15 task rows of one to five effectors, is several times faster than faer's general
+/// routine (whose tridiagonalisation is built for large matrices), so those sizes use it.
 #[derive(Clone, Debug)]
 struct EigenBuffers {
     matrix: Mat<f64>,
@@ -101,6 +131,9 @@ impl EigenBuffers {
     /// every direction gets the full damping instead of a NaN.
     fn decompose(&mut self, a: &DMatrix<f64>, basis: &mut DMatrix<f64>, values: &mut DVector<f64>) {
         let m = a.nrows();
+        if decompose_fixed!(a, basis, values, 3, 6, 9, 12, 15) {
+            return;
+        }
         for c in 0..m {
             for r in 0..m {
                 self.matrix[(r, c)] = a[(r, c)];
@@ -216,6 +249,12 @@ impl IkSolver {
     /// largest effector error (metres).
     pub(crate) fn linearise(&mut self, pose: &IkPose, goals: &[DVec3]) -> f64 {
         self.rig.forward(pose, &mut self.world, &mut self.axes);
+        self.linearise_forward(goals)
+    }
+
+    /// [`IkSolver::linearise`] for the pose of the last forward pass (its world transforms
+    /// and axes are current), so a step's accepted trial is not run through FK twice.
+    fn linearise_forward(&mut self, goals: &[DVec3]) -> f64 {
         let mut worst = 0.0f64;
         for (e, (&joint, goal)) in self.rig.effectors().iter().zip(goals).enumerate() {
             let x = self.world[joint].1;
@@ -354,7 +393,8 @@ impl IkSolver {
             std::mem::swap(pose, &mut trial);
             error = new_error;
             if error > params.tolerance_m && iterations < params.max_iterations {
-                self.linearise(pose, goals);
+                // The accepted trial was the last pose evaluated: its forward pass is current.
+                self.linearise_forward(goals);
             }
         }
         self.trial = Some(trial);
