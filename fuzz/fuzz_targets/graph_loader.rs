@@ -20,6 +20,7 @@
 use std::path::{Path, PathBuf};
 
 use kinegraph::engine::{Engine, NodeStatus, RunOptions, compile};
+use kinegraph::graph::Graph;
 use libfuzzer_sys::fuzz_target;
 
 /// The valid graphs the structured mode edits.
@@ -115,8 +116,11 @@ fn exercise(text: &str) {
     let Ok(loaded) = kinegraph::document::parse(text, path) else {
         return;
     };
+    let Ok(graph) = Graph::from_doc(&loaded.doc) else {
+        return;
+    };
     let engine = Engine::new(kinegraph_nodes::builtin::registry());
-    let Ok(compiled) = compile(&loaded.doc, engine.registry(), path, &loaded.source) else {
+    let Ok(compiled) = compile(&graph, engine.registry(), path, &loaded.source) else {
         return;
     };
 

@@ -6,6 +6,8 @@
 use std::path::Path;
 
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh};
+use kinegraph_nodes::formats::error::Location;
+use kinegraph_nodes::formats::obj::read_obj;
 use kinegraph_nodes::model::forward_kinematics;
 
 #[test]
@@ -39,4 +41,19 @@ fn bvh_reader_regressions_never_panic_and_stay_finite() {
     )
     .unwrap_err();
     assert!(err.message.contains("joint 'b'"), "{err}");
+}
+
+/// The `obj_reader` target's inputs (their first byte picks the unit; the rest is the file):
+/// each is refused with an error located at a line of the file, never a panic.
+#[test]
+fn obj_reader_regressions_are_located_errors() {
+    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/regressions/obj_reader"));
+    let mut files: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+    files.sort();
+    assert!(!files.is_empty(), "the regression inputs are missing from {}", dir.display());
+    for path in files {
+        let bytes = std::fs::read(&path).unwrap();
+        let err = read_obj(&bytes[1..], &path, None).expect_err("a face index before the first record");
+        assert!(matches!(err.location, Location::Line { .. }), "{}: {err}", path.display());
+    }
 }

@@ -40,6 +40,17 @@ pub fn read_obj(bytes: &[u8], path: &Path, metres_per_unit: Option<f64>) -> Resu
             format!("metres per unit must be positive and finite, got {s}"),
         ));
     }
+    // tobj turns a relative index past the start (`f 1/-50 …` with four UVs) into a huge
+    // unsigned one and multiplies it unchecked: with overflow checks that panics, without them
+    // it can wrap to a small index and read the wrong UV. Faces are checked here first.
+    if let Some(line) = find_bad_line(bytes, Records::FaceIndices) {
+        return Err(FormatError::new(
+            path,
+            Location::Line { line, column: None },
+            Kind::Structure,
+            "OBJ: a face refers to a vertex, UV or normal not defined before it",
+        ));
+    }
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let mut reader = BufReader::new(bytes);
     let (models, _materials) = tobj::load_obj_buf(&mut reader, &options, |_| Ok((Vec::new(), Default::default())))
@@ -77,6 +88,13 @@ pub fn read_obj(bytes: &[u8], path: &Path, metres_per_unit: Option<f64>) -> Resu
         } else {
             Mesh::compute_normals(&positions, &triangles)
         };
+        if m.texcoords.iter().any(|c| !c.is_finite()) {
+            return Err(FormatError::file(
+                path,
+                Kind::Value,
+                format!("object '{}' has a non-finite texture coordinate", model.name),
+            ));
+        }
         let uvs = (m.texcoords.len() == 2 * n && n > 0)
             .then(|| m.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect::<Vec<_>>());
         let mesh = Mesh { name: model.name, positions, normals, uvs, triangles, skin: None };
@@ -115,20 +133,30 @@ fn map_tobj_error(e: tobj::LoadError, bytes: &[u8], path: &Path) -> FormatError 
         | tobj::LoadError::InvalidPolygon => Kind::Structure,
         _ => Kind::Syntax,
     };
-    let location = match find_bad_line(bytes) {
+    let location = match find_bad_line(bytes, Records::All) {
         Some(line) => Location::Line { line, column: None },
         None => Location::File,
     };
     FormatError::new(path, location, kind, format!("OBJ: {e}"))
 }
 
-/// First line whose `v`/`vn`/`vt`/`f` record does not parse or whose face refers to a
-/// vertex, UV or normal not defined so far.
-fn find_bad_line(bytes: &[u8]) -> Option<usize> {
+/// Which records [`find_bad_line`] checks.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Records {
+    /// Only that each face index names a vertex, UV or normal defined before it.
+    FaceIndices,
+    /// Also that `v`/`vt`/`vn` records hold the right number of finite numbers.
+    All,
+}
+
+/// First line (1-based) whose face refers to a vertex, UV or normal not defined so far or,
+/// with [`Records::All`], whose `v`/`vn`/`vt`/`f` record does not parse.
+fn find_bad_line(bytes: &[u8], records: Records) -> Option<usize> {
     let text = String::from_utf8_lossy(bytes);
     let (mut v, mut vt, mut vn) = (0i64, 0i64, 0i64);
     let floats_ok = |rest: &[&str], lo: usize, hi: usize| {
-        rest.len() >= lo && rest.len() <= hi && rest.iter().all(|t| t.parse::<f64>().is_ok_and(f64::is_finite))
+        records == Records::FaceIndices
+            || (rest.len() >= lo && rest.len() <= hi && rest.iter().all(|t| t.parse::<f64>().is_ok_and(f64::is_finite)))
     };
     let index_ok = |tok: &str, count: i64| -> bool {
         if tok.is_empty() {
@@ -136,8 +164,10 @@ fn find_bad_line(bytes: &[u8]) -> Option<usize> {
         }
         match tok.parse::<i64>() {
             Ok(i) if i > 0 => i <= count,
-            Ok(i) if i < 0 => -i <= count,
-            _ => false,
+            Ok(i) if i < 0 => i >= -count,
+            Ok(_) => false,
+            // Not a number: tobj reports that, located by the full scan.
+            Err(_) => records == Records::FaceIndices,
         }
     };
     for (n, line) in text.lines().enumerate() {
@@ -158,13 +188,16 @@ fn find_bad_line(bytes: &[u8]) -> Option<usize> {
                 floats_ok(&rest, 3, 3)
             }
             "f" => {
-                rest.len() >= 3
+                (rest.len() >= 3 || records == Records::FaceIndices)
                     && rest.iter().all(|corner| {
                         let mut parts = corner.split('/');
                         let pv = parts.next().unwrap_or("");
                         let pt = parts.next().unwrap_or("");
                         let pn = parts.next().unwrap_or("");
-                        !pv.is_empty() && index_ok(pv, v) && index_ok(pt, vt) && index_ok(pn, vn)
+                        (!pv.is_empty() || records == Records::FaceIndices)
+                            && index_ok(pv, v)
+                            && index_ok(pt, vt)
+                            && index_ok(pn, vn)
                     })
             }
             _ => true,
@@ -219,5 +252,31 @@ mod tests {
         let err = read_obj(out_of_range.as_bytes(), Path::new("oob.obj"), None).unwrap_err();
         assert_eq!(err.location, Location::Line { line: 4, column: None }, "{err}");
         assert_eq!(err.kind, Kind::Structure);
+    }
+
+    /// Found by the `obj_reader` fuzz target: relative indices before the first record
+    /// reached tobj's unchecked index arithmetic (a panic with overflow checks, a wrong UV
+    /// without); `i64::MIN` overflowed our own check's negation.
+    #[test]
+    fn relative_indices_before_the_start_are_located_errors() {
+        let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n";
+        for face in
+            ["f 1/-50 2/1 3/1", "f 1//-9223372036854775808 2//1 3//1", "f -9223372036854775808 2 3", "f 1/-2 2/1 3/1"]
+        {
+            let text = format!("{tri}{face}\n");
+            let err = read_obj(text.as_bytes(), Path::new("rel.obj"), None).unwrap_err();
+            assert_eq!(err.location, Location::Line { line: 6, column: None }, "{face}: {err}");
+            assert_eq!(err.kind, Kind::Structure, "{face}");
+        }
+        // The same relative indices in range still load.
+        let ok = format!("{tri}f -3/-1/-1 -2/-1/-1 -1/-1/-1\n");
+        assert_eq!(read_obj(ok.as_bytes(), Path::new("rel.obj"), None).unwrap().value[0].triangles.len(), 1);
+    }
+
+    #[test]
+    fn non_finite_texture_coordinates_are_refused() {
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt nan 0\nf 1/1 2/1 3/1\n";
+        let err = read_obj(text.as_bytes(), Path::new("nan.obj"), None).unwrap_err();
+        assert!(err.to_string().contains("non-finite texture coordinate"), "{err}");
     }
 }
