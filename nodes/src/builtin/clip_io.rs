@@ -3,8 +3,8 @@
 use std::sync::Arc;
 
 use crate::formats::Loaded;
-use crate::formats::bvh::{BvhUnit, BvhWriteOptions, write_bvh_with};
-use crate::formats::gltf::write_glb;
+use crate::formats::bvh::{BvhUnit, BvhWriteOptions, write_bvh_to};
+use crate::formats::gltf::build_glb;
 use crate::kernels::load::{ClipLoadOptions, UpAxis, load_clip};
 use crate::kernels::resample::resample;
 use crate::model::{Clip, Mesh};
@@ -135,9 +135,12 @@ impl Node for ExportBvh {
             Some(fps) => Arc::new(resample(&clip, fps).map_err(|e| NodeError::param(BVH_FPS.0.name, e.to_string()))?),
             None => clip,
         };
-        let written = write_bvh_with(&clip, BvhWriteOptions { unit });
-        ctx.warn_all(written.warnings);
-        let relative = ctx.write_output(&BVH_FILE, written.value.as_bytes())?;
+        let mut warnings = Vec::new();
+        let relative = ctx.write_output_with(&BVH_FILE, |out| {
+            warnings = write_bvh_to(&clip, BvhWriteOptions { unit }, out)?;
+            Ok(())
+        })?;
+        ctx.warn_all(warnings);
         ctx.set_output(&FILE_OUT, Arc::new(relative));
         Ok(())
     }
@@ -169,9 +172,9 @@ impl Node for ExportGlb {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP_IN)?;
         let mesh = ctx.optional_input(&MESH_IN)?;
-        let written = write_glb(&clip, mesh.as_deref())?;
-        ctx.warn_all(written.warnings);
-        let relative = ctx.write_output(&GLB_FILE, &written.value)?;
+        let built = build_glb(&clip, mesh.as_deref())?;
+        ctx.warn_all(built.warnings);
+        let relative = ctx.write_output_with(&GLB_FILE, |out| built.value.write_to(out))?;
         ctx.set_output(&FILE_OUT, Arc::new(relative));
         Ok(())
     }

@@ -19,13 +19,17 @@
 //! inside an output folder cannot send a write elsewhere.
 
 use std::fs::{File, OpenOptions};
-use std::io::Write;
+use std::io::{BufWriter, Write};
 use std::path::{Component, Path, PathBuf};
 
 use super::error::{FormatError, FormatErrorKind};
 
 /// The name prefix of every temporary file [`write_atomic`] makes.
 pub const TEMP_PREFIX: &str = ".kg-tmp-";
+
+/// Buffer between a streaming writer and its temporary file: large enough that a writer
+/// emitting one line at a time costs few system calls.
+const WRITE_BUFFER_BYTES: usize = 1 << 20;
 
 /// Longest part of the target's name kept in a temporary file's name (bytes), so the
 /// temporary name stays under the usual 255-byte limit.
@@ -80,6 +84,16 @@ fn temp_suffix(path: &Path) -> String {
 
 /// Writes `bytes` to `path` atomically (see the module docs); the parent folder must exist.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FormatError> {
+    write_atomic_with(path, |out| out.write_all(bytes))
+}
+
+/// [`write_atomic`] for a writer that streams its bytes into the (buffered) temporary file,
+/// so a large export never holds its whole text in memory. An error from `write` removes
+/// the temporary file and leaves the target as it was.
+pub fn write_atomic_with(
+    path: &Path,
+    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<(), FormatError> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -93,7 +107,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FormatError> {
         .make_in(dir, create_new_nofollow)
         .map_err(|e| FormatError::io(path, &e))?;
     // On any error below, dropping `tmp` removes the temporary file.
-    tmp.as_file_mut().write_all(bytes).map_err(|e| FormatError::io(path, &e))?;
+    let mut buffered = BufWriter::with_capacity(WRITE_BUFFER_BYTES, tmp.as_file_mut());
+    write(&mut buffered).and_then(|()| buffered.flush()).map_err(|e| FormatError::io(path, &e))?;
+    drop(buffered);
     tmp.as_file().sync_all().map_err(|e| FormatError::io(path, &e))?;
     tmp.persist(path).map_err(|e| FormatError::io(path, &e.error))?;
     sync_dir(dir).map_err(|e| FormatError::io(dir, &e))
@@ -160,8 +176,17 @@ pub fn create_dirs_within(root: &Path, relative: &Path) -> Result<PathBuf, Forma
 /// Writes `bytes` atomically to `root/relative`, making its folders without following any
 /// link inside `root` ([`create_dirs_within`]); gives the full path.
 pub fn write_within(root: &Path, relative: &Path, bytes: &[u8]) -> Result<PathBuf, FormatError> {
+    write_within_with(root, relative, |out| out.write_all(bytes))
+}
+
+/// [`write_within`] for a streaming writer (see [`write_atomic_with`]).
+pub fn write_within_with(
+    root: &Path,
+    relative: &Path,
+    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<PathBuf, FormatError> {
     let path = create_dirs_within(root, relative)?;
-    write_atomic(&path, bytes)?;
+    write_atomic_with(&path, write)?;
     Ok(path)
 }
 
@@ -184,6 +209,28 @@ mod tests {
         write_atomic(&path, b"two").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"two");
         assert_eq!(names(dir.path()), ["a.bin"]);
+    }
+
+    /// A streaming writer that fails part-way (a full disk, a cancelled export) leaves the
+    /// previous file whole and no temporary file behind.
+    #[test]
+    fn a_stream_that_fails_midway_changes_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.bvh");
+        write_atomic(&path, b"previous").unwrap();
+        let err = write_atomic_with(&path, |out| {
+            out.write_all(&[b'x'; 3 * WRITE_BUFFER_BYTES])?;
+            Err(std::io::Error::other("disk full"))
+        })
+        .unwrap_err();
+        assert!(err.to_string().contains("disk full") && err.to_string().contains("a.bvh"), "{err}");
+        assert_eq!(std::fs::read(&path).unwrap(), b"previous");
+        assert_eq!(names(dir.path()), ["a.bvh"]);
+        // Streamed in many small writes, the file holds exactly what was written.
+        write_atomic_with(&path, |out| (0..100_000u32).try_for_each(|i| writeln!(out, "{i}"))).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(text.lines().count(), 100_000);
+        assert_eq!(text.lines().last(), Some("99999"));
     }
 
     #[test]

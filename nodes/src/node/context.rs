@@ -12,7 +12,7 @@ use super::port::{Input, Output};
 use super::value::{PortValue, Value};
 use super::{NodeError, NodeSchema};
 use crate::cancel::Cancel;
-use crate::formats::atomic::write_within;
+use crate::formats::atomic::write_within_with;
 
 /// Per-run services shared by every node of one evaluation.
 pub struct RunServices<'a> {
@@ -170,17 +170,31 @@ impl<'a> NodeContext<'a> {
     /// Writes `bytes` atomically to the output file named by `p`, inside the run's output
     /// folder, and returns the path relative to that folder.
     pub fn write_output(&mut self, p: &OutputPathParam, bytes: &[u8]) -> Result<PathBuf, NodeError> {
-        let relative = PathBuf::from(self.text(p.0.name)?);
-        self.write_relative(relative, bytes)
+        self.write_output_with(p, |out| out.write_all(bytes))
     }
 
-    fn write_relative(&mut self, relative: PathBuf, bytes: &[u8]) -> Result<PathBuf, NodeError> {
+    /// [`NodeContext::write_output`] for a writer that streams its bytes (a large export
+    /// then never holds its whole file in memory).
+    pub fn write_output_with(
+        &mut self,
+        p: &OutputPathParam,
+        write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+    ) -> Result<PathBuf, NodeError> {
+        let relative = PathBuf::from(self.text(p.0.name)?);
+        self.write_relative(relative, write)
+    }
+
+    fn write_relative(
+        &mut self,
+        relative: PathBuf,
+        write: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+    ) -> Result<PathBuf, NodeError> {
         let out_dir = self
             .services
             .out_dir
             .ok_or_else(|| NodeError::Failed("this run has no output folder, so nothing may be written".into()))?;
         self.check_cancelled()?;
-        let path = write_within(out_dir, &relative, bytes)?;
+        let path = write_within_with(out_dir, &relative, write)?;
         self.files_written.push(path);
         Ok(relative)
     }
@@ -197,7 +211,7 @@ impl<'a> NodeContext<'a> {
         let named = PathBuf::from(self.text(p.0.name)?);
         let stem = named.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
         let extension = named.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
-        self.write_relative(named.with_file_name(format!("{stem}_{frame:04}.{extension}")), bytes)
+        self.write_relative(named.with_file_name(format!("{stem}_{frame:04}.{extension}")), |out| out.write_all(bytes))
     }
 
     /// Records a warning: something odd that does not stop the run.

@@ -15,4 +15,4 @@ mod reader;
 mod writer;
 
 pub use reader::{BvhReadOptions, BvhStats, read_bvh, read_bvh_file};
-pub use writer::{BvhUnit, BvhWriteOptions, is_end_site, write_bvh, write_bvh_file, write_bvh_with};
+pub use writer::{BvhUnit, BvhWriteOptions, is_end_site, write_bvh, write_bvh_file, write_bvh_to, write_bvh_with};

@@ -20,7 +20,7 @@ use std::path::Path;
 
 use glam::Quat;
 
-use crate::formats::atomic::write_atomic;
+use crate::formats::atomic::write_atomic_with;
 use crate::formats::error::{FormatError, Loaded};
 use crate::math::euler::{Axis, decompose1, decompose3};
 use crate::model::{Channel, Clip};
@@ -74,6 +74,22 @@ pub fn write_bvh(clip: &Clip) -> Loaded<String> {
 /// Serialises `clip` as BVH text with `options`, with warnings for anything the layout
 /// cannot carry.
 pub fn write_bvh_with(clip: &Clip, options: BvhWriteOptions) -> Loaded<String> {
+    let mut bytes = Vec::with_capacity(64 * clip.joint_count() + clip.frame_count() * clip.joint_count() * 30);
+    // Writing into memory cannot fail; were it to, the failure is a warning, not a panic.
+    let warnings =
+        write_bvh_to(clip, options, &mut bytes).unwrap_or_else(|e| vec![format!("BVH text incomplete: {e}")]);
+    let value = String::from_utf8(bytes).unwrap_or_else(|e| String::from_utf8_lossy(e.as_bytes()).into_owned());
+    Loaded { value, warnings }
+}
+
+/// Streams `clip` as BVH text with `options` into `sink`, a frame line at a time (an
+/// export never holds the whole text); gives the warnings for anything the layout cannot
+/// carry.
+pub fn write_bvh_to(
+    clip: &Clip,
+    options: BvhWriteOptions,
+    sink: &mut dyn std::io::Write,
+) -> std::io::Result<Vec<String>> {
     let skeleton = clip.skeleton();
     let unit = options.unit.metres_per_unit(clip) as f32;
     let to_file = 1.0 / unit;
@@ -113,7 +129,7 @@ pub fn write_bvh_with(clip: &Clip, options: BvhWriteOptions) -> Loaded<String> {
         }
     }
 
-    let mut out = String::with_capacity(64 * skeleton.len() + clip.frame_count() * skeleton.len() * 30);
+    let mut out = String::with_capacity(64 * skeleton.len());
     out.push_str("HIERARCHY\n");
     for (j, joint) in skeleton.joints().iter().enumerate() {
         let depth = depths[j];
@@ -147,8 +163,10 @@ pub fn write_bvh_with(clip: &Clip, options: BvhWriteOptions) -> Loaded<String> {
         }
     }
     let _ = writeln!(out, "MOTION\nFrames: {}\nFrame Time: {}", clip.frame_count(), 1.0 / clip.fps());
+    sink.write_all(out.as_bytes())?;
 
     for frame in 0..clip.frame_count() {
+        out.clear();
         let rotations = clip.frame_rotations(frame);
         let translations = clip.frame_translations(frame);
         let mut first = true;
@@ -175,14 +193,18 @@ pub fn write_bvh_with(clip: &Clip, options: BvhWriteOptions) -> Loaded<String> {
             }
         }
         out.push('\n');
+        sink.write_all(out.as_bytes())?;
     }
-    Loaded { value: out, warnings }
+    Ok(warnings)
 }
 
 /// Writes `clip` to `path` atomically, in the unit it was read in.
 pub fn write_bvh_file(clip: &Clip, path: &Path) -> Result<Vec<String>, FormatError> {
-    let Loaded { value, warnings } = write_bvh(clip);
-    write_atomic(path, value.as_bytes())?;
+    let mut warnings = Vec::new();
+    write_atomic_with(path, |out| {
+        warnings = write_bvh_to(clip, BvhWriteOptions::default(), out)?;
+        Ok(())
+    })?;
     Ok(warnings)
 }
 

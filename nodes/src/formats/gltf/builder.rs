@@ -3,6 +3,7 @@
 //! thought at the call site.
 
 use std::borrow::Cow;
+use std::io::Write;
 
 use gltf_json as json;
 use json::accessor::{ComponentType, GenericComponentType, Type};
@@ -172,8 +173,9 @@ impl GlbBuilder {
         })
     }
 
-    /// Serialises the document and binary chunk as GLB bytes.
-    pub fn finish(mut self) -> Result<Vec<u8>, String> {
+    /// Closes the document: the JSON chunk serialised, the binary chunk padded, the total
+    /// length checked against GLB's 4 GiB limit.
+    pub fn finish(mut self) -> Result<GlbChunks, String> {
         while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
@@ -186,16 +188,44 @@ impl GlbBuilder {
                 uri: None,
             });
         }
-        let json_bytes = json::serialize::to_vec(&self.root).map_err(|e| e.to_string())?;
+        let json = json::serialize::to_vec(&self.root).map_err(|e| e.to_string())?;
         let padded = |n: usize| n.div_ceil(4) * 4;
-        let length = 12 + 8 + padded(json_bytes.len()) + if self.bin.is_empty() { 0 } else { 8 + self.bin.len() };
+        let length = 12 + 8 + padded(json.len()) + if self.bin.is_empty() { 0 } else { 8 + self.bin.len() };
         let length =
             u32::try_from(length).map_err(|_| format!("GLB of {length} bytes exceeds the 4 GiB format limit"))?;
-        let glb = gltf::binary::Glb {
-            header: gltf::binary::Header { magic: *b"glTF", version: 2, length },
-            json: Cow::Owned(json_bytes),
-            bin: if self.bin.is_empty() { None } else { Some(Cow::Owned(self.bin)) },
-        };
-        glb.to_vec().map_err(|e| e.to_string())
+        Ok(GlbChunks { json, bin: self.bin, length })
+    }
+}
+
+/// A finished GLB's two chunks, written out by streaming ([`GlbChunks::write_to`]) so an
+/// export does not hold a second copy of its binary chunk.
+#[derive(Clone, Debug)]
+pub struct GlbChunks {
+    json: Vec<u8>,
+    bin: Vec<u8>,
+    /// Total file length (bytes), already checked to fit GLB's `u32`.
+    length: u32,
+}
+
+impl GlbChunks {
+    fn glb(&self) -> gltf::binary::Glb<'_> {
+        gltf::binary::Glb {
+            header: gltf::binary::Header { magic: *b"glTF", version: 2, length: self.length },
+            json: Cow::Borrowed(&self.json),
+            bin: (!self.bin.is_empty()).then_some(Cow::Borrowed(&self.bin[..])),
+        }
+    }
+
+    /// Writes the GLB file's bytes into `sink`.
+    pub fn write_to(&self, sink: &mut dyn Write) -> std::io::Result<()> {
+        self.glb().to_writer(sink).map_err(std::io::Error::other)
+    }
+
+    /// The GLB file's bytes.
+    pub fn into_bytes(self) -> Vec<u8> {
+        let mut bytes = Vec::with_capacity(self.length as usize);
+        // Writing into memory cannot fail.
+        let _ = self.write_to(&mut bytes);
+        bytes
     }
 }

@@ -27,9 +27,10 @@ mod morph;
 mod reader;
 mod writer;
 
+pub use builder::GlbChunks;
 pub use morph::write_sequence_glb;
 pub use reader::{GltfAsset, GltfClip, GltfReadOptions, infer_sample_fps, read_gltf, read_gltf_file};
-pub use writer::{write_glb, write_glb_file};
+pub use writer::{build_glb, write_glb, write_glb_file};
 
 use crate::formats::error::{FormatError, FormatErrorKind, Location};
 

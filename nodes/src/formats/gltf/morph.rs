@@ -111,7 +111,7 @@ pub fn write_sequence_glb(sequence: &MeshSequence) -> Result<Loaded<Vec<u8>>, Fo
         nodes: vec![node],
     });
     b.root.scene = Some(scene);
-    let bytes = b.finish().map_err(|m| err(Kind::Unsupported, m))?;
+    let bytes = b.finish().map_err(|m| err(Kind::Unsupported, m))?.into_bytes();
     Ok(Loaded { value: bytes, warnings })
 }
 

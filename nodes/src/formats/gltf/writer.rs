@@ -20,13 +20,13 @@ use json::buffer::Target;
 use json::mesh::Semantic;
 use json::validation::Checked::Valid;
 
-use crate::formats::atomic::write_atomic;
+use crate::formats::atomic::write_atomic_with;
 use crate::formats::error::{FormatError, FormatErrorKind as Kind, Loaded};
 use crate::math::quat_normalize_or_identity;
 use crate::model::fk::rest_world;
 use crate::model::{Clip, Mesh};
 
-use super::builder::{Bounds, GlbBuilder};
+use super::builder::{Bounds, GlbBuilder, GlbChunks};
 
 /// The stand-in file name in errors from [`write_glb`], which has no file.
 const IN_MEMORY: &str = "<glb>";
@@ -37,6 +37,13 @@ const IN_MEMORY: &str = "<glb>";
 /// Errors: a mesh whose skin is bound to a different skeleton, non-finite mesh data, or a
 /// file too large for GLB.
 pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, FormatError> {
+    let built = build_glb(clip, mesh)?;
+    Ok(Loaded { value: built.value.into_bytes(), warnings: built.warnings })
+}
+
+/// [`write_glb`]'s document, finished but not yet serialised: stream it into a file with
+/// [`GlbChunks::write_to`].
+pub fn build_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<GlbChunks>, FormatError> {
     let path = Path::new(IN_MEMORY);
     let err = |kind: Kind, message: String| FormatError::file(path, kind, message);
     let skeleton = clip.skeleton();
@@ -179,15 +186,15 @@ pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, Fo
         nodes: scene_nodes,
     });
     b.root.scene = Some(scene);
-    let bytes = b.finish().map_err(|m| err(Kind::Unsupported, m))?;
-    Ok(Loaded { value: bytes, warnings })
+    let chunks = b.finish().map_err(|m| err(Kind::Unsupported, m))?;
+    Ok(Loaded { value: chunks, warnings })
 }
 
 /// Writes `write_glb(clip, mesh)` to `path` atomically; returns the warnings.
 pub fn write_glb_file(path: &Path, clip: &Clip, mesh: Option<&Mesh>) -> Result<Vec<String>, FormatError> {
-    let loaded = write_glb(clip, mesh).map_err(|e| FormatError { file: path.to_path_buf(), ..e })?;
-    write_atomic(path, &loaded.value)?;
-    Ok(loaded.warnings)
+    let built = build_glb(clip, mesh).map_err(|e| FormatError { file: path.to_path_buf(), ..e })?;
+    write_atomic_with(path, |out| built.value.write_to(out))?;
+    Ok(built.warnings)
 }
 
 /// Adds `mesh` (and its skin) to the document; returns its node.
