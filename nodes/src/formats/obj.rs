@@ -149,7 +149,8 @@ enum Records {
     All,
 }
 
-/// First line (1-based) whose face refers to a vertex, UV or normal not defined so far or,
+/// First line (1-based) whose face (or `l` record) refers to a vertex, UV or normal not
+/// defined so far or,
 /// with [`Records::All`], whose `v`/`vn`/`vt`/`f` record does not parse.
 fn find_bad_line(bytes: &[u8], records: Records) -> Option<usize> {
     let text = String::from_utf8_lossy(bytes);
@@ -187,8 +188,9 @@ fn find_bad_line(bytes: &[u8], records: Records) -> Option<usize> {
                 vn += 1;
                 floats_ok(&rest, 3, 3)
             }
-            "f" => {
-                (rest.len() >= 3 || records == Records::FaceIndices)
+            // tobj reads `l` records as faces too (three or more corners make a polygon).
+            "f" | "l" => {
+                (rest.len() >= 3 || key == "l" || records == Records::FaceIndices)
                     && rest.iter().all(|corner| {
                         let mut parts = corner.split('/');
                         let pv = parts.next().unwrap_or("");
@@ -260,9 +262,13 @@ mod tests {
     #[test]
     fn relative_indices_before_the_start_are_located_errors() {
         let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n";
-        for face in
-            ["f 1/-50 2/1 3/1", "f 1//-9223372036854775808 2//1 3//1", "f -9223372036854775808 2 3", "f 1/-2 2/1 3/1"]
-        {
+        for face in [
+            "f 1/-50 2/1 3/1",
+            "l 1 2/1 3/-50",
+            "f 1//-9223372036854775808 2//1 3//1",
+            "f -9223372036854775808 2 3",
+            "f 1/-2 2/1 3/1",
+        ] {
             let text = format!("{tri}{face}\n");
             let err = read_obj(text.as_bytes(), Path::new("rel.obj"), None).unwrap_err();
             assert_eq!(err.location, Location::Line { line: 6, column: None }, "{face}: {err}");
