@@ -541,5 +541,11 @@ mod tests {
         let plants = Plants::new(&clip, 0, &[FrameRange::new(4, 14)], 4);
         let weights: Vec<f64> = (0..20).map(|f| plants.at(f).map_or(0.0, |(_, w)| w)).collect();
         assert_eq!(&weights[3..15], &[0.0, 0.25, 0.5, 0.75, 1.0, 1.0, 1.0, 1.0, 0.75, 0.5, 0.25, 0.0]);
+        // A contact through the clip's first or last frame is held there: the foot is down
+        // beyond the clip, so only its inner edge ramps.
+        let edges = Plants::new(&clip, 0, &[FrameRange::new(0, 6), FrameRange::new(12, 20)], 4);
+        let weights: Vec<f64> = (0..20).map(|f| edges.at(f).map_or(0.0, |(_, w)| w)).collect();
+        assert_eq!(&weights[..7], &[1.0, 1.0, 1.0, 0.75, 0.5, 0.25, 0.0]);
+        assert_eq!(&weights[11..], &[0.0, 0.25, 0.5, 0.75, 1.0, 1.0, 1.0, 1.0, 1.0]);
     }
 }

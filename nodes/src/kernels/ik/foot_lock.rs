@@ -353,11 +353,15 @@ pub fn planted_travel_m(poses: &ClipPoses, point: usize, plants: &Plants) -> f64
 /// The place is the point's horizontal position at the frame of the interval where it is
 /// lowest (the moment it is surely down: contacts begin at heel strike, while the toe may
 /// still be moving). The weight ramps linearly from 0 to 1 over `blend` frames at both
-/// edges of the interval, so goals do not jump.
+/// edges of the interval, so goals do not jump; not at an edge that is the clip's first or
+/// last frame, where the foot is still down beyond the clip and a ramp would only let the
+/// held foot slide back in the last frames (a pop at the end of every clip that ends standing).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plants {
     spans: Vec<(FrameRange, DVec3)>,
     blend: usize,
+    /// The clip's frame count.
+    frames: usize,
 }
 
 impl Plants {
@@ -376,14 +380,15 @@ impl Plants {
                 (*r, place)
             })
             .collect();
-        Plants { spans, blend: blend.max(1) }
+        Plants { spans, blend: blend.max(1), frames: clip.frame_count() }
     }
 
     /// The planted place and its weight in (0, 1] at `frame`, if the point is planted.
     pub fn at(&self, frame: usize) -> Option<(DVec3, f64)> {
         let (r, place) = self.spans.iter().find(|(r, _)| r.contains(frame))?;
-        let from_edge = (frame - r.start + 1).min(r.end - frame);
-        Some((*place, (from_edge as f64 / self.blend as f64).min(1.0)))
+        let from_start = if r.start == 0 { usize::MAX } else { frame - r.start + 1 };
+        let from_end = if r.end == self.frames { usize::MAX } else { r.end - frame };
+        Some((*place, (from_start.min(from_end) as f64 / self.blend as f64).min(1.0)))
     }
 }
 
@@ -461,9 +466,10 @@ mod tests {
         let toe = sk.index_of("LeftToe").unwrap();
         let ankle = sk.index_of("LeftFoot").unwrap();
         // The toes are level in every frame, so the lowest frame is the first: the plant is
-        // the toe's place at frame 0. With a 2-frame blend, frames 1..=18 are fully planted.
+        // the toe's place at frame 0. The contact spans the whole clip, so no edge ramps
+        // (the foot is down beyond the clip): every frame is fully planted.
         let place = before.position(0, toe);
-        for f in 1..19 {
+        for f in 0..20 {
             let d = (after.position(f, toe) - place).with_y(0.0).length();
             assert!(d < 2e-4, "frame {f}: toe {d} m off its plant");
             // Heights are the clip's, the foot's world angle is the clip's.
@@ -483,8 +489,8 @@ mod tests {
             assert!((after.position(f, right_toe) - before.position(f, right_toe)).length() < 1e-5);
         }
         let left = &locked.feet[0];
-        // Independent figure: 17 planted steps of 0.01 m each (0.3 m/s at 30 fps).
-        assert!((left.skate_before_m - 0.17).abs() < 1e-4, "{left:?}");
+        // Independent figure: 19 planted steps of 0.01 m each (0.3 m/s at 30 fps).
+        assert!((left.skate_before_m - 0.19).abs() < 1e-4, "{left:?}");
         assert!(left.skate_after_m < 1e-3, "{left:?}");
         assert!(locked.frames.iter().all(|r| r.converged));
     }
