@@ -44,6 +44,14 @@ pub fn smoothstep(u: f64) -> f64 {
     u * u * (3.0 - 2.0 * u)
 }
 
+/// `6u⁵ − 15u⁴ + 10u³` on `u` clamped to [0, 1]: a ramp from 0 to 1 whose slope and
+/// curvature vanish at both ends, so what moves along a blend built on it starts and stops
+/// accelerating gradually (C2) instead of taking the whole acceleration in one frame.
+pub fn smootherstep(u: f64) -> f64 {
+    let u = u.clamp(0.0, 1.0);
+    u * u * u * (u * (6.0 * u - 15.0) + 10.0)
+}
+
 /// Spherical interpolation that takes the short way round and never returns NaN.
 pub fn slerp_short(a: Quat, b: Quat, t: f32) -> Quat {
     let b = if a.dot(b) < 0.0 { -b } else { b };

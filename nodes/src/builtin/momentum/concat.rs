@@ -789,10 +789,11 @@ mod tests {
         assert!(yaw(3).abs() < 1e-6 && (yaw(4) - 0.0).abs() < 1e-6);
         assert!((yaw(6) - 0.5).abs() < 1e-5, "{}", yaw(6));
         assert!((yaw(8) - 1.0).abs() < 1e-5 && (yaw(11) - 1.0).abs() < 1e-5);
-        // u = 3/4: smoothstep 3u² − 2u³ = 27/32 of the way to the second clip.
-        assert!((out.frame_translations(7)[0].x - 27.0 / 32.0).abs() < 1e-6);
-        // The weight's slope vanishes at both ends: the first step is 5/32, not 1/4.
-        assert!((out.frame_translations(5)[0].x - 5.0 / 32.0).abs() < 1e-6);
+        // u = 3/4: smootherstep 6u⁵ − 15u⁴ + 10u³ = 459/512 of the way to the second clip.
+        assert!((out.frame_translations(7)[0].x - 459.0 / 512.0).abs() < 1e-6);
+        // The weight's slope and curvature vanish at both ends: the first step is 53/512,
+        // not a linear ramp's 1/4 (nor a smoothstep's 5/32).
+        assert!((out.frame_translations(5)[0].x - 53.0 / 512.0).abs() < 1e-6);
     }
 
     #[test]
