@@ -39,7 +39,11 @@ fn starts_with_t_pose(clip: &Clip) -> bool {
 }
 
 /// `clip` on `skeleton` (same names and hierarchy): each joint keeps its own animated
-/// translation relative to its rest offset, on the reference skeleton's rest offsets.
+/// translation relative to its rest offset, on the reference skeleton's rest offsets; the
+/// root's path (height included) is scaled by the ratio of the two skeletons' root heights,
+/// so a clip captured on shorter legs does not sink into the floor on longer ones (and a
+/// longer-legged actor's clip does not float), and its strides keep their length relative to
+/// the legs.
 fn onto_skeleton(clip: &Clip, skeleton: &Arc<Skeleton>) -> Result<Clip, String> {
     if Arc::ptr_eq(clip.skeleton(), skeleton) {
         return Ok(clip.clone());
@@ -50,13 +54,15 @@ fn onto_skeleton(clip: &Clip, skeleton: &Arc<Skeleton>) -> Result<Clip, String> 
         return Err("is on a skeleton with other joints than the graph's".into());
     }
     let n = own.len();
+    let (h_own, h_reference) = (clip.skeleton().root_height(), skeleton.root_height());
+    let root_ratio = if h_own > 1e-6 && h_reference > 1e-6 { h_reference / h_own } else { 1.0 };
     let translations = clip
         .translations()
         .iter()
         .enumerate()
         .map(|(i, t)| {
             let j = i % n;
-            if j == 0 { *t } else { reference[j].rest_offset + (*t - own[j].rest_offset) }
+            if j == 0 { *t * root_ratio } else { reference[j].rest_offset + (*t - own[j].rest_offset) }
         })
         .collect();
     Clip::new(skeleton.clone(), clip.fps(), clip.rotations().to_vec(), translations, clip.import_scale)
@@ -185,6 +191,42 @@ mod tests {
         };
         assert!(starts_with_t_pose(&clip(0.14)));
         assert!(!starts_with_t_pose(&clip(1.596)));
+    }
+
+    /// A standing clip captured on 0.8 m legs, put on a set whose skeleton has 1.0 m legs:
+    /// its feet stay on the floor (found by forward kinematics on the set's skeleton, not
+    /// from the scaling) and its root path grows with the legs.
+    #[test]
+    fn a_clip_on_shorter_legs_stands_on_the_floor_of_a_longer_legged_set() {
+        use crate::model::{ImportScale, Joint, forward_kinematics};
+        use glam::{Quat, Vec3};
+        let legs = |length: f32| {
+            Arc::new(
+                Skeleton::new(vec![
+                    Joint::new("Hips", None, Vec3::new(0.0, length, 0.0)),
+                    Joint::new("LeftFoot", Some(0), Vec3::new(0.1, -length, 0.0)),
+                    Joint::new("RightFoot", Some(0), Vec3::new(-0.1, -length, 0.0)),
+                ])
+                .unwrap(),
+            )
+        };
+        let (short, long) = (legs(0.8), legs(1.0));
+        // Two frames walking 0.3 m forward on the short legs, feet on the floor.
+        let translations: Vec<Vec3> = [0.0f32, 0.3]
+            .iter()
+            .flat_map(|z| [Vec3::new(0.0, 0.8, *z), Vec3::new(0.1, -0.8, 0.0), Vec3::new(-0.1, -0.8, 0.0)])
+            .collect();
+        let clip = Clip::new(short, 30.0, vec![Quat::IDENTITY; 6], translations, ImportScale::METRES).unwrap();
+        let on_long = onto_skeleton(&clip, &long).unwrap();
+        let poses = forward_kinematics(&on_long);
+        for f in 0..2 {
+            for foot in [1, 2] {
+                assert!(poses.position(f, foot).y.abs() < 1e-6, "frame {f}: foot at {}", poses.position(f, foot).y);
+            }
+        }
+        // The stride grows with the legs: 0.3 m × 1.0 / 0.8.
+        let stride = poses.position(1, 0).z - poses.position(0, 0).z;
+        assert!((stride - 0.375).abs() < 1e-6, "{stride}");
     }
 
     #[test]

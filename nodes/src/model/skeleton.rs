@@ -191,6 +191,14 @@ impl Skeleton {
         super::fk::rest_world(self).into_iter().map(|t| t.translation).collect()
     }
 
+    /// Rest height of the root above the lowest joint (metres): how far the legs hold it up,
+    /// the measure by which a motion's root path is carried between skeletons.
+    pub fn root_height(&self) -> f32 {
+        let rest = self.rest_positions();
+        let lowest = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+        rest.first().map_or(0.0, |root| root.y - lowest)
+    }
+
     /// Axis-aligned size of the rest pose (metres): the extent used for unit detection and
     /// relative tolerances.
     pub fn rest_extent(&self) -> Vec3 {

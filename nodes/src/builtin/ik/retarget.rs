@@ -24,7 +24,6 @@ use nalgebra::DVector;
 
 use std::f64::consts::PI;
 
-use super::scale;
 use crate::kernels::body::{find_landmarks, limb_tip};
 use crate::kernels::ik::foot_lock::Plants;
 use crate::kernels::ik::{DofKind, IkPose, IkRig, IkSolver};
@@ -303,7 +302,7 @@ pub fn retarget_clip(
     let tips: Vec<usize> = rig.effectors().iter().map(|&e| map[e]).collect();
     let effector_joints = rig.effectors().to_vec();
     let ratio = {
-        let (h0, h1) = (scale::root_height(source.skeleton()), scale::root_height(skeleton));
+        let (h0, h1) = (source.skeleton().root_height(), skeleton.root_height());
         if h0 > 1e-6 { h1 / h0 } else { 1.0 }
     };
     let rest: Vec<Vec3> = skeleton.joints().iter().map(|j| j.rest_offset).collect();

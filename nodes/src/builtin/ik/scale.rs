@@ -67,13 +67,6 @@ pub fn scale_skeleton(skeleton: &Skeleton, factors: &[f32]) -> Result<Skeleton, 
     Skeleton::new(joints)
 }
 
-/// Rest height of the root above the lowest joint (metres): how far the legs hold it up.
-pub fn root_height(skeleton: &Skeleton) -> f32 {
-    let rest = skeleton.rest_positions();
-    let lowest = rest.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
-    rest[0].y - lowest
-}
-
 /// The clip on the scaled skeleton: the same joint rotations (a plain angle copy), other
 /// joints' translations scaled with their bones, the root's path scaled by the ratio of
 /// root heights so the feet stay near the ground.
@@ -81,7 +74,7 @@ pub fn scale_clip(clip: &Clip, uniform: f32, rules: &[(String, f32)]) -> Result<
     let source = clip.skeleton();
     let factors = bone_factors(source, uniform, rules);
     let skeleton = Arc::new(scale_skeleton(source, &factors)?);
-    let (h0, h1) = (root_height(source), root_height(&skeleton));
+    let (h0, h1) = (source.root_height(), skeleton.root_height());
     let root_ratio = if h0 > 1e-6 { h1 / h0 } else { uniform };
     let joints = source.len();
     let translations: Vec<Vec3> = clip
@@ -162,7 +155,7 @@ mod tests {
         let scaled = scale_skeleton(&skeleton, &f).unwrap();
         assert!((scaled.joints()[3].rest_offset.y + 0.2).abs() < 1e-6);
         // Root height: 0.8 m → 0.28 + 0.2 = 0.48 m.
-        assert!((root_height(&scaled) - 0.48).abs() < 1e-6);
+        assert!((scaled.root_height() - 0.48).abs() < 1e-6);
         assert!(parse_rules("Leg=0").is_err() && parse_rules("Leg").is_err() && parse_rules("=2").is_err());
     }
 }

@@ -19,13 +19,15 @@ use self::synthesis::{Frames, Motion, SynthesisParams, TransitionInfo, append_tr
 use crate::kernels::analysis::{AnalysisOptions, analyse};
 use crate::kernels::baseline::{BaselineParams, concatenate_baseline};
 use crate::kernels::clip_set::{conform, load_clip_set};
+use crate::kernels::contacts::{ContactThresholds, contacts_of};
+use crate::kernels::ik::foot_lock::{FootLockParams, Ground, foot_lock};
 use crate::kernels::join::foot_skate_m;
 use crate::kernels::transition_graph::distance::{self, DistanceParams};
 use crate::kernels::transition_graph::graph::Direction;
 use crate::kernels::transition_graph::paths::PathLimits;
 use crate::kernels::transition_graph::{Clusters, TransitionGraph};
 use crate::kernels::transition_graph::{cluster, graph};
-use crate::model::{Clip, ClipSet, FrameRange};
+use crate::model::{Clip, ClipSet, FrameRange, forward_kinematics};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputFolderParam, InputPathParam, IntParam, Node, NodeContext, NodeError,
     NodeSchema, Output, Registry, Report, TextParam, report_of,
@@ -282,9 +284,9 @@ static TRANSITION: NodeSchema = NodeSchema {
     doc: "Links two clips through the transition graph: finds the clusters of the source's last and the target's first pose, picks a candidate path at random (cheaper paths likelier) and chains the clips along it, or interpolates through the clusters in between when no path exists.",
     inputs: &[GRAPH_IN.spec(), SOURCE.spec(), TARGET.spec()],
     outputs: &[JOINED_OUT.spec(), TRANSITION_OUT.spec(), REPORT.spec()],
-    params: &[SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0],
+    params: &[SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0, FOOT_LOCK.0],
     writes_files: false,
-    version: 1,
+    version: 2,
 };
 
 impl Node for Transition {
@@ -299,6 +301,7 @@ impl Node for Transition {
         let mut out = Motion::of_clip(&source);
         let info = append_transition(&graph, &mut out, Frames::of_clip(&target), &params, &mut rng_of(ctx)?);
         let joined = out.into_clip(&source).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let joined = lock_feet(ctx, joined)?;
         let transition = joined.slice(info.frames.start, info.frames.end);
         let mut report = serde_json::to_value(&info).unwrap_or_default();
         report["duration_secs"] = json!(transition.duration_secs());
@@ -307,6 +310,33 @@ impl Node for Transition {
         ctx.set_output(&REPORT, report_of(report));
         Ok(())
     }
+}
+
+const FOOT_LOCK: ChoiceParam = ChoiceParam::new(
+    "foot_lock",
+    "After synthesis, feet planted anywhere in the result (contacts detected on it) are held where they were put down by \
+     the foot lock's IK, and planted feet that a joined clip put under the floor are lifted onto it: the synthesised \
+     transitions otherwise let the stance foot glide ('off' keeps the raw synthesis).",
+    &["on", "off"],
+    "on",
+);
+
+/// The floor the post-synthesis foot lock lifts sinking plants onto (metres).
+const FLOOR_HEIGHT_M: f64 = 0.0;
+
+/// `clip` with its planted feet held and kept above the floor when `FOOT_LOCK` is on
+/// (Peng et al. synthesise transitions from clips whose stance feet do not line up).
+fn lock_feet(ctx: &NodeContext<'_>, clip: Clip) -> Result<Clip, NodeError> {
+    if ctx.choice(&FOOT_LOCK)? != "on" {
+        return Ok(clip);
+    }
+    let fail = |e: String| {
+        NodeError::Failed(format!("the foot lock after synthesis failed: {e} (set foot_lock off to skip it)"))
+    };
+    let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &ContactThresholds::default()).map_err(fail)?;
+    let params =
+        FootLockParams { ground: Ground::AboveFloor { floor_height_m: FLOOR_HEIGHT_M }, ..FootLockParams::default() };
+    Ok(foot_lock(&clip, &contacts, &params).map_err(|e| fail(e.to_string()))?.clip)
 }
 
 const ACTIONS: TextParam = TextParam::new(
@@ -330,9 +360,9 @@ static SEQUENCE: NodeSchema = NodeSchema {
     doc: "Plays a list of actions from the graph's clip set in order as one continuous clip, with a transition between each two. Actions are clip names, or names given in a label file (whole clips or stretches of long takes). The report lists each transition's path, cost and whether it was interpolated, and compares its smoothness and foot sliding with a plain crossfade of the same two clips.",
     inputs: &[GRAPH_IN.spec()],
     outputs: &[SEQUENCE_OUT.spec(), REPORT.spec()],
-    params: &[ACTIONS.0, LABELS.0, SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0],
+    params: &[ACTIONS.0, LABELS.0, SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0, FOOT_LOCK.0],
     writes_files: false,
-    version: 1,
+    version: 2,
 };
 
 /// Plays `actions` (at least one, from the graph's clip set) one after another with a
@@ -416,7 +446,8 @@ impl Node for Sequence {
         let params = synthesis_params(ctx, set.fps())?;
         ctx.check_cancelled()?;
         let (out, infos) = play_sequence(&graph, &actions, &params, &mut rng_of(ctx)?);
-        let clip = Arc::new(out.into_clip(&actions[0].clip).map_err(|e| NodeError::Failed(e.to_string()))?);
+        let clip = out.into_clip(&actions[0].clip).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let clip = Arc::new(lock_feet(ctx, clip)?);
         let mut transitions = Vec::new();
         for (k, info) in infos.iter().enumerate() {
             ctx.check_cancelled()?;
