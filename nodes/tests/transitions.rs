@@ -9,9 +9,10 @@ use std::sync::Arc;
 use glam::{Quat, Vec3};
 use kinegraph_nodes::builtin::transitions::actions::find_actions;
 use kinegraph_nodes::builtin::transitions::synthesis::{Frames, Motion, SynthesisParams, append_transition};
-use kinegraph_nodes::builtin::transitions::{play_sequence, smoothness_against_crossfade};
+use kinegraph_nodes::builtin::transitions::{hold_planted_feet, play_sequence, smoothness_against_crossfade};
 use kinegraph_nodes::cancel::Cancel;
 use kinegraph_nodes::kernels::clip_set::load_clip_set;
+use kinegraph_nodes::kernels::quality::{QualityOptions, measure_quality};
 use kinegraph_nodes::kernels::transition_graph::cluster::cluster;
 use kinegraph_nodes::kernels::transition_graph::distance::DistanceParams;
 use kinegraph_nodes::kernels::transition_graph::graph::{Direction, TransitionGraph, build_graph};
@@ -274,6 +275,28 @@ fn real_corpus_transitions_against_a_crossfade() {
             );
             rows += 1;
         }
+        // The foot lock after synthesis (motion.sequence's default), measured by
+        // motion.quality's kernel on the raw and the held motion.
+        let held = hold_planted_feet(&clip).unwrap();
+        let options = QualityOptions::default();
+        let (raw_q, held_q) = (
+            measure_quality(&clip, None, &[], None, &options).summary,
+            measure_quality(&held, None, &[], None, &options).summary,
+        );
+        let cm = |v: Option<f64>| v.unwrap_or(f64::NAN);
+        eprintln!(
+            "{names:?}: under the floor {:.2} -> {:.2} cm, contact slide max {:.2} -> {:.2} cm, skate max {:.3} -> {:.3} cm/frame",
+            cm(raw_q.penetration_max_cm),
+            cm(held_q.penetration_max_cm),
+            cm(raw_q.contact_slide_max_cm),
+            cm(held_q.contact_slide_max_cm),
+            cm(raw_q.skate_max_cm_per_frame),
+            cm(held_q.skate_max_cm_per_frame),
+        );
+        // Held plants slide less and never sink deeper; feet the lock does not see as planted
+        // (a swing through the floor inside a transition) keep their depth.
+        assert!(cm(held_q.contact_slide_max_cm) < cm(raw_q.contact_slide_max_cm), "{names:?}: {held_q:?}");
+        assert!(cm(held_q.penetration_max_cm) <= cm(raw_q.penetration_max_cm) + 0.01, "{names:?}: {held_q:?}");
     }
     assert_eq!(rows, 10);
 }

@@ -324,19 +324,25 @@ const FOOT_LOCK: ChoiceParam = ChoiceParam::new(
 /// The floor the post-synthesis foot lock lifts sinking plants onto (metres).
 const FLOOR_HEIGHT_M: f64 = 0.0;
 
-/// `clip` with its planted feet held and kept above the floor when `FOOT_LOCK` is on
-/// (Peng et al. synthesise transitions from clips whose stance feet do not line up).
+/// `clip` with its planted feet held and kept above the floor when `FOOT_LOCK` is on.
 fn lock_feet(ctx: &NodeContext<'_>, clip: Clip) -> Result<Clip, NodeError> {
     if ctx.choice(&FOOT_LOCK)? != "on" {
         return Ok(clip);
     }
-    let fail = |e: String| {
+    hold_planted_feet(&clip).map_err(|e| {
         NodeError::Failed(format!("the foot lock after synthesis failed: {e} (set foot_lock off to skip it)"))
-    };
-    let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &ContactThresholds::default()).map_err(fail)?;
+    })
+}
+
+/// A synthesised motion with every planted foot (contacts detected on it) held where it was
+/// put down and lifted onto the floor where a joined clip put it under: Peng et al.'s
+/// transitions join clips whose stance feet do not line up, so without this the stance foot
+/// glides through them.
+pub fn hold_planted_feet(clip: &Clip) -> Result<Clip, String> {
+    let (contacts, _) = contacts_of(clip, &forward_kinematics(clip), &ContactThresholds::default())?;
     let params =
         FootLockParams { ground: Ground::AboveFloor { floor_height_m: FLOOR_HEIGHT_M }, ..FootLockParams::default() };
-    Ok(foot_lock(&clip, &contacts, &params).map_err(|e| fail(e.to_string()))?.clip)
+    Ok(foot_lock(clip, &contacts, &params).map_err(|e| e.to_string())?.clip)
 }
 
 const ACTIONS: TextParam = TextParam::new(
