@@ -4,10 +4,9 @@
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Instant, SystemTime};
 
-use rayon::prelude::*;
 use serde::Serialize;
 
 use super::run::{Setting, absolute, cancel_flag, execute, exit_code};
@@ -126,6 +125,40 @@ pub fn run_once(
     }
 }
 
+/// `run_one` over every input, `jobs` inputs at a time (default: one per core), in input
+/// order. Each worker is a thread of its own that takes the next input when it is done; the
+/// inputs' nodes run on rayon's global pool, which they share. Inputs used to be rayon tasks
+/// on the same pool as their nodes: a thread waiting on one input's nodes then took up
+/// other inputs' work and the two threads of a two-job batch sat idle a third of the time.
+fn run_inputs(
+    inputs: &[PathBuf],
+    names: &[String],
+    jobs: Option<usize>,
+    run_one: impl Fn((&PathBuf, &String)) -> BatchRun + Sync,
+) -> Vec<BatchRun> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let workers = jobs.filter(|&j| j > 0).unwrap_or(cores).clamp(1, inputs.len().max(1));
+    let next = AtomicUsize::new(0);
+    let mut runs: Vec<(usize, BatchRun)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut done = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let (Some(path), Some(name)) = (inputs.get(i), names.get(i)) else { break };
+                        done.push((i, run_one((path, name))));
+                    }
+                    done
+                })
+            })
+            .collect();
+        handles.into_iter().flat_map(|h| h.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic))).collect()
+    });
+    runs.sort_by_key(|(i, _)| *i);
+    runs.into_iter().map(|(_, run)| run).collect()
+}
+
 pub(super) fn batch_command(
     graph: &Path,
     input: &Setting,
@@ -176,11 +209,7 @@ pub(super) fn batch_command(
         }
         run
     };
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(jobs.unwrap_or(0)).build();
-    let runs: Vec<BatchRun> = match pool {
-        Ok(pool) => pool.install(|| inputs.par_iter().zip(&names).map(run_one).collect()),
-        Err(_) => inputs.iter().zip(&names).map(run_one).collect(),
-    };
+    let runs = run_inputs(&inputs, &names, jobs, run_one);
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }
@@ -228,5 +257,67 @@ pub(super) fn batch_command(
         EXIT_FAILED
     } else {
         0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Mutex;
+    use std::sync::atomic::AtomicUsize;
+    use std::time::Duration;
+
+    use super::*;
+
+    fn inputs(n: usize) -> (Vec<PathBuf>, Vec<String>) {
+        ((0..n).map(|i| PathBuf::from(format!("in_{i}.bvh"))).collect(), (0..n).map(|i| format!("in_{i}")).collect())
+    }
+
+    /// Every input runs once, results come back in input order, and no more than `jobs`
+    /// inputs are in flight at once.
+    #[test]
+    fn inputs_run_once_each_in_order_at_most_jobs_at_a_time() {
+        let (paths, names) = inputs(25);
+        for jobs in [Some(1), Some(3), None] {
+            let (in_flight, most) = (AtomicUsize::new(0), AtomicUsize::new(0));
+            let calls = Mutex::new(Vec::new());
+            let runs = run_inputs(&paths, &names, jobs, |(path, name)| {
+                let now = in_flight.fetch_add(1, Ordering::SeqCst) + 1;
+                most.fetch_max(now, Ordering::SeqCst);
+                std::thread::sleep(Duration::from_millis(2));
+                calls.lock().unwrap().push(name.clone());
+                in_flight.fetch_sub(1, Ordering::SeqCst);
+                BatchRun::refused(path, Path::new(name), EXIT_FAILED, name.clone())
+            });
+            let order: Vec<String> = runs.iter().map(|r| r.error.clone().unwrap_or_default()).collect();
+            assert_eq!(order, names, "{jobs:?}");
+            let mut called = calls.into_inner().unwrap();
+            called.sort();
+            let mut want = names.clone();
+            want.sort();
+            assert_eq!(called, want, "{jobs:?}: every input exactly once");
+            let limit = jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+            assert!(most.load(Ordering::SeqCst) <= limit, "{jobs:?}: {} at once", most.load(Ordering::SeqCst));
+        }
+    }
+
+    /// With two jobs, two inputs really run at the same time: each of the first two waits
+    /// (up to 10 s) for the other to start.
+    #[test]
+    fn two_jobs_run_two_inputs_at_once() {
+        let (paths, names) = inputs(2);
+        let started = AtomicUsize::new(0);
+        let met = AtomicUsize::new(0);
+        run_inputs(&paths, &names, Some(2), |(path, name)| {
+            started.fetch_add(1, Ordering::SeqCst);
+            let deadline = Instant::now() + Duration::from_secs(10);
+            while started.load(Ordering::SeqCst) < 2 && Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            if started.load(Ordering::SeqCst) == 2 {
+                met.fetch_add(1, Ordering::SeqCst);
+            }
+            BatchRun::refused(path, Path::new(name), EXIT_FAILED, String::new())
+        });
+        assert_eq!(met.load(Ordering::SeqCst), 2);
     }
 }
