@@ -7,6 +7,7 @@ use std::path::Path;
 
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh};
 use kinegraph_nodes::formats::error::Location;
+use kinegraph_nodes::formats::gltf::{GltfReadOptions, read_gltf};
 use kinegraph_nodes::formats::obj::read_obj;
 use kinegraph_nodes::model::forward_kinematics;
 
@@ -56,4 +57,27 @@ fn obj_reader_regressions_are_located_errors() {
         let err = read_obj(&bytes[1..], &path, None).expect_err("a face index before the first record");
         assert!(matches!(err.location, Location::Line { .. }), "{}: {err}", path.display());
     }
+}
+
+/// The `gltf_loader` target's find: a primitive whose POSITION names an accessor that does
+/// not exist made gltf-json's own validation index past the accessor list (a panic). Kept
+/// inputs (as given, and the JSON before a NUL as the target wraps it in a GLB) load or
+/// fail without panicking; a hand-made file fails naming the attribute.
+#[test]
+fn gltf_loader_regressions_never_panic_and_out_of_range_attributes_are_named() {
+    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/regressions/gltf_loader"));
+    let mut files: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+    files.sort();
+    assert!(!files.is_empty(), "the regression inputs are missing from {}", dir.display());
+    for path in files {
+        let bytes = std::fs::read(&path).unwrap();
+        let json = bytes.split(|&b| b == 0).next().unwrap_or(&bytes);
+        for input in [&bytes[..], json] {
+            let _ = read_gltf(input, &path, &GltfReadOptions::default());
+        }
+    }
+    let text = br#"{"asset": {"version": "2.0"}, "meshes": [{"primitives": [{"attributes": {"POSITION": 5}}]}]}"#;
+    let err = read_gltf(text, Path::new("bad.gltf"), &GltfReadOptions::default()).unwrap_err();
+    assert!(err.to_string().contains("/meshes/0/primitives/0/attributes/POSITION"), "{err}");
+    assert!(err.to_string().contains("index out of range"), "{err}");
 }

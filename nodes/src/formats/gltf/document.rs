@@ -162,6 +162,30 @@ fn load_external(uri: &str, index: usize, file: &Path) -> Result<Vec<u8>, ReadEr
     std::fs::read(&real).map_err(io)
 }
 
+/// Every mesh primitive's attributes name an accessor that exists. gltf-json 1.4.1's own
+/// validation reads the POSITION accessor by its index before checking that index, so an
+/// out-of-range one panicked (found by the `gltf_loader` fuzz target); checked here first.
+fn check_attribute_indices(root: &gltf_json::Root) -> Result<(), ReadError> {
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            for (semantic, accessor) in &primitive.attributes {
+                if accessor.value() >= root.accessors.len() {
+                    let name = match semantic {
+                        gltf_json::validation::Checked::Valid(s) => s.to_string(),
+                        gltf_json::validation::Checked::Invalid => "?".into(),
+                    };
+                    return Err(ReadError::new(
+                        format!("/meshes/{m}/primitives/{p}/attributes/{name}"),
+                        Kind::Structure,
+                        "index out of range",
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Parses `bytes` (GLB or JSON glTF); `file` resolves external buffers.
 pub(crate) fn load(bytes: &[u8], file: &Path) -> Result<Document, ReadError> {
     let (json, bin) = if bytes.starts_with(GLB_MAGIC) {
@@ -177,6 +201,7 @@ pub(crate) fn load(bytes: &[u8], file: &Path) -> Result<Document, ReadError> {
         ReadError::file(kind, format!("JSON line {} column {}: {e}", e.line(), e.column()))
     })?;
 
+    check_attribute_indices(&root)?;
     let mut warnings = Vec::new();
     let mut first_error: Option<ReadError> = None;
     root.validate(&root, gltf_json::Path::new, &mut |path: &dyn Fn() -> gltf_json::Path, err: ValidationError| {
