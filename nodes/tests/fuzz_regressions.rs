@@ -44,15 +44,21 @@ fn bvh_reader_regressions_never_panic_and_stay_finite() {
     assert!(err.message.contains("joint 'b'"), "{err}");
 }
 
+/// The kept inputs of fuzz target `target` (`fuzz/regressions/<target>/`), sorted; fails when
+/// there are none, so a lost folder is not a silent pass.
+fn regression_inputs(target: &str) -> Vec<std::path::PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz/regressions").join(target);
+    let mut files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
+    files.sort();
+    assert!(!files.is_empty(), "the regression inputs are missing from {}", dir.display());
+    files
+}
+
 /// The `obj_reader` target's inputs (their first byte picks the unit; the rest is the file):
 /// each is refused with an error located at a line of the file, never a panic.
 #[test]
 fn obj_reader_regressions_are_located_errors() {
-    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/regressions/obj_reader"));
-    let mut files: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
-    files.sort();
-    assert!(!files.is_empty(), "the regression inputs are missing from {}", dir.display());
-    for path in files {
+    for path in regression_inputs("obj_reader") {
         let bytes = std::fs::read(&path).unwrap();
         let err = read_obj(&bytes[1..], &path, None).expect_err("a face index before the first record");
         assert!(matches!(err.location, Location::Line { .. }), "{}: {err}", path.display());
@@ -67,11 +73,7 @@ fn obj_reader_regressions_are_located_errors() {
 /// file fails naming the attribute.
 #[test]
 fn gltf_loader_regressions_never_panic_and_out_of_range_attributes_are_named() {
-    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/regressions/gltf_loader"));
-    let mut files: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
-    files.sort();
-    assert!(!files.is_empty(), "the regression inputs are missing from {}", dir.display());
-    for path in files {
+    for path in regression_inputs("gltf_loader") {
         let bytes = std::fs::read(&path).unwrap();
         let json = bytes.split(|&b| b == 0).next().unwrap_or(&bytes);
         for input in [&bytes[..], json] {
