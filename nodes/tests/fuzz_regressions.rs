@@ -13,10 +13,9 @@ use kinegraph_nodes::model::forward_kinematics;
 
 #[test]
 fn bvh_reader_regressions_never_panic_and_stay_finite() {
-    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/regressions/bvh_reader"));
-    let mut files: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
-    files.sort();
-    assert!(files.len() >= 2, "the regression inputs are missing from {}", dir.display());
+    let files = regression_inputs("bvh_reader");
+    assert!(files.len() >= 2, "the bvh_reader regression inputs are incomplete: {files:?}");
+    let overflow = files.iter().find(|p| p.ends_with("fk_offsets_overflow.bvh")).cloned().unwrap();
     for path in files {
         let bytes = std::fs::read(&path).unwrap();
         match read_bvh(&bytes, &path, BvhReadOptions::default()) {
@@ -35,12 +34,7 @@ fn bvh_reader_regressions_never_panic_and_stay_finite() {
         }
     }
     // The huge-offset case is refused, naming the joint.
-    let err = read_bvh(
-        &std::fs::read(dir.join("fk_offsets_overflow.bvh")).unwrap(),
-        Path::new("x.bvh"),
-        BvhReadOptions::default(),
-    )
-    .unwrap_err();
+    let err = read_bvh(&std::fs::read(overflow).unwrap(), Path::new("x.bvh"), BvhReadOptions::default()).unwrap_err();
     assert!(err.message.contains("joint 'b'"), "{err}");
 }
 

@@ -277,7 +277,7 @@ fn real_corpus_transitions_against_a_crossfade() {
         }
         // The foot lock after synthesis (motion.sequence's default), measured by
         // motion.quality's kernel on the raw and the held motion.
-        let held = hold_planted_feet(&clip).unwrap();
+        let held = hold_planted_feet((*clip).clone()).unwrap();
         let options = QualityOptions::default();
         let (raw_q, held_q) = (
             measure_quality(&clip, None, &[], None, &options).summary,

@@ -54,8 +54,7 @@ fn onto_skeleton(clip: &Clip, skeleton: &Arc<Skeleton>) -> Result<Clip, String> 
         return Err("is on a skeleton with other joints than the graph's".into());
     }
     let n = own.len();
-    let (h_own, h_reference) = (clip.skeleton().root_height(), skeleton.root_height());
-    let root_ratio = if h_own > 1e-6 && h_reference > 1e-6 { h_reference / h_own } else { 1.0 };
+    let root_ratio = clip.skeleton().root_height_ratio(skeleton).unwrap_or(1.0);
     let translations = clip
         .translations()
         .iter()

@@ -199,6 +199,14 @@ impl Skeleton {
         rest.first().map_or(0.0, |root| root.y - lowest)
     }
 
+    /// How much longer `other`'s legs hold its root up than this skeleton's do
+    /// (`other.root_height() / self.root_height()`): the factor a root path is scaled by when
+    /// a motion moves from this skeleton to `other`. `None` when either height is (near) zero.
+    pub fn root_height_ratio(&self, other: &Skeleton) -> Option<f32> {
+        let (own, theirs) = (self.root_height(), other.root_height());
+        (own > 1e-6 && theirs > 1e-6).then(|| theirs / own)
+    }
+
     /// Axis-aligned size of the rest pose (metres): the extent used for unit detection and
     /// relative tolerances.
     pub fn rest_extent(&self) -> Vec3 {

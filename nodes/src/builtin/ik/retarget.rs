@@ -301,10 +301,7 @@ pub fn retarget_clip(
     let rig = retarget_rig(skeleton, effectors, params.pelvis)?;
     let tips: Vec<usize> = rig.effectors().iter().map(|&e| map[e]).collect();
     let effector_joints = rig.effectors().to_vec();
-    let ratio = {
-        let (h0, h1) = (source.skeleton().root_height(), skeleton.root_height());
-        if h0 > 1e-6 { h1 / h0 } else { 1.0 }
-    };
+    let ratio = source.skeleton().root_height_ratio(skeleton).unwrap_or(1.0);
     let rest: Vec<Vec3> = skeleton.joints().iter().map(|j| j.rest_offset).collect();
     let frames = source.frame_count();
     // Per-frame scratch, allocated once.

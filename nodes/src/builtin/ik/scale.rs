@@ -74,8 +74,7 @@ pub fn scale_clip(clip: &Clip, uniform: f32, rules: &[(String, f32)]) -> Result<
     let source = clip.skeleton();
     let factors = bone_factors(source, uniform, rules);
     let skeleton = Arc::new(scale_skeleton(source, &factors)?);
-    let (h0, h1) = (source.root_height(), skeleton.root_height());
-    let root_ratio = if h0 > 1e-6 { h1 / h0 } else { uniform };
+    let root_ratio = source.root_height_ratio(&skeleton).unwrap_or(uniform);
     let joints = source.len();
     let translations: Vec<Vec3> = clip
         .translations()

@@ -34,11 +34,10 @@ use serde_json::json;
 
 use crate::kernels::align::{Rule, alignment_yaw, facing_difference, place, torso_facing, yaw_rotation};
 use crate::kernels::analysis::{Analysis, AnalysisOptions, analyse};
-use crate::kernels::contacts::contacts_of;
-use crate::kernels::ik::foot_lock::{FootLockParams, Ground, foot_lock};
+use crate::kernels::ik::foot_lock::hold_detected_plants;
 use crate::kernels::join::{ConcatError, Concatenated, foot_skate_m, same_skeleton, splice};
 use crate::kernels::resample::push_sample;
-use crate::model::{Clip, ClipError, Contacts, FootContacts, FrameRange, forward_kinematics, into_report};
+use crate::model::{Clip, ClipError, Contacts, FootContacts, FrameRange, into_report};
 
 /// Which frames of the blendable periods may be blended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -115,9 +114,6 @@ impl Default for ConcatParams {
         }
     }
 }
-
-/// The floor the clean-up keeps planted feet above, metres (the corpus's ground).
-const FLOOR_HEIGHT_M: f64 = 0.0;
 
 /// The contacts of `contacts` that overlap `window`, whole; the others dropped.
 fn plants_touching(contacts: &Contacts, window: FrameRange) -> Contacts {
@@ -636,23 +632,20 @@ pub fn concatenate(
     };
     let window_out = FrameRange::new(f0, f0 + new_len + 1);
     // 6. Feet held through the plants the blend touches.
-    let plants = if params.foot_lock {
-        let (detected, _) = contacts_of(&out, &forward_kinematics(&out), &options.contacts)
-            .map_err(|e| ConcatError::FootLock(e.to_string()))?;
-        plants_touching(&detected, window_out)
+    let held = if params.foot_lock {
+        hold_detected_plants(&out, &options.contacts, |detected| plants_touching(&detected, window_out))
+            .map_err(ConcatError::FootLock)?
     } else {
-        Contacts { feet: Vec::new(), double_support: Vec::new(), fps, frame_count: out.frame_count() }
+        None
     };
-    let locked_plants: usize = plants.feet.iter().map(|c| c.intervals.len()).sum();
-    let (out, result) = if locked_plants > 0 {
-        let ground = Ground::AboveFloor { floor_height_m: FLOOR_HEIGHT_M };
-        let locked = foot_lock(&out, &plants, &FootLockParams { ground, ..FootLockParams::default() })
-            .map_err(|e| ConcatError::FootLock(e.to_string()))?;
-        let out = Arc::new(locked.clip);
-        let result = a.reanalysed(out.clone(), options);
-        (out, result)
-    } else {
-        (out, result)
+    let locked_plants = held.as_ref().map_or(0, |(_, count)| *count);
+    let (out, result) = match held {
+        Some((locked, _)) => {
+            let out = Arc::new(locked);
+            let result = a.reanalysed(out.clone(), options);
+            (out, result)
+        }
+        None => (out, result),
     };
     let skate = foot_skate_m(&result, window_out, options.contacts.enter_height_m);
     let secs = |frames: f64| frames / fps;

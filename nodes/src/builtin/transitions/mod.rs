@@ -19,15 +19,15 @@ use self::synthesis::{Frames, Motion, SynthesisParams, TransitionInfo, append_tr
 use crate::kernels::analysis::{AnalysisOptions, analyse};
 use crate::kernels::baseline::{BaselineParams, concatenate_baseline};
 use crate::kernels::clip_set::{conform, load_clip_set};
-use crate::kernels::contacts::{ContactThresholds, contacts_of};
-use crate::kernels::ik::foot_lock::{FootLockParams, Ground, foot_lock};
+use crate::kernels::contacts::ContactThresholds;
+use crate::kernels::ik::foot_lock::hold_detected_plants;
 use crate::kernels::join::foot_skate_m;
 use crate::kernels::transition_graph::distance::{self, DistanceParams};
 use crate::kernels::transition_graph::graph::Direction;
 use crate::kernels::transition_graph::paths::PathLimits;
 use crate::kernels::transition_graph::{Clusters, TransitionGraph};
 use crate::kernels::transition_graph::{cluster, graph};
-use crate::model::{Clip, ClipSet, FrameRange, forward_kinematics};
+use crate::model::{Clip, ClipSet, FrameRange};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputFolderParam, InputPathParam, IntParam, Node, NodeContext, NodeError,
     NodeSchema, Output, Registry, Report, TextParam, report_of,
@@ -321,15 +321,12 @@ const FOOT_LOCK: ChoiceParam = ChoiceParam::new(
     "on",
 );
 
-/// The floor the post-synthesis foot lock lifts sinking plants onto (metres).
-const FLOOR_HEIGHT_M: f64 = 0.0;
-
 /// `clip` with its planted feet held and kept above the floor when `FOOT_LOCK` is on.
 fn lock_feet(ctx: &NodeContext<'_>, clip: Clip) -> Result<Clip, NodeError> {
     if ctx.choice(&FOOT_LOCK)? != "on" {
         return Ok(clip);
     }
-    hold_planted_feet(&clip).map_err(|e| {
+    hold_planted_feet(clip).map_err(|e| {
         NodeError::Failed(format!("the foot lock after synthesis failed: {e} (set foot_lock off to skip it)"))
     })
 }
@@ -338,11 +335,8 @@ fn lock_feet(ctx: &NodeContext<'_>, clip: Clip) -> Result<Clip, NodeError> {
 /// put down and lifted onto the floor where a joined clip put it under: Peng et al.'s
 /// transitions join clips whose stance feet do not line up, so without this the stance foot
 /// glides through them.
-pub fn hold_planted_feet(clip: &Clip) -> Result<Clip, String> {
-    let (contacts, _) = contacts_of(clip, &forward_kinematics(clip), &ContactThresholds::default())?;
-    let params =
-        FootLockParams { ground: Ground::AboveFloor { floor_height_m: FLOOR_HEIGHT_M }, ..FootLockParams::default() };
-    Ok(foot_lock(clip, &contacts, &params).map_err(|e| e.to_string())?.clip)
+pub fn hold_planted_feet(clip: Clip) -> Result<Clip, String> {
+    Ok(hold_detected_plants(&clip, &ContactThresholds::default(), |all| all)?.map_or(clip, |(held, _)| held))
 }
 
 const ACTIONS: TextParam = TextParam::new(

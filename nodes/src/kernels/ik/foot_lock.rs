@@ -42,6 +42,7 @@ use glam::{DVec3, Quat};
 use super::rig::{IkRig, RigError};
 use super::solve::{IkSolver, SolveParams, SolveReport};
 use crate::kernels::body::limb_tip;
+use crate::kernels::contacts::{ContactThresholds, contacts_of};
 use crate::kernels::skinning::SkinError;
 use crate::kernels::soles::{foot_joints, lowest_sole_heights};
 use crate::math::smoothstep;
@@ -336,6 +337,33 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
         })
         .collect();
     Ok(FootLocked { clip: locked, feet, frames })
+}
+
+/// The floor (metres) the clean-ups after a blend or a synthesised transition keep planted
+/// feet above: the corpus's ground.
+pub const CLEAN_UP_FLOOR_M: f64 = 0.0;
+
+/// The clean-up after a blend or a synthesised transition (Shum's foot-sliding fix after
+/// the blend, feet held through Peng's joins): the plants detected on `clip` with
+/// `thresholds`, narrowed by `select`, held where they were put down and lifted onto the
+/// floor where the joined clips put them under ([`Ground::AboveFloor`]). Gives the held
+/// clip and how many plants were held, or `None` when `select` leaves none (the clip needs
+/// no change).
+pub fn hold_detected_plants(
+    clip: &Clip,
+    thresholds: &ContactThresholds,
+    select: impl FnOnce(Contacts) -> Contacts,
+) -> Result<Option<(Clip, usize)>, String> {
+    let (detected, _) = contacts_of(clip, &forward_kinematics(clip), thresholds)?;
+    let plants = select(detected);
+    let held: usize = plants.feet.iter().map(|c| c.intervals.len()).sum();
+    if held == 0 {
+        return Ok(None);
+    }
+    let params =
+        FootLockParams { ground: Ground::AboveFloor { floor_height_m: CLEAN_UP_FLOOR_M }, ..FootLockParams::default() };
+    let locked = foot_lock(clip, &plants, &params).map_err(|e| e.to_string())?;
+    Ok(Some((locked.clip, held)))
 }
 
 /// Horizontal travel of joint `point` between consecutive frames that are both fully
