@@ -62,16 +62,24 @@ fn obj_reader_regressions_are_located_errors() {
 /// The `gltf_loader` target's finds: a primitive whose POSITION names an accessor that does
 /// not exist made gltf-json's own validation index past the accessor list (a panic); a
 /// node's transform that overflows left a mesh with infinite positions; keys claiming hours
-/// of animation asked for 3.2 GB. Kept inputs (as given, and the JSON before a NUL as the
-/// target wraps it in a GLB) load with finite meshes or fail without panicking; a hand-made
+/// of animation asked for 3.2 GB, and later (`timeout-…`: 5.5e6 s of keys) for the whole
+/// default limit, seconds of sampling. Kept inputs (as given, and the JSON before a NUL as
+/// the target wraps it in a GLB), read under the target's memory limit, load with finite
+/// meshes or fail without panicking; the long one is refused naming the limit; a hand-made
 /// file fails naming the attribute.
 #[test]
 fn gltf_loader_regressions_never_panic_and_out_of_range_attributes_are_named() {
+    let options = GltfReadOptions { max_clip_bytes: Some(64 << 20), ..Default::default() };
     for path in regression_inputs("gltf_loader") {
         let bytes = std::fs::read(&path).unwrap();
         let json = bytes.split(|&b| b == 0).next().unwrap_or(&bytes);
+        let result = read_gltf(&bytes, &path, &options);
+        if path.file_name().unwrap().to_string_lossy().starts_with("timeout-") {
+            let err = result.as_ref().unwrap_err().to_string();
+            assert!(err.contains("/animations/0") && err.contains("--max-memory"), "{err}");
+        }
         for input in [&bytes[..], json] {
-            if let Ok(loaded) = read_gltf(input, &path, &GltfReadOptions::default()) {
+            if let Ok(loaded) = read_gltf(input, &path, &options) {
                 for mesh in &loaded.value.meshes {
                     assert!(mesh.positions.iter().all(|p| p.is_finite()), "{}: mesh '{}'", path.display(), mesh.name);
                 }

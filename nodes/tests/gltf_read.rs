@@ -365,6 +365,35 @@ fn truncated_or_corrupted_glb_never_panics() {
     }
 }
 
+/// Two keys far apart ask for a long clip: sampled when it fits the memory limit the
+/// reader is given, refused with the estimate and the way out when it does not, before
+/// anything is allocated (the `gltf_loader` fuzz find: 3 KB of JSON asking for 1.4 GB).
+#[test]
+fn long_sparse_animations_respect_the_memory_limit() {
+    let limit = 1 << 20;
+    let limited = GltfReadOptions { sample_fps: Some(30.0), max_clip_bytes: Some(limit), ..Default::default() };
+    // 100 s at 30 fps: 3,001 frames of 2 joints, 28 bytes each = 168 KB.
+    let mut d = Doc::default();
+    let fits = two_joint_doc(&mut d, "translation", "LINEAR", &[0.0, 100.0], &[0., 0., 0., 1., 0., 0.]);
+    let asset = read_gltf(&fits, Path::new("long.gltf"), &limited).unwrap().value;
+    assert_eq!(asset.clips[0].clip.frame_count(), 3_001);
+    // 1,000 s: 30,001 frames, 1.6 MiB.
+    let mut d = Doc::default();
+    let too_long = two_joint_doc(&mut d, "translation", "LINEAR", &[0.0, 1000.0], &[0., 0., 0., 1., 0., 0.]);
+    let err = read_gltf(&too_long, Path::new("long.gltf"), &limited).unwrap_err();
+    assert_eq!(err.location, Location::JsonPath("/animations/0".into()), "{err}");
+    assert_eq!(err.kind, FormatErrorKind::Unsupported, "{err}");
+    let message = err.to_string();
+    assert!(message.contains("30001 frames of 2 joints") && message.contains("1.6 MiB"), "{message}");
+    assert!(message.contains("1.0 MiB") && message.contains("--max-memory"), "{message}");
+    // Without a limit the default (1.4 GB) applies: 1e6 s of keys is 3e7 frames, 1.6 GiB.
+    let mut d = Doc::default();
+    let absurd = two_joint_doc(&mut d, "translation", "LINEAR", &[0.0, 1e6], &[0., 0., 0., 1., 0., 0.]);
+    let options = GltfReadOptions { sample_fps: Some(30.0), ..Default::default() };
+    let err = read_gltf(&absurd, Path::new("long.gltf"), &options).unwrap_err();
+    assert!(err.to_string().contains("1.6 GiB"), "{err}");
+}
+
 #[test]
 fn external_buffers_resolve_beside_the_file_and_refuse_escapes() {
     let mut d = Doc::default();

@@ -78,6 +78,7 @@ impl Node for LoadClip {
             animation: ctx.optional_int(&ANIMATION)?.map(|a| a as usize),
             sample_fps: ctx.optional_float(&SAMPLE_FPS)?,
             up_axis: if ctx.choice(&UP_AXIS)? == "z" { UpAxis::Z } else { UpAxis::Y },
+            max_clip_bytes: Some(ctx.memory_limit_bytes()),
         };
         let Loaded { value: clip, warnings } = load_clip(&path, options)?;
         ctx.warn_all(warnings);

@@ -18,13 +18,11 @@ use std::sync::Arc;
 use glam::{DMat4, DQuat, DVec3, Mat4, Quat, Vec2, Vec3};
 
 use crate::formats::error::{FormatError, FormatErrorKind as Kind, Loaded};
+use crate::model::clip::sampling_refusal;
 use crate::model::{Clip, ImportScale, Joint, LengthUnit, Mesh, Skeleton, Skin};
 
 /// Frame rate used when the file states none.
 pub const FALLBACK_FPS: f64 = 30.0;
-
-/// Largest number of `frames × joints` samples a clip may have.
-const MAX_CLIP_SAMPLES: f64 = 2.0e8;
 
 /// Options for reading FBX.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -35,6 +33,9 @@ pub struct FbxReadOptions {
     pub sample_fps: Option<f64>,
     /// Also read the meshes (skipped by default: clips do not need them).
     pub meshes: bool,
+    /// Largest clip to sample, in bytes of rotations and translations (the run's memory
+    /// limit); `None` uses [`crate::model::clip::DEFAULT_MAX_SAMPLED_BYTES`].
+    pub max_clip_bytes: Option<u64>,
 }
 
 /// What the file said about itself before conversion.
@@ -302,11 +303,11 @@ pub fn read_fbx(bytes: &[u8], path: &Path, options: &FbxReadOptions) -> Result<L
             ));
         }
         let frames_f = (span * fps).round() + 1.0;
-        if frames_f * nodes.len() as f64 > MAX_CLIP_SAMPLES {
+        if let Some(refusal) = sampling_refusal(frames_f, nodes.len(), options.max_clip_bytes) {
             return Err(FormatError::file(
                 path,
                 Kind::Value,
-                format!("take '{}' is too long to sample: {span} s at {fps} fps", stack.element.name),
+                format!("take '{}' is too long to sample, {span} s at {fps} fps: {refusal}", stack.element.name),
             ));
         }
         let frames = frames_f as usize;

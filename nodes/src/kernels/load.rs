@@ -22,6 +22,9 @@ pub struct ClipLoadOptions {
     pub sample_fps: Option<f64>,
     /// BVH only: the file's up axis; Z-up files are turned to kinegraph's Y up.
     pub up_axis: UpAxis,
+    /// glTF and FBX: largest clip to sample, in bytes (the run's memory limit); `None`
+    /// uses the readers' default.
+    pub max_clip_bytes: Option<u64>,
 }
 
 /// Which axis points up in a source file.
@@ -76,8 +79,12 @@ pub fn load_clip(path: &Path, options: ClipLoadOptions) -> Result<Loaded<Clip>, 
             Ok(Loaded { value: clip, warnings })
         }
         "gltf" | "glb" => {
-            let gltf_options =
-                GltfReadOptions { animation: options.animation, skin: None, sample_fps: options.sample_fps };
+            let gltf_options = GltfReadOptions {
+                animation: options.animation,
+                skin: None,
+                sample_fps: options.sample_fps,
+                max_clip_bytes: options.max_clip_bytes,
+            };
             let loaded = read_gltf_file(path, &gltf_options)?;
             let mut warnings = loaded.warnings;
             if options.metres_per_unit.is_some() {
@@ -110,7 +117,12 @@ pub fn load_clip(path: &Path, options: ClipLoadOptions) -> Result<Loaded<Clip>, 
             Ok(Loaded { value: clip, warnings })
         }
         "fbx" => {
-            let fbx_options = FbxReadOptions { take: options.animation, sample_fps: options.sample_fps, meshes: false };
+            let fbx_options = FbxReadOptions {
+                take: options.animation,
+                sample_fps: options.sample_fps,
+                meshes: false,
+                max_clip_bytes: options.max_clip_bytes,
+            };
             let Loaded { value: asset, mut warnings } = read_fbx_file(path, &fbx_options)?;
             if options.metres_per_unit.is_some() {
                 warnings.push("metres_per_unit is ignored for FBX, which states its unit".into());

@@ -5,7 +5,7 @@ use std::sync::Arc;
 use glam::{Quat, Vec3};
 
 use super::skeleton::Skeleton;
-use super::units::ImportScale;
+use super::units::{ImportScale, memory_size};
 
 /// Translations further than this (metres) from the rest offset count as animated.
 pub const ANIMATED_TRANSLATION_M: f32 = 1e-7;
@@ -62,11 +62,35 @@ pub struct Clip {
     pub import_scale: ImportScale,
 }
 
+/// Largest clip a file reader samples when not given the run's memory limit: 1.4 GB of
+/// rotations and translations (5e7 samples, an 855 s clip of 58 joints at 1,000 fps). A
+/// few kilobytes of keys claiming hours must not make a reader ask for gigabytes.
+pub const DEFAULT_MAX_SAMPLED_BYTES: u64 = 50_000_000 * SAMPLE_BYTES;
+
+/// Bytes of one joint's local transform in one frame: a rotation and a translation.
+const SAMPLE_BYTES: u64 = 16 + 12;
+
+/// Why a reader must not sample `frames` frames (as computed from the file, possibly huge
+/// or not finite) of `joints` joints within `max_bytes` (default
+/// [`DEFAULT_MAX_SAMPLED_BYTES`]), or `None` when it may.
+pub fn sampling_refusal(frames: f64, joints: usize, max_bytes: Option<u64>) -> Option<String> {
+    let limit = max_bytes.unwrap_or(DEFAULT_MAX_SAMPLED_BYTES);
+    let bytes = frames * (joints as u64 * SAMPLE_BYTES) as f64;
+    if frames.is_finite() && bytes <= limit as f64 {
+        return None;
+    }
+    Some(format!(
+        "{frames:.0} frames of {joints} joints need about {}, more than the limit of {} (kg --max-memory, or a lower sample_fps)",
+        memory_size(bytes),
+        memory_size(limit as f64)
+    ))
+}
+
 impl Clip {
     /// Bytes of the rotations and translations of `frames` frames of `joints` joints: the
     /// estimate nodes check before making a clip whose length comes from their params.
     pub fn estimated_bytes(frames: usize, joints: usize) -> u64 {
-        (frames as u64).saturating_mul(joints as u64).saturating_mul(16 + 12)
+        (frames as u64).saturating_mul(joints as u64).saturating_mul(SAMPLE_BYTES)
     }
 
     /// Builds a clip after checking the frame rate, buffer sizes and finiteness.

@@ -1,4 +1,5 @@
-//! Length units found in motion files, and detection of the unit a skeleton was authored in.
+//! Length units found in motion files, detection of the unit a skeleton was authored in,
+//! and memory sizes as messages print them.
 
 use serde::{Deserialize, Serialize};
 
@@ -79,6 +80,12 @@ impl ImportScale {
     /// No conversion: the file is in metres by specification (glTF).
     pub const METRES: ImportScale =
         ImportScale { unit: Some(LengthUnit::Metre), metres_per_unit: 1.0, detected: false };
+}
+
+/// A memory size for messages: MiB below one GiB, GiB above, one decimal.
+pub fn memory_size(bytes: f64) -> String {
+    const MIB: f64 = (1u64 << 20) as f64;
+    if bytes < 1024.0 * MIB { format!("{:.1} MiB", bytes / MIB) } else { format!("{:.1} GiB", bytes / (1024.0 * MIB)) }
 }
 
 #[cfg(test)]

@@ -13,6 +13,7 @@ use super::value::{PortValue, Value};
 use super::{NodeError, NodeSchema};
 use crate::cancel::Cancel;
 use crate::formats::atomic::write_within_with;
+use crate::model::units::memory_size;
 
 /// Per-run services shared by every node of one evaluation.
 pub struct RunServices<'a> {
@@ -234,6 +235,12 @@ impl<'a> NodeContext<'a> {
         Ok(self.cancel().check()?)
     }
 
+    /// The run's memory limit in bytes, for kernels that learn a size only while reading
+    /// data (file readers) and refuse past it themselves.
+    pub fn memory_limit_bytes(&self) -> u64 {
+        self.services.memory_limit_bytes
+    }
+
     /// Refuses when the node is about to allocate about `bytes` (an estimate from its
     /// params and inputs) and that exceeds the run's memory limit, so a huge request fails
     /// with a located message instead of an out-of-memory abort. `culprit` is the param
@@ -246,8 +253,8 @@ impl<'a> NodeContext<'a> {
         let is_input = self.schema.input(culprit).is_some();
         let message = format!(
             "needs about {} of memory, more than the limit of {} (80 % of the machine's memory, or kg --max-memory); {}",
-            gib(bytes),
-            gib(limit),
+            memory_size(bytes as f64),
+            memory_size(limit as f64),
             if is_input { "give a smaller one" } else { "lower it" }
         );
         Err(if is_input { NodeError::input(culprit, message) } else { NodeError::param(culprit, message) })
@@ -257,9 +264,4 @@ impl<'a> NodeContext<'a> {
     pub fn cancel(&self) -> Cancel<'a> {
         Cancel::on(self.services.cancel)
     }
-}
-
-/// `bytes` in GiB with one decimal, for messages.
-fn gib(bytes: u64) -> String {
-    format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
 }

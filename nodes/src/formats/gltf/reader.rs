@@ -20,6 +20,7 @@ use gltf_json::validation::Checked;
 
 use crate::formats::error::{FormatError, FormatErrorKind as Kind, Loaded};
 use crate::math::{quat_normalize_or_identity, slerp_short};
+use crate::model::clip::sampling_refusal;
 use crate::model::{Clip, ImportScale, Joint, Mesh, Skeleton, Skin};
 
 use super::ReadError;
@@ -31,12 +32,6 @@ pub const FALLBACK_SAMPLE_FPS: f64 = 30.0;
 
 /// Inferred rates outside `1..=1000` fps are not trusted; the fallback is used instead.
 const INFERRED_FPS_RANGE: std::ops::RangeInclusive<f64> = 1.0..=1000.0;
-
-/// Largest number of `frames × joints` samples a clip may have (guards against absurd
-/// durations or rates): 5e7 samples are 1.4 GB of rotations and translations, an 855 s clip
-/// of 58 joints at 1,000 fps. A few kilobytes of JSON claiming hours of keys must not make
-/// the reader ask for gigabytes (the `gltf_loader` fuzz target's 3.2 GB allocation at 2e8).
-const MAX_CLIP_SAMPLES: f64 = 5.0e7;
 
 /// Relative difference between scale components above which a scale counts as
 /// non-uniform, and between an animated and rest scale above which the animated one is
@@ -57,6 +52,9 @@ pub struct GltfReadOptions {
     /// Sampling rate for clips (frames per second); `None` infers it per animation with
     /// [`infer_sample_fps`].
     pub sample_fps: Option<f64>,
+    /// Largest clip to sample, in bytes of rotations and translations (the run's memory
+    /// limit); `None` uses [`crate::model::clip::DEFAULT_MAX_SAMPLED_BYTES`].
+    pub max_clip_bytes: Option<u64>,
 }
 
 /// One animation of the file, sampled to a fixed-rate clip.
@@ -663,11 +661,11 @@ fn read_animation(
     let (start_secs, end_secs) = if channels.is_empty() { (0.0, 0.0) } else { (start_secs, end_secs) };
     let fps = options.sample_fps.unwrap_or_else(|| infer_sample_fps(channels.iter().map(|c| c.times)));
     let span_frames = (end_secs - start_secs) * fps;
-    if !span_frames.is_finite() || (span_frames + 1.0) * skeleton.len() as f64 > MAX_CLIP_SAMPLES {
+    if let Some(refusal) = sampling_refusal(span_frames + 1.0, skeleton.len(), options.max_clip_bytes) {
         return Err(ReadError::new(
             apath,
             Kind::Unsupported,
-            format!("{:.3} s at {fps} fps is more samples than kinegraph accepts", end_secs - start_secs),
+            format!("{:.3} s at {fps} fps: {refusal}", end_secs - start_secs),
         ));
     }
     let frames = span_frames.round() as usize + 1;
