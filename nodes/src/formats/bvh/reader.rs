@@ -11,6 +11,7 @@ use std::sync::Arc;
 
 use glam::{Quat, Vec3};
 
+use super::numbers::parse_row;
 use crate::formats::error::{FormatError, FormatErrorKind as Kind, Loaded, Location};
 use crate::math::euler::Axis;
 use crate::model::units::{ImportScale, detect_unit};
@@ -507,89 +508,6 @@ impl FrameLayout {
     }
 }
 
-/// Parses the whitespace-separated numbers of one row into `values` (extra ones are only
-/// counted) and returns how many there were, or the offending token.
-#[inline]
-fn parse_row(line: &[u8], values: &mut [f32]) -> Result<usize, String> {
-    let mut count = 0;
-    let mut pos = 0;
-    loop {
-        while pos < line.len() && matches!(line[pos], b' ' | b'\t' | b'\r' | b'\x0c') {
-            pos += 1;
-        }
-        if pos == line.len() {
-            return Ok(count);
-        }
-        let parsed = parse_plain_decimal(&line[pos..])
-            .map(Ok)
-            .unwrap_or_else(|| fast_float2::parse_partial::<f32, _>(&line[pos..]));
-        match parsed {
-            Ok((v, used)) if v.is_finite() && line.get(pos + used).is_none_or(|b| b.is_ascii_whitespace()) => {
-                if let Some(slot) = values.get_mut(count) {
-                    *slot = v;
-                }
-                count += 1;
-                pos += used;
-            }
-            _ => {
-                let end = line[pos..].iter().position(|b| b.is_ascii_whitespace()).map_or(line.len(), |e| pos + e);
-                return Err(String::from_utf8_lossy(&line[pos..end]).into_owned());
-            }
-        }
-    }
-}
-
-/// Negative powers of ten, each the nearest f64.
-const INV_POW10: [f64; 16] =
-    [1e0, 1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15];
-
-/// Fast path for the plain decimals that make up nearly all BVH data (`-12.34567`): at
-/// most 15 digits, no exponent. The digits form an exact integer; scaling it by the f64
-/// nearest a negative power of ten errs by about 1e-16 relative (a multiply, several times
-/// cheaper than the exactly rounded division), far below the final f32 rounding, so the
-/// result is within one f32 ulp of the correctly rounded value. Anything else (exponents, `nan`, long numbers) returns `None` for the general
-/// parser.
-#[inline]
-fn parse_plain_decimal(bytes: &[u8]) -> Option<(f32, usize)> {
-    let mut pos = 0;
-    let negative = match bytes.first() {
-        Some(b'-') => {
-            pos = 1;
-            true
-        }
-        Some(b'+') => {
-            pos = 1;
-            false
-        }
-        _ => false,
-    };
-    let mut mantissa: u64 = 0;
-    let mut digits = 0usize;
-    let mut fraction_digits = 0usize;
-    let mut seen_point = false;
-    while let Some(&b) = bytes.get(pos) {
-        match b {
-            b'0'..=b'9' => {
-                digits += 1;
-                if digits > 15 {
-                    return None;
-                }
-                mantissa = mantissa * 10 + u64::from(b - b'0');
-                fraction_digits += usize::from(seen_point);
-            }
-            b'.' if !seen_point => seen_point = true,
-            b'e' | b'E' => return None,
-            _ => break,
-        }
-        pos += 1;
-    }
-    if digits == 0 {
-        return None;
-    }
-    let magnitude = mantissa as f64 * INV_POW10[fraction_digits];
-    Some((if negative { -magnitude } else { magnitude } as f32, pos))
-}
-
 fn parse_channel(name: &str) -> Option<Channel> {
     let lower = name.to_ascii_lowercase();
     let (axis, kind) = lower.split_at_checked(1)?;
@@ -603,51 +521,5 @@ fn parse_channel(name: &str) -> Option<Channel> {
         "position" => Some(Channel::Position(axis)),
         "rotation" => Some(Channel::Rotation(axis)),
         _ => None,
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The fast path agrees with the standard library's correctly rounded parser to within
-    /// one f32 ulp, and declines what it does not handle.
-    #[test]
-    fn plain_decimal_fast_path_agrees_with_std() {
-        for text in ["0", "-0.0", "12.34567", "-179.99999", ".0083333", "5.", "-1234567.891", "0.000001", "+3.5"] {
-            let (v, used) = parse_plain_decimal(text.as_bytes()).unwrap();
-            let expected: f32 = text.parse().unwrap();
-            assert_eq!(used, text.len(), "{text}");
-            assert!((v - expected).abs() <= expected.abs() * f32::EPSILON, "{text}: {v} vs {expected}");
-        }
-        // Random decimals of 1-15 digits with the point anywhere, followed by a separator
-        // or the end of the row.
-        let mut state = 0x853c_49e6_748f_ea9b_u64;
-        let mut next = move |n: u64| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state % n
-        };
-        for _ in 0..20_000 {
-            let digits = 1 + next(15) as usize;
-            let point = next(digits as u64 + 2) as usize;
-            let mut text = String::from(["", "-", "+"][next(3) as usize]);
-            for d in 0..digits {
-                if d == point {
-                    text.push('.');
-                }
-                text.push(char::from(b'0' + next(10) as u8));
-            }
-            let expected: f32 = text.parse().unwrap();
-            for tail in ["", " 1.5", "\t", "\r"] {
-                let (v, used) = parse_plain_decimal(format!("{text}{tail}").as_bytes()).unwrap();
-                assert_eq!(used, text.len(), "{text:?}{tail:?}");
-                assert!((v - expected).abs() <= expected.abs() * f32::EPSILON, "{text}: {v} vs {expected}");
-            }
-        }
-        for text in ["1e5", "nan", "-", ".", "1234567890123456", "12345678901234567890123456789"] {
-            assert!(parse_plain_decimal(text.as_bytes()).is_none_or(|(_, used)| used < text.len()), "{text}");
-        }
     }
 }
