@@ -289,17 +289,18 @@ pub fn momentum_edit(setup: EditSetup<'_>, options: &SolveOptions) -> Result<(Cl
     let mut multipliers = vec![0.0; constraint_count];
     let mut lambda = 1e-3;
     let mut iterations = 0;
-    let mut symbolic: Option<(Vec<usize>, Vec<usize>, SymbolicLlt<usize>)> = None;
+    let mut symbolic: Option<SymbolicFactor> = None;
     let mut worst = problem.worst(&state, &eval);
     while iterations < options.max_iterations && worst.1 > 1.0 {
         // Inner: Levenberg–Marquardt on the augmented Lagrangian until it stalls.
         let mut merit = problem.merit(&state, &eval, &multipliers, &penalty);
         for _ in 0..4 {
             let (residuals, triplets) = problem.system(&state, &eval, &multipliers, &penalty);
+            let normal = NormalEquations::new(&triplets, &residuals, problem.unknowns())?;
             let mut accepted = false;
             while iterations < options.max_iterations {
                 iterations += 1;
-                let step = solve_step(&triplets, &residuals, problem.unknowns(), lambda, &mut symbolic)?;
+                let step = normal.damped_step(lambda, &mut symbolic)?;
                 let trial = problem.apply(&state, &eval, &step);
                 let trial_eval = problem.eval(&trial)?;
                 let trial_merit = problem.merit(&trial, &trial_eval, &multipliers, &penalty);
@@ -991,52 +992,66 @@ impl FrameGeometry {
     }
 }
 
-/// One damped Gauss–Newton step: (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr by sparse Cholesky. The symbolic
-/// factorisation is kept while the pattern of JᵀJ stays the same.
-fn solve_step(
-    triplets: &[Triplet<usize, usize, f64>],
-    residuals: &[f64],
-    unknowns: usize,
-    lambda: f64,
-    symbolic: &mut Option<(Vec<usize>, Vec<usize>, SymbolicLlt<usize>)>,
-) -> Result<Vec<f64>, SolveError> {
-    let rows = residuals.len();
-    let factor = |e: &dyn std::fmt::Debug| SolveError::Factor(format!("{e:?}"));
-    let j = SparseColMat::<usize, f64>::try_new_from_triplets(rows, unknowns, triplets).map_err(|e| factor(&e))?;
-    let transposed: Vec<Triplet<usize, usize, f64>> =
-        triplets.iter().map(|t| Triplet::new(t.col, t.row, t.val)).collect();
-    let jt = SparseColMat::<usize, f64>::try_new_from_triplets(unknowns, rows, &transposed).map_err(|e| factor(&e))?;
-    let mut h = sparse_sparse_matmul(jt.as_ref(), j.as_ref(), 1.0, Par::Seq).map_err(|e| factor(&e))?;
-    let col_ptr = h.symbolic().col_ptr().to_vec();
-    let row_idx = h.symbolic().row_idx().to_vec();
-    let mut has_diagonal = vec![false; unknowns];
-    {
-        let values = h.val_mut();
-        for c in 0..unknowns {
-            for p in col_ptr[c]..col_ptr[c + 1] {
-                if row_idx[p] == c {
-                    // Marquardt's scaling: the damping follows each unknown's own curvature,
-                    // so the penalties' large rows do not swamp it.
-                    values[p] += lambda * values[p] + 1e-9;
-                    has_diagonal[c] = true;
-                }
-            }
+/// A symbolic Cholesky factorisation with the pattern (column pointers, row indices) of the
+/// matrix it was made for.
+type SymbolicFactor = (Vec<usize>, Vec<usize>, SymbolicLlt<usize>);
+
+/// The Gauss–Newton normal equations of one linearisation, JᵀJ and −Jᵀr. Built once and
+/// kept while the damping is retried: a rejected step changes only the diagonal, so
+/// rebuilding J, its transpose and the product for every retry was wasted work.
+struct NormalEquations {
+    jtj: SparseColMat<usize, f64>,
+    /// Where each unknown's diagonal entry sits in `jtj`'s values.
+    diagonal: Vec<usize>,
+    /// −Jᵀr.
+    gradient: Vec<f64>,
+}
+
+fn factor_error(e: &dyn std::fmt::Debug) -> SolveError {
+    SolveError::Factor(format!("{e:?}"))
+}
+
+impl NormalEquations {
+    fn new(triplets: &[Triplet<usize, usize, f64>], residuals: &[f64], unknowns: usize) -> Result<Self, SolveError> {
+        let j = SparseColMat::<usize, f64>::try_new_from_triplets(residuals.len(), unknowns, triplets)
+            .map_err(|e| factor_error(&e))?;
+        let jt = j.as_ref().transpose().to_col_major().map_err(|e| factor_error(&e))?;
+        let jtj = sparse_sparse_matmul(jt.as_ref(), j.as_ref(), 1.0, Par::Seq).map_err(|e| factor_error(&e))?;
+        let (col_ptr, row_idx) = (jtj.symbolic().col_ptr(), jtj.symbolic().row_idx());
+        let diagonal = (0..unknowns)
+            .map(|c| {
+                (col_ptr[c]..col_ptr[c + 1])
+                    .find(|&p| row_idx[p] == c)
+                    .ok_or_else(|| SolveError::Factor(format!("unknown {c} enters no residual")))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut gradient = vec![0.0; unknowns];
+        for t in triplets {
+            gradient[t.col] -= t.val * residuals[t.row];
         }
+        Ok(NormalEquations { jtj, diagonal, gradient })
     }
-    if let Some(c) = has_diagonal.iter().position(|d| !d) {
-        return Err(SolveError::Factor(format!("unknown {c} enters no residual")));
+
+    /// One damped step, (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr by sparse Cholesky. The symbolic
+    /// factorisation is kept while the pattern of JᵀJ stays the same.
+    fn damped_step(&self, lambda: f64, symbolic: &mut Option<SymbolicFactor>) -> Result<Vec<f64>, SolveError> {
+        let mut h = self.jtj.clone();
+        let values = h.val_mut();
+        for &p in &self.diagonal {
+            // Marquardt's scaling: the damping follows each unknown's own curvature, so the
+            // penalties' large rows do not swamp it.
+            values[p] += lambda * values[p] + 1e-9;
+        }
+        let (col_ptr, row_idx) = (h.symbolic().col_ptr(), h.symbolic().row_idx());
+        let reuse = matches!(symbolic, Some((cp, ri, _)) if cp.as_slice() == col_ptr && ri.as_slice() == row_idx);
+        if !reuse {
+            let s = SymbolicLlt::try_new(h.symbolic(), Side::Lower).map_err(|e| factor_error(&e))?;
+            *symbolic = Some((col_ptr.to_vec(), row_idx.to_vec(), s));
+        }
+        let Some((_, _, s)) = symbolic.as_ref() else { return Err(SolveError::Factor("no symbolic factor".into())) };
+        let llt = Llt::try_new_with_symbolic(s.clone(), h.as_ref(), Side::Lower).map_err(|e| factor_error(&e))?;
+        let mut rhs = faer::Mat::<f64>::from_fn(self.gradient.len(), 1, |i, _| self.gradient[i]);
+        faer::linalg::solvers::Solve::solve_in_place(&llt, rhs.as_mut());
+        Ok((0..self.gradient.len()).map(|i| rhs[(i, 0)]).collect())
     }
-    let reuse = matches!(symbolic, Some((cp, ri, _)) if *cp == col_ptr && *ri == row_idx);
-    if !reuse {
-        let s = SymbolicLlt::try_new(h.symbolic(), Side::Lower).map_err(|e| factor(&e))?;
-        *symbolic = Some((col_ptr, row_idx, s));
-    }
-    let Some((_, _, s)) = symbolic.as_ref() else { return Err(SolveError::Factor("no symbolic factor".into())) };
-    let llt = Llt::try_new_with_symbolic(s.clone(), h.as_ref(), Side::Lower).map_err(|e| factor(&e))?;
-    let mut rhs = faer::Mat::<f64>::zeros(unknowns, 1);
-    for t in triplets {
-        rhs[(t.col, 0)] -= t.val * residuals[t.row];
-    }
-    faer::linalg::solvers::Solve::solve_in_place(&llt, rhs.as_mut());
-    Ok((0..unknowns).map(|i| rhs[(i, 0)]).collect())
 }
