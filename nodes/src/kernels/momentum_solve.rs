@@ -40,7 +40,7 @@ use std::time::Instant;
 
 use faer::sparse::linalg::matmul::sparse_sparse_matmul;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Par, Side};
 use glam::{DMat3, DQuat, DVec3, Quat};
 
@@ -295,8 +295,8 @@ pub fn momentum_edit(setup: EditSetup<'_>, options: &SolveOptions) -> Result<(Cl
         // Inner: Levenberg–Marquardt on the augmented Lagrangian until it stalls.
         let mut merit = problem.merit(&state, &eval, &multipliers, &penalty);
         for _ in 0..4 {
-            let (residuals, triplets) = problem.system(&state, &eval, &multipliers, &penalty);
-            let normal = NormalEquations::new(&triplets, &residuals, problem.unknowns())?;
+            let normal =
+                NormalEquations::new(problem.system(&state, &eval, &multipliers, &penalty), problem.unknowns())?;
             let mut accepted = false;
             while iterations < options.max_iterations {
                 iterations += 1;
@@ -857,25 +857,17 @@ impl<'a> Problem<'a> {
         eval: &Eval,
         multipliers: &[f64],
         penalty: &[f64],
-    ) -> (Vec<f64>, Vec<Triplet<usize, usize, f64>>) {
-        let mut residuals = Vec::new();
-        let mut triplets = Vec::new();
-        for (v, entries) in self.objective_rows(state, eval, true) {
-            let r = residuals.len();
-            triplets.extend(entries.into_iter().map(|(c, w)| Triplet::new(r, c, w)));
-            residuals.push(v);
-        }
-        let mut rows = Vec::new();
-        let (values, groups) = self.constraints(state, eval, Some(&mut rows));
-        for (((v, g), y), entries) in values.iter().zip(&groups).zip(multipliers).zip(rows) {
+    ) -> Vec<(f64, Vec<(usize, f64)>)> {
+        let mut rows = self.objective_rows(state, eval, true);
+        let mut constraint_rows = Vec::new();
+        let (values, groups) = self.constraints(state, eval, Some(&mut constraint_rows));
+        for (((v, g), y), entries) in values.iter().zip(&groups).zip(multipliers).zip(constraint_rows) {
             let shift = shifted(*v, *y, penalty[*g], *g);
             // An inactive inequality keeps its entries as zeros: JᵀJ keeps its pattern.
             let s = if one_sided(*g) && shift == 0.0 { 0.0 } else { penalty[*g].sqrt() };
-            let r = residuals.len();
-            triplets.extend(entries.into_iter().map(|(c, w)| Triplet::new(r, c, s * w)));
-            residuals.push(penalty[*g].sqrt() * shift);
+            rows.push((penalty[*g].sqrt() * shift, entries.into_iter().map(|(c, w)| (c, s * w)).collect()));
         }
-        (residuals, triplets)
+        rows
     }
 
     /// Largest violation of group `g` among `values`.
@@ -1012,10 +1004,36 @@ fn factor_error(e: &dyn std::fmt::Debug) -> SolveError {
 }
 
 impl NormalEquations {
-    fn new(triplets: &[Triplet<usize, usize, f64>], residuals: &[f64], unknowns: usize) -> Result<Self, SolveError> {
-        let j = SparseColMat::<usize, f64>::try_new_from_triplets(residuals.len(), unknowns, triplets)
-            .map_err(|e| factor_error(&e))?;
-        let jt = j.as_ref().transpose().to_col_major().map_err(|e| factor_error(&e))?;
+    /// From the residual rows (value, sparse entries by unknown). Each row is a column of
+    /// Jᵀ, so Jᵀ is assembled directly (a short sort per row) and J is its transpose: no
+    /// sort of the whole Jacobian.
+    fn new(rows: Vec<(f64, Vec<(usize, f64)>)>, unknowns: usize) -> Result<Self, SolveError> {
+        let mut col_ptr = Vec::with_capacity(rows.len() + 1);
+        col_ptr.push(0);
+        let (mut row_idx, mut values) = (Vec::new(), Vec::new());
+        let mut gradient = vec![0.0; unknowns];
+        let row_count = rows.len();
+        for (residual, mut entries) in rows {
+            entries.sort_unstable_by_key(|&(c, _)| c);
+            let start = row_idx.len();
+            for (c, w) in entries {
+                let Some(g) = gradient.get_mut(c) else {
+                    return Err(SolveError::Factor(format!("unknown {c} is out of range ({unknowns} unknowns)")));
+                };
+                *g -= w * residual;
+                match (row_idx.len() > start).then(|| row_idx.len() - 1) {
+                    Some(last) if row_idx[last] == c => values[last] += w,
+                    _ => {
+                        row_idx.push(c);
+                        values.push(w);
+                    }
+                }
+            }
+            col_ptr.push(row_idx.len());
+        }
+        let pattern = SymbolicSparseColMat::new_checked(unknowns, row_count, col_ptr, None, row_idx);
+        let jt = SparseColMat::new(pattern, values);
+        let j = jt.as_ref().transpose().to_col_major().map_err(|e| factor_error(&e))?;
         let jtj = sparse_sparse_matmul(jt.as_ref(), j.as_ref(), 1.0, Par::Seq).map_err(|e| factor_error(&e))?;
         let (col_ptr, row_idx) = (jtj.symbolic().col_ptr(), jtj.symbolic().row_idx());
         let diagonal = (0..unknowns)
@@ -1025,10 +1043,6 @@ impl NormalEquations {
                     .ok_or_else(|| SolveError::Factor(format!("unknown {c} enters no residual")))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let mut gradient = vec![0.0; unknowns];
-        for t in triplets {
-            gradient[t.col] -= t.val * residuals[t.row];
-        }
         Ok(NormalEquations { jtj, diagonal, gradient })
     }
 
