@@ -4,11 +4,21 @@
 
 /// The candidate closest to `name` by edit distance, if it is close enough to be a typo
 /// (at most about half its length away): the "did you mean" of every validation message.
+/// Candidates whose length alone puts them too far away are skipped before the distance is
+/// computed, so a long garbage name costs no more than a short one.
 pub fn nearest_name<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    let name_len = name.chars().count();
     candidates
         .into_iter()
-        .map(|c| (edit_distance(c, name), c))
-        .filter(|(d, c)| *d <= c.len() / 2 + 1)
+        .filter_map(|c| {
+            let limit = c.len() / 2 + 1;
+            // The distance is at least the difference in length.
+            if name_len.abs_diff(c.chars().count()) > limit {
+                return None;
+            }
+            let d = edit_distance(c, name);
+            (d <= limit).then_some((d, c))
+        })
         .min()
         .map(|(_, c)| c)
 }
@@ -49,5 +59,19 @@ mod tests {
         assert_eq!(edit_distance("kitten", "sitting"), 3);
         assert_eq!(edit_distance("", "abc"), 3);
         assert_eq!(edit_distance("clip.load", "clip.load"), 0);
+    }
+
+    #[test]
+    fn suggestions_are_typos_only_whatever_the_length() {
+        let kinds = ["clip.load", "clip.trim", "export.glb"];
+        assert_eq!(nearest_name("clip.lod", kinds), Some("clip.load"));
+        assert_eq!(nearest_name("cIip.trim", kinds), Some("clip.trim"));
+        // Near in spelling but far in length: no suggestion, as the full distance says.
+        let long = format!("clip.load{}", "x".repeat(10_000));
+        assert!(edit_distance("clip.load", &long) > "clip.load".len() / 2 + 1);
+        assert_eq!(nearest_name(&long, kinds), None);
+        // At the limit (half of 9, plus one) and one past it.
+        assert_eq!(nearest_name("clip.loadxxxxx", kinds), Some("clip.load"));
+        assert_eq!(nearest_name("clip.loadxxxxxx", kinds), None);
     }
 }
