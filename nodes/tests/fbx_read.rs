@@ -318,7 +318,7 @@ fn mixamo_skinned_mesh() {
 #[test]
 fn a_folder_of_fbx_takes_loads_as_one_clip_set() {
     let Some(dir) = fbx_dir() else { return };
-    let loaded = kinegraph_nodes::kernels::clip_set::load_clip_set(&dir, "*.fbx", 30.0, None).unwrap();
+    let loaded = kinegraph_nodes::kernels::clip_set::load_clip_set(&dir, "*.fbx", 30.0, None, None).unwrap();
     assert!(loaded.left_out.is_empty(), "{:?}", loaded.left_out);
     let mut names: Vec<&str> = loaded.set.clips().iter().map(|c| c.name.as_str()).collect();
     names.sort_unstable();

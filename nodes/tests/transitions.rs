@@ -171,11 +171,43 @@ fn the_fallback_leaves_and_enters_at_the_clips_own_velocities() {
     assert!((step(9 + frames - 1) - 0.02).abs() < 0.01, "last step {}", step(9 + frames - 1));
 }
 
+/// A clip set counts what it reads and what it resamples against the run's memory limit:
+/// a limit below one clip stops at that clip, naming it; twice the bytes of the clips read
+/// and of the set (sizes taken from the loaded result, 28 bytes a joint a frame) loads
+/// the same set as no limit.
+#[test]
+fn clip_sets_stay_within_the_memory_limit() {
+    let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };
+    let folder = data.join("bvh/cmu");
+    let pattern = "02_01.bvh, 02_05.bvh";
+    let free = load_clip_set(&folder, pattern, 60.0, None, None).unwrap();
+    let read: usize = ["02_01.bvh", "02_05.bvh"]
+        .iter()
+        .map(|f| {
+            let clip = kinegraph_nodes::kernels::load::load_clip(&folder.join(f), Default::default()).unwrap().value;
+            clip.frame_count() * clip.joint_count()
+        })
+        .sum();
+    let set: usize = free.set.clips().iter().map(|c| c.clip.frame_count() * c.clip.joint_count()).sum();
+    let needed = (read + set) as u64 * 28;
+
+    let err = load_clip_set(&folder, pattern, 60.0, None, Some(10_000)).unwrap_err();
+    assert!(err.starts_with("02_01: the clip set's memory limit is reached"), "{err}");
+    assert!(err.contains("--max-memory"), "{err}");
+    let err = load_clip_set(&folder, pattern, 60.0, None, Some(needed / 2)).unwrap_err();
+    assert!(err.contains("memory limit is reached"), "{err}");
+    let limited = load_clip_set(&folder, pattern, 60.0, None, Some(needed * 2)).unwrap();
+    assert_eq!(limited.set.clips().len(), free.set.clips().len());
+    for (a, b) in limited.set.clips().iter().zip(free.set.clips()) {
+        assert_eq!(a.clip.frame_count(), b.clip.frame_count());
+    }
+}
+
 #[test]
 fn real_corpus_statistics_and_a_sequence() {
     let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };
     let folder = data.join("bvh");
-    let loaded = load_clip_set(&folder, "*.bvh", 30.0, None).unwrap();
+    let loaded = load_clip_set(&folder, "*.bvh", 30.0, None, None).unwrap();
     // The CMU MotionBuilder-friendly clips are the largest family; the assimp copy of 01_01
     // carries another hierarchy and is left out with the other rigs.
     assert_eq!(loaded.set.clips().len(), 24, "{:?}", loaded.left_out);
@@ -197,7 +229,7 @@ fn real_corpus_statistics_and_a_sequence() {
 #[test]
 fn a_stop_request_ends_quadratic_clustering_and_the_path_statistics() {
     let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };
-    let set = Arc::new(load_clip_set(&data.join("bvh"), "*.bvh", 30.0, None).unwrap().set);
+    let set = Arc::new(load_clip_set(&data.join("bvh"), "*.bvh", 30.0, None, None).unwrap().set);
     let params = DistanceParams::lee_defaults(set.skeleton(), 0.003);
     let flag = std::sync::atomic::AtomicBool::new(false);
     let result = std::thread::scope(|scope| {
@@ -222,7 +254,7 @@ fn a_stop_request_ends_quadratic_clustering_and_the_path_statistics() {
 #[test]
 fn real_corpus_transitions_against_a_crossfade() {
     let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };
-    let set = Arc::new(load_clip_set(&data.join("bvh"), "*.bvh", 30.0, None).unwrap().set);
+    let set = Arc::new(load_clip_set(&data.join("bvh"), "*.bvh", 30.0, None, None).unwrap().set);
     let params = DistanceParams::lee_defaults(set.skeleton(), 0.003);
     let g = build_graph(
         Arc::new(cluster(set.clone(), params, 0.6, Cancel::NEVER).unwrap()),

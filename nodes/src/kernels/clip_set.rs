@@ -8,6 +8,7 @@ use std::sync::Arc;
 
 use super::load::{ClipLoadOptions, load_clip};
 use super::resample::resample;
+use crate::model::clip::{sampled_bytes, sampling_refusal};
 use crate::model::{Clip, ClipSet, NamedClip, Skeleton};
 
 /// Case-insensitive wildcard match (`*` any run, `?` one character).
@@ -94,6 +95,30 @@ pub struct LoadedClipSet {
     pub warnings: Vec<String>,
 }
 
+/// What the clips of a set may still allocate under the run's memory limit.
+struct MemoryBudget {
+    limit: Option<u64>,
+    used: f64,
+}
+
+impl MemoryBudget {
+    /// Bytes left for the next clip, `None` when there is no limit.
+    fn left(&self) -> Option<u64> {
+        self.limit.map(|limit| (limit as f64 - self.used).max(0.0) as u64)
+    }
+
+    /// Counts a clip of `frames` frames of `joints` joints, or refuses it, naming `clip`.
+    fn take(&mut self, frames: f64, joints: usize, clip: &str) -> Result<(), String> {
+        if self.limit.is_some()
+            && let Some(reason) = sampling_refusal(frames, joints, self.left())
+        {
+            return Err(format!("{clip}: the clip set's memory limit is reached: {reason}"));
+        }
+        self.used += sampled_bytes(frames, joints);
+        Ok(())
+    }
+}
+
 /// How many files and folders a clip-set folder may hold: a library of actions, not a disk.
 pub const MAX_FOLDER_ENTRIES: usize = 200_000;
 
@@ -102,7 +127,15 @@ pub const MAX_FOLDER_ENTRIES: usize = 200_000;
 /// clip named `family` (else the largest family, ties to the first file), drops cgspeed
 /// T-pose first frames, resamples to `fps` and puts every clip on the first clip's skeleton.
 /// Actions are named by file stem, or by their path under `folder` when two stems clash.
-pub fn load_clip_set(folder: &Path, patterns: &str, fps: f64, family: Option<&str>) -> Result<LoadedClipSet, String> {
+/// The clips read and the resampled set together stay within `max_bytes` (the run's memory
+/// limit; `None` for the readers' default per clip), checked before each allocation.
+pub fn load_clip_set(
+    folder: &Path,
+    patterns: &str,
+    fps: f64,
+    family: Option<&str>,
+    max_bytes: Option<u64>,
+) -> Result<LoadedClipSet, String> {
     let patterns: Vec<&str> = patterns.split(',').map(str::trim).filter(|p| !p.is_empty()).collect();
     let mut files: Vec<_> = crate::corpus::files_under(folder, &["bvh", "glb", "gltf", "fbx"], MAX_FOLDER_ENTRIES)?
         .into_iter()
@@ -117,10 +150,14 @@ pub fn load_clip_set(folder: &Path, patterns: &str, fps: f64, family: Option<&st
     }
     let mut warnings = Vec::new();
     let mut clips = Vec::new();
+    let mut budget = MemoryBudget { limit: max_bytes, used: 0.0 };
     for path in &files {
-        let loaded = load_clip(path, ClipLoadOptions::default()).map_err(|e| e.to_string())?;
+        let options = ClipLoadOptions { max_clip_bytes: budget.left(), ..Default::default() };
+        let loaded = load_clip(path, options).map_err(|e| e.to_string())?;
         warnings.extend(loaded.warnings);
         let relative = path.strip_prefix(folder).unwrap_or(path).with_extension("");
+        // BVH clips are bounded by their file, not by the option: count them all here.
+        budget.take(loaded.value.frame_count() as f64, loaded.value.joint_count(), &relative.to_string_lossy())?;
         clips.push((relative.to_string_lossy().replace('\\', "/"), loaded.value));
     }
     let mut families: BTreeMap<Vec<(String, Option<usize>)>, Vec<usize>> = BTreeMap::new();
@@ -153,6 +190,7 @@ pub fn load_clip_set(folder: &Path, patterns: &str, fps: f64, family: Option<&st
         } else {
             clip.clone()
         };
+        budget.take((clip.duration_secs() * fps).ceil() + 1.0, skeleton.len(), relative)?;
         let clip = conform(&clip, &skeleton, fps).map_err(|e| format!("{relative} {e}"))?;
         if clip.frame_count() < 2 {
             warnings.push(format!("{relative}: left out, fewer than 2 frames"));

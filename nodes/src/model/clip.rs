@@ -70,12 +70,17 @@ pub const DEFAULT_MAX_SAMPLED_BYTES: u64 = 50_000_000 * SAMPLE_BYTES;
 /// Bytes of one joint's local transform in one frame: a rotation and a translation.
 const SAMPLE_BYTES: u64 = 16 + 12;
 
+/// Bytes of `frames` frames of `joints` local transforms (a clip's own arrays).
+pub fn sampled_bytes(frames: f64, joints: usize) -> f64 {
+    frames * (joints as u64 * SAMPLE_BYTES) as f64
+}
+
 /// Why a reader must not sample `frames` frames (as computed from the file, possibly huge
 /// or not finite) of `joints` joints within `max_bytes` (default
 /// [`DEFAULT_MAX_SAMPLED_BYTES`]), or `None` when it may.
 pub fn sampling_refusal(frames: f64, joints: usize, max_bytes: Option<u64>) -> Option<String> {
     let limit = max_bytes.unwrap_or(DEFAULT_MAX_SAMPLED_BYTES);
-    let bytes = frames * (joints as u64 * SAMPLE_BYTES) as f64;
+    let bytes = sampled_bytes(frames, joints);
     if frames.is_finite() && bytes <= limit as f64 {
         return None;
     }

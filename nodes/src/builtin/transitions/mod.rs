@@ -90,7 +90,8 @@ impl Node for LoadClipSet {
         }
         let family = ctx.text_param(&FAMILY)?.trim().to_string();
         let family = (!family.is_empty()).then_some(family.as_str());
-        let loaded = load_clip_set(&folder, ctx.text_param(&PATTERN)?, ctx.float(&SET_FPS)?, family)
+        let limit = Some(ctx.memory_limit_bytes());
+        let loaded = load_clip_set(&folder, ctx.text_param(&PATTERN)?, ctx.float(&SET_FPS)?, family, limit)
             .map_err(NodeError::Failed)?;
         ctx.warn_all(loaded.warnings);
         if !loaded.left_out.is_empty() {

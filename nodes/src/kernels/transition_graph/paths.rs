@@ -424,7 +424,8 @@ mod tests {
         use crate::kernels::clip_set::load_clip_set;
         use crate::kernels::transition_graph::{cluster, distance, graph};
         let Some(data) = crate::corpus::shared_data() else { return };
-        let set = load_clip_set(&data.join("bvh/cmu"), "02_01.bvh, 02_05.bvh, 144_05.bvh", 30.0, None).unwrap().set;
+        let set =
+            load_clip_set(&data.join("bvh/cmu"), "02_01.bvh, 02_05.bvh, 144_05.bvh", 30.0, None, None).unwrap().set;
         let params = distance::DistanceParams::lee_defaults(set.skeleton(), 0.003);
         let clusters = std::sync::Arc::new(
             cluster::cluster(std::sync::Arc::new(set), params, 0.6, crate::cancel::Cancel::NEVER).unwrap(),
