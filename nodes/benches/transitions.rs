@@ -30,7 +30,7 @@ const LIMITS: PathLimits = PathLimits { k: 5, max_cost: f64::INFINITY };
 fn bench(c: &mut Criterion) {
     let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };
     let folder = data.join("bvh");
-    let set = Arc::new(load_clip_set(&folder, "*.bvh", 30.0, None).expect("corpus loads").set);
+    let set = Arc::new(load_clip_set(&folder, "*.bvh", 30.0, None, None).expect("corpus loads").set);
     let params = DistanceParams::lee_defaults(set.skeleton(), 0.003);
     let (features, _) = corpus_features(&set, &params);
     // The paper's corpus size: the first clips (by name) up to ~3,600 frames.
