@@ -38,8 +38,8 @@ const REPORT: Output<Arc<Report>> = Output::new(
 );
 const BLEND: FloatParam = FloatParam::new(
     "blend_secs",
-    "Time over which a plant fades in after the foot lands and out before it lifts, so the foot never jumps.",
-    0.05,
+    "Time over which a plant fades in before the foot lands and out after it lifts (every frame of a contact is held whole), so the foot never jumps.",
+    0.15,
     0.0,
     2.0,
     "s",

@@ -5,8 +5,8 @@
 //! 1. The planted place is where the toe tip is at the contact's lowest frame ([`Plants`]).
 //! 2. Each frame of the contact, the foot's drift is the toe tip's horizontal distance from
 //!    that place; its correction `c = w · (place − toe)` (horizontal only, so heel strike
-//!    and toe-off keep their heights) ramps in and out with the plant weight `w` over
-//!    `blend_secs` at the contact's edges.
+//!    and toe-off keep their heights) is whole during the contact and ramps in and out with
+//!    the plant weight `w` over `blend_secs` just outside its edges.
 //! 3. The ankle's goal is the clip's ankle plus `c`; the two joints above it (knee and hip)
 //!    turn to reach it (one rig with both ankles as effectors; unplanted ankles keep their
 //!    own position as goal, so that leg does not move).
@@ -68,7 +68,7 @@ pub struct FootLockParams {
 impl Default for FootLockParams {
     fn default() -> Self {
         FootLockParams {
-            blend_secs: 0.05,
+            blend_secs: 0.15,
             weights: Vec::new(),
             solve: SolveParams::default(),
             toes: None,
@@ -287,10 +287,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
         let original = before.frame(f);
         for (k, &ankle) in ankles.iter().enumerate() {
             let toe = original[tips[k]].translation.as_dvec3();
-            let correction = match plants[k].at(f) {
-                Some((place, w)) => w * (place - toe).with_y(0.0),
-                None => DVec3::ZERO,
-            };
+            let correction = plants[k].shift(f, toe);
             let lift = lifts[k].get(f).copied().unwrap_or(0.0);
             goals[k] = original[ankle].translation.as_dvec3() + correction + DVec3::Y * lift;
             foot_in_world[k] = original[ankle].rotation;
@@ -369,27 +366,40 @@ pub fn hold_detected_plants(
 /// Horizontal travel of joint `point` between consecutive frames that are both fully
 /// planted (weight 1) in `poses`, in metres: how far a foot slides where it should stand still.
 pub fn planted_travel_m(poses: &ClipPoses, point: usize, plants: &Plants) -> f64 {
-    let planted = |f: usize| plants.at(f).is_some_and(|(_, w)| w >= 1.0);
+    let planted = |f: usize| plants.planted(f);
     (1..poses.frame_count())
         .filter(|&f| planted(f) && planted(f - 1))
         .map(|f| f64::from((poses.position(f, point) - poses.position(f - 1, point)).with_y(0.0).length()))
         .sum()
 }
 
-/// Where a point is planted during each contact of one foot, and how strongly at a frame.
+/// Where a point is planted during each contact of one foot, and how far it is moved at a
+/// frame.
 ///
 /// The place is the point's horizontal position at the frame of the interval where it is
 /// lowest (the moment it is surely down: contacts begin at heel strike, while the toe may
-/// still be moving). The weight ramps linearly from 0 to 1 over `blend` frames at both
-/// edges of the interval, so goals do not jump; not at an edge that is the clip's first or
-/// last frame, where the foot is still down beyond the clip and a ramp would only let the
-/// held foot slide back in the last frames (a pop at the end of every clip that ends standing).
+/// still be moving). On every frame of the interval the point is moved onto its place, so
+/// no frame that counts as planted slides. Outside, the shift the contact needs at its first
+/// (last) frame fades in before it (out after it) by a smoothstep over up to `blend` frames:
+/// the swing carries the difference, a constant offset faded, never a pull toward a place
+/// the foot has not reached yet (which would yank a foot landing fast). A ramp takes at most
+/// half the gap to the neighbouring contact, so two contacts' ramps never overlap. A contact
+/// through the clip's first or last frame has no ramp there: the foot is down beyond the clip.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plants {
-    spans: Vec<(FrameRange, DVec3)>,
-    blend: usize,
-    /// The clip's frame count.
-    frames: usize,
+    spans: Vec<PlantSpan>,
+}
+
+/// One contact of [`Plants`]: its frames, place, and on each side the horizontal shift at
+/// its edge frame and the length of the ramp.
+#[derive(Clone, Debug, PartialEq)]
+struct PlantSpan {
+    frames: FrameRange,
+    place: DVec3,
+    shift_in: DVec3,
+    ramp_in: usize,
+    shift_out: DVec3,
+    ramp_out: usize,
 }
 
 impl Plants {
@@ -400,23 +410,57 @@ impl Plants {
             pose_world(clip.skeleton(), clip.frame_rotations(f), clip.frame_translations(f), &mut world);
             world[point].translation.as_dvec3()
         };
-        let spans = intervals
+        let mut ranges: Vec<FrameRange> =
+            intervals.iter().filter(|r| r.end > r.start && r.end <= clip.frame_count()).copied().collect();
+        ranges.sort_by_key(|r| r.start);
+        let blend = blend.max(1);
+        // Half the gap to a neighbour, rounded up: two ramps sharing a gap then never
+        // cover the same frame.
+        let half_gap = |from: usize, to: usize| (to.saturating_sub(from) + 1) / 2;
+        let spans = ranges
             .iter()
-            .filter(|r| r.end > r.start && r.end <= clip.frame_count())
-            .map(|r| {
+            .enumerate()
+            .map(|(i, r)| {
                 let place = (r.start..r.end).map(&mut at).min_by(|a, b| a.y.total_cmp(&b.y)).unwrap_or_default();
-                (*r, place)
+                let previous_end = i.checked_sub(1).map(|p| ranges[p].end);
+                let next_start = ranges.get(i + 1).map(|n| n.start);
+                PlantSpan {
+                    frames: *r,
+                    place,
+                    shift_in: (place - at(r.start)).with_y(0.0),
+                    ramp_in: previous_end.map_or(blend, |e| blend.min(half_gap(e, r.start))),
+                    shift_out: (place - at(r.end - 1)).with_y(0.0),
+                    ramp_out: next_start.map_or(blend, |s| blend.min(half_gap(r.end, s))),
+                }
             })
             .collect();
-        Plants { spans, blend: blend.max(1), frames: clip.frame_count() }
+        Plants { spans }
     }
 
-    /// The planted place and its weight in (0, 1] at `frame`, if the point is planted.
-    pub fn at(&self, frame: usize) -> Option<(DVec3, f64)> {
-        let (r, place) = self.spans.iter().find(|(r, _)| r.contains(frame))?;
-        let from_start = if r.start == 0 { usize::MAX } else { frame - r.start + 1 };
-        let from_end = if r.end == self.frames { usize::MAX } else { r.end - frame };
-        Some((*place, (from_start.min(from_end) as f64 / self.blend as f64).min(1.0)))
+    /// The horizontal shift that puts the point, found at `here` in the clip at `frame`,
+    /// where the plants want it: onto its place during a contact, the edge's shift faded
+    /// around it, zero elsewhere.
+    pub fn shift(&self, frame: usize, here: DVec3) -> DVec3 {
+        self.spans
+            .iter()
+            .find_map(|span| {
+                let r = span.frames;
+                let (outside, ramp, shift) = if frame < r.start {
+                    (r.start - frame, span.ramp_in, span.shift_in)
+                } else if frame >= r.end {
+                    (frame + 1 - r.end, span.ramp_out, span.shift_out)
+                } else {
+                    return Some((span.place - here).with_y(0.0));
+                };
+                let u = 1.0 - outside as f64 / ramp as f64;
+                (outside < ramp).then(|| shift * (u * u * (3.0 - 2.0 * u)))
+            })
+            .unwrap_or(DVec3::ZERO)
+    }
+
+    /// Whether `frame` is inside a contact.
+    pub fn planted(&self, frame: usize) -> bool {
+        self.spans.iter().any(|span| span.frames.contains(frame))
     }
 }
 
@@ -482,6 +526,46 @@ mod tests {
         assert!((lifted[8] - 0.01).abs() < 1e-12 && (lifted[5] - 0.005).abs() < 1e-12);
     }
 
+    /// A point moving 1 cm a frame along x, planted over frames 4..14 with 4-frame ramps.
+    /// By hand: the place is x(4) = 0.04 (a level track: the first lowest frame); inside the
+    /// contact the shift is place − x; the contact needs no shift at its first frame, so
+    /// nothing moves before it, and −0.09 at its last (x(13) = 0.13), faded out after it by
+    /// the smoothstep. With a second contact 2 frames later, each ramp gets (2 + 1) / 2 = 1
+    /// frame, i.e. none: the gap is left free.
+    #[test]
+    fn plants_hold_every_contact_frame_and_fade_the_edge_shift_outside() {
+        use glam::Vec3;
+        let skeleton =
+            Arc::new(crate::model::Skeleton::new(vec![crate::model::Joint::new("toe", None, Vec3::ZERO)]).unwrap());
+        let x = |f: usize| f as f64 * 0.01;
+        let translations = (0..30).map(|f| Vec3::new(x(f) as f32, 0.0, 0.0)).collect();
+        let clip = Clip::new(skeleton, 30.0, vec![Quat::IDENTITY; 30], translations, crate::model::ImportScale::METRES)
+            .unwrap();
+        let here = |f: usize| DVec3::new(x(f), 0.0, 0.0);
+        let shifts = |plants: &Plants| (0..30).map(|f| plants.shift(f, here(f)).x).collect::<Vec<_>>();
+
+        let one = Plants::new(&clip, 0, &[FrameRange::new(4, 14)], 4);
+        let s = shifts(&one);
+        for f in 4..14 {
+            assert!((s[f] - (0.04 - x(f))).abs() < 1e-6, "frame {f}: {}", s[f]);
+            assert!(one.planted(f));
+        }
+        assert!(s[..4].iter().all(|v| v.abs() < 1e-12), "{:?}", &s[..4]);
+        // After: −0.09 × smoothstep(3/4, 2/4, 1/4) = 27/32, 1/2, 5/32 of it, then nothing.
+        for (f, fraction) in [(14, 27.0 / 32.0), (15, 0.5), (16, 5.0 / 32.0), (17, 0.0)] {
+            assert!((s[f] + 0.09 * fraction).abs() < 1e-6, "frame {f}: {}", s[f]);
+            assert!(!one.planted(f));
+        }
+
+        // Two contacts 2 frames apart: each ramp gets (2 + 1) / 2 = 1 frame, i.e. none.
+        let two = Plants::new(&clip, 0, &[FrameRange::new(16, 20), FrameRange::new(4, 14)], 4);
+        let s = shifts(&two);
+        assert!(s[14].abs() < 1e-12 && s[15].abs() < 1e-12, "{:?}", &s[14..16]);
+        for f in 16..20 {
+            assert!((s[f] - (0.16 - x(f))).abs() < 1e-6, "frame {f}: {}", s[f]);
+        }
+    }
+
     #[test]
     fn a_gliding_foot_stays_on_its_plant_with_its_angle_and_the_body_keeps_its_path() {
         // 0.3 m/s for 20 frames at 30 fps: the frozen feet slide 0.19 m.
@@ -511,10 +595,23 @@ mod tests {
             assert_eq!(locked.clip.frame_translations(f), clip.frame_translations(f));
             assert_eq!(locked.clip.frame_rotations(f)[spine], clip.frame_rotations(f)[spine]);
         }
-        // The right foot moves only inside its contact: before it, nothing changes.
+        // The right foot is held on every frame of its contact (5..15) at its place, the
+        // toe's at frame 5 (level toes: the first lowest frame). It needs no shift at that
+        // first frame, so nothing moves before it; at the last (14) it is 0.09 m behind the
+        // glide, and that shift fades out over the 2-frame ramp: half of it at frame 15
+        // (smoothstep of 1/2), none from 16.
         let right_toe = sk.index_of("RightToe").unwrap();
+        let moved = |f: usize| (after.position(f, right_toe) - before.position(f, right_toe)).with_y(0.0).length();
         for f in 0..5 {
-            assert!((after.position(f, right_toe) - before.position(f, right_toe)).length() < 1e-5);
+            assert!(moved(f) < 1e-5, "frame {f} moved {} m", moved(f));
+        }
+        let right_place = before.position(5, right_toe);
+        for f in 5..15 {
+            assert!((after.position(f, right_toe) - right_place).with_y(0.0).length() < 2e-4, "frame {f}");
+        }
+        assert!((moved(15) - 0.045).abs() < 2e-4, "frame 15 moved {} m", moved(15));
+        for f in 16..20 {
+            assert!(moved(f) < 1e-5, "frame {f} moved {} m", moved(f));
         }
         let left = &locked.feet[0];
         // Independent figure: 19 planted steps of 0.01 m each (0.3 m/s at 30 fps).
