@@ -18,6 +18,14 @@ use kinegraph_nodes::kernels::contacts::{ContactThresholds, detect_contacts, gro
 use kinegraph_nodes::kernels::ik::foot_lock::{Plants, planted_travel_m};
 use kinegraph_nodes::model::{Clip, Contacts, forward_kinematics};
 
+/// Whether foot `k` is planted at `frame` or within the fade of a plant's edge shift
+/// (`RetargetParams::plant_blend_secs` either side of a contact): the frames where the toe
+/// is meant to leave the source's path. The others are free swing, where it tracks it.
+fn held_or_fading(contacts: &Contacts, k: usize, frame: usize, fps: f64) -> bool {
+    let ramp = (RetargetParams::default().plant_blend_secs * fps).round() as usize;
+    contacts.feet[k].intervals.iter().any(|r| r.start.saturating_sub(ramp) <= frame && frame < r.end + ramp)
+}
+
 /// Horizontal travel of each foot's toe tip summed over the contact frames where the toe is
 /// down (within 1 cm of the height it rests at, [`ground_height`]), in metres, and the
 /// number of such frames: how far planted toes slide.
@@ -73,14 +81,15 @@ fn cmu_walk_retargets_to_a_smaller_character_without_skating() {
     assert_eq!(clip.frame_count(), source.frame_count());
     assert!(clip.rotations().iter().all(|q| q.is_finite()) && clip.translations().iter().all(|t| t.is_finite()));
 
-    // Swing-toe tracking: distance from the source toe tip while that foot is in the air.
+    // Swing-toe tracking: distance from the source toe tip while that foot is in the air,
+    // away from the fades around its plants.
     let (sp, tp) = (forward_kinematics(&source), forward_kinematics(clip));
     let landmarks = find_landmarks(source.skeleton()).unwrap();
     let (mut max_err, mut sum, mut n) = (0.0f64, 0.0, 0);
     for (k, &foot) in landmarks.feet().iter().enumerate() {
         let tip = limb_tip(source.skeleton(), foot);
         for f in 1..clip.frame_count() {
-            if contacts.feet[k].intervals.iter().any(|r| r.contains(f)) {
+            if held_or_fading(&contacts, k, f, source.fps()) {
                 continue;
             }
             let e = f64::from((tp.position(f, tip) - sp.position(f, tip)).length());
@@ -188,7 +197,7 @@ fn a_tracked_pelvis_keeps_to_the_source_ground_track_while_the_toes_still_track(
         for (k, &foot) in landmarks.feet().iter().enumerate() {
             let tip = limb_tip(source.skeleton(), foot);
             for f in 1..source.frame_count() {
-                if !contacts.feet[k].intervals.iter().any(|r| r.contains(f)) {
+                if !held_or_fading(&contacts, k, f, source.fps()) {
                     toe = toe.max((tp.position(f, tip) - sp.position(f, tip)).length());
                 }
             }

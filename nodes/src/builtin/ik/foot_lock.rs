@@ -89,7 +89,7 @@ static FOOT_LOCK: NodeSchema = NodeSchema {
     outputs: &[LOCKED.spec(), REPORT.spec(), super::RESIDUAL_CURVES.spec()],
     params: &[BLEND.0, WEIGHTS.0, TOLERANCE.0, ITERATIONS.0, TOES.0, GROUND.0, FLOOR.0],
     writes_files: false,
-    version: 2,
+    version: 3,
 };
 
 impl Node for FootLock {

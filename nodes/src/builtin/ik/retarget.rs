@@ -424,7 +424,7 @@ static RETARGET_ONLINE: NodeSchema = NodeSchema {
     outputs: &[RETARGETED.spec(), REPORT.spec(), super::RESIDUAL_CURVES.spec()],
     params: &[TRACK.0, PELVIS.0, GAIN.0, DEXTERITY.0, MAX_ANGLE_STEP.0],
     writes_files: false,
-    version: 1,
+    version: 2,
 };
 
 impl Node for RetargetOnline {

@@ -494,7 +494,7 @@ static CONCAT: NodeSchema = NodeSchema {
         SMOOTHING.0,
     ],
     writes_files: false,
-    version: 2,
+    version: 3,
 };
 
 fn set_joined(ctx: &mut NodeContext<'_>, joined: Concatenated) {

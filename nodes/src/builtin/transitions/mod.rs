@@ -287,7 +287,7 @@ static TRANSITION: NodeSchema = NodeSchema {
     outputs: &[JOINED_OUT.spec(), TRANSITION_OUT.spec(), REPORT.spec()],
     params: &[SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0, FOOT_LOCK.0],
     writes_files: false,
-    version: 2,
+    version: 3,
 };
 
 impl Node for Transition {
@@ -363,7 +363,7 @@ static SEQUENCE: NodeSchema = NodeSchema {
     outputs: &[SEQUENCE_OUT.spec(), REPORT.spec()],
     params: &[ACTIONS.0, LABELS.0, SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0, FOOT_LOCK.0],
     writes_files: false,
-    version: 2,
+    version: 3,
 };
 
 /// Plays `actions` (at least one, from the graph's clip set) one after another with a
