@@ -416,7 +416,7 @@ impl Plants {
         let blend = blend.max(1);
         // Half the gap to a neighbour, rounded up: two ramps sharing a gap then never
         // cover the same frame.
-        let half_gap = |from: usize, to: usize| (to.saturating_sub(from) + 1) / 2;
+        let half_gap = |from: usize, to: usize| to.saturating_sub(from).div_ceil(2);
         let spans = ranges
             .iter()
             .enumerate()
@@ -546,8 +546,8 @@ mod tests {
 
         let one = Plants::new(&clip, 0, &[FrameRange::new(4, 14)], 4);
         let s = shifts(&one);
-        for f in 4..14 {
-            assert!((s[f] - (0.04 - x(f))).abs() < 1e-6, "frame {f}: {}", s[f]);
+        for (f, shift) in s.iter().enumerate().take(14).skip(4) {
+            assert!((shift - (0.04 - x(f))).abs() < 1e-6, "frame {f}: {shift}");
             assert!(one.planted(f));
         }
         assert!(s[..4].iter().all(|v| v.abs() < 1e-12), "{:?}", &s[..4]);
@@ -561,8 +561,8 @@ mod tests {
         let two = Plants::new(&clip, 0, &[FrameRange::new(16, 20), FrameRange::new(4, 14)], 4);
         let s = shifts(&two);
         assert!(s[14].abs() < 1e-12 && s[15].abs() < 1e-12, "{:?}", &s[14..16]);
-        for f in 16..20 {
-            assert!((s[f] - (0.16 - x(f))).abs() < 1e-6, "frame {f}: {}", s[f]);
+        for (f, shift) in s.iter().enumerate().take(20).skip(16) {
+            assert!((shift - (0.16 - x(f))).abs() < 1e-6, "frame {f}: {shift}");
         }
     }
 
