@@ -649,19 +649,22 @@ impl<'a> Problem<'a> {
         rows
     }
 
-    /// Every constraint value in a stable order, with its group; with `jacobian`, also each
-    /// row's entries (column, value).
+    /// Every constraint value in a stable order, with its group; with `jacobian` (the frames'
+    /// geometry of `eval` and where to put the rows), also each row's entries (column, value).
     // `frames` is empty when no Jacobian is asked, so the loops index it by frame number.
     #[allow(clippy::type_complexity, clippy::needless_range_loop)]
     fn constraints(
         &self,
         state: &State,
         eval: &Eval,
-        mut jacobian: Option<&mut Vec<Vec<(usize, f64)>>>,
+        jacobian: Option<(&[FrameGeometry], &mut Vec<Vec<(usize, f64)>>)>,
     ) -> (Vec<f64>, Vec<usize>) {
         let mut values = Vec::new();
         let mut groups = Vec::new();
-        let frames = if jacobian.is_some() { FrameGeometry::all(self, eval) } else { Vec::new() };
+        let (frames, mut jacobian) = match jacobian {
+            Some((frames, rows)) => (frames, Some(rows)),
+            None => (&[][..], None),
+        };
         let mut push = |v: f64, g: usize, row: Vec<(usize, f64)>, jac: &mut Option<&mut Vec<Vec<(usize, f64)>>>| {
             values.push(v);
             groups.push(g);
@@ -691,7 +694,7 @@ impl<'a> Problem<'a> {
                     if c < 3 { eval.track.com_velocity_mps[f][c] } else { eval.track.momentum[f][c - 3] / self.mass };
                 let mut row = Vec::new();
                 if want {
-                    row = if c < 3 { self.linear_row(&frames, f, c) } else { self.angular_row(&frames, f, c - 3) };
+                    row = if c < 3 { self.linear_row(frames, f, c) } else { self.angular_row(frames, f, c - 3) };
                     row.extend(g_entries.iter().map(|&(i, w)| (self.g_col(i), -w)));
                 }
                 push(measured - model, if c < 3 { LINEAR } else { ANGULAR }, row, &mut jacobian);
@@ -787,12 +790,19 @@ impl<'a> Problem<'a> {
         row
     }
 
-    /// Objective rows: similarity then balance, (value, entries).
+    /// Objective rows: similarity then balance, (value, entries); the entries only with
+    /// `geometry` (the frames' geometry of `eval`).
     // `frames` is empty when no Jacobian is asked, so the loop indexes it by frame number.
     #[allow(clippy::needless_range_loop)]
-    fn objective_rows(&self, state: &State, eval: &Eval, want: bool) -> Vec<(f64, Vec<(usize, f64)>)> {
+    fn objective_rows(
+        &self,
+        state: &State,
+        eval: &Eval,
+        geometry: Option<&[FrameGeometry]>,
+    ) -> Vec<(f64, Vec<(usize, f64)>)> {
         let mut rows = Vec::new();
-        let frames = if want { FrameGeometry::all(self, eval) } else { Vec::new() };
+        let want = geometry.is_some();
+        let frames = geometry.unwrap_or_default();
         for f in 0..self.n {
             let d = state.root[f] - self.init_root[f];
             for i in 0..3 {
@@ -831,7 +841,7 @@ impl<'a> Problem<'a> {
     }
 
     fn objective_terms(&self, state: &State, eval: &Eval) -> (f64, f64) {
-        let rows = self.objective_rows(state, eval, false);
+        let rows = self.objective_rows(state, eval, None);
         let split = rows.len() - 3 * self.balance.len();
         let sq = |r: &[(f64, Vec<(usize, f64)>)]| r.iter().map(|(v, _)| v * v).sum::<f64>();
         (sq(&rows[..split]), sq(&rows[split..]))
@@ -858,9 +868,11 @@ impl<'a> Problem<'a> {
         multipliers: &[f64],
         penalty: &[f64],
     ) -> Vec<(f64, Vec<(usize, f64)>)> {
-        let mut rows = self.objective_rows(state, eval, true);
+        // The frames' geometry, shared by the objective's and the constraints' Jacobians.
+        let frames = FrameGeometry::all(self, eval);
+        let mut rows = self.objective_rows(state, eval, Some(&frames));
         let mut constraint_rows = Vec::new();
-        let (values, groups) = self.constraints(state, eval, Some(&mut constraint_rows));
+        let (values, groups) = self.constraints(state, eval, Some((&frames, &mut constraint_rows)));
         for (((v, g), y), entries) in values.iter().zip(&groups).zip(multipliers).zip(constraint_rows) {
             let shift = shifted(*v, *y, penalty[*g], *g);
             // An inactive inequality keeps its entries as zeros: JᵀJ keeps its pattern.

@@ -4,9 +4,9 @@
 //! Per foot and contact (from `motion.contacts`):
 //! 1. The planted place is where the toe tip is at the contact's lowest frame ([`Plants`]).
 //! 2. Each frame of the contact, the foot's drift is the toe tip's horizontal distance from
-//!    that place; its correction `c = w · (place − toe)` (horizontal only, so heel strike
-//!    and toe-off keep their heights) is whole during the contact and ramps in and out with
-//!    the plant weight `w` over `blend_secs` just outside its edges.
+//!    that place; its correction `c = place − toe` (horizontal only, so heel strike and
+//!    toe-off keep their heights). Outside the contact, the correction of its first (last)
+//!    frame fades in before it (out after it) over `blend_secs` ([`Plants::shift`]).
 //! 3. The ankle's goal is the clip's ankle plus `c`; the two joints above it (knee and hip)
 //!    turn to reach it (one rig with both ankles as effectors; unplanted ankles keep their
 //!    own position as goal, so that leg does not move).
@@ -421,15 +421,17 @@ impl Plants {
             .iter()
             .enumerate()
             .map(|(i, r)| {
-                let place = (r.start..r.end).map(&mut at).min_by(|a, b| a.y.total_cmp(&b.y)).unwrap_or_default();
+                let track: Vec<DVec3> = (r.start..r.end).map(&mut at).collect();
+                let place = track.iter().copied().min_by(|a, b| a.y.total_cmp(&b.y)).unwrap_or_default();
+                let edge_shift = |p: Option<&DVec3>| (place - p.copied().unwrap_or(place)).with_y(0.0);
                 let previous_end = i.checked_sub(1).map(|p| ranges[p].end);
                 let next_start = ranges.get(i + 1).map(|n| n.start);
                 PlantSpan {
                     frames: *r,
                     place,
-                    shift_in: (place - at(r.start)).with_y(0.0),
+                    shift_in: edge_shift(track.first()),
                     ramp_in: previous_end.map_or(blend, |e| blend.min(half_gap(e, r.start))),
-                    shift_out: (place - at(r.end - 1)).with_y(0.0),
+                    shift_out: edge_shift(track.last()),
                     ramp_out: next_start.map_or(blend, |s| blend.min(half_gap(r.end, s))),
                 }
             })
