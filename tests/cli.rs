@@ -339,13 +339,12 @@ fn shipped_assets_are_exactly_what_make_assets_produces() {
 
 /// A bone map saved by `export.bone_map`, edited by hand and fed back through
 /// `skeleton.map`'s `map_file`: the edit takes effect; a broken file is a node error that
-/// names the file and line; a misspelt joint gets a "did you mean".
+/// names the file and line; a misspelt joint gets a "did you mean"; a reference frame past
+/// the clip names its param.
 #[test]
 fn a_saved_bone_map_is_edited_and_reused_and_bad_ones_are_located() {
     let dir = tempfile::tempdir().unwrap();
-    let graph = |map_file: &str| {
-        let param =
-            if map_file.is_empty() { String::new() } else { format!(r#"params: {{ "map_file": "{map_file}" }}"#) };
+    let graph_with = |param: &str| {
         format!(
             r#"(format: "kinegraph.graph", version: 2,
  nodes: {{ "walk": (kind: "generate.mannequin"),
@@ -354,6 +353,13 @@ fn a_saved_bone_map_is_edited_and_reused_and_bad_ones_are_located() {
  edges: [ (from: "walk.clip", to: "map.source"), (from: "walk.clip", to: "map.target"),
           (from: "map.map", to: "save.map") ])"#
         )
+    };
+    let graph = |map_file: &str| {
+        if map_file.is_empty() {
+            graph_with("")
+        } else {
+            graph_with(&format!(r#"params: {{ "map_file": "{map_file}" }}"#))
+        }
     };
     let run = |name: &str, text: String| {
         let path = dir.path().join(name);
@@ -398,6 +404,11 @@ fn a_saved_bone_map_is_edited_and_reused_and_bad_ones_are_located() {
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
     let err = node_error(&out);
     assert!(err.contains("map_file") && err.contains("did you mean 'LeftForeArm'?"), "{err}");
+
+    let out = run("past.ron", graph_with(r#"params: { "target_reference": "frame", "target_frame": 100000 }"#));
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    let err = node_error(&out);
+    assert!(err.contains("target_frame") && err.contains("reference frame 100000"), "{err}");
 }
 
 #[test]

@@ -217,7 +217,7 @@ fn broken_files_give_located_errors() {
 /// here from both rest poses.
 #[test]
 fn fbx_walk_maps_onto_xbot() {
-    use kinegraph_nodes::builtin::ik::map::{Bodies, map_by_roles, transfer};
+    use kinegraph_nodes::builtin::ik::map::{Bodies, TransferOptions, map_by_roles, transfer};
     use kinegraph_nodes::model::Clip;
 
     let Some(data) = shared_data() else { return };
@@ -238,7 +238,7 @@ fn fbx_walk_maps_onto_xbot() {
             assert!(map.joints.contains_key(&name), "{name} not mapped");
         }
     }
-    let out = transfer(&walk, &target, &map, Some(&bodies), None).unwrap();
+    let out = transfer(&walk, &target, &map, &TransferOptions { bodies: Some(&bodies), ..Default::default() }).unwrap();
 
     // Leg length (hip → knee → ankle, both sides) from each rest pose, by hand.
     let leg = |clip: &Clip| {

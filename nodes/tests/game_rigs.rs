@@ -10,7 +10,7 @@
 use std::sync::Arc;
 
 use glam::{Quat, Vec3};
-use kinegraph_nodes::builtin::ik::map::{Bodies, MapError, Transferred, map_by_roles, transfer};
+use kinegraph_nodes::builtin::ik::map::{Bodies, MapError, TransferOptions, Transferred, map_by_roles, transfer};
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
 use kinegraph_nodes::formats::gltf::{GltfReadOptions, read_gltf_file};
@@ -178,7 +178,7 @@ fn carry(walk: &Clip, skeleton: Skeleton) -> (Clip, BoneMap, Transferred) {
     let target = Clip::rest_pose(Arc::new(skeleton), 30.0, 1).unwrap();
     let bodies = Bodies::of(&target, walk).unwrap();
     let map = map_by_roles(target.skeleton(), &bodies.target, walk.skeleton(), &bodies.source);
-    let out = transfer(walk, &target, &map, Some(&bodies), None).unwrap();
+    let out = transfer(walk, &target, &map, &TransferOptions { bodies: Some(&bodies), ..Default::default() }).unwrap();
     (target, map, out)
 }
 
@@ -265,13 +265,13 @@ fn a_hand_written_map_alone_scales_by_leg_length() {
             .map(|(t, s)| (format!("b{:03}", xbot.index_of(t).unwrap()), s.clone()))
             .collect(),
     };
-    let out = transfer(&walk, &target, &map, None, None).unwrap();
+    let out = transfer(&walk, &target, &map, &TransferOptions::default()).unwrap();
     println!("map only: root scale {:.4} (by body roles {:.4})", out.root_scale, original_out.root_scale);
     assert!((out.root_scale - original_out.root_scale).abs() < 1e-5);
     // Without the legs in the map, the refusal names the unmapped source joints and what to set.
     let mut no_legs = map.clone();
     no_legs.joints.retain(|_, s| !s.contains("Leg") && !s.contains("Foot"));
-    let e = transfer(&walk, &target, &no_legs, None, None).unwrap_err();
+    let e = transfer(&walk, &target, &no_legs, &TransferOptions::default()).unwrap_err();
     assert!(matches!(e, MapError::NoRootScale(_)));
     let msg = e.to_string();
     assert!(msg.contains("LeftUpLeg") && msg.contains("root_scale") && msg.contains("map_file"), "{msg}");

@@ -202,7 +202,7 @@ fn corpus_samples_re_exported_pass_the_validator() {
 /// the character keeps its feet near the floor it stands on.
 #[test]
 fn a_cmu_walk_on_cesium_man_passes_the_validator() {
-    use kinegraph_nodes::builtin::ik::map::{Bodies, map_by_roles, transfer};
+    use kinegraph_nodes::builtin::ik::map::{Bodies, TransferOptions, map_by_roles, transfer};
     use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
     let Some(data) = shared_data() else { return };
     let walk = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value.0;
@@ -212,7 +212,7 @@ fn a_cmu_walk_on_cesium_man_passes_the_validator() {
     let bodies = Bodies::of(man, &walk).unwrap();
     let (t, s) = (&bodies.target, &bodies.source);
     let map = map_by_roles(man.skeleton(), t, walk.skeleton(), s);
-    let out = transfer(&walk, man, &map, Some(&bodies), None).unwrap();
+    let out = transfer(&walk, man, &map, &TransferOptions { bodies: Some(&bodies), ..Default::default() }).unwrap();
     println!("CesiumMan: {} pairs, unmapped {:?}, root scale {:.3}", map.joints.len(), out.unmapped, out.root_scale);
     assert!(out.clip.rotations().iter().all(|q| q.is_finite()));
     // Lowest point of the feet over the walk against the CesiumMan's own first frame.

@@ -5,10 +5,14 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use kinegraph_nodes::builtin::ik::map::{Bodies, map_by_roles, reference, shape_roles, transfer};
+use kinegraph_nodes::builtin::ik::map::{
+    Bodies, ReferencePose, References, TransferOptions, map_by_roles, shape_roles, transfer,
+};
 use kinegraph_nodes::corpus::{files_with_extension, shared_data};
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
 use kinegraph_nodes::kernels::body::find_landmarks;
+use kinegraph_nodes::math::quat_normalize_or_identity;
+use kinegraph_nodes::model::bone_map::BoneMap;
 use kinegraph_nodes::model::{Clip, forward_kinematics};
 
 fn load(path: &std::path::Path) -> Clip {
@@ -23,14 +27,15 @@ fn shape_roles_agree_with_named_landmarks_on_every_corpus_skeleton() {
         let clip = load(&path);
         // Name-based landmarks are the independent answer; rigs they do not cover are skipped.
         let Ok(named) = find_landmarks(clip.skeleton()) else { continue };
-        let roles = match shape_roles(clip.skeleton(), &reference(&clip, "source").unwrap(), "source") {
-            Ok(roles) => roles,
-            Err(e) => {
-                println!("{}: {e}", path.display());
-                unread.push(path.clone());
-                continue;
-            }
-        };
+        let roles =
+            match shape_roles(clip.skeleton(), &ReferencePose::FirstFrame.world(&clip, "source").unwrap(), "source") {
+                Ok(roles) => roles,
+                Err(e) => {
+                    println!("{}: {e}", path.display());
+                    unread.push(path.clone());
+                    continue;
+                }
+            };
         let name = |j: usize| clip.skeleton().joints()[j].name.clone();
         let shape: Vec<[String; 3]> = roles.legs.iter().chain(&roles.arms).map(|l| l.joints().map(name)).collect();
         let by_name: Vec<[String; 3]> = [(0usize, 0usize), (1, 0), (0, 3), (1, 3)]
@@ -75,7 +80,7 @@ fn the_daz_copy_of_a_take_maps_onto_the_motionbuilder_copy() {
     for (target, source) in [("LeftUpLeg", "lThigh"), ("RightLeg", "rShin"), ("LeftForeArm", "lForeArm")] {
         assert_eq!(map.joints.get(target).map(String::as_str), Some(source), "{map:?}");
     }
-    let out = transfer(&daz, &cmu, &map, Some(&bodies), None).unwrap();
+    let out = transfer(&daz, &cmu, &map, &TransferOptions { bodies: Some(&bodies), ..Default::default() }).unwrap();
     assert_eq!(out.clip.frame_count(), cmu.frame_count());
     // Each limb bone's world direction, every frame: the carried motion against the DAZ
     // source it came from (the same bone, through the map), and against the real
@@ -116,4 +121,60 @@ fn the_daz_copy_of_a_take_maps_onto_the_motionbuilder_copy() {
     assert!((from_cmu.0 / n).to_degrees() < 15.0, "the two conversions of one take agree roughly");
     // Both files are the same performer: the leg ratio is about one.
     assert!((out.root_scale - 1.0).abs() < 0.1, "{}", out.root_scale);
+}
+
+/// Mean and largest angle (degrees) between the world rotations of `out`'s and `source`'s
+/// joints that `map` pairs (same skeleton), over all frames: it sees twists about a bone,
+/// which bone directions alone do not.
+fn rotation_error(out: &Clip, source: &Clip, map: &BoneMap) -> (f32, f32) {
+    let (p_out, p_src) = (forward_kinematics(out), forward_kinematics(source));
+    let (mut sum, mut max, mut count) = (0.0f32, 0.0f32, 0);
+    for name in map.joints.keys() {
+        let j = source.skeleton().index_of(name).unwrap();
+        for f in 0..source.frame_count() {
+            // The angle of the relative turn by atan2: exact near zero, where acos of a dot
+            // product of f32 quaternions is off by tenths of a degree.
+            let turn = quat_normalize_or_identity(p_out.frame(f)[j].rotation.inverse() * p_src.frame(f)[j].rotation);
+            let angle = (2.0 * turn.xyz().length().atan2(turn.w.abs())).to_degrees();
+            (sum, max, count) = (sum + angle, max.max(angle), count + 1);
+        }
+    }
+    (sum / count as f32, max)
+}
+
+/// The reference pose is a choice: a character whose clip opens in another pose than the
+/// motion's first frame is aligned wrongly by first frames, and exactly by rest poses (the
+/// two T-poses) or by the matching frame. The character here is the capture's own skeleton,
+/// so the right answer is known: every joint turns as the source's does.
+#[test]
+fn the_reference_pose_is_chosen_per_clip() {
+    let Some(data) = shared_data() else { return };
+    let walk = load(&data.join("bvh/cmu/02_01.bvh"));
+    // The same skeleton, its clip opening 100 frames into the walk (the other foot forward).
+    let character = walk.slice(100, walk.frame_count());
+    // Every joint to itself: what is measured is the alignment, not the pairing.
+    let joints = walk.skeleton().joints().iter().filter(|j| !j.end_site).map(|j| (j.name.clone(), j.name.clone()));
+    let map = BoneMap { joints: joints.collect() };
+    let carried = |source: ReferencePose, target: ReferencePose| {
+        let references = References { source, target };
+        let bodies = Bodies::in_poses(&character, &walk, references).unwrap();
+        let options = TransferOptions { bodies: Some(&bodies), references, ..Default::default() };
+        transfer(&walk, &character, &map, &options).unwrap().clip
+    };
+    let first_frames = rotation_error(&carried(ReferencePose::FirstFrame, ReferencePose::FirstFrame), &walk, &map);
+    let rest = rotation_error(&carried(ReferencePose::Rest, ReferencePose::Rest), &walk, &map);
+    let frame = rotation_error(&carried(ReferencePose::Frame(100), ReferencePose::FirstFrame), &walk, &map);
+    println!(
+        "02_01 onto itself opening at frame 100, joint world rotations against the source (mean, max °): first frames {first_frames:?}, rest poses {rest:?}, source frame 100 {frame:?}"
+    );
+    assert!(first_frames.1 > 10.0, "first frames in different poses twist the joints: {first_frames:?}");
+    assert!(rest.1 < 1e-3, "two rest poses of one skeleton align exactly: {rest:?}");
+    assert!(frame.1 < 1e-3, "the matching frame aligns exactly: {frame:?}");
+    // A frame past the clip is refused with both numbers.
+    let past = ReferencePose::Frame(walk.frame_count()).world(&walk, "source").unwrap_err().to_string();
+    assert!(
+        past.contains(&format!("frame {}", walk.frame_count()))
+            && past.contains(&format!("({})", walk.frame_count() - 1)),
+        "{past}"
+    );
 }

@@ -15,7 +15,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use glam::{Mat4, Quat, Vec3, Vec4};
-use kinegraph_nodes::builtin::ik::map::{Bodies, map_by_roles, transfer};
+use kinegraph_nodes::builtin::ik::map::{Bodies, TransferOptions, map_by_roles, transfer};
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
 use kinegraph_nodes::formats::gltf::write_glb_file;
@@ -34,7 +34,9 @@ fn walk_on(character: &Clip, data: &Path, ground: Ground) -> (Clip, Contacts) {
     let walk = walk.slice(1, walk.frame_count());
     let bodies = Bodies::of(character, &walk).unwrap();
     let map = map_by_roles(character.skeleton(), &bodies.target, walk.skeleton(), &bodies.source);
-    let mapped = transfer(&walk, character, &map, Some(&bodies), None).unwrap().clip;
+    let mapped = transfer(&walk, character, &map, &TransferOptions { bodies: Some(&bodies), ..Default::default() })
+        .unwrap()
+        .clip;
     let (contacts, _) = contacts_of(&mapped, &forward_kinematics(&mapped), &ContactThresholds::default()).unwrap();
     let locked = foot_lock(&mapped, &contacts, &FootLockParams { ground, ..FootLockParams::default() }).unwrap();
     (locked.clip, contacts)

@@ -8,17 +8,19 @@
 //! joints, and the joints below the end (toes, fingers) counted on. A RON bone-map file
 //! adds to or overrides the pairs.
 //!
-//! Transfer, with each clip's first frame as its reference pose:
+//! Transfer, in a reference pose chosen per clip ([`ReferencePose`]: its first frame by
+//! default, its skeleton's rest pose, or any frame):
 //! 1. Per mapped target joint, the reference alignment `A` turns the target's bones to point
 //!    where the source's mapped bones point in its reference (one bone: the shortest arc; a
 //!    joint with several mapped bones below it, like the pelvis: the best-fit rotation of
 //!    all of them, Kabsch). Unmapped joints follow their parent rigidly.
 //! 2. Each frame, a mapped target joint takes the source joint's world rotation change
-//!    since the reference: `W_t(f) = W_s(f) · W_s(0)⁻¹ · A · W_t(0)`; unmapped joints keep
-//!    their reference local rotation.
+//!    since the reference: `W_t(f) = W_s(f) · W_s(ref)⁻¹ · A · W_t(ref)`; unmapped joints
+//!    keep their reference local rotation.
 //! 3. The pelvis follows the source's pelvis path scaled by the ratio of leg lengths (or
 //!    `root_scale`), the root being moved so the pelvis lands there.
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -34,8 +36,8 @@ use crate::model::fk::pose_world;
 use crate::model::{Clip, ClipError, Skeleton, Transform};
 use crate::node::into_report;
 use crate::node::{
-    ChoiceParam, FloatParam, Input, InputPathParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
-    Report, did_you_mean,
+    ChoiceParam, FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output,
+    OutputPathParam, Report, did_you_mean,
 };
 
 /// Why a bone map or a transfer failed.
@@ -43,7 +45,7 @@ use crate::node::{
 pub enum MapError {
     /// The body parts of a skeleton could not be read from its names or its shape.
     #[error(
-        "cannot read the body of the {which} skeleton from its first frame: {why}. Set map_file to a bone map pairing the {which}'s joints (export.bone_map writes one to edit), with auto = none if the automatic pairs are wrong"
+        "cannot read the body of the {which} skeleton in its reference pose: {why}. Set map_file to a bone map pairing the {which}'s joints (export.bone_map writes one to edit), with auto = none if the automatic pairs are wrong"
     )]
     Roles {
         /// `source` or `target`.
@@ -72,6 +74,16 @@ pub enum MapError {
     /// A clip without frames.
     #[error("the {0} clip has no frames")]
     NoFrames(&'static str),
+    /// The reference frame asked for is past the clip's end.
+    #[error("the {which} reference frame {frame} is past the clip's last frame ({last})")]
+    FramePastEnd {
+        /// `source` or `target`.
+        which: &'static str,
+        /// The frame asked for, from 0.
+        frame: usize,
+        /// The clip's last frame.
+        last: usize,
+    },
     /// The result could not be built.
     #[error(transparent)]
     Clip(#[from] ClipError),
@@ -160,20 +172,70 @@ fn resolve(map: &BoneMap, target: &Skeleton, source: &Skeleton) -> Result<Vec<(u
     Ok(pairs)
 }
 
-/// World transforms of a clip's first frame (its reference pose).
-pub fn reference(clip: &Clip, which: &'static str) -> Result<Vec<Transform>, MapError> {
-    if clip.frame_count() == 0 {
-        return Err(MapError::NoFrames(which));
+/// The pose of a clip in which the two skeletons of a transfer are aligned.
+///
+/// Both clips should stand alike in their reference poses (two T-poses, or the same frame of
+/// a motion): the aligned bones' directions are matched, but a twist about a bone or a bent
+/// elbow that only one of them has is carried into every frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ReferencePose {
+    /// The clip's first frame: a capture's or an animation's opening pose.
+    #[default]
+    FirstFrame,
+    /// The skeleton's rest pose: a BVH's OFFSETs with no rotation (the T-pose of the CMU
+    /// captures), a glTF's or FBX's node transforms (a Mixamo character's bind T-pose).
+    Rest,
+    /// A frame of the clip, from 0 (the frame a named animation stands in its T-pose).
+    Frame(usize),
+}
+
+/// A pose's local rotations and translations, one per joint: borrowed from a clip's frame or
+/// built from the rest pose.
+pub type Locals<'c> = (Cow<'c, [Quat]>, Cow<'c, [Vec3]>);
+
+impl ReferencePose {
+    /// Local rotations and translations of `clip`'s skeleton in this pose.
+    pub fn locals<'c>(self, clip: &'c Clip, which: &'static str) -> Result<Locals<'c>, MapError> {
+        let frame = match self {
+            ReferencePose::Rest => {
+                let joints = clip.skeleton().joints();
+                return Ok((
+                    joints.iter().map(|j| j.rest_rotation).collect(),
+                    joints.iter().map(|j| j.rest_offset).collect(),
+                ));
+            }
+            ReferencePose::FirstFrame => 0,
+            ReferencePose::Frame(f) => f,
+        };
+        match clip.frame_count() {
+            0 => Err(MapError::NoFrames(which)),
+            n if frame >= n => Err(MapError::FramePastEnd { which, frame, last: n - 1 }),
+            _ => Ok((Cow::Borrowed(clip.frame_rotations(frame)), Cow::Borrowed(clip.frame_translations(frame)))),
+        }
     }
-    let mut world = vec![Transform::IDENTITY; clip.joint_count()];
-    pose_world(clip.skeleton(), clip.frame_rotations(0), clip.frame_translations(0), &mut world);
-    Ok(world)
+
+    /// World transforms of `clip`'s joints in this pose.
+    pub fn world(self, clip: &Clip, which: &'static str) -> Result<Vec<Transform>, MapError> {
+        let (rotations, translations) = self.locals(clip, which)?;
+        let mut world = vec![Transform::IDENTITY; clip.joint_count()];
+        pose_world(clip.skeleton(), &rotations, &translations, &mut world);
+        Ok(world)
+    }
+}
+
+/// The reference poses of both clips of a transfer.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct References {
+    /// The motion's.
+    pub source: ReferencePose,
+    /// The character's.
+    pub target: ReferencePose,
 }
 
 /// The body roles of a clip's skeleton ([`roles_of`]: by name, else by its shape in the
-/// first frame).
-pub fn clip_roles(clip: &Clip, which: &'static str) -> Result<BodyRoles, MapError> {
-    roles_of(clip.skeleton(), &positions(&reference(clip, which)?)).map_err(|why| MapError::Roles { which, why })
+/// reference `pose`).
+pub fn clip_roles(clip: &Clip, pose: ReferencePose, which: &'static str) -> Result<BodyRoles, MapError> {
+    roles_of(clip.skeleton(), &positions(&pose.world(clip, which)?)).map_err(|why| MapError::Roles { which, why })
 }
 
 /// The body roles of a skeleton posed at `world`, read from its shape only.
@@ -195,9 +257,18 @@ pub struct Bodies {
 }
 
 impl Bodies {
-    /// The body roles of `target`'s and `source`'s skeletons ([`clip_roles`]).
+    /// The body roles of `target`'s and `source`'s skeletons in their first frames.
     pub fn of(target: &Clip, source: &Clip) -> Result<Bodies, MapError> {
-        Ok(Bodies { target: clip_roles(target, "target")?, source: clip_roles(source, "source")? })
+        Bodies::in_poses(target, source, References::default())
+    }
+
+    /// The body roles of `target`'s and `source`'s skeletons ([`clip_roles`]) in the
+    /// reference poses.
+    pub fn in_poses(target: &Clip, source: &Clip, references: References) -> Result<Bodies, MapError> {
+        Ok(Bodies {
+            target: clip_roles(target, references.target, "target")?,
+            source: clip_roles(source, references.source, "source")?,
+        })
     }
 }
 
@@ -254,9 +325,9 @@ pub fn detached_joints(skeleton: &Skeleton, roles: &BodyRoles) -> Vec<(usize, us
 /// The target's leg length over the source's, the target's legs found through `map` from
 /// the source's (read by name or shape): for a hand-written map on a rig whose body cannot be
 /// read.
-fn leg_ratio_through_map(source: &Clip, target: &Clip, map: &BoneMap) -> Result<f64, MapError> {
-    let roles = clip_roles(source, "source").map_err(|e| MapError::NoRootScale(e.to_string()))?;
-    let (s_ref, t_ref) = (reference(source, "source")?, reference(target, "target")?);
+fn leg_ratio_through_map(source: &Clip, target: &Clip, map: &BoneMap, refs: References) -> Result<f64, MapError> {
+    let roles = clip_roles(source, refs.source, "source").map_err(|e| MapError::NoRootScale(e.to_string()))?;
+    let (s_ref, t_ref) = (refs.source.world(source, "source")?, refs.target.world(target, "target")?);
     let (s_sk, t_sk) = (source.skeleton(), target.skeleton());
     let mut missing = Vec::new();
     let (mut s_len, mut t_len) = (0.0f32, 0.0f32);
@@ -297,27 +368,38 @@ pub struct Transferred {
     pub root_scale: f64,
 }
 
+/// How a motion is carried over, beyond the bone map.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TransferOptions<'a> {
+    /// The body roles of both skeletons: the pelvis pair and the leg-length ratio.
+    pub bodies: Option<&'a Bodies>,
+    /// Factor on the pelvis path, replacing the leg-length ratio.
+    pub root_scale: Option<f64>,
+    /// The poses the skeletons are aligned in.
+    pub references: References,
+}
+
 /// Carries `source`'s motion onto `target`'s skeleton through `map` (see the module doc).
-/// `bodies` give the pelvis pair and the leg-length ratio; `root_scale` replaces the ratio.
-/// Without bodies the topmost mapped pair carries the path, and the ratio is that of the
-/// source's legs and the target joints `map` pairs with them (or `root_scale`).
+/// Without `options.bodies` the topmost mapped pair carries the path, and the ratio is that
+/// of the source's legs and the target joints `map` pairs with them (or `root_scale`).
 pub fn transfer(
     source: &Clip,
     target: &Clip,
     map: &BoneMap,
-    bodies: Option<&Bodies>,
-    root_scale: Option<f64>,
+    options: &TransferOptions<'_>,
 ) -> Result<Transferred, MapError> {
+    let TransferOptions { bodies, root_scale, references: refs } = *options;
     let (t_sk, s_sk) = (target.skeleton(), source.skeleton());
     let pairs = resolve(map, t_sk, s_sk)?;
-    let (s_ref, t_ref) = (reference(source, "source")?, reference(target, "target")?);
+    let (s_ref, t_ref) = (refs.source.world(source, "source")?, refs.target.world(target, "target")?);
+    let (t_ref_rotations, t_ref_translations) = refs.target.locals(target, "target")?;
     let scale = match (root_scale, bodies) {
         (Some(s), _) => s,
         (None, Some(b)) => {
             let s_len = leg_length(&b.source, &s_ref);
             if s_len > 1e-6 { f64::from(leg_length(&b.target, &t_ref) / s_len) } else { 1.0 }
         }
-        (None, None) => leg_ratio_through_map(source, target, map)?,
+        (None, None) => leg_ratio_through_map(source, target, map, refs)?,
     };
     // The pelvis pair carries the path: from the body roles, or else the topmost mapped joint.
     let pelvis = bodies.map_or(pairs[0], |b| (b.target.pelvis, b.source.pelvis));
@@ -362,7 +444,7 @@ pub fn transfer(
         .iter()
         .map(|&(j, p)| (j, p, t_ref[p].rotation.inverse() * (t_ref[j].translation - t_ref[p].translation)))
         .collect();
-    // Per mapped joint: W_t(f) = W_s(f) · offset, offset = W_s(0)⁻¹ · A · W_t(0).
+    // Per mapped joint: W_t(f) = W_s(f) · offset, offset = W_s(ref)⁻¹ · A · W_t(ref).
     let offset: Vec<Quat> = (0..n)
         .map(|j| match driver[j] {
             Some(s) => s_ref[s].rotation.inverse() * align[j] * t_ref[j].rotation,
@@ -382,12 +464,12 @@ pub fn transfer(
             let parent_rot = joint.parent.map_or(Quat::IDENTITY, |p| world_rot[p]);
             let local = match driver[j] {
                 Some(s) => parent_rot.inverse() * s_world[s].rotation * offset[j],
-                None => target.frame_rotations(0)[j],
+                None => t_ref_rotations[j],
             };
             world_rot[j] = parent_rot * local;
             rotations.push(local);
         }
-        translations.extend_from_slice(target.frame_translations(0));
+        translations.extend_from_slice(&t_ref_translations);
         // 3. Root moved so the pelvis follows the scaled source pelvis.
         pose_world(t_sk, &rotations[start..], &translations[start..], &mut t_world);
         let goal = s_world[pelvis.1].translation * scale as f32;
@@ -413,7 +495,7 @@ pub fn transfer(
 const SOURCE: Input<Arc<Clip>> = Input::required("source", "The motion to carry over (e.g. a CMU capture).");
 const TARGET: Input<Arc<Clip>> = Input::required(
     "target",
-    "A clip on the character to animate (e.g. clip.load of its glTF): its skeleton receives the motion; its first frame is its reference pose.",
+    "A clip on the character to animate (e.g. clip.load of its glTF, with the animation that holds its reference pose): its skeleton receives the motion.",
 );
 const MAPPED: Output<Arc<Clip>> = Output::new("clip", "The source's motion on the target's skeleton.");
 const MAP_OUT: Output<Arc<BoneMap>> =
@@ -439,6 +521,43 @@ const ROOT_SCALE: FloatParam = FloatParam::optional(
     "",
 );
 
+const REFERENCE_CHOICES: &[&str] = &["first_frame", "rest", "frame"];
+const SOURCE_REFERENCE: ChoiceParam = ChoiceParam::new(
+    "source_reference",
+    "The source's pose the skeletons are aligned in: its first frame, its skeleton's rest pose (a BVH's T-pose), or source_frame. Pick the pose that stands like the target's reference.",
+    REFERENCE_CHOICES,
+    "first_frame",
+);
+const SOURCE_FRAME: IntParam = IntParam::new(
+    "source_frame",
+    "The source's reference frame (from 0) when source_reference is frame.",
+    0,
+    0,
+    1_000_000_000,
+);
+const TARGET_REFERENCE: ChoiceParam = ChoiceParam::new(
+    "target_reference",
+    "The target's pose the skeletons are aligned in: its first frame, its skeleton's rest pose (a Mixamo character's bind T-pose), or target_frame.",
+    REFERENCE_CHOICES,
+    "first_frame",
+);
+const TARGET_FRAME: IntParam = IntParam::new(
+    "target_frame",
+    "The target's reference frame (from 0) when target_reference is frame.",
+    0,
+    0,
+    1_000_000_000,
+);
+
+/// The reference pose a choice param and its frame param name.
+fn reference_param(ctx: &NodeContext<'_>, choice: &ChoiceParam, frame: &IntParam) -> Result<ReferencePose, NodeError> {
+    Ok(match ctx.choice(choice)? {
+        "rest" => ReferencePose::Rest,
+        "frame" => ReferencePose::Frame(usize::try_from(ctx.int(frame)?).unwrap_or(usize::MAX)),
+        _ => ReferencePose::FirstFrame,
+    })
+}
+
 /// `skeleton.map`.
 pub struct MapSkeleton;
 
@@ -448,7 +567,7 @@ static MAP_SKELETON: NodeSchema = NodeSchema {
     doc: "Carries a motion onto a character with other joint names, proportions and rest pose: joints are paired by body part (or a bone-map file), each takes its source joint's turning, the pelvis path is scaled by leg length.",
     inputs: &[SOURCE.spec(), TARGET.spec()],
     outputs: &[MAPPED.spec(), MAP_OUT.spec(), REPORT.spec()],
-    params: &[MAP_FILE.0, AUTO.0, ROOT_SCALE.0],
+    params: &[MAP_FILE.0, AUTO.0, ROOT_SCALE.0, SOURCE_REFERENCE.0, SOURCE_FRAME.0, TARGET_REFERENCE.0, TARGET_FRAME.0],
     writes_files: false,
     version: 1,
 };
@@ -464,14 +583,20 @@ impl Node for MapSkeleton {
             MapError::Roles { which: "source", .. } | MapError::NoFrames("source") => {
                 NodeError::input("source", e.to_string())
             }
+            MapError::FramePastEnd { which: "source", .. } => NodeError::param("source_frame", e.to_string()),
+            MapError::FramePastEnd { .. } => NodeError::param("target_frame", e.to_string()),
             MapError::UnknownJoint { .. } | MapError::Empty => NodeError::param("map_file", e.to_string()),
             MapError::NoRootScale(_) => NodeError::param("root_scale", e.to_string()),
             e => NodeError::input("target", e.to_string()),
         };
         let root_scale = ctx.optional_float(&ROOT_SCALE)?;
         let auto = ctx.choice(&AUTO)? == "body";
+        let references = References {
+            source: reference_param(ctx, &SOURCE_REFERENCE, &SOURCE_FRAME)?,
+            target: reference_param(ctx, &TARGET_REFERENCE, &TARGET_FRAME)?,
+        };
         // The body roles are read once: for the automatic pairs, the pelvis and the scale.
-        let bodies = match Bodies::of(&target, &source) {
+        let bodies = match Bodies::in_poses(&target, &source, references) {
             Ok(b) => Some(b),
             Err(e) if auto => return Err(failed(e)),
             Err(_) => None,
@@ -489,7 +614,8 @@ impl Node for MapSkeleton {
             let text = std::fs::read_to_string(&path).map_err(|e| FormatError::io(&path, &e))?;
             map.joints.extend(bone_map_from_ron(&text, &path)?.joints);
         }
-        let out = transfer(&source, &target, &map, bodies.as_ref(), root_scale).map_err(failed)?;
+        let options = TransferOptions { bodies: bodies.as_ref(), root_scale, references };
+        let out = transfer(&source, &target, &map, &options).map_err(failed)?;
         if !out.unmapped.is_empty() {
             ctx.warn(format!(
                 "{} target joints have no source joint and keep their reference angles: {}",
@@ -581,7 +707,8 @@ mod tests {
         // Every joint maps to itself (end sites aside, the mannequin has none).
         assert_eq!(map.joints.len(), clip.joint_count());
         assert!(map.joints.iter().all(|(t, s)| t == s));
-        let out = transfer(&clip, &clip, &map, Some(&bodies), None).unwrap();
+        let out =
+            transfer(&clip, &clip, &map, &TransferOptions { bodies: Some(&bodies), ..Default::default() }).unwrap();
         assert!((out.root_scale - 1.0).abs() < 1e-6);
         let (a, b) = (forward_kinematics(&clip), forward_kinematics(&out.clip));
         for f in 0..clip.frame_count() {
@@ -607,7 +734,8 @@ mod tests {
         let target = Clip::new(big, 30.0, rot, tr, crate::model::ImportScale::METRES).unwrap();
         let bodies = Bodies::of(&target, &source).unwrap();
         let map = map_by_roles(target.skeleton(), &bodies.target, source.skeleton(), &bodies.source);
-        let out = transfer(&source, &target, &map, Some(&bodies), None).unwrap();
+        let out =
+            transfer(&source, &target, &map, &TransferOptions { bodies: Some(&bodies), ..Default::default() }).unwrap();
         assert!((out.root_scale - 1.3).abs() < 1e-4, "{}", out.root_scale);
         let (a, b) = (forward_kinematics(&source), forward_kinematics(&out.clip));
         let sk = source.skeleton();
@@ -627,8 +755,18 @@ mod tests {
     fn map_entries_naming_missing_joints_are_refused_with_a_hint() {
         let clip = mannequin_clip(5, 30.0, 1.0, 1.0).unwrap();
         let map = BoneMap { joints: [("LeftLeg".to_owned(), "LeftLegg".to_owned())].into_iter().collect() };
-        let e = transfer(&clip, &clip, &map, None, Some(1.0)).unwrap_err();
+        let e =
+            transfer(&clip, &clip, &map, &TransferOptions { root_scale: Some(1.0), ..Default::default() }).unwrap_err();
         assert!(e.to_string().contains("did you mean 'LeftLeg'"), "{e}");
-        assert_eq!(transfer(&clip, &clip, &BoneMap::default(), None, Some(1.0)).unwrap_err(), MapError::Empty);
+        assert_eq!(
+            transfer(
+                &clip,
+                &clip,
+                &BoneMap::default(),
+                &TransferOptions { root_scale: Some(1.0), ..Default::default() }
+            )
+            .unwrap_err(),
+            MapError::Empty
+        );
     }
 }
