@@ -324,3 +324,22 @@ fn an_export_node_plays_the_clip_it_writes_with_its_skinned_mesh() {
     harness.get_by_role_and_label(Role::CheckBox, "mesh").click();
     harness.run_steps(2);
 }
+
+/// A node added and left unwired is an error on its own; every branch that does not depend
+/// on it keeps evaluating and playing.
+#[test]
+fn a_dangling_node_blocks_only_what_depends_on_it() {
+    let mut harness = harness(Some(&demo_path()));
+    let add = EditorCommand::AddNode { id: "dangling".into(), kind: "clip.trim".into(), pos: (0.0, 400.0) };
+    harness.state_mut().edit(add).unwrap();
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(2);
+    let app = harness.state();
+    assert_eq!(app.node_state("dangling"), "error");
+    for id in ["clip", "trim", "resample", "mesh"] {
+        assert!(matches!(app.node_state(id), "ok" | "cached"), "{id}: {}", app.node_state(id));
+    }
+    harness.get_by_label("resample").click_accesskit();
+    harness.run_steps(3);
+    harness.get_by_label("pause");
+}

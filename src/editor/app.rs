@@ -19,7 +19,7 @@ use super::results::{self, ResultsState};
 use super::viewport::{ShownMesh, Viewport};
 use super::worker::{Worker, WorkerMessage};
 use crate::document;
-use crate::engine::{Engine, NodeStatus, RunReport};
+use crate::engine::{Engine, GraphErrors, NodeStatus, RunReport};
 use crate::graph::{Graph, GraphFile, NodeId};
 
 /// What the file dialog is open for.
@@ -426,44 +426,58 @@ impl EditorApp {
 
     fn take_message(&mut self, message: WorkerMessage) {
         match message {
-            WorkerMessage::Done(report) => {
+            WorkerMessage::Done { report, problems, left_out } => {
                 self.graph_problems.clear();
                 self.badges.clear();
                 for (id, node) in &report.nodes {
                     self.badges.insert(id.clone(), badge_of(node.status, node.error.clone()));
                 }
                 self.report = Some(report);
+                if let Some(problems) = problems {
+                    self.show_problems(problems);
+                }
+                // Left out for being downstream of an invalid node: blocked, as after a failure.
+                for id in left_out {
+                    self.badges
+                        .entry(id)
+                        .or_insert_with(|| Badge::Blocked("blocked: an upstream node is invalid".into()));
+                }
             }
             WorkerMessage::Invalid(errors) => {
                 self.report = None;
                 self.badges.clear();
                 self.graph_problems.clear();
-                for d in errors.diagnostics {
-                    match d.node {
-                        Some(node) => {
-                            let text = match d.item {
-                                Some(item) => format!("{item}: {}", d.message),
-                                None => d.message,
-                            };
-                            match self.badges.get_mut(&node) {
-                                Some(Badge::Error(m)) => {
-                                    m.push('\n');
-                                    m.push_str(&text);
-                                }
-                                _ => {
-                                    self.badges.insert(node, Badge::Error(text));
-                                }
-                            }
-                        }
-                        None => self.graph_problems.push(d.message),
-                    }
-                }
+                self.show_problems(errors);
             }
             WorkerMessage::Started { node } => {
                 self.badges.insert(node, Badge::Running);
             }
             WorkerMessage::Finished { node, status } => {
                 self.badges.insert(node, badge_of(status, None));
+            }
+        }
+    }
+
+    /// Validation problems as error badges on the nodes they name (the graph's own in the
+    /// status bar).
+    fn show_problems(&mut self, errors: GraphErrors) {
+        for d in errors.diagnostics {
+            let Some(node) = d.node else {
+                self.graph_problems.push(d.message);
+                continue;
+            };
+            let text = match d.item {
+                Some(item) => format!("{item}: {}", d.message),
+                None => d.message,
+            };
+            match self.badges.get_mut(&node) {
+                Some(Badge::Error(m)) => {
+                    m.push('\n');
+                    m.push_str(&text);
+                }
+                _ => {
+                    self.badges.insert(node, Badge::Error(text));
+                }
             }
         }
     }

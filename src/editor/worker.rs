@@ -3,18 +3,23 @@
 //!
 //! Steps per request: 1. the UI submits a snapshot of the document with a new request id,
 //! which cancels the run in flight; 2. the thread skips every queued request but the
-//! newest; 3. it validates, then runs every node that writes no file (exports run only from
-//! `kg run`); 4. progress events and the final outcome go back tagged with the request id,
-//! and [`Worker::poll`] drops whatever belongs to an older request. The UI never waits.
+//! newest; 3. it validates, leaving out the nodes a problem names and everything downstream
+//! of them (a dangling node half-wired stops only what depends on it), then runs every node
+//! left that writes no file (exports run only from `kg run`); 4. progress events and the
+//! final outcome go back tagged with the request id, and [`Worker::poll`] drops whatever
+//! belongs to an older request. The UI never waits.
 
-use std::path::PathBuf;
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::thread::JoinHandle;
 
-use crate::engine::{Engine, GraphErrors, NodeStatus, RunEvent, RunOptions, RunReport, compile_file};
-use crate::graph::{Graph, GraphFile};
+use kinegraph_nodes::node::Registry;
+
+use crate::engine::{CompiledGraph, Engine, GraphErrors, NodeStatus, RunEvent, RunOptions, RunReport, compile_file};
+use crate::graph::{Graph, GraphFile, NodeId};
 
 /// Called from the worker thread whenever it has news (the editor asks for a repaint).
 pub type Waker = Arc<dyn Fn() + Send + Sync>;
@@ -34,10 +39,70 @@ pub enum WorkerMessage {
         /// How it ended.
         status: NodeStatus,
     },
-    /// The graph did not validate: nothing ran.
+    /// The graph did not validate and no part of it could run (a problem names no node,
+    /// or every node is invalid or downstream of one).
     Invalid(GraphErrors),
-    /// The run ended (possibly cancelled).
-    Done(RunReport),
+    /// The run of the valid part ended (possibly cancelled).
+    Done {
+        /// What ran.
+        report: RunReport,
+        /// The problems of the nodes left out, if any were.
+        problems: Option<GraphErrors>,
+        /// Nodes left out: named by a problem, or downstream of one.
+        left_out: BTreeSet<String>,
+    },
+}
+
+impl WorkerMessage {
+    /// True for the message that ends a request.
+    fn is_last(&self) -> bool {
+        matches!(self, WorkerMessage::Done { .. } | WorkerMessage::Invalid(_))
+    }
+}
+
+/// The part of a graph that validates, compiled, with what was left out to get there.
+struct Runnable<'r> {
+    compiled: CompiledGraph<'r>,
+    problems: Option<GraphErrors>,
+    left_out: BTreeSet<String>,
+}
+
+/// Compiles `graph`; while it does not validate, the nodes its problems name are left out
+/// with everything downstream of them and the rest is tried again. `Err` holds every problem
+/// found when nothing can run.
+fn runnable<'r>(graph: &Graph, path: &Path, registry: &'r Registry) -> Result<Runnable<'r>, GraphErrors> {
+    let mut graph = graph.clone();
+    let mut problems: Option<GraphErrors> = None;
+    let mut left_out = BTreeSet::new();
+    loop {
+        let errors = match compile_file(&GraphFile::in_memory(graph.clone(), path), registry) {
+            Ok(compiled) => return Ok(Runnable { compiled, problems, left_out }),
+            Err(errors) => errors,
+        };
+        // A problem inside a subgraph names its node as `outer/inner`.
+        let named: Option<BTreeSet<NodeId>> = errors
+            .diagnostics
+            .iter()
+            .map(|d| {
+                let node = d.node.as_deref()?;
+                [node, node.split('/').next().unwrap_or(node)].into_iter().find(|n| graph.contains(n)).map(NodeId::from)
+            })
+            .collect();
+        let all = match problems.take() {
+            Some(mut all) => {
+                all.diagnostics.extend(errors.diagnostics);
+                all
+            }
+            None => errors,
+        };
+        let Some(named) = named else { return Err(all) };
+        let out: Vec<NodeId> = graph.downstream_of(&named).into_iter().collect();
+        if out.is_empty() || out.len() == graph.nodes().len() || graph.remove_nodes(&out).is_err() {
+            return Err(all);
+        }
+        left_out.extend(out.iter().map(ToString::to_string));
+        problems = Some(all);
+    }
 }
 
 /// One evaluation request.
@@ -101,7 +166,7 @@ impl Worker {
             if request != self.latest {
                 continue;
             }
-            if matches!(message, WorkerMessage::Done(_) | WorkerMessage::Invalid(_)) {
+            if message.is_last() {
                 self.finished = request;
             }
             return Some(message);
@@ -115,7 +180,7 @@ impl Worker {
         while self.running() {
             match self.messages.recv() {
                 Ok((request, message)) if request == self.latest => {
-                    if matches!(message, WorkerMessage::Done(_) | WorkerMessage::Invalid(_)) {
+                    if message.is_last() {
                         self.finished = request;
                         return Some(message);
                     }
@@ -148,14 +213,14 @@ fn worker_loop(engine: Engine, jobs: &Receiver<Job>, messages: &Sender<(u64, Wor
             wake();
         };
         // Relative paths (subgraph files among them) resolve against the graph's folder.
-        let file = GraphFile::in_memory(job.graph.clone(), &job.base_dir.join("(editor)"));
-        let compiled = match compile_file(&file, engine.registry()) {
-            Ok(compiled) => compiled,
-            Err(errors) => {
-                send(WorkerMessage::Invalid(errors));
-                continue;
-            }
-        };
+        let Runnable { compiled, problems, left_out } =
+            match runnable(&job.graph, &job.base_dir.join("(editor)"), engine.registry()) {
+                Ok(runnable) => runnable,
+                Err(errors) => {
+                    send(WorkerMessage::Invalid(errors));
+                    continue;
+                }
+            };
         let targets: Vec<String> =
             compiled.nodes.iter().filter(|n| !n.node.schema().writes_files).map(|n| n.id.clone()).collect();
         let observer = |event: &RunEvent| match event {
@@ -170,7 +235,7 @@ fn worker_loop(engine: Engine, jobs: &Receiver<Job>, messages: &Sender<(u64, Wor
         options.cancel = job.cancel.clone();
         options.observer = Some(&observer);
         let report = engine.run(&compiled, &options);
-        send(WorkerMessage::Done(report));
+        send(WorkerMessage::Done { report, problems, left_out });
     }
 }
 
@@ -192,7 +257,7 @@ mod tests {
         let (mut doc, base) = demo();
         let mut worker = Worker::spawn(Engine::new(kinegraph_nodes::builtin::registry()), Arc::new(|| {}));
         worker.submit(doc.clone(), base.clone());
-        let Some(WorkerMessage::Done(report)) = worker.wait() else { panic!("no report") };
+        let Some(WorkerMessage::Done { report, .. }) = worker.wait() else { panic!("no report") };
         assert!(report.succeeded(), "{report:?}");
         assert!(!report.nodes.contains_key("glb") && !report.nodes.contains_key("bvh"));
         assert_eq!(report.nodes["resample"].status, NodeStatus::Ok);
@@ -201,9 +266,36 @@ mod tests {
         doc.set_param(&kinegraph_nodes::builtin::registry(), &fps, &kinegraph_nodes::node::ParamValue::Float(12.0))
             .unwrap();
         worker.submit(doc, base);
-        let Some(WorkerMessage::Done(report)) = worker.wait() else { panic!("no report") };
+        let Some(WorkerMessage::Done { report, .. }) = worker.wait() else { panic!("no report") };
         assert_eq!(report.nodes["trim"].status, NodeStatus::Cached);
         assert_eq!(report.nodes["resample"].status, NodeStatus::Ok);
+    }
+
+    #[test]
+    fn a_dangling_node_stops_only_what_depends_on_it() {
+        let (mut doc, base) = demo();
+        let registry = kinegraph_nodes::builtin::registry();
+        // A trim with nothing on its required input, feeding a resample: both are left out.
+        doc.add_node(&registry, NodeId::from("dangling"), "clip.trim", (0.0, 0.0)).unwrap();
+        doc.add_node(&registry, NodeId::from("after"), "clip.resample", (0.0, 0.0)).unwrap();
+        doc.connect(&registry, &PortRef::parse("dangling.clip").unwrap(), &PortRef::parse("after.clip").unwrap())
+            .unwrap();
+        let mut worker = Worker::spawn(Engine::new(registry), Arc::new(|| {}));
+        worker.submit(doc, base);
+        let Some(WorkerMessage::Done { report, problems, left_out }) = worker.wait() else { panic!("no report") };
+        for id in ["clip", "trim", "resample", "mesh"] {
+            assert_eq!(report.nodes[id].status, NodeStatus::Ok, "{id}");
+        }
+        assert_eq!(left_out, BTreeSet::from(["after".to_string(), "dangling".to_string()]));
+        assert!(!report.nodes.contains_key("dangling") && !report.nodes.contains_key("after"));
+        let problems = problems.unwrap();
+        assert!(
+            problems
+                .diagnostics
+                .iter()
+                .any(|d| d.node.as_deref() == Some("dangling") && d.item.as_deref() == Some("clip")),
+            "{problems}"
+        );
     }
 
     #[test]
@@ -215,10 +307,14 @@ mod tests {
         broken.disconnect(&PortRef::parse("clip.clip").unwrap(), &PortRef::parse("trim.clip").unwrap()).unwrap();
         let second = worker.submit(broken, base);
         assert!(second > first);
-        // Whatever the first request produced is never seen: only the invalid second one.
+        // Whatever the first request produced is never seen: only the second one, which ran
+        // what does not depend on the cut wire.
         match worker.wait() {
-            Some(WorkerMessage::Invalid(errors)) => assert!(!errors.diagnostics.is_empty()),
-            other => panic!("expected the second request's validation errors, got {other:?}"),
+            Some(WorkerMessage::Done { problems: Some(errors), left_out, .. }) => {
+                assert!(errors.diagnostics.iter().any(|d| d.node.as_deref() == Some("trim")), "{errors}");
+                assert!(left_out.contains("trim") && left_out.contains("resample") && !left_out.contains("clip"));
+            }
+            _ => panic!("expected the second request's run with its validation errors"),
         }
         assert!(!worker.running());
         assert!(worker.poll().is_none());

@@ -267,6 +267,18 @@ impl Graph {
         Ok(removal)
     }
 
+    /// `ids` and every node downstream of them (fed by their outputs, directly or not).
+    pub fn downstream_of<'a>(&self, ids: impl IntoIterator<Item = &'a NodeId>) -> BTreeSet<NodeId> {
+        let mut seen = BTreeSet::new();
+        let mut stack: Vec<&NodeId> = ids.into_iter().collect();
+        while let Some(node) = stack.pop() {
+            if seen.insert(node.clone()) {
+                stack.extend(self.edges.iter().filter(|e| &e.from.node == node).map(|e| &e.to.node));
+            }
+        }
+        seen
+    }
+
     /// Puts back what [`Graph::remove_nodes`] took out (or pastes nodes): all or nothing.
     /// Ids are checked by the id rule; edges and inputs are restored as they were.
     pub fn restore(&mut self, removal: &Removal) -> Result<(), GraphError> {

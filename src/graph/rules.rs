@@ -2,8 +2,6 @@
 //! reports every breach of a file at once, and the editor refuses an edit that would break
 //! one, with the same words.
 
-use std::collections::BTreeSet;
-
 use kinegraph_nodes::node::{NodeSchema, ParamSpec, ParamValue, PortType, Registry, did_you_mean, hint_for};
 
 use super::{Graph, GraphError, NodeId, ParamPath, PortRef, Side};
@@ -79,17 +77,7 @@ pub fn check_connect(graph: &Graph, registry: &Registry, from: &PortRef, to: &Po
 
 /// True when `target` is `start` or downstream of it.
 fn reaches(graph: &Graph, start: &NodeId, target: &NodeId) -> bool {
-    let mut seen = BTreeSet::new();
-    let mut stack = vec![start];
-    while let Some(node) = stack.pop() {
-        if node == target {
-            return true;
-        }
-        if seen.insert(node) {
-            stack.extend(graph.edges().filter(|e| &e.from.node == node).map(|e| &e.to.node));
-        }
-    }
-    false
+    graph.downstream_of([start]).contains(target)
 }
 
 /// The schema entry of parameter `path`.
