@@ -343,3 +343,85 @@ fn a_dangling_node_blocks_only_what_depends_on_it() {
     harness.run_steps(3);
     harness.get_by_label("pause");
 }
+
+/// Shift-drags a selection box on the canvas from `from` to `to` (canvas coordinates).
+fn box_select(harness: &mut Harness<'static, EditorApp>, from: (f32, f32), to: (f32, f32)) {
+    let (from, to) = (harness.state().canvas_to_screen(from), harness.state().canvas_to_screen(to));
+    let shift = egui::Modifiers::SHIFT;
+    harness.event(egui::Event::ModifiersChanged(shift));
+    harness.event(egui::Event::PointerMoved(from));
+    harness.run_steps(1);
+    harness.event(egui::Event::PointerButton {
+        pos: from,
+        button: egui::PointerButton::Primary,
+        pressed: true,
+        modifiers: shift,
+    });
+    harness.run_steps(1);
+    for t in [0.25, 0.5, 0.75, 1.0] {
+        harness.event(egui::Event::PointerMoved(from.lerp(to, t)));
+        harness.run_steps(1);
+    }
+    harness.event(egui::Event::PointerButton {
+        pos: to,
+        button: egui::PointerButton::Primary,
+        pressed: false,
+        modifiers: shift,
+    });
+    harness.run_steps(1);
+    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    harness.run_steps(2);
+}
+
+fn sorted(mut ids: Vec<String>) -> Vec<String> {
+    ids.sort();
+    ids
+}
+
+/// One selection for the box, the highlight, the panel and Delete: a box over `trim` and
+/// `resample` selects both, pasting selects the copies, and Delete removes the copies, never
+/// the originals (it removed `trim` and broke the chain).
+#[test]
+fn a_pasted_selection_is_what_delete_removes() {
+    let mut harness = harness(Some(&demo_path()));
+    // The demo's trim is at (220, 0) and resample at (440, 0); the box touches both and no
+    // other node.
+    box_select(&mut harness, (300.0, 70.0), (500.0, 20.0));
+    assert_eq!(sorted(harness.state().selection()), ["resample", "trim"]);
+    let text = harness.state_mut().copy_selection().expect("two nodes are selected");
+    harness.event(egui::Event::Paste(text));
+    harness.run_steps(2);
+    assert_eq!(sorted(harness.state().selection()), ["resample_2", "trim_2"]);
+    assert!(matches!(harness.state().selected(), Some("resample_2" | "trim_2")));
+    harness.key_press(egui::Key::Delete);
+    harness.run_steps(2);
+    let doc = harness.state().doc();
+    assert!(!doc.nodes.contains_key("trim_2") && !doc.nodes.contains_key("resample_2"));
+    assert!(doc.nodes.contains_key("trim") && doc.nodes.contains_key("resample"));
+    assert!(
+        harness
+            .state()
+            .graph()
+            .has_edge(&PortRef::parse("trim.clip").unwrap(), &PortRef::parse("resample.clip").unwrap())
+    );
+    assert!(harness.state().selection().is_empty());
+}
+
+/// A title click selects that node alone (and shows it outlined); shift-click adds one.
+#[test]
+fn a_title_click_selects_one_node_and_shift_click_adds() {
+    let mut harness = harness(Some(&demo_path()));
+    harness.get_by_label("trim").click_accesskit();
+    harness.run_steps(2);
+    assert_eq!(harness.state().selection(), ["trim"]);
+    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::SHIFT));
+    harness.get_by_label("resample").click_accesskit();
+    harness.run_steps(2);
+    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    harness.run_steps(1);
+    assert_eq!(harness.state().selection(), ["trim", "resample"]);
+    assert_eq!(harness.state().selected(), Some("resample"));
+    harness.get_by_label("trim").click_accesskit();
+    harness.run_steps(2);
+    assert_eq!(harness.state().selection(), ["trim"]);
+}

@@ -47,9 +47,11 @@ pub struct EditorApp {
     report: Option<RunReport>,
     /// Problems that name no node (graph inputs), from the latest validation.
     graph_problems: Vec<String>,
-    selected: Option<String>,
-    /// The canvas selection last frame.
-    canvas_selection: Vec<String>,
+    /// The selection, one model for the canvas highlight, the panel and every edit of the
+    /// selection; its last node is the active one, whose panel is shown.
+    selection: Vec<String>,
+    /// Snarl's own selection as last seen: a change there is a box-select or shift-click.
+    snarl_selection: Vec<String>,
     panel: PanelState,
     results: ResultsState,
     viewport: Viewport,
@@ -99,8 +101,8 @@ impl EditorApp {
             badges: BTreeMap::new(),
             report: None,
             graph_problems: Vec::new(),
-            selected: None,
-            canvas_selection: Vec::new(),
+            selection: Vec::new(),
+            snarl_selection: Vec::new(),
             panel: PanelState::default(),
             results: ResultsState::default(),
             viewport: Viewport::default(),
@@ -152,12 +154,18 @@ impl EditorApp {
 
     /// The node whose panel is shown.
     pub fn selected(&self) -> Option<&str> {
-        self.selected.as_deref()
+        self.selection.last().map(String::as_str)
     }
 
     /// Shows node `id`'s panel (as clicking it on the canvas does).
     pub fn select(&mut self, id: Option<&str>) {
-        self.selected = id.filter(|id| self.graph.contains(id)).map(str::to_string);
+        self.selection = id.filter(|id| self.graph.contains(id)).map(str::to_string).into_iter().collect();
+    }
+
+    /// Where a point of the canvas (graph coordinates, as in a graph file's `layout`) is on
+    /// screen, as last drawn.
+    pub fn canvas_to_screen(&self, pos: (f32, f32)) -> egui::Pos2 {
+        self.canvas.to_screen(egui::Pos2::new(pos.0, pos.1))
     }
 
     /// The state badge text of node `id` (`"ok"`, `"error"`, …).
@@ -185,14 +193,10 @@ impl EditorApp {
         result
     }
 
-    /// The nodes edits of the selection act on: the canvas selection (shift-drag a box,
-    /// shift-click), else the node whose panel is shown.
+    /// The selected nodes (clicked, box-selected, shift-clicked, pasted or added), which
+    /// the canvas highlights and Delete, Copy, Cut and Duplicate act on.
     pub fn selection(&self) -> Vec<String> {
-        if self.canvas_selection.is_empty() {
-            self.selected.iter().cloned().collect()
-        } else {
-            self.canvas_selection.clone()
-        }
+        self.selection.clone()
     }
 
     /// Copies the selection as a graph fragment (see [`fragment`]); returns its text.
@@ -203,14 +207,14 @@ impl EditorApp {
         Some(text)
     }
 
-    /// Pastes a graph fragment as one undoable edit and shows the first pasted node.
+    /// Pastes a graph fragment as one undoable edit and selects the pasted nodes.
     pub fn paste_text(&mut self, text: &str) {
         match fragment::paste(&self.graph, &self.registry, text) {
             Ok((cmd, ids)) => {
                 if self.edit(cmd).is_ok() {
                     let names: Vec<String> = ids.iter().map(ToString::to_string).collect();
                     self.message = Some((format!("pasted {}", names.join(", ")), false));
-                    self.selected = ids.into_iter().next().map(|id| id.as_str().to_string());
+                    self.selection = names;
                 }
             }
             Err(e) => self.message = Some((e.to_string(), true)),
@@ -385,7 +389,7 @@ impl EditorApp {
     }
 
     fn document_replaced(&mut self) {
-        self.selected = None;
+        self.selection.clear();
         self.badges.clear();
         self.report = None;
         self.canvas = Canvas::default();
@@ -395,9 +399,7 @@ impl EditorApp {
     fn document_changed(&mut self) {
         self.dirty = document::to_string(&self.graph.to_doc()) != self.clean_text;
         self.canvas.sync(&self.graph, &self.registry);
-        if self.selected.as_ref().is_some_and(|id| !self.graph.contains(id)) {
-            self.selected = None;
-        }
+        self.selection.retain(|id| self.graph.contains(id));
         self.badges.retain(|id, _| self.graph.contains(id));
         let base_dir = self
             .path
@@ -486,7 +488,7 @@ impl EditorApp {
     /// clip), or, for a node that outputs neither (an export), the clip it takes; with the
     /// mesh sequence it outputs, or a skinned mesh it outputs or takes.
     fn selected_motion(&self) -> (Option<Arc<Clip>>, Option<ShownMesh>) {
-        let Some(id) = self.selected.as_ref() else { return (None, None) };
+        let Some(id) = self.selected() else { return (None, None) };
         let outputs: Vec<&Value> = self
             .report
             .as_ref()
@@ -542,7 +544,7 @@ impl EditorApp {
             egui::ScrollArea::vertical().show(ui, |ui| self.panel(ui));
         });
         egui::Panel::bottom("kg_viewport").resizable(true).default_size(240.0).show(ui, |ui| {
-            let title = self.selected.clone().unwrap_or_default();
+            let title = self.selected().unwrap_or_default().to_string();
             let (clip, mesh) = self.selected_motion();
             self.viewport.show(ui, &title, clip.as_ref(), mesh);
         });
@@ -699,7 +701,7 @@ impl EditorApp {
                     let id = super::commands::fresh_node_id(&self.graph, kind);
                     let y = self.graph.layout().values().map(|p| p.1).fold(0.0_f32, f32::max) + 140.0;
                     let _ = self.edit(EditorCommand::AddNode { id: id.clone(), kind: kind.into(), pos: (0.0, y) });
-                    self.selected = Some(id.as_str().to_string());
+                    self.selection = vec![id.as_str().to_string()];
                     self.canvas.search.clear();
                     ui.close();
                 }
@@ -731,10 +733,11 @@ impl EditorApp {
     }
 
     fn panel(&mut self, ui: &mut Ui) {
-        let Some(id) = self.selected.clone() else {
+        let Some(id) = self.selected().map(str::to_string) else {
             ui.heading("No node selected");
             ui.label(
-                "Click a node's title to edit its parameters. Right-click the canvas (or press Tab) \
+                "Click a node's title to select it and edit its parameters (shift-click adds to the \
+                 selection, which is outlined). Right-click the canvas (or press Tab) \
                  to add nodes, or drop a wire on empty canvas to add a node already connected; \
                  right-click a node to delete it. Shift-drag a box to select several; Ctrl+C, \
                  Ctrl+V and Ctrl+D copy, paste and duplicate them as graph-file text. \
@@ -761,20 +764,29 @@ impl EditorApp {
     }
 
     fn canvas(&mut self, ui: &mut Ui) {
-        let out = self.canvas.show(ui, &self.graph, &self.registry, &self.badges);
+        let out = self.canvas.show(ui, &self.graph, &self.registry, &self.badges, &self.selection);
         if let Some(reason) = out.refused {
             self.message = Some((format!("connection refused: {reason}"), true));
             self.refusal = Some((reason, ui.input(|i| i.time)));
         }
-        if let Some(id) = out.clicked {
-            self.selected = Some(id);
-        }
-        // Follow the canvas selection when it changes (the panel may select otherwise).
-        if out.selected != self.canvas_selection {
-            if let Some(first) = out.selected.first() {
-                self.selected = Some(first.clone());
+        // Snarl's selection changes only by box-select, shift-click and ctrl-click: what was
+        // added there is added here, what was taken out is taken out.
+        if out.selected != self.snarl_selection {
+            self.selection.retain(|id| out.selected.contains(id) || !self.snarl_selection.contains(id));
+            for id in &out.selected {
+                if !self.snarl_selection.contains(id) && !self.selection.contains(id) {
+                    self.selection.push(id.clone());
+                }
             }
-            self.canvas_selection = out.selected;
+            self.snarl_selection = out.selected;
+        }
+        // A click on a title selects that node alone; with shift it is added (made active).
+        if let Some((id, add)) = out.clicked {
+            if !add {
+                self.selection.clear();
+            }
+            self.selection.retain(|s| *s != id);
+            self.selection.push(id);
         }
         for cmd in out.commands {
             let _ = self.edit(cmd);

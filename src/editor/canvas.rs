@@ -16,6 +16,9 @@ use kinegraph_nodes::node::{NodeSchema, PortSpec, PortType, Registry};
 use super::commands::{EditorCommand, fresh_node_id};
 use crate::graph::{Graph, PortRef, rules};
 
+/// The outline of selected nodes.
+pub(crate) const SELECTED: Color32 = Color32::from_rgb(255, 200, 60);
+
 /// The canvas' egui id (snarl keeps selection under it).
 pub(crate) const CANVAS_ID: &str = "kg_canvas";
 
@@ -168,12 +171,22 @@ impl Canvas {
         graph: &Graph,
         registry: &Registry,
         badges: &BTreeMap<String, Badge>,
+        selection: &[String],
     ) -> CanvasOutput {
         self.level_of_detail(ui.max_rect());
-        let mut viewer = Viewer { graph, registry, badges, search: &mut self.search, out: CanvasOutput::default() };
+        let mut viewer =
+            Viewer { graph, registry, badges, selection, search: &mut self.search, out: CanvasOutput::default() };
         let mut style = SnarlStyle::new();
         style.collapsible = Some(false);
         style.centering = Some(true);
+        // Snarl's own highlight follows only its own selection; the editor's is drawn by
+        // `node_frame` from the one selection model.
+        style.select_style = Some(egui_snarl::ui::SelectionStyle {
+            margin: egui::Margin::ZERO,
+            rounding: egui::CornerRadius::ZERO,
+            fill: Color32::TRANSPARENT,
+            stroke: egui::Stroke::NONE,
+        });
         self.rect = Some(ui.max_rect());
         SnarlWidget::new().id(egui::Id::new(CANVAS_ID)).style(style).show(&mut self.snarl, &mut viewer, ui);
         let mut out = viewer.out;
@@ -220,6 +233,11 @@ impl Canvas {
                 self.snarl.open_node(nid, open);
             }
         }
+    }
+
+    /// Where canvas point `pos` is on screen, as last drawn.
+    pub(crate) fn to_screen(&self, pos: Pos2) -> Pos2 {
+        self.to_screen * pos
     }
 
     /// Opens the add-node menu at `screen_pos` when that is over the canvas (the Tab key).
@@ -269,10 +287,10 @@ pub(crate) struct CanvasOutput {
     pub(crate) commands: Vec<EditorCommand>,
     /// Why a connection was refused.
     pub(crate) refused: Option<String>,
-    /// Ids of the selected nodes, sorted.
+    /// Ids of the nodes snarl has selected (box-select, shift-click), sorted.
     pub(crate) selected: Vec<String>,
-    /// The node whose title was clicked.
-    pub(crate) clicked: Option<String>,
+    /// The node whose title was clicked, and whether shift was held (add to the selection).
+    pub(crate) clicked: Option<(String, bool)>,
     /// Canvas (graph) space → screen, as drawn this frame.
     pub(crate) to_screen: TSTransform,
 }
@@ -285,6 +303,7 @@ struct Viewer<'a> {
     graph: &'a Graph,
     registry: &'a Registry,
     badges: &'a BTreeMap<String, Badge>,
+    selection: &'a [String],
     search: &'a mut String,
     out: CanvasOutput,
 }
@@ -323,8 +342,8 @@ impl SnarlViewer<String> for Viewer<'_> {
         let (text, color) = badge.label();
         ui.horizontal(|ui| {
             let title = ui.add(egui::Label::new(RichText::new(id).strong()).sense(egui::Sense::click()));
-            if title.on_hover_text("click to edit its parameters").clicked() {
-                self.out.clicked = Some(id.clone());
+            if title.on_hover_text("click to select and edit its parameters; shift-click to add").clicked() {
+                self.out.clicked = Some((id.clone(), ui.input(|i| i.modifiers.shift)));
             }
             // A collapsed node (off screen, or zoomed out) shows its id and state colour only.
             if open {
@@ -335,6 +354,21 @@ impl SnarlViewer<String> for Viewer<'_> {
                 ui.label(RichText::new(text).color(color)).on_hover_text(badge.message().unwrap_or(text));
             }
         });
+    }
+
+    /// Selected nodes get a bright outline.
+    fn node_frame(
+        &mut self,
+        default: egui::Frame,
+        node: NodeId,
+        _inputs: &[InPin],
+        _outputs: &[OutPin],
+        snarl: &Snarl<String>,
+    ) -> egui::Frame {
+        match snarl.get_node(node) {
+            Some(id) if self.selection.contains(id) => default.stroke(egui::Stroke::new(2.5, SELECTED)),
+            _ => default,
+        }
     }
 
     fn inputs(&mut self, node: &String) -> usize {
