@@ -425,3 +425,64 @@ fn a_title_click_selects_one_node_and_shift_click_adds() {
     harness.run_steps(2);
     assert_eq!(harness.state().selection(), ["trim"]);
 }
+
+fn fps(app: &EditorApp) -> Option<ParamValue> {
+    app.doc().nodes["resample"].params.get("fps").cloned()
+}
+
+/// Typing "12" into fps changes nothing until Enter (the old field evaluated 1 fps, then
+/// 12), then commits once: one evaluation, one undo step back to the file.
+#[test]
+fn a_typed_number_commits_once_on_enter() {
+    let mut harness = harness(Some(&demo_path()));
+    let before = document::to_string(&harness.state().doc());
+    harness.state_mut().select(Some("resample"));
+    harness.run_steps(2);
+    let requests = harness.state().evaluations_requested();
+    harness.get_by_role_and_label(Role::SpinButton, "fps").click();
+    harness.run_steps(2);
+    harness.get_by_role_and_label(Role::SpinButton, "fps").type_text("12");
+    harness.run_steps(2);
+    assert_eq!(harness.state().evaluations_requested(), requests, "nothing is evaluated while typing");
+    assert!(!harness.state().is_dirty());
+    harness.key_press(egui::Key::Enter);
+    harness.run_steps(2);
+    assert_eq!(fps(harness.state()), Some(ParamValue::Float(12.0)));
+    assert_eq!(harness.state().evaluations_requested(), requests + 1);
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.run_steps(2);
+    assert_eq!(document::to_string(&harness.state().doc()), before, "one undo step");
+}
+
+/// Dragging fps 37 points to the right nudges it (it went from 24 to 97) and is one undo step.
+#[test]
+fn dragging_a_number_nudges_it_by_its_size() {
+    let mut harness = harness(Some(&demo_path()));
+    let before = document::to_string(&harness.state().doc());
+    harness.state_mut().select(Some("resample"));
+    harness.run_steps(2);
+    let start = fps(harness.state()).and_then(|v| v.as_f64()).unwrap_or(0.0);
+    let field = harness.get_by_role_and_label(Role::SpinButton, "fps").rect().center();
+    harness.event(egui::Event::PointerMoved(field));
+    harness.run_steps(1);
+    let button = |pos, pressed| egui::Event::PointerButton {
+        pos,
+        button: egui::PointerButton::Primary,
+        pressed,
+        modifiers: egui::Modifiers::NONE,
+    };
+    harness.event(button(field, true));
+    harness.run_steps(1);
+    for dx in [5.0, 15.0, 25.0, 37.0] {
+        harness.event(egui::Event::PointerMoved(field + egui::vec2(dx, 0.0)));
+        harness.run_steps(1);
+    }
+    harness.event(button(field + egui::vec2(37.0, 0.0), false));
+    harness.run_steps(2);
+    let after = fps(harness.state()).and_then(|v| v.as_f64()).unwrap();
+    println!("fps {start} → {after} over 37 points");
+    assert!(after > start && after < start * 1.25, "{start} → {after}");
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.run_steps(2);
+    assert_eq!(document::to_string(&harness.state().doc()), before, "the drag is one undo step");
+}

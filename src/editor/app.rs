@@ -168,6 +168,12 @@ impl EditorApp {
         self.canvas.to_screen(egui::Pos2::new(pos.0, pos.1))
     }
 
+    /// How many evaluations the editor has asked for since it opened (one per edit that
+    /// changed the document).
+    pub fn evaluations_requested(&self) -> u64 {
+        self.worker.latest_request()
+    }
+
     /// The state badge text of node `id` (`"ok"`, `"error"`, …).
     pub fn node_state(&self, id: &str) -> &'static str {
         self.badges.get(id).map_or("idle", |b| b.label().0)
