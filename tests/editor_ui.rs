@@ -486,3 +486,54 @@ fn dragging_a_number_nudges_it_by_its_size() {
     harness.run_steps(2);
     assert_eq!(document::to_string(&harness.state().doc()), before, "the drag is one undo step");
 }
+
+/// Right-clicks node `id`'s title on the canvas: the title starts about 22 points right of
+/// the node's layout position and is 15 high (snarl's layer is transformed, so the place is
+/// carried to the screen).
+fn right_click_title(harness: &mut Harness<'static, EditorApp>, id: &str) {
+    let (x, y) = harness.state().graph().layout()[id];
+    let pos = harness.state().canvas_to_screen((x + 30.0, y + 9.0));
+    harness.event(egui::Event::PointerMoved(pos));
+    harness.run_steps(1);
+    for pressed in [true, false] {
+        harness.event(egui::Event::PointerButton {
+            pos,
+            button: egui::PointerButton::Secondary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+        harness.run_steps(1);
+    }
+    harness.run_steps(1);
+}
+
+/// The display flag keeps the viewport on a node while another is selected and tuned; when
+/// the displayed node loses its result, its last one stays on show, marked stale.
+#[test]
+fn the_displayed_node_stays_on_show_and_goes_stale_not_blank() {
+    let mut harness = harness(Some(&demo_path()));
+    right_click_title(&mut harness, "resample");
+    harness.get_by_label("Display in viewport").click();
+    harness.run_steps(2);
+    harness.get_by_label("trim").click_accesskit();
+    harness.run_steps(2);
+    assert_eq!(harness.state().selected(), Some("trim"));
+    assert_eq!(harness.state().viewed(), Some("resample"));
+    harness.get_by_label("displayed");
+    harness.get_by_label("pause");
+    assert!(!harness.state().viewport_is_stale());
+    // Cut the wire into resample: it is blocked, and its last clip stays on show, marked.
+    let cut =
+        EditorCommand::Disconnect { from: PortRef::parse("trim.clip").unwrap(), to: PortRef::parse("resample.clip").unwrap() };
+    harness.state_mut().edit(cut).unwrap();
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(2);
+    assert!(harness.state().viewport_is_stale());
+    harness.get_by_label("stale: resample is error; showing its last result");
+    harness.get_by_label("pause");
+    // Stop displaying: the viewport follows the selection again.
+    right_click_title(&mut harness, "resample");
+    harness.get_by_label("Stop displaying").click();
+    harness.run_steps(2);
+    assert_eq!(harness.state().viewed(), Some("trim"));
+}

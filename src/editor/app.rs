@@ -10,7 +10,7 @@ use egui::{Key, Modifiers, RichText, Ui};
 use kinegraph_nodes::model::Clip;
 use kinegraph_nodes::node::{Registry, Value};
 
-use super::canvas::{Badge, Canvas};
+use super::canvas::{Badge, Canvas, Marks};
 use super::commands::{EditError, EditorCommand, History};
 use super::files::{self, Autosave, RecentFiles, default_settings_dir};
 use super::fragment;
@@ -52,6 +52,11 @@ pub struct EditorApp {
     selection: Vec<String>,
     /// Snarl's own selection as last seen: a change there is a box-select or shift-click.
     snarl_selection: Vec<String>,
+    /// The node with the display flag: the viewport plays it whatever is selected.
+    displayed: Option<String>,
+    /// The last clip the viewport played, with its node and mesh: kept on show, marked
+    /// stale, while that node has no result (an error, a block, an edit evaluating).
+    last_shown: Option<(String, Arc<Clip>, Option<ShownMesh>)>,
     panel: PanelState,
     results: ResultsState,
     viewport: Viewport,
@@ -103,6 +108,8 @@ impl EditorApp {
             graph_problems: Vec::new(),
             selection: Vec::new(),
             snarl_selection: Vec::new(),
+            displayed: None,
+            last_shown: None,
             panel: PanelState::default(),
             results: ResultsState::default(),
             viewport: Viewport::default(),
@@ -396,6 +403,8 @@ impl EditorApp {
 
     fn document_replaced(&mut self) {
         self.selection.clear();
+        self.displayed = None;
+        self.last_shown = None;
         self.badges.clear();
         self.report = None;
         self.canvas = Canvas::default();
@@ -494,7 +503,7 @@ impl EditorApp {
     /// clip), or, for a node that outputs neither (an export), the clip it takes; with the
     /// mesh sequence it outputs, or a skinned mesh it outputs or takes.
     fn selected_motion(&self) -> (Option<Arc<Clip>>, Option<ShownMesh>) {
-        let Some(id) = self.selected() else { return (None, None) };
+        let Some(id) = self.viewed() else { return (None, None) };
         let outputs: Vec<&Value> = self
             .report
             .as_ref()
@@ -520,6 +529,39 @@ impl EditorApp {
             _ => None,
         });
         (clip, sequence.map(ShownMesh::Baked).or(skinned.map(ShownMesh::Skinned)))
+    }
+
+    /// The node the viewport plays: the one with the display flag, else the active one.
+    pub fn viewed(&self) -> Option<&str> {
+        self.displayed.as_deref().filter(|id| self.graph.contains(id)).or(self.selected())
+    }
+
+    /// True when the viewport shows a result older than the document (see `last_shown`).
+    pub fn viewport_is_stale(&self) -> bool {
+        self.viewed()
+            .is_some_and(|id| self.selected_motion().0.is_none() && self.last_shown.as_ref().is_some_and(|s| s.0 == id))
+    }
+
+    /// The viewport: the viewed node's motion, or its last good one marked stale.
+    fn viewport(&mut self, ui: &mut Ui) {
+        let viewed = self.viewed().map(str::to_string);
+        let (mut clip, mut mesh) = self.selected_motion();
+        match (&clip, &viewed) {
+            (Some(c), Some(id)) => self.last_shown = Some((id.clone(), c.clone(), mesh.clone())),
+            (None, Some(id)) => {
+                if let Some((shown, c, m)) = self.last_shown.as_ref().filter(|s| &s.0 == id) {
+                    let state = self.node_state(shown);
+                    ui.colored_label(
+                        egui::Color32::from_rgb(230, 160, 60),
+                        format!("stale: {shown} is {state}; showing its last result"),
+                    );
+                    (clip, mesh) = (Some(c.clone()), m.clone());
+                }
+            }
+            _ => {}
+        }
+        let title = viewed.unwrap_or_default();
+        self.viewport.show(ui, &title, clip.as_ref(), mesh);
     }
 
     /// The values arriving at node `id`'s inputs from the last evaluation.
@@ -549,11 +591,7 @@ impl EditorApp {
         egui::Panel::right("kg_panel").resizable(true).default_size(340.0).show(ui, |ui| {
             egui::ScrollArea::vertical().show(ui, |ui| self.panel(ui));
         });
-        egui::Panel::bottom("kg_viewport").resizable(true).default_size(240.0).show(ui, |ui| {
-            let title = self.selected().unwrap_or_default().to_string();
-            let (clip, mesh) = self.selected_motion();
-            self.viewport.show(ui, &title, clip.as_ref(), mesh);
-        });
+        egui::Panel::bottom("kg_viewport").resizable(true).default_size(240.0).show(ui, |ui| self.viewport(ui));
         egui::CentralPanel::default().show(ui, |ui| self.canvas(ui));
         self.file_dialog(ui.ctx());
         self.recovery_window(ui.ctx());
@@ -770,7 +808,15 @@ impl EditorApp {
     }
 
     fn canvas(&mut self, ui: &mut Ui) {
-        let out = self.canvas.show(ui, &self.graph, &self.registry, &self.badges, &self.selection);
+        let marks = Marks { selection: &self.selection, displayed: self.displayed.as_deref() };
+        let out = self.canvas.show(ui, &self.graph, &self.registry, &self.badges, marks);
+        if let Some(id) = out.display {
+            self.displayed = if self.displayed.as_ref() == Some(&id) { None } else { Some(id) };
+        }
+        if let Some(id) = out.duplicate {
+            self.selection = vec![id];
+            self.duplicate_selection();
+        }
         if let Some(reason) = out.refused {
             self.message = Some((format!("connection refused: {reason}"), true));
             self.refusal = Some((reason, ui.input(|i| i.time)));

@@ -18,6 +18,17 @@ use crate::graph::{Graph, PortRef, rules};
 
 /// The outline of selected nodes.
 pub(crate) const SELECTED: Color32 = Color32::from_rgb(255, 200, 60);
+/// The mark of the node the viewport displays.
+pub(crate) const DISPLAYED: Color32 = Color32::from_rgb(90, 160, 255);
+
+/// What the canvas marks on nodes besides their state.
+#[derive(Clone, Copy)]
+pub(crate) struct Marks<'a> {
+    /// The selection (outlined).
+    pub(crate) selection: &'a [String],
+    /// The node with the display flag.
+    pub(crate) displayed: Option<&'a str>,
+}
 
 /// The canvas' egui id (snarl keeps selection under it).
 pub(crate) const CANVAS_ID: &str = "kg_canvas";
@@ -171,11 +182,11 @@ impl Canvas {
         graph: &Graph,
         registry: &Registry,
         badges: &BTreeMap<String, Badge>,
-        selection: &[String],
+        marks: Marks<'_>,
     ) -> CanvasOutput {
         self.level_of_detail(ui.max_rect());
         let mut viewer =
-            Viewer { graph, registry, badges, selection, search: &mut self.search, out: CanvasOutput::default() };
+            Viewer { graph, registry, badges, marks, search: &mut self.search, out: CanvasOutput::default() };
         let mut style = SnarlStyle::new();
         style.collapsible = Some(false);
         style.centering = Some(true);
@@ -291,6 +302,10 @@ pub(crate) struct CanvasOutput {
     pub(crate) selected: Vec<String>,
     /// The node whose title was clicked, and whether shift was held (add to the selection).
     pub(crate) clicked: Option<(String, bool)>,
+    /// The node whose display flag was toggled in its menu.
+    pub(crate) display: Option<String>,
+    /// The node to duplicate, from its menu.
+    pub(crate) duplicate: Option<String>,
     /// Canvas (graph) space → screen, as drawn this frame.
     pub(crate) to_screen: TSTransform,
 }
@@ -303,7 +318,7 @@ struct Viewer<'a> {
     graph: &'a Graph,
     registry: &'a Registry,
     badges: &'a BTreeMap<String, Badge>,
-    selection: &'a [String],
+    marks: Marks<'a>,
     search: &'a mut String,
     out: CanvasOutput,
 }
@@ -342,8 +357,15 @@ impl SnarlViewer<String> for Viewer<'_> {
         let (text, color) = badge.label();
         ui.horizontal(|ui| {
             let title = ui.add(egui::Label::new(RichText::new(id).strong()).sense(egui::Sense::click()));
-            if title.on_hover_text("click to select and edit its parameters; shift-click to add").clicked() {
+            let title = title
+                .on_hover_text("click to select and edit its parameters; shift-click to add; right-click for its menu");
+            if title.clicked() {
                 self.out.clicked = Some((id.clone(), ui.input(|i| i.modifiers.shift)));
+            }
+            title.context_menu(|ui| self.node_menu(ui, id));
+            if self.marks.displayed == Some(id.as_str()) {
+                ui.label(RichText::new("displayed").color(DISPLAYED).small())
+                    .on_hover_text("the viewport plays this node whatever is selected");
             }
             // A collapsed node (off screen, or zoomed out) shows its id and state colour only.
             if open {
@@ -366,7 +388,7 @@ impl SnarlViewer<String> for Viewer<'_> {
         snarl: &Snarl<String>,
     ) -> egui::Frame {
         match snarl.get_node(node) {
-            Some(id) if self.selection.contains(id) => default.stroke(egui::Stroke::new(2.5, SELECTED)),
+            Some(id) if self.marks.selection.contains(id) => default.stroke(egui::Stroke::new(2.5, SELECTED)),
             _ => default,
         }
     }
@@ -532,10 +554,26 @@ impl SnarlViewer<String> for Viewer<'_> {
         ui: &mut Ui,
         snarl: &mut Snarl<String>,
     ) {
+        if let Some(id) = snarl.get_node(node) {
+            self.node_menu(ui, id);
+        }
+    }
+}
+
+impl Viewer<'_> {
+    /// The menu of node `id` (right-click on its title or frame).
+    fn node_menu(&mut self, ui: &mut Ui, id: &str) {
+        let display = if self.marks.displayed == Some(id) { "Stop displaying" } else { "Display in viewport" };
+        if ui.button(display).on_hover_text("the viewport plays this node whatever is selected").clicked() {
+            self.out.display = Some(id.to_string());
+            ui.close();
+        }
+        if ui.button("Duplicate").clicked() {
+            self.out.duplicate = Some(id.to_string());
+            ui.close();
+        }
         if ui.button("Delete").clicked() {
-            if let Some(id) = snarl.get_node(node) {
-                self.out.commands.push(EditorCommand::RemoveNodes { ids: vec![id.as_str().into()] });
-            }
+            self.out.commands.push(EditorCommand::RemoveNodes { ids: vec![id.into()] });
             ui.close();
         }
     }
