@@ -135,9 +135,10 @@ fn a_bad_connection_is_refused_with_the_reason_shown() {
 fn dragging_a_wire_between_different_types_is_refused_by_the_connect_hook() {
     let mut harness = harness(Some(&demo_path()));
     let before = harness.state().doc().clone();
-    // Pin positions of the demo's initial view at 1400×860 (see docs/editor.png's layout):
-    // the `mesh` node's output pin, then the `trim` node's `clip` input pin.
-    let (from, to) = (egui::pos2(318.0, 485.0), egui::pos2(402.0, 292.0));
+    // Pin positions on the demo's canvas (graph coordinates): the `mesh` node's output pin,
+    // then the `trim` node's `clip` input pin.
+    let app = harness.state();
+    let (from, to) = (app.canvas_to_screen((151.6, 197.2)), app.canvas_to_screen((222.2, 34.8)));
     harness.drag_at(from);
     harness.run_steps(1);
     for t in [0.25, 0.5, 0.75, 1.0] {
@@ -156,8 +157,9 @@ fn dragging_a_wire_between_different_types_is_refused_by_the_connect_hook() {
 fn dragging_a_wire_into_an_occupied_input_replaces_it_in_one_undo_step() {
     let mut harness = harness(Some(&demo_path()));
     let before = document::to_string(&harness.state().doc());
-    // `clip`'s output pin to `resample`'s input pin, which `trim` feeds.
-    let (from, to) = (egui::pos2(291.0, 292.0), egui::pos2(668.0, 292.0));
+    // `clip`'s output pin to `resample`'s input pin, which `trim` feeds (graph coordinates).
+    let app = harness.state();
+    let (from, to) = (app.canvas_to_screen((128.9, 34.8)), app.canvas_to_screen((445.9, 34.8)));
     harness.drag_at(from);
     harness.run_steps(1);
     for t in [0.25, 0.5, 0.75, 1.0] {
@@ -523,8 +525,10 @@ fn the_displayed_node_stays_on_show_and_goes_stale_not_blank() {
     harness.get_by_label("pause");
     assert!(!harness.state().viewport_is_stale());
     // Cut the wire into resample: it is blocked, and its last clip stays on show, marked.
-    let cut =
-        EditorCommand::Disconnect { from: PortRef::parse("trim.clip").unwrap(), to: PortRef::parse("resample.clip").unwrap() };
+    let cut = EditorCommand::Disconnect {
+        from: PortRef::parse("trim.clip").unwrap(),
+        to: PortRef::parse("resample.clip").unwrap(),
+    };
     harness.state_mut().edit(cut).unwrap();
     harness.state_mut().wait_for_evaluation();
     harness.run_steps(2);
@@ -536,4 +540,35 @@ fn the_displayed_node_stays_on_show_and_goes_stale_not_blank() {
     harness.get_by_label("Stop displaying").click();
     harness.run_steps(2);
     assert_eq!(harness.state().viewed(), Some("trim"));
+}
+
+/// Enter in the Tab menu adds the first kind the search shows.
+#[test]
+fn enter_in_the_add_menu_adds_the_first_match() {
+    let mut harness = harness(Some(&demo_path()));
+    harness.hover_at(egui::pos2(200.0, 120.0));
+    harness.run_steps(1);
+    harness.key_press(egui::Key::Tab);
+    harness.run_steps(2);
+    harness.get_by_role(Role::TextInput).type_text("foot_lock");
+    harness.run_steps(2);
+    harness.key_press(egui::Key::Enter);
+    harness.run_steps(3);
+    assert_eq!(harness.state().doc().nodes.get("foot_lock").map(|n| n.kind.as_str()), Some("motion.foot_lock"));
+}
+
+/// An error's text is the state's tooltip and the panel's, not a paragraph on the canvas
+/// that widens the node over its neighbours.
+#[test]
+fn an_error_message_does_not_widen_its_node() {
+    let mut harness = harness(Some(&demo_path()));
+    let add = EditorCommand::AddNode { id: "dangling".into(), kind: "clip.trim".into(), pos: (220.0, 160.0) };
+    harness.state_mut().edit(add).unwrap();
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(3);
+    harness.get_by_label("error");
+    assert!(harness.query_by_label_contains("is not connected").is_none(), "the message is not drawn on the canvas");
+    harness.get_by_label("dangling").click_accesskit();
+    harness.run_steps(2);
+    harness.get_by_label_contains("is not connected");
 }

@@ -591,7 +591,7 @@ impl EditorApp {
         egui::Panel::right("kg_panel").resizable(true).default_size(340.0).show(ui, |ui| {
             egui::ScrollArea::vertical().show(ui, |ui| self.panel(ui));
         });
-        egui::Panel::bottom("kg_viewport").resizable(true).default_size(240.0).show(ui, |ui| self.viewport(ui));
+        egui::Panel::bottom("kg_viewport").resizable(true).default_size(380.0).show(ui, |ui| self.viewport(ui));
         egui::CentralPanel::default().show(ui, |ui| self.canvas(ui));
         self.file_dialog(ui.ctx());
         self.recovery_window(ui.ctx());

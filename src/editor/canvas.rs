@@ -113,6 +113,8 @@ pub(crate) struct Canvas {
     ids: BTreeMap<String, NodeId>,
     /// Where the last sync put each node: a node away from it was dragged.
     synced: BTreeMap<NodeId, Pos2>,
+    /// Where nodes the file gives no position were placed ([`layered_layout`]), by id.
+    auto_placed: BTreeMap<String, Pos2>,
     /// Text of the add-node search box.
     pub(crate) search: String,
     /// Where the Tab add-node menu is open (screen).
@@ -132,9 +134,21 @@ impl Canvas {
             self.snarl.remove_node(nid);
             self.ids.remove(&id);
         }
-        for (row, id) in graph.nodes().keys().enumerate() {
-            let pos =
-                graph.layout().get(id).map(|&(x, y)| Pos2::new(x, y)).unwrap_or(Pos2::new(0.0, row as f32 * 120.0));
+        // A node the file does not place keeps the place it was first given (a move, then its
+        // undo, puts it back there).
+        if graph
+            .nodes()
+            .keys()
+            .any(|id| !graph.layout().contains_key(id) && !self.auto_placed.contains_key(id.as_str()))
+        {
+            for (id, pos) in layered_layout(graph) {
+                self.auto_placed.entry(id.to_string()).or_insert(pos);
+            }
+        }
+        self.auto_placed.retain(|id, _| graph.contains(id));
+        for id in graph.nodes().keys() {
+            let pos = graph.layout().get(id).map(|&(x, y)| Pos2::new(x, y));
+            let pos = pos.or_else(|| self.auto_placed.get(id.as_str()).copied()).unwrap_or(Pos2::ZERO);
             let id = id.as_str();
             match self.ids.get(id) {
                 Some(&nid) => {
@@ -222,6 +236,49 @@ impl Canvas {
         }
         out
     }
+}
+
+/// Canvas distance between the columns and rows of [`layered_layout`] (points at 1:1).
+const COLUMN: f32 = 300.0;
+const ROW: f32 = 150.0;
+
+/// Places the nodes a graph file gives no position: in columns by the longest path from the
+/// nodes nothing feeds (each node right of every node feeding it, so wires run left to
+/// right), in id order down a column, below every node the file places.
+fn layered_layout(graph: &Graph) -> BTreeMap<crate::graph::NodeId, Pos2> {
+    let unplaced: Vec<&crate::graph::NodeId> =
+        graph.nodes().keys().filter(|id| !graph.layout().contains_key(*id)).collect();
+    if unplaced.is_empty() {
+        return BTreeMap::new();
+    }
+    let mut column: BTreeMap<&crate::graph::NodeId, usize> = graph.nodes().keys().map(|id| (id, 0)).collect();
+    // Longest path by relaxation; a cycle (a broken file) stops after one pass per node.
+    for _ in 0..graph.nodes().len() {
+        let mut moved = false;
+        for e in graph.edges() {
+            let next = column.get(&e.from.node).map_or(0, |c| c + 1);
+            if let Some(c) = column.get_mut(&e.to.node)
+                && *c < next
+            {
+                *c = next;
+                moved = true;
+            }
+        }
+        if !moved {
+            break;
+        }
+    }
+    let top = graph.layout().values().map(|p| p.1 + ROW).fold(0.0_f32, f32::max);
+    let mut rows: BTreeMap<usize, usize> = BTreeMap::new();
+    unplaced
+        .into_iter()
+        .map(|id| {
+            let c = column[id];
+            let row = rows.entry(c).or_default();
+            *row += 1;
+            (id.clone(), Pos2::new(c as f32 * COLUMN, top + (*row - 1) as f32 * ROW))
+        })
+        .collect()
 }
 
 /// Below this zoom node text is too small to read: nodes show their header only.
@@ -371,9 +428,12 @@ impl SnarlViewer<String> for Viewer<'_> {
             if open {
                 ui.label(RichText::new(self.graph.node(id).map_or("", |n| n.kind.as_str())).weak());
             }
-            dot(ui, color);
+            // The state is a word and a dot; an error's text is their tooltip (and in the
+            // panel), so a long message never widens the node over its neighbours' wires.
+            let tip = badge.message().unwrap_or(text);
+            dot(ui, color).on_hover_text(tip);
             if open {
-                ui.label(RichText::new(text).color(color)).on_hover_text(badge.message().unwrap_or(text));
+                ui.label(RichText::new(text).color(color)).on_hover_text(tip);
             }
         });
     }
@@ -425,27 +485,6 @@ impl SnarlViewer<String> for Viewer<'_> {
             .and_then(|id| schema(self.graph, self.registry, id))
             .and_then(|s| s.outputs.get(pin.id.output));
         port_pin(ui, port, |p| p.name.to_string())
-    }
-
-    fn has_body(&mut self, node: &String) -> bool {
-        self.badges.get(node).and_then(Badge::message).is_some()
-    }
-
-    fn show_body(
-        &mut self,
-        node: NodeId,
-        _inputs: &[InPin],
-        _outputs: &[OutPin],
-        ui: &mut Ui,
-        snarl: &mut Snarl<String>,
-    ) {
-        let Some(id) = snarl.get_node(node) else { return };
-        if let Some(badge) = self.badges.get(id)
-            && let Some(message) = badge.message()
-        {
-            ui.set_max_width(220.0);
-            ui.label(RichText::new(message).color(badge.label().1).small());
-        }
     }
 
     fn connect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<String>) {
@@ -587,7 +626,10 @@ pub(crate) fn catalogue_menu(
     search: &mut String,
     accepts: impl Fn(&NodeSchema) -> bool,
 ) -> Option<&'static str> {
-    ui.add(egui::TextEdit::singleline(search).hint_text("search…").desired_width(180.0)).request_focus();
+    let field =
+        ui.add(egui::TextEdit::singleline(search).hint_text("search… (Enter adds the first)").desired_width(180.0));
+    let enter = field.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+    field.request_focus();
     let needle = search.trim().to_lowercase();
     let mut groups: BTreeMap<&str, Vec<&'static NodeSchema>> = BTreeMap::new();
     for node in registry.iter() {
@@ -601,7 +643,7 @@ pub(crate) fn catalogue_menu(
             groups.entry(s.category).or_default().push(s);
         }
     }
-    let mut picked = None;
+    let mut picked = if enter { groups.values().flatten().next().map(|s| s.kind) } else { None };
     // The catalogue is taller than a laptop screen: the list scrolls under the search field.
     let max_height = ui.ctx().content_rect().height() * 0.7;
     egui::ScrollArea::vertical().max_height(max_height).show(ui, |ui| {
@@ -691,6 +733,27 @@ mod tests {
         let load_mesh = registry.get("mesh.load").unwrap().schema();
         assert!(facing_port(load_mesh, PortType::Clip, true).is_none());
         assert!(add_connected(&doc, &registry, &port("clip.clip"), true, "mesh.load", Pos2::ZERO).is_none());
+    }
+
+    /// A graph file without `layout` opens with every wire running left to right and no two
+    /// nodes in one place (it opened as one column with tangled wires).
+    #[test]
+    fn a_graph_without_layout_opens_in_columns_along_its_wires() {
+        let registry = kinegraph_nodes::builtin::registry();
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/skinning_arm.ron");
+        let doc = GraphFile::load(&path).unwrap().graph;
+        assert!(doc.layout().is_empty());
+        let mut canvas = Canvas::default();
+        canvas.sync(&doc, &registry);
+        let pos = |id: &str| canvas.snarl.get_node_info(canvas.ids[id]).unwrap().pos;
+        for e in doc.edges() {
+            assert!(pos(e.from.node.as_str()).x < pos(e.to.node.as_str()).x, "{} → {}", e.from, e.to);
+        }
+        let mut places: Vec<(i64, i64)> =
+            doc.nodes().keys().map(|id| (pos(id.as_str()).x as i64, pos(id.as_str()).y as i64)).collect();
+        places.sort_unstable();
+        places.dedup();
+        assert_eq!(places.len(), doc.nodes().len());
     }
 
     #[test]

@@ -4,7 +4,7 @@
 use std::collections::BTreeSet;
 
 use egui::{CollapsingHeader, Color32, RichText, Ui};
-use egui_plot::{Legend, Line, Plot, Span};
+use egui_plot::{Line, Plot, Span};
 use kinegraph_nodes::model::{Contacts, Curves, FrameRange, Phases, StageKind, Stages};
 use kinegraph_nodes::node::{PortSpec, Value};
 use serde_json::Value as Json;
@@ -113,11 +113,14 @@ fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves
             state.shown.insert(format!("{key}.{}", c.name));
         }
     }
+    // The channel toggles are the legend, in the lines' colours, above the plot rather than
+    // over its curves.
     ui.horizontal_wrapped(|ui| {
-        for c in channels {
+        for (i, c) in channels.iter().enumerate() {
             let id = format!("{key}.{}", c.name);
             let mut on = state.shown.contains(&id);
-            if ui.checkbox(&mut on, format!("{} ({})", c.name, c.unit)).changed() {
+            let label = RichText::new(format!("{} ({})", c.name, c.unit)).color(channel_colour(i));
+            if ui.checkbox(&mut on, label).changed() {
                 if on {
                     state.shown.insert(id);
                 } else {
@@ -127,7 +130,10 @@ fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves
         }
     });
     let fps = curves.fps();
-    Plot::new(format!("{key}.plot")).height(180.0).legend(Legend::default()).x_axis_label("s").show(ui, |plot| {
+    let unit = channels.iter().find(|c| state.shown.contains(&format!("{key}.{}", c.name))).map(|c| c.unit.clone());
+    // A y axis wide enough for its tick labels (a narrow one showed only "0").
+    let plot = Plot::new(format!("{key}.plot")).height(180.0).x_axis_label("s").y_axis_min_width(52.0);
+    plot.y_axis_label(unit.unwrap_or_default()).show(ui, |plot| {
         if let Some(p) = phases {
             let shades = [
                 ("preparatory", p.preparatory, Color32::from_rgba_unmultiplied(90, 140, 255, 40)),
@@ -140,11 +146,26 @@ fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves
                 }
             }
         }
-        for c in channels.iter().filter(|c| state.shown.contains(&format!("{key}.{}", c.name))) {
+        for (i, c) in channels.iter().enumerate().filter(|(_, c)| state.shown.contains(&format!("{key}.{}", c.name))) {
             let points: Vec<[f64; 2]> = c.values.iter().enumerate().map(|(i, v)| [i as f64 / fps, *v]).collect();
-            plot.line(Line::new(c.name.clone(), points));
+            plot.line(Line::new(c.name.clone(), points).color(channel_colour(i)));
         }
     });
+}
+
+/// The colour of channel `i` of a curve set: the toggles and the lines share it.
+fn channel_colour(i: usize) -> Color32 {
+    const PALETTE: [Color32; 8] = [
+        Color32::from_rgb(90, 160, 255),
+        Color32::from_rgb(255, 140, 70),
+        Color32::from_rgb(110, 210, 120),
+        Color32::from_rgb(230, 90, 200),
+        Color32::from_rgb(240, 220, 80),
+        Color32::from_rgb(80, 220, 220),
+        Color32::from_rgb(200, 200, 200),
+        Color32::from_rgb(170, 120, 255),
+    ];
+    PALETTE[i % PALETTE.len()]
 }
 
 fn seconds(range: FrameRange, fps: f64) -> String {
