@@ -57,6 +57,8 @@ fn shows_the_demo_graph_with_states() {
     // Exports do not run in the editor.
     assert_eq!(app.node_state("glb"), "idle");
     assert!(!app.is_dirty());
+    // The status bar says how long the user waited, not only the nodes' own time.
+    harness.get_by_label_contains("s wall (request 1)");
 }
 
 #[test]
@@ -571,4 +573,53 @@ fn an_error_message_does_not_widen_its_node() {
     harness.get_by_label("dangling").click_accesskit();
     harness.run_steps(2);
     harness.get_by_label_contains("is not connected");
+}
+
+fn contacts_output(app: &EditorApp, id: &str) -> kinegraph::nodes::model::Contacts {
+    let outputs = &app.report().unwrap().outputs[id];
+    outputs
+        .iter()
+        .flatten()
+        .find_map(|v| match v {
+            kinegraph::nodes::node::Value::Contacts(c) => Some((**c).clone()),
+            _ => None,
+        })
+        .unwrap()
+}
+
+/// The viewport shows the contacts the graph computed for the clip it plays, not its own
+/// guess with default thresholds (which missed every contact of a 24 fps walk that showed
+/// them at 30).
+#[test]
+fn the_viewport_shows_the_graphs_own_contacts() {
+    let mut harness = harness(Some(&demo_path()));
+    let app = harness.state_mut();
+    // "contacts" is tuned loose enough to find the short demo's plants; the defaults find none.
+    let tuned = [
+        ("enter_height_m", 0.2),
+        ("leave_height_m", 0.3),
+        ("enter_speed_mps", 5.0),
+        ("leave_speed_mps", 10.0),
+        ("min_duration_secs", 0.0),
+    ];
+    for (id, params) in [("contacts", &tuned[..]), ("contacts_default", &[][..])] {
+        let add = EditorCommand::AddNode { id: id.into(), kind: "motion.contacts".into(), pos: (660.0, 240.0) };
+        app.edit(add).unwrap();
+        let wire = EditorCommand::Connect {
+            from: PortRef::parse("resample.clip").unwrap(),
+            to: PortRef::parse(&format!("{id}.clip")).unwrap(),
+        };
+        app.edit(wire).unwrap();
+        for (name, value) in params {
+            let param = ParamPath::parse(&format!("{id}.{name}")).unwrap();
+            app.edit(EditorCommand::SetParam { param, value: ParamValue::Float(*value) }).unwrap();
+        }
+    }
+    app.select(Some("resample"));
+    app.wait_for_evaluation();
+    harness.run_steps(3);
+    let app = harness.state();
+    let (tuned, default) = (contacts_output(app, "contacts"), contacts_output(app, "contacts_default"));
+    assert_ne!(tuned, default, "the tuned node finds other contacts than the defaults");
+    assert_eq!(app.viewport_contacts(), Some(&tuned));
 }

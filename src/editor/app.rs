@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use egui::{Key, Modifiers, RichText, Ui};
-use kinegraph_nodes::model::Clip;
+use kinegraph_nodes::model::{Clip, Contacts};
 use kinegraph_nodes::node::{Registry, Value};
 
 use super::canvas::{Badge, Canvas, Marks};
@@ -74,6 +74,11 @@ pub struct EditorApp {
     recovery: Option<Autosave>,
     title: String,
     frame_ms: f32,
+    /// When the newest evaluation was asked for, and how long (wall, seconds) the last
+    /// finished one took from that moment: what the user waited, cache hits and queueing
+    /// included (the report's own time counts the nodes only).
+    submitted: Instant,
+    waited_secs: Option<f64>,
     /// The last fragment copied in the editor (the system clipboard gets it too).
     clipboard: Option<String>,
 }
@@ -127,6 +132,8 @@ impl EditorApp {
             recovery: None,
             title: String::new(),
             frame_ms: 0.0,
+            submitted: Instant::now(),
+            waited_secs: None,
             clipboard: None,
         };
         match path {
@@ -179,6 +186,16 @@ impl EditorApp {
     /// changed the document).
     pub fn evaluations_requested(&self) -> u64 {
         self.worker.latest_request()
+    }
+
+    /// The latest evaluation's report (outputs included), if one came in.
+    pub fn report(&self) -> Option<&RunReport> {
+        self.report.as_ref()
+    }
+
+    /// The foot contacts the viewport shows with its clip, if any.
+    pub fn viewport_contacts(&self) -> Option<&Contacts> {
+        self.viewport.contacts()
     }
 
     /// The state badge text of node `id` (`"ok"`, `"error"`, …).
@@ -424,6 +441,7 @@ impl EditorApp {
             .or_else(|| std::env::current_dir().ok())
             .unwrap_or_default();
         self.worker.submit(self.graph.clone(), base_dir);
+        self.submitted = Instant::now();
     }
 
     /// Takes in what the worker reported since the last frame.
@@ -442,6 +460,9 @@ impl EditorApp {
     }
 
     fn take_message(&mut self, message: WorkerMessage) {
+        if matches!(message, WorkerMessage::Done { .. } | WorkerMessage::Invalid(_)) {
+            self.waited_secs = Some(self.submitted.elapsed().as_secs_f64());
+        }
         match message {
             WorkerMessage::Done { report, problems, left_out } => {
                 self.graph_problems.clear();
@@ -561,7 +582,25 @@ impl EditorApp {
             _ => {}
         }
         let title = viewed.unwrap_or_default();
-        self.viewport.show(ui, &title, clip.as_ref(), mesh);
+        let contacts = clip.as_ref().and_then(|c| self.graph_contacts(c));
+        self.viewport.show(ui, &title, clip.as_ref(), mesh, contacts.as_ref());
+    }
+
+    /// The foot contacts the graph itself computed from `clip` (a node fed this very clip
+    /// that outputs contacts), so the viewport's contact rings and strips never disagree
+    /// with the graph's `motion.contacts`.
+    fn graph_contacts(&self, clip: &Arc<Clip>) -> Option<Arc<Contacts>> {
+        let report = self.report.as_ref()?;
+        self.graph.nodes().keys().find_map(|id| {
+            let outputs = report.outputs.get(id.as_str())?;
+            let contacts = outputs.iter().flatten().find_map(|v| match v {
+                Value::Contacts(c) => Some(c.clone()),
+                _ => None,
+            })?;
+            let fed =
+                self.input_values(id.as_str()).into_iter().any(|v| matches!(v, Value::Clip(c) if Arc::ptr_eq(c, clip)));
+            fed.then_some(contacts)
+        })
     }
 
     /// The values arriving at node `id`'s inputs from the last evaluation.
@@ -757,10 +796,16 @@ impl EditorApp {
 
     fn status_bar(&mut self, ui: &mut Ui) {
         ui.horizontal(|ui| {
-            let state = if self.worker.running() { "evaluating…" } else { "evaluated" };
-            ui.label(format!("{state} (request {})", self.worker.latest_request()));
+            if self.worker.running() {
+                let waiting = self.submitted.elapsed().as_secs_f64();
+                ui.label(format!("evaluating… {waiting:.1} s (request {})", self.worker.latest_request()));
+                ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
+            } else {
+                let waited = self.waited_secs.map_or(String::new(), |s| format!(" in {s:.2} s wall"));
+                ui.label(format!("evaluated{waited} (request {})", self.worker.latest_request()));
+            }
             if let Some(r) = &self.report {
-                ui.label(format!("{:.1} ms", r.seconds * 1e3));
+                ui.label(RichText::new(format!("nodes {:.1} ms", r.seconds * 1e3)).weak());
             }
             ui.separator();
             ui.label(RichText::new(format!("frame {:.1} ms", self.frame_ms)).weak());

@@ -166,8 +166,11 @@ struct Shown {
     poses: ClipPoses,
     lo: Vec3,
     hi: Vec3,
-    /// Foot contacts, when the feet are found by joint name.
+    /// Foot contacts: the graph's own for this clip when it computed them, else found here
+    /// with the default thresholds when the feet are found by joint name.
     contacts: Option<Contacts>,
+    /// The graph's contacts in use, if any (so they are taken once).
+    graph_contacts: Option<Arc<Contacts>>,
     /// Joint indices of the feet (left, right), matching `contacts.feet`.
     feet: Vec<usize>,
     /// The mesh offered with the clip, and whether it fits it (drawn only then).
@@ -197,9 +200,26 @@ impl Shown {
             lo,
             hi,
             contacts: found.map(|(c, _)| c),
+            graph_contacts: None,
             feet,
             mesh: None,
             mesh_fits: false,
+        }
+    }
+
+    /// Shows `contacts`, computed by the graph for this clip, instead of the viewport's own
+    /// guess: when they cover the clip's frames and name its joints.
+    fn use_graph_contacts(&mut self, contacts: &Arc<Contacts>) {
+        if self.graph_contacts.as_ref().is_some_and(|c| Arc::ptr_eq(c, contacts))
+            || contacts.frame_count != self.clip.frame_count()
+        {
+            return;
+        }
+        let feet: Option<Vec<usize>> = contacts.feet.iter().map(|f| self.clip.skeleton().index_of(&f.foot)).collect();
+        if let Some(feet) = feet {
+            self.contacts = Some((**contacts).clone());
+            self.feet = feet;
+            self.graph_contacts = Some(contacts.clone());
         }
     }
 
@@ -260,8 +280,21 @@ impl Default for Viewport {
 }
 
 impl Viewport {
-    /// Draws `clip` (or a hint when there is none) and its `mesh`, with the timeline above.
-    pub(crate) fn show(&mut self, ui: &mut Ui, title: &str, clip: Option<&Arc<Clip>>, mesh: Option<ShownMesh>) {
+    /// The foot contacts shown with the played clip, if any.
+    pub(crate) fn contacts(&self) -> Option<&Contacts> {
+        self.shown.as_ref()?.contacts.as_ref()
+    }
+
+    /// Draws `clip` (or a hint when there is none) and its `mesh`, with the timeline above;
+    /// `contacts` are the graph's own for this clip, if it computed them.
+    pub(crate) fn show(
+        &mut self,
+        ui: &mut Ui,
+        title: &str,
+        clip: Option<&Arc<Clip>>,
+        mesh: Option<ShownMesh>,
+        contacts: Option<&Arc<Contacts>>,
+    ) {
         match clip {
             Some(clip) if !self.shown.as_ref().is_some_and(|s| Arc::ptr_eq(&s.clip, clip)) => {
                 let first = self.shown.is_none();
@@ -272,6 +305,9 @@ impl Viewport {
             None => self.shown = None,
         }
         if let Some(shown) = &mut self.shown {
+            if let Some(contacts) = contacts {
+                shown.use_graph_contacts(contacts);
+            }
             let same = match (&shown.mesh, &mesh) {
                 (Some(a), Some(b)) => a.is(b),
                 (a, b) => a.is_none() && b.is_none(),
