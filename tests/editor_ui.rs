@@ -623,3 +623,36 @@ fn the_viewport_shows_the_graphs_own_contacts() {
     assert_ne!(tuned, default, "the tuned node finds other contacts than the defaults");
     assert_eq!(app.viewport_contacts(), Some(&tuned));
 }
+
+/// The plain wheel over the canvas zooms about the pointer (it panned); the eframe window
+/// runs every frame's input through `wheel_zooms_canvas`, here called by hand.
+#[test]
+fn the_wheel_zooms_the_canvas_at_the_pointer() {
+    let mut harness = harness(Some(&demo_path()));
+    let at = harness.state().canvas_to_screen((330.0, 20.0));
+    harness.hover_at(at);
+    harness.run_steps(1);
+    let before = harness.state().canvas_to_screen((430.0, 120.0)) - at;
+    let mut raw = egui::RawInput::default();
+    raw.events.push(egui::Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Point,
+        delta: egui::vec2(0.0, 60.0),
+        phase: egui::TouchPhase::Move,
+        modifiers: egui::Modifiers::NONE,
+    });
+    harness.state().wheel_zooms_canvas(&harness.ctx, &mut raw);
+    for event in raw.events {
+        harness.event(event);
+    }
+    harness.run_steps(4);
+    let after = harness.state().canvas_to_screen((430.0, 120.0)) - harness.state().canvas_to_screen((330.0, 20.0));
+    let moved = harness.state().canvas_to_screen((330.0, 20.0)) - at;
+    println!(
+        "100 canvas units: {:.1} → {:.1} points; the point under the pointer moved {:.2}",
+        before.x,
+        after.x,
+        moved.length()
+    );
+    assert!(after.x > before.x * 1.05, "zoomed in: {before:?} → {after:?}");
+    assert!(moved.length() < 1.0, "about the pointer: moved {moved:?}");
+}

@@ -198,6 +198,25 @@ impl EditorApp {
         self.viewport.contacts()
     }
 
+    /// Over the canvas the plain mouse wheel zooms at the pointer, as in other node editors
+    /// (egui's canvas zooms on Ctrl+wheel and pans on the wheel): wheel events over the
+    /// canvas get that modifier before egui reads them. Elsewhere the wheel scrolls.
+    pub fn wheel_zooms_canvas(&self, ctx: &egui::Context, raw: &mut egui::RawInput) {
+        let Some(canvas) = self.canvas.rect() else { return };
+        let mut pointer = ctx.input(|i| i.pointer.latest_pos());
+        for event in &mut raw.events {
+            match event {
+                egui::Event::PointerMoved(pos) => pointer = Some(*pos),
+                egui::Event::MouseWheel { modifiers, .. }
+                    if modifiers.is_none() && pointer.is_some_and(|p| canvas.contains(p)) =>
+                {
+                    *modifiers = Modifiers::COMMAND;
+                }
+                _ => {}
+            }
+        }
+    }
+
     /// The state badge text of node `id` (`"ok"`, `"error"`, …).
     pub fn node_state(&self, id: &str) -> &'static str {
         self.badges.get(id).map_or("idle", |b| b.label().0)
@@ -920,6 +939,10 @@ fn badge_of(status: NodeStatus, message: Option<String>) -> Badge {
 impl eframe::App for EditorApp {
     fn ui(&mut self, ui: &mut Ui, _frame: &mut eframe::Frame) {
         EditorApp::ui(self, ui);
+    }
+
+    fn raw_input_hook(&mut self, ctx: &egui::Context, raw_input: &mut egui::RawInput) {
+        self.wheel_zooms_canvas(ctx, raw_input);
     }
 
     /// Closing with unsaved edits keeps them in the autosave, offered back next time.

@@ -303,6 +303,11 @@ impl Canvas {
         }
     }
 
+    /// The canvas' screen area, as last drawn.
+    pub(crate) fn rect(&self) -> Option<egui::Rect> {
+        self.rect
+    }
+
     /// Where canvas point `pos` is on screen, as last drawn.
     pub(crate) fn to_screen(&self, pos: Pos2) -> Pos2 {
         self.to_screen * pos
