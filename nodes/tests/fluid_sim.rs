@@ -131,31 +131,6 @@ fn uniformly_heated_air_in_a_closed_box_with_an_obstacle_stays_at_rest() {
     assert!(fastest < 0.03 * impulse * steps.len() as f64, "{fastest} of {impulse}");
 }
 
-/// A closed sphere (a subdivided octahedron), triangles counter-clockwise from outside.
-fn sphere(centre: DVec3, radius: f64, levels: usize) -> Obstacle {
-    let mut positions: Vec<DVec3> = vec![DVec3::X, -DVec3::X, DVec3::Y, -DVec3::Y, DVec3::Z, -DVec3::Z];
-    let mut triangles: Vec<[u32; 3]> =
-        vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
-    for _ in 0..levels {
-        let mut middle: BTreeMap<(u32, u32), u32> = BTreeMap::new();
-        let mut split = |a: u32, b: u32, positions: &mut Vec<DVec3>| {
-            *middle.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                positions.push((positions[a as usize] + positions[b as usize]).normalize());
-                positions.len() as u32 - 1
-            })
-        };
-        triangles = triangles
-            .iter()
-            .flat_map(|&[a, b, c]| {
-                let (ab, bc, ca) =
-                    (split(a, b, &mut positions), split(b, c, &mut positions), split(c, a, &mut positions));
-                [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
-            })
-            .collect();
-    }
-    Obstacle { positions_m: positions.iter().map(|p| centre + *p * radius).collect(), triangles }
-}
-
 #[test]
 fn a_sphere_started_through_still_air_sets_up_the_potential_flow_around_it() {
     // An impulsively started sphere in inviscid air: after the first projection the air
@@ -166,7 +141,7 @@ fn a_sphere_started_through_still_air_sets_up_the_potential_flow_around_it() {
     d.voxel_m = 0.05;
     let (speed, radius, centre) = (0.5, 0.15, DVec3::splat(0.5));
     let moving = move |t: f64| {
-        let surface = sphere(centre + DVec3::X * speed * t, radius, 3);
+        let surface = Obstacle::sphere(centre + DVec3::X * speed * t, radius, 3);
         let velocity_m_s = vec![DVec3::X * speed; surface.positions_m.len()];
         vec![MovingObstacle { surface, velocity_m_s }]
     };
