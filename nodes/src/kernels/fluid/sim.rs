@@ -321,7 +321,8 @@ fn body_obstacle(body: &RigidBody, edge_m: f64) -> MovingObstacle {
     MovingObstacle { surface, velocity_m_s }
 }
 
-/// [`simulate`] with dynamic rigid bodies, two-way coupled to the air.
+/// [`simulate`] with dynamic rigid bodies, two-way coupled to the air. A body closer to a
+/// box wall than the smallest edge starts moved back to that distance.
 pub fn simulate_with_bodies(
     domain: &FluidDomain,
     settings: &SimSettings,
