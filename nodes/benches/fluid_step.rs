@@ -1,7 +1,8 @@
 //! One smoke step on tet meshes of a 1 m box with a 0.3 m cube obstacle at about 25k, 50k
 //! and 100k tets (issue 17's goal: < 2 s per step at 100k on the 2-core machine), split into
 //! meshing (TetGen quality mesh + Delaunay of its nodes), the pressure solve (assembly,
-//! Cholesky, one projection) and advection (velocity reconstruction + tracing every face).
+//! Cholesky, one projection; and the same with the cube a dynamic body coupled in, Klingner
+//! §7) and advection (velocity reconstruction + tracing every face).
 //! Run: `cargo bench -p kinegraph-nodes --bench fluid_step`.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -10,6 +11,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use glam::DVec3;
 use kinegraph_nodes::kernels::fluid::mesher::{BoxMeshSpec, Obstacle, Tetrahedralisation, mesh_box};
 use kinegraph_nodes::kernels::fluid::projection::{FaceCondition, PressureSolver, face_conditions};
+use kinegraph_nodes::kernels::fluid::rigid::{RigidBody, RigidShape};
 use kinegraph_nodes::kernels::fluid::velocity::{VelocityField, advect_velocity, sample_faces};
 use std::hint::black_box;
 
@@ -46,6 +48,21 @@ fn bench(c: &mut Criterion) {
                 let mut z = z0.clone();
                 solver.project(&mesh, &mut z, 0.02, 1.2).unwrap();
                 z
+            })
+        });
+        // The cube as a dynamic body: its faces (boundary faces off the box walls) coupled.
+        let body = RigidBody::new(RigidShape::Cube, 0.3, 500.0, DVec3::splat(0.5), DVec3::X * 0.1);
+        let on_walls = |x: DVec3| (0..3).any(|a| x[a].abs() < 1e-9 || (x[a] - 1.0).abs() < 1e-9);
+        let coupled = face_conditions(&mesh, |f| {
+            if on_walls(mesh.face_circumcentre_m[f]) { FaceCondition::Wall } else { FaceCondition::Rigid(0) }
+        });
+        group.bench_function("pressure_coupled_body", |b| {
+            b.iter(|| {
+                let solver = PressureSolver::with_bodies(&mesh, &coupled, &[body.coupling()], 1.2).unwrap();
+                let mut z = z0.clone();
+                let mut u = [body.generalised_velocity()];
+                solver.project_with_bodies(&mesh, &mut z, &mut u, 0.02).unwrap();
+                u
             })
         });
         group.bench_function("advect_velocity", |b| {

@@ -1,6 +1,7 @@
 //! Smoke around animated characters (issue 17, Klingner et al. 2006): `fluid.domain`,
-//! `fluid.simulate` over [`crate::kernels::fluid::sim`], and the exports `export.vdb`
-//! (OpenVDB grids per frame) and `export.points` (PLY particles per frame).
+//! `fluid.simulate` over [`crate::kernels::fluid::sim`] (with dynamic balls and boxes
+//! two-way coupled to the air), and the exports `export.vdb` (OpenVDB grids per frame) and
+//! `export.points` (PLY particles per frame).
 
 use std::sync::Arc;
 
@@ -10,12 +11,13 @@ use crate::formats::ply::write_points_ply;
 use crate::formats::vdb::{GridValues, VdbGrid, write_vdb};
 use crate::kernels::fluid::mesh::MeshError;
 use crate::kernels::fluid::mesher::{Obstacle, open_edge};
-use crate::kernels::fluid::sim::{MovingObstacle, SimError, SimSettings, simulate};
+use crate::kernels::fluid::rigid::{GRAVITY_M_S2, RigidBody, RigidShape};
+use crate::kernels::fluid::sim::{DynamicBodies, MovingObstacle, SimError, SimSettings, simulate_with_bodies};
 use crate::model::volume::{FluidDomain, Sizing, SmokeSource, VolumeFrame, VolumeSequence};
-use crate::model::{Mesh, MeshSequence};
+use crate::model::{Curves, Mesh, MeshSequence};
 use crate::node::{
     ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
-    Registry, Report, report_of,
+    Registry, Report, TextParam, report_of,
 };
 
 /// Registers the fluid nodes and their exports.
@@ -207,10 +209,31 @@ const MAX_CELLS: FloatParam = FloatParam::new(
     "",
 );
 const SEED: IntParam = IntParam::new("seed", "Seed of the particle emission.", 1, 0, i64::MAX);
+const BODIES: TextParam = TextParam::new(
+    "bodies",
+    "Dynamic rigid bodies pushed by the air and pushing it, separated by `;`: `ball size=0.3 density=0.6 at=0,0.5,0` \
+     (size: diameter, m; density: kg/m³, air is 1.2; at: centre, m; optional velocity=x,y,z m/s and spin=x,y,z rad/s), \
+     or `box …` for a cube of edge `size`. Each must fit inside the domain with min_edge to spare.",
+    "",
+);
+const GRAVITY: FloatParam = FloatParam::new(
+    "gravity",
+    "Pull on the bodies, downwards (the air's own weight is balanced by its pressure and buoys them).",
+    GRAVITY_M_S2,
+    0.0,
+    100.0,
+    "m/s²",
+);
 const VOLUMES_OUT: Output<Arc<VolumeSequence>> =
     Output::new("volumes", "Density, temperature and velocity per frame on the domain's voxel grid, and particles.");
-const REPORT_OUT: Output<Arc<Report>> =
-    Output::new("report", "Per step: tet count, mesh quality, timings (mesh, advect, pressure), smoke transfer.");
+const REPORT_OUT: Output<Arc<Report>> = Output::new(
+    "report",
+    "Per step: tet count, mesh quality, timings (mesh, advect, pressure), smoke transfer; per body: mass, start, end, top speed, first frame at a wall.",
+);
+const BODIES_OUT: Output<Arc<Curves>> = Output::new(
+    "bodies",
+    "Per frame and body (ball1, box2, … in the order of `bodies`): NAME.x/.y/.z centre (m), NAME.vx/.vy/.vz velocity (m/s), NAME.rx/.ry/.rz rotation vector (rad).",
+);
 
 /// `fluid.simulate`.
 pub struct Simulate;
@@ -218,13 +241,91 @@ pub struct Simulate;
 static SIMULATE: NodeSchema = NodeSchema {
     kind: "fluid.simulate",
     category: "fluid",
-    doc: "Smoke in a box around moving or still obstacles (Klingner et al. 2006): a new tetrahedral mesh every step, refined near the obstacles, in smoke and in swirls; the obstacle's surface velocity pushes the air. Output: volumes per frame for export.vdb and particles for export.points. Seconds and metres; stops cleanly on Ctrl-C.",
+    doc: "Smoke in a box around moving or still obstacles (Klingner et al. 2006): a new tetrahedral mesh every step, refined near the obstacles, in smoke and in swirls; the obstacle's surface velocity pushes the air. Balls and boxes listed in `bodies` fall or rise by their weight, the air's buoyancy and its push, and push it back (solved with the pressure). Output: volumes per frame for export.vdb and particles for export.points, the bodies' paths as curves. Seconds and metres; stops cleanly on Ctrl-C.",
     inputs: &[DOMAIN_IN.spec(), MOVING_IN.spec(), STATIC_IN.spec()],
-    outputs: &[VOLUMES_OUT.spec(), REPORT_OUT.spec()],
-    params: &[FRAMES.0, FPS.0, SUBSTEPS.0, MAX_CELLS.0, SEED.0],
+    outputs: &[VOLUMES_OUT.spec(), REPORT_OUT.spec(), BODIES_OUT.spec()],
+    params: &[FRAMES.0, FPS.0, SUBSTEPS.0, MAX_CELLS.0, SEED.0, BODIES.0, GRAVITY.0],
     writes_files: false,
-    version: 1,
+    version: 2,
 };
+
+/// A body's name in curves and reports: its shape and 1-based place in `bodies`.
+fn body_name(index: usize, body: &RigidBody) -> String {
+    let shape = match body.shape {
+        RigidShape::Ball => "ball",
+        RigidShape::Cube => "box",
+    };
+    format!("{shape}{}", index + 1)
+}
+
+/// Parses `x,y,z` (finite numbers).
+fn parse_vector(text: &str) -> Option<DVec3> {
+    let parts: Vec<f64> = text.split(',').map(|p| p.trim().parse::<f64>()).collect::<Result<_, _>>().ok()?;
+    match parts[..] {
+        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Some(DVec3::new(x, y, z)),
+        _ => None,
+    }
+}
+
+/// Parses the `bodies` text (see [`BODIES`]) and checks every body fits inside `domain`
+/// with a smallest edge to spare; the message names the body.
+fn parse_bodies(text: &str, domain: &FluidDomain) -> Result<Vec<RigidBody>, String> {
+    let (lo, hi) = (DVec3::from(domain.min_m), DVec3::from(domain.max_m));
+    let gap = domain.sizing.min_edge_m;
+    let mut bodies = Vec::new();
+    for (index, entry) in text.split(';').map(str::trim).filter(|e| !e.is_empty()).enumerate() {
+        let n = index + 1;
+        let mut words = entry.split_whitespace();
+        let shape = match words.next() {
+            Some("ball") => RigidShape::Ball,
+            Some("box") => RigidShape::Cube,
+            other => return Err(format!("body {n}: starts with {other:?}, not `ball` or `box`")),
+        };
+        let (mut size, mut density, mut at) = (None, None, None);
+        let (mut velocity, mut spin) = (DVec3::ZERO, DVec3::ZERO);
+        for word in words {
+            let (key, value) = word.split_once('=').ok_or_else(|| format!("body {n}: `{word}` is not key=value"))?;
+            let number = || value.parse::<f64>().ok().filter(|v| v.is_finite());
+            let vector = || parse_vector(value).ok_or_else(|| format!("body {n}: {key}={value} is not x,y,z"));
+            match key {
+                "size" => size = Some(number().ok_or_else(|| format!("body {n}: size={value} is not a number"))?),
+                "density" => {
+                    density = Some(number().ok_or_else(|| format!("body {n}: density={value} is not a number"))?)
+                }
+                "at" => at = Some(vector()?),
+                "velocity" => velocity = vector()?,
+                "spin" => spin = vector()?,
+                _ => {
+                    return Err(format!("body {n}: unknown key `{key}` (size, density, at, velocity, spin)"));
+                }
+            }
+        }
+        let size = size.ok_or_else(|| format!("body {n}: give its size=… in metres"))?;
+        let density = density.ok_or_else(|| format!("body {n}: give its density=… in kg/m³"))?;
+        let at = at.ok_or_else(|| format!("body {n}: give its centre at=x,y,z in metres"))?;
+        if size <= 0.0 {
+            return Err(format!("body {n}: size {size} m must be above 0"));
+        }
+        if density <= 0.0 {
+            return Err(format!("body {n}: density {density} kg/m³ must be above 0"));
+        }
+        let mut body = RigidBody::new(shape, size, density, at, velocity);
+        body.angular_velocity_rad_s = spin;
+        let reach = DVec3::new(
+            body.half_extent_along(DVec3::X),
+            body.half_extent_along(DVec3::Y),
+            body.half_extent_along(DVec3::Z),
+        ) + gap;
+        if !((at - reach).cmpge(lo).all() && (at + reach).cmple(hi).all()) {
+            return Err(format!(
+                "body {n} ({}, {size} m across at {at} m) does not fit inside the domain box {lo} .. {hi} m with min_edge {gap} m to spare: move it or enlarge the fluid.domain",
+                body_name(index, &body)
+            ));
+        }
+        bodies.push(body);
+    }
+    Ok(bodies)
+}
 
 /// The triangles with coincident vertices (within 1 µm in the rest mesh) joined: meshes
 /// that split vertices for flat shading or seams (the mannequin's boxes) are closed
@@ -295,6 +396,7 @@ impl Node for Simulate {
         if let (Some(mesh), Some(triangles)) = (&still, &still_triangles) {
             check_surface(STATIC_IN.name(), triangles, &mut std::iter::once((0, &mesh.positions[..])), &domain)?;
         }
+        let bodies = parse_bodies(ctx.text_param(&BODIES)?, &domain).map_err(|e| NodeError::param(BODIES.0.name, e))?;
         let voxels = crate::kernels::fluid::sim::domain_grid(&domain).len() as u64;
         ctx.reserve_memory(voxels.saturating_mul(20).saturating_mul(frames as u64), FRAMES.0.name)?;
 
@@ -337,8 +439,9 @@ impl Node for Simulate {
         let mut on_step = |done: usize, total: usize, _: &crate::kernels::fluid::sim::StepReport| {
             ctx.progress(done as f32 / total.max(1) as f32);
         };
-        let result = simulate(&domain, &settings, &obstacles_at, cancel, &mut on_step);
-        let (volumes, steps) = result.map_err(|e| match e {
+        let dynamic = DynamicBodies { bodies, gravity_m_s2: DVec3::NEG_Y * ctx.float(&GRAVITY)? };
+        let result = simulate_with_bodies(&domain, &settings, &obstacles_at, &dynamic, cancel, &mut on_step);
+        let out = result.map_err(|e| match e {
             SimError::Cancelled => NodeError::Cancelled,
             SimError::Unstable { .. } => NodeError::param(SUBSTEPS.0.name, format!("is too small: {e}")),
             SimError::Mesh { step, source: MeshError::TooManyTets { tets, max_tets } } => NodeError::input(
@@ -349,6 +452,8 @@ impl Node for Simulate {
             ),
             other => NodeError::Failed(other.to_string()),
         })?;
+        let (volumes, steps) = (out.volumes, out.steps);
+        let curves = body_curves(&out.bodies, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
         let limit = settings.max_cells_per_step;
         let fast: Vec<usize> = steps.iter().filter(|s| s.fluid_cells_per_step > limit).map(|s| s.step).collect();
         if let (Some(first), Some(worst)) =
@@ -375,7 +480,7 @@ impl Node for Simulate {
                 })
             })
             .collect();
-        let report = serde_json::json!({
+        let mut report = serde_json::json!({
             "steps": steps.len(),
             "frames": volumes.frames.len(),
             "dt_s": 1.0 / (fps * substeps as f64),
@@ -391,10 +496,60 @@ impl Node for Simulate {
                 "per_step_mesh_advect_pressure_s": steps.iter().map(|s| [s.mesh_s, s.advect_s, s.pressure_s]).collect::<Vec<_>>(),
             },
         });
+        if !dynamic.bodies.is_empty() {
+            report["bodies"] = body_report(&out.bodies, &domain);
+        }
         ctx.set_output(&REPORT_OUT, report_of(report));
         ctx.set_output(&VOLUMES_OUT, Arc::new(volumes));
+        ctx.set_output(&BODIES_OUT, Arc::new(curves));
         Ok(())
     }
+}
+
+/// The bodies' paths per frame (`frames[frame][body]`) as curves at `fps`.
+fn body_curves(frames: &[Vec<RigidBody>], fps: f64) -> Result<Curves, crate::model::curves::CurvesError> {
+    let mut curves = Curves::new(fps, frames.len());
+    let Some(first) = frames.first() else { return Ok(curves) };
+    for (i, body) in first.iter().enumerate() {
+        let name = body_name(i, body);
+        let channel = |f: &dyn Fn(&RigidBody) -> f64| frames.iter().map(|bodies| f(&bodies[i])).collect::<Vec<f64>>();
+        for (axis, a) in ["x", "y", "z"].into_iter().enumerate() {
+            curves.push(&format!("{name}.{a}"), "m", channel(&|b| b.position_m[axis]))?;
+            curves.push(&format!("{name}.v{a}"), "m/s", channel(&|b| b.velocity_m_s[axis]))?;
+            curves.push(&format!("{name}.r{a}"), "rad", channel(&|b| b.orientation.to_scaled_axis()[axis]))?;
+        }
+    }
+    Ok(curves)
+}
+
+/// Per body: mass, where it started and ended, its top speed and the first frame it
+/// touched a wall (it stops a smallest edge short of it).
+fn body_report(frames: &[Vec<RigidBody>], domain: &FluidDomain) -> serde_json::Value {
+    let (lo, hi) = (DVec3::from(domain.min_m), DVec3::from(domain.max_m));
+    let count = frames.first().map_or(0, Vec::len);
+    let bodies: Vec<serde_json::Value> = (0..count)
+        .map(|i| {
+            let (first, last) = (frames[0][i], frames[frames.len() - 1][i]);
+            let at_wall = frames.iter().position(|bodies| {
+                // keep_inside moves only a body past the limit: touching is being on it.
+                let mut copy = bodies[i];
+                copy.keep_inside(lo, hi, domain.sizing.min_edge_m)
+            });
+            serde_json::json!({
+                "name": body_name(i, &first),
+                "shape": first.shape,
+                "size_m": first.size_m,
+                "density_kg_m3": first.density_kg_m3,
+                "mass_kg": first.mass_kg(),
+                "start_m": first.position_m.to_array(),
+                "end_m": last.position_m.to_array(),
+                "end_velocity_m_s": last.velocity_m_s.to_array(),
+                "top_speed_m_s": frames.iter().map(|b| b[i].velocity_m_s.length()).fold(0.0, f64::max),
+                "first_frame_at_wall": at_wall,
+            })
+        })
+        .collect();
+    serde_json::Value::Array(bodies)
 }
 
 const VOLUMES_IN: Input<Arc<VolumeSequence>> = Input::required("volumes", "The smoke volumes (fluid.simulate).");

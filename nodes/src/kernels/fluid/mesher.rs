@@ -49,6 +49,46 @@ impl Obstacle {
         let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
         Obstacle { positions_m, triangles }
     }
+
+    /// Every triangle split into four at its edge midpoints; neighbours share the midpoint of
+    /// their common edge, so a closed surface stays closed and keeps its orientation.
+    pub fn subdivided(&self) -> Obstacle {
+        let mut positions_m = self.positions_m.clone();
+        let mut middle: std::collections::BTreeMap<(u32, u32), u32> = std::collections::BTreeMap::new();
+        let mut split = |a: u32, b: u32, positions: &mut Vec<DVec3>| {
+            *middle.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let at = |i: u32| positions.get(i as usize).copied().unwrap_or(DVec3::ZERO);
+                positions.push(0.5 * (at(a) + at(b)));
+                positions.len() as u32 - 1
+            })
+        };
+        let triangles = self
+            .triangles
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let (ab, bc, ca) =
+                    (split(a, b, &mut positions_m), split(b, c, &mut positions_m), split(c, a, &mut positions_m));
+                [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+            })
+            .collect();
+        Obstacle { positions_m, triangles }
+    }
+
+    /// A closed sphere (a ball, a test solid): an octahedron subdivided `levels` times, each
+    /// time its vertices pushed back onto the sphere; 8·4^levels triangles with edges of
+    /// about 1.4·radius / 2^levels, counter-clockwise seen from outside.
+    pub fn sphere(centre_m: DVec3, radius_m: f64, levels: usize) -> Obstacle {
+        let mut unit = Obstacle {
+            positions_m: vec![DVec3::X, -DVec3::X, DVec3::Y, -DVec3::Y, DVec3::Z, -DVec3::Z],
+            triangles: vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]],
+        };
+        for _ in 0..levels {
+            unit = unit.subdivided();
+            unit.positions_m.iter_mut().for_each(|p| *p = p.normalize());
+        }
+        unit.positions_m.iter_mut().for_each(|p| *p = centre_m + *p * radius_m);
+        unit
+    }
 }
 
 /// Which tetrahedralisation of TetGen's quality nodes the fluid gets.

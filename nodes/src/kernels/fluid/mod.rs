@@ -7,10 +7,11 @@
 //! |---|---|
 //! | tet mesh, faces, circumcentres, adjacency, quality stats | [`mesh`] |
 //! | TetGen meshing of a box minus obstacles, Delaunay of points | `mesher` (feature `tetgen`) |
-//! | divergence, gradient, pressure solve | [`projection`] |
+//! | divergence, gradient, pressure solve (with rigid bodies coupled in) | [`projection`] |
 //! | per-tet and per-node velocity, point sampling, advection | [`velocity`] |
 //! | buoyancy, per-tet smoke transfer across meshes, mass totals | [`smoke`] |
 //! | sizing field, node placement warm-started from the last step, relaxation | `remesh` (feature `tetgen`) |
+//! | dynamic rigid bodies: mass, surface, buoyancy, wall contact | `rigid` (feature `tetgen`) |
 //! | the step loop: remesh, advect, sources, obstacles, projection, particles, resampling | `sim` (feature `tetgen`) |
 
 pub mod mesh;
@@ -19,6 +20,8 @@ pub mod mesher;
 pub mod projection;
 #[cfg(feature = "tetgen")]
 pub mod remesh;
+#[cfg(feature = "tetgen")]
+pub mod rigid;
 #[cfg(feature = "tetgen")]
 pub mod sim;
 pub mod smoke;

@@ -5,20 +5,27 @@
 //! projection, and the marker particles moved through the new field; per frame, the fields
 //! resampled onto the output voxel grid.
 //!
+//! Dynamic rigid bodies ([`super::rigid`]) are obstacles that move by their own state: each
+//! step a body moves by its velocity, is carved out of the new mesh, gets gravity and the
+//! hydrostatic buoyancy, and its velocity is solved for with the pressure
+//! ([`PressureSolver::with_bodies`]).
+//!
 //! Temperature is carried as the excess over ambient (K), so clear air is 0 everywhere.
 
 use std::time::Instant;
 
 use glam::{DVec3, IVec3};
+use nalgebra::Vector6;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::mesh::{MeshError, MeshStats, TetMesh};
 use super::mesher::Obstacle;
-use super::projection::{FaceCondition, PressureSolver, ProjectionError, face_conditions};
+use super::projection::{FaceCondition, PressureSolver, ProjectionError, RigidCoupling, face_conditions};
 use super::remesh::{Nodes, ObstacleDistance, mesh_nodes, place_nodes, solids, tet_vorticity};
+use super::rigid::{RigidBody, hydrostatic_wrench};
 use super::smoke::{Buoyancy, add_buoyancy, advect_per_tet, node_values, total};
-use super::velocity::{VelocityField, advect_velocity};
+use super::velocity::{VelocityField, advect_velocity, momentum};
 use crate::cancel::{Cancel, Cancelled};
 use crate::model::volume::{FluidDomain, VolumeFrame, VolumeSequence, VoxelGrid};
 
@@ -72,6 +79,29 @@ pub struct StepReport {
     /// Relative change of the smoke total by the transfer onto the new mesh (advection
     /// and remeshing together, before this step's sources).
     pub transfer_mass_change: f64,
+    /// Momentum of the air at the end of the step, kg·m/s: ρ Σ V_t u_t over the per-tet
+    /// velocities.
+    pub air_momentum_kg_m_s: [f64; 3],
+}
+
+/// Dynamic rigid bodies and the gravity that pulls them.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DynamicBodies {
+    /// The bodies at time 0.
+    pub bodies: Vec<RigidBody>,
+    /// Gravity, m/s² (Y up: (0, −9.81, 0) on Earth).
+    pub gravity_m_s2: DVec3,
+}
+
+/// What a run produces.
+#[derive(Debug, Clone)]
+pub struct SimOutput {
+    /// The fields per output frame.
+    pub volumes: VolumeSequence,
+    /// Figures per step.
+    pub steps: Vec<StepReport>,
+    /// Every dynamic body's state per output frame (frame 0: the start).
+    pub bodies: Vec<Vec<RigidBody>>,
 }
 
 /// Why a simulation stopped.
@@ -194,10 +224,17 @@ fn on_box_face(mesh: &TetMesh, f: usize, lo: DVec3, hi: DVec3) -> Option<(usize,
 }
 
 /// Boundary conditions and prescribed wall velocities of a mesh: box walls still, the top
-/// open when asked, obstacle faces moving with the nearest obstacle vertex. In a closed box
-/// the obstacle fluxes are balanced (their area-weighted mean removed) so the solve is
-/// consistent.
-fn boundary(domain: &FluidDomain, mesh: &TetMesh, obstacles: &[MovingObstacle]) -> (Vec<FaceCondition>, Vec<f64>) {
+/// open when asked, obstacle faces moving with the nearest obstacle vertex. Obstacles from
+/// index `first_body` on are dynamic bodies: their faces are [`FaceCondition::Rigid`] (body
+/// `index − first_body`), their velocities the solve's. In a closed box the other obstacles'
+/// fluxes are balanced (their area-weighted mean removed) so the solve is consistent; a
+/// body's rigid motion is balanced by construction.
+fn boundary(
+    domain: &FluidDomain,
+    mesh: &TetMesh,
+    obstacles: &[MovingObstacle],
+    first_body: usize,
+) -> (Vec<FaceCondition>, Vec<f64>) {
     let (lo, hi) = (DVec3::from(domain.min_m), DVec3::from(domain.max_m));
     let mut wall = vec![0.0; mesh.faces.len()];
     let mut obstacle_faces = Vec::new();
@@ -208,11 +245,17 @@ fn boundary(domain: &FluidDomain, mesh: &TetMesh, obstacles: &[MovingObstacle]) 
             let x = mesh.face_circumcentre_m[f];
             let nearest = obstacles
                 .iter()
-                .flat_map(|o| o.surface.positions_m.iter().zip(&o.velocity_m_s))
-                .min_by(|a, b| (*a.0 - x).length_squared().total_cmp(&(*b.0 - x).length_squared()));
-            wall[f] = nearest.map_or(0.0, |(_, v)| v.dot(mesh.face_normal[f]));
-            obstacle_faces.push(f);
-            FaceCondition::Wall
+                .enumerate()
+                .flat_map(|(i, o)| o.surface.positions_m.iter().zip(&o.velocity_m_s).map(move |(p, v)| (i, p, v)))
+                .min_by(|a, b| (*a.1 - x).length_squared().total_cmp(&(*b.1 - x).length_squared()));
+            wall[f] = nearest.map_or(0.0, |(_, _, v)| v.dot(mesh.face_normal[f]));
+            match nearest {
+                Some((i, _, _)) if i >= first_body => FaceCondition::Rigid((i - first_body) as u32),
+                _ => {
+                    obstacle_faces.push(f);
+                    FaceCondition::Wall
+                }
+            }
         }
     });
     if !domain.open_top && !obstacle_faces.is_empty() {
@@ -267,18 +310,52 @@ pub fn simulate(
     cancel: Cancel<'_>,
     progress: &mut dyn FnMut(usize, usize, &StepReport),
 ) -> Result<(VolumeSequence, Vec<StepReport>), SimError> {
+    let out = simulate_with_bodies(domain, settings, obstacles_at, &DynamicBodies::default(), cancel, progress)?;
+    Ok((out.volumes, out.steps))
+}
+
+/// A body as an obstacle: its surface at the domain's smallest edge, moving rigidly.
+fn body_obstacle(body: &RigidBody, edge_m: f64) -> MovingObstacle {
+    let surface = body.surface(edge_m);
+    let velocity_m_s = surface.positions_m.iter().map(|p| body.point_velocity(*p)).collect();
+    MovingObstacle { surface, velocity_m_s }
+}
+
+/// [`simulate`] with dynamic rigid bodies, two-way coupled to the air. A body closer to a
+/// box wall than the smallest edge starts moved back to that distance.
+pub fn simulate_with_bodies(
+    domain: &FluidDomain,
+    settings: &SimSettings,
+    obstacles_at: &dyn Fn(f64) -> Vec<MovingObstacle>,
+    dynamic: &DynamicBodies,
+    cancel: Cancel<'_>,
+    progress: &mut dyn FnMut(usize, usize, &StepReport),
+) -> Result<SimOutput, SimError> {
     let (lo, hi) = (DVec3::from(domain.min_m), DVec3::from(domain.max_m));
     let dt = 1.0 / (settings.fps * settings.substeps as f64);
     let buoyancy = Buoyancy { alpha: domain.buoyancy_alpha, beta: domain.buoyancy_beta, ambient_k: 0.0 };
     let grid = domain_grid(domain);
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);
     let total_steps = settings.frames.saturating_sub(1) * settings.substeps;
+    let (edge, gap) = (domain.sizing.min_edge_m, domain.sizing.min_edge_m);
+    let air_density = settings.air_density_kg_m3;
+    let mut bodies = dynamic.bodies.clone();
+    bodies.iter_mut().for_each(|b| {
+        b.keep_inside(lo, hi, gap);
+    });
+    // The kinematic obstacles at `time`, then the bodies where they are.
+    let all_obstacles = |time: f64, bodies: &[RigidBody]| -> (Vec<MovingObstacle>, usize) {
+        let mut obstacles = obstacles_at(time);
+        let first_body = obstacles.len();
+        obstacles.extend(bodies.iter().map(|b| body_obstacle(b, edge)));
+        (obstacles, first_body)
+    };
 
-    let obstacles = obstacles_at(0.0);
+    let (obstacles, first_body) = all_obstacles(0.0, &bodies);
     let (mesh, nodes) = remesh(domain, &obstacles, None).map_err(|source| SimError::Mesh { step: 0, source })?;
     let n = mesh.tet_count();
     let mut state = State {
-        face_velocity_m_s: boundary(domain, &mesh, &obstacles).1,
+        face_velocity_m_s: boundary(domain, &mesh, &obstacles, first_body).1,
         density: vec![0.0; n],
         heat_k: vec![0.0; n],
         particles_m: Vec::new(),
@@ -287,11 +364,16 @@ pub fn simulate(
     };
     let mut field = VelocityField::new(&state.mesh, &state.face_velocity_m_s);
     let mut frames = vec![sample_frame(&grid, &state, &field, &obstacles, lo, hi)];
+    let mut body_frames = vec![bodies.clone()];
     let mut reports = Vec::with_capacity(total_steps);
     for step in 1..=total_steps {
         cancel.check()?;
         let time = step as f64 * dt;
-        let obstacles = obstacles_at(time);
+        for body in &mut bodies {
+            body.advance(dt);
+            body.keep_inside(lo, hi, gap);
+        }
+        let (obstacles, first_body) = all_obstacles(time, &bodies);
         let limit = settings.max_cells_per_step;
         let cell = domain.sizing.min_edge_m;
         let speed_m_s = obstacles.iter().flat_map(|o| &o.velocity_m_s).map(|v| v.length()).fold(0.0, f64::max);
@@ -308,7 +390,7 @@ pub fn simulate(
         cancel.check()?;
 
         let clock = Instant::now();
-        let (conditions, wall) = boundary(domain, &mesh, &obstacles);
+        let (conditions, wall) = boundary(domain, &mesh, &obstacles, first_body);
         let mut z = advect_velocity(&state.mesh, &field, &mesh, dt, |f| mesh.is_boundary(f));
         let before = total(&state.mesh, &state.density);
         let mut density = advect_per_tet(&state.mesh, &field, &state.density, &mesh, dt);
@@ -331,12 +413,40 @@ pub fn simulate(
                 z[f] = wall[f];
             }
         }
+        let couplings: Vec<RigidCoupling> = bodies.iter().map(RigidBody::coupling).collect();
         let clock = Instant::now();
-        let solver = PressureSolver::new(&mesh, &conditions).map_err(|source| SimError::Projection { step, source })?;
+        let solver = PressureSolver::with_bodies(&mesh, &conditions, &couplings, air_density)
+            .map_err(|source| SimError::Projection { step, source })?;
+        // The bodies' velocities without the solved pressure: gravity and buoyancy.
+        let mut body_velocity: Vec<Vector6<f64>> = bodies
+            .iter()
+            .enumerate()
+            .map(|(i, body)| {
+                let buoyancy = hydrostatic_wrench(
+                    &mesh,
+                    &conditions,
+                    i as u32,
+                    body.position_m,
+                    air_density,
+                    dynamic.gravity_m_s2,
+                );
+                let weight = dynamic.gravity_m_s2 * body.mass_kg();
+                let impulse = (Vector6::new(weight.x, weight.y, weight.z, 0.0, 0.0, 0.0) + buoyancy) * dt;
+                let mut free = *body;
+                free.apply_impulse(&impulse);
+                free.keep_inside(lo, hi, gap);
+                free.generalised_velocity()
+            })
+            .collect();
         solver
-            .project(&mesh, &mut z, dt, settings.air_density_kg_m3)
+            .project_with_bodies(&mesh, &mut z, &mut body_velocity, dt)
             .map_err(|source| SimError::Projection { step, source })?;
         let pressure_s = clock.elapsed().as_secs_f64();
+        for (body, u) in bodies.iter_mut().zip(&body_velocity) {
+            body.set_generalised_velocity(u);
+            // At a wall the body stops; the air keeps the divergence-free solve.
+            body.keep_inside(lo, hi, gap);
+        }
         let new_field = VelocityField::new(&mesh, &z);
         let surfaces: Vec<Obstacle> = obstacles.iter().map(|o| o.surface.clone()).collect();
         let solids = solids(&surfaces);
@@ -375,14 +485,16 @@ pub fn simulate(
             pressure_s,
             fluid_cells_per_step: fluid_speed * dt / domain.sizing.min_edge_m,
             transfer_mass_change: if before > 0.0 { (after - before) / before } else { 0.0 },
+            air_momentum_kg_m_s: momentum(&mesh, &new_field.tet_velocity_m_s, air_density).to_array(),
         };
         state = State { mesh, nodes, face_velocity_m_s: z, density, heat_k: heat, particles_m: particles };
         field = new_field;
         if step % settings.substeps == 0 {
             frames.push(sample_frame(&grid, &state, &field, &obstacles, lo, hi));
+            body_frames.push(bodies.clone());
         }
         progress(step, total_steps, &report);
         reports.push(report);
     }
-    Ok((VolumeSequence { grid, fps: settings.fps, frames }, reports))
+    Ok(SimOutput { volumes: VolumeSequence { grid, fps: settings.fps, frames }, steps: reports, bodies: body_frames })
 }

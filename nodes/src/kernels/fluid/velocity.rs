@@ -223,19 +223,31 @@ impl TetLocator {
     }
 }
 
+/// Momentum of the fluid, kg·m/s: ρ Σ_t V_t u_t over per-tet velocities (m/s) of a fluid of
+/// density `density_kg_m3`.
+pub fn momentum(mesh: &TetMesh, tet_velocity_m_s: &[DVec3], density_kg_m3: f64) -> DVec3 {
+    density_kg_m3 * mesh.tet_volume_m3.iter().zip(tet_velocity_m_s).map(|(v, u)| *u * *v).sum::<DVec3>()
+}
+
 /// A velocity field on one mesh that can be sampled anywhere.
 #[derive(Debug, Clone)]
 pub struct VelocityField {
+    /// Velocity per tet ([`tet_velocities`]), m/s.
+    pub tet_velocity_m_s: Vec<DVec3>,
     /// Velocity per node, m/s.
     pub node_velocity_m_s: Vec<DVec3>,
     locator: TetLocator,
 }
 
 impl VelocityField {
-    /// Reconstructs node velocities from face-normal velocities.
+    /// Reconstructs tet and node velocities from face-normal velocities.
     pub fn new(mesh: &TetMesh, face_velocity_m_s: &[f64]) -> VelocityField {
         let per_tet = tet_velocities(mesh, face_velocity_m_s);
-        VelocityField { node_velocity_m_s: node_velocities(mesh, &per_tet), locator: TetLocator::new(mesh) }
+        VelocityField {
+            node_velocity_m_s: node_velocities(mesh, &per_tet),
+            tet_velocity_m_s: per_tet,
+            locator: TetLocator::new(mesh),
+        }
     }
 
     /// Velocity at `p`, m/s (clamped to the nearest tet outside the mesh).
