@@ -1,6 +1,8 @@
 //! UI frame time of the editor on a 500-node graph (issue goal: < 16 ms per frame), measured
 //! headless through egui_kittest: layout, canvas, panel and painting into egui's shapes,
-//! without GPU rasterisation. Run: `cargo bench --bench editor_frame`.
+//! without GPU rasterisation; and the wall time from an edit of `walk_punch_kick` to its
+//! evaluated result (goal < 0.5 s; needs the shared corpus). Run: `cargo bench --bench
+//! editor_frame`.
 
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
@@ -50,6 +52,31 @@ fn bench(c: &mut Criterion) {
     harness.state_mut().select(Some("n251"));
     harness.run_steps(2);
     c.bench_function("editor/frame_500_nodes_with_panel", |b| b.iter(|| harness.step()));
+    edit_to_result(c);
+}
+
+/// An edit of the motion.sequence seed of `graphs/walk_punch_kick.ron` until its result is
+/// in: validation, the worker's hand-over and the nodes downstream of the edit (upstream ones
+/// come from the cache). A new seed each time, so the sequence never comes from the cache.
+fn edit_to_result(c: &mut Criterion) {
+    if kinegraph::nodes::corpus::shared_data().is_none() {
+        eprintln!("skipping editor/edit_walk_punch_kick: no shared corpus (KG_SHARED_DATA)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let graph = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/walk_punch_kick.ron");
+    let mut app = EditorApp::with_settings_dir(&egui::Context::default(), Some(&graph), dir.path().join("settings"));
+    app.wait_for_evaluation();
+    let seed = kinegraph::graph::ParamPath::parse("sequence.seed").unwrap();
+    let mut next = 1000_i64;
+    c.bench_function("editor/edit_walk_punch_kick_to_result", |b| {
+        b.iter(|| {
+            next += 1;
+            let value = kinegraph::nodes::node::ParamValue::Int(next);
+            app.edit(kinegraph::editor::commands::EditorCommand::SetParam { param: seed.clone(), value }).unwrap();
+            app.wait_for_evaluation();
+        })
+    });
 }
 
 criterion_group!(benches, bench);
