@@ -193,7 +193,7 @@ fn clip_sets_stay_within_the_memory_limit() {
 
     let err = load_clip_set(&folder, pattern, 60.0, None, Some(10_000)).unwrap_err();
     assert!(err.starts_with("02_01: the clip set's memory limit is reached"), "{err}");
-    assert!(err.contains("--max-memory"), "{err}");
+    assert!(err.contains("--max-memory") && err.ends_with("or a lower fps)"), "{err}");
     let err = load_clip_set(&folder, pattern, 60.0, None, Some(needed / 2)).unwrap_err();
     assert!(err.contains("memory limit is reached"), "{err}");
     let limited = load_clip_set(&folder, pattern, 60.0, None, Some(needed * 2)).unwrap();

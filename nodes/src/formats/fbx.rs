@@ -303,7 +303,7 @@ pub fn read_fbx(bytes: &[u8], path: &Path, options: &FbxReadOptions) -> Result<L
             ));
         }
         let frames_f = (span * fps).round() + 1.0;
-        if let Some(refusal) = sampling_refusal(frames_f, nodes.len(), options.max_clip_bytes) {
+        if let Some(refusal) = sampling_refusal(frames_f, nodes.len(), options.max_clip_bytes, "sample_fps") {
             return Err(FormatError::file(
                 path,
                 Kind::Value,

@@ -110,7 +110,7 @@ impl MemoryBudget {
     /// Counts a clip of `frames` frames of `joints` joints, or refuses it, naming `clip`.
     fn take(&mut self, frames: f64, joints: usize, clip: &str) -> Result<(), String> {
         if self.limit.is_some()
-            && let Some(reason) = sampling_refusal(frames, joints, self.left())
+            && let Some(reason) = sampling_refusal(frames, joints, self.left(), "fps")
         {
             return Err(format!("{clip}: the clip set's memory limit is reached: {reason}"));
         }

@@ -77,15 +77,16 @@ pub fn sampled_bytes(frames: f64, joints: usize) -> f64 {
 
 /// Why a reader must not sample `frames` frames (as computed from the file, possibly huge
 /// or not finite) of `joints` joints within `max_bytes` (default
-/// [`DEFAULT_MAX_SAMPLED_BYTES`]), or `None` when it may.
-pub fn sampling_refusal(frames: f64, joints: usize, max_bytes: Option<u64>) -> Option<String> {
+/// [`DEFAULT_MAX_SAMPLED_BYTES`]), or `None` when it may; `rate_param` names the param that
+/// sets the sampling rate, for the way out.
+pub fn sampling_refusal(frames: f64, joints: usize, max_bytes: Option<u64>, rate_param: &str) -> Option<String> {
     let limit = max_bytes.unwrap_or(DEFAULT_MAX_SAMPLED_BYTES);
     let bytes = sampled_bytes(frames, joints);
     if frames.is_finite() && bytes <= limit as f64 {
         return None;
     }
     Some(format!(
-        "{frames:.0} frames of {joints} joints need about {}, more than the limit of {} (kg --max-memory, or a lower sample_fps)",
+        "{frames:.0} frames of {joints} joints need about {}, more than the limit of {} (kg --max-memory, or a lower {rate_param})",
         memory_size(bytes),
         memory_size(limit as f64)
     ))

@@ -661,7 +661,7 @@ fn read_animation(
     let (start_secs, end_secs) = if channels.is_empty() { (0.0, 0.0) } else { (start_secs, end_secs) };
     let fps = options.sample_fps.unwrap_or_else(|| infer_sample_fps(channels.iter().map(|c| c.times)));
     let span_frames = (end_secs - start_secs) * fps;
-    if let Some(refusal) = sampling_refusal(span_frames + 1.0, skeleton.len(), options.max_clip_bytes) {
+    if let Some(refusal) = sampling_refusal(span_frames + 1.0, skeleton.len(), options.max_clip_bytes, "sample_fps") {
         return Err(ReadError::new(
             apath,
             Kind::Unsupported,
