@@ -124,6 +124,7 @@ fn synthetic() -> (Clip, Mesh) {
         uvs,
         triangles,
         skin: Some(Skin { skeleton, joints, weights, inverse_bind_matrices }),
+        ..Mesh::default()
     };
     (clip, mesh)
 }

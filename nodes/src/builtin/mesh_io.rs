@@ -111,7 +111,8 @@ impl Node for LoadCharacter {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let path = ctx.input_path(&CHARACTER_PATH)?;
         let animation = usize::try_from(ctx.int(&ANIMATION)?).unwrap_or(0);
-        let Loaded { value: Character { clip, mesh, parts }, warnings } = load_character(&path, animation)?;
+        let Loaded { value: Character { clip, mesh, parts, file_inverse_bind_matrices }, warnings } =
+            load_character(&path, animation)?;
         ctx.warn_all(warnings);
         let parts: Vec<_> = parts
             .iter()
@@ -124,6 +125,8 @@ impl Node for LoadCharacter {
                 "frames": clip.frame_count(),
                 "vertices": mesh.positions.len(),
                 "meshes": parts,
+                "materials": mesh.materials.iter().map(|m| m.name.clone().unwrap_or_default()).collect::<Vec<_>>(),
+                "inverse_bind_matrices": if file_inverse_bind_matrices { "the file's (they fit the rest pose)" } else { "computed from the rest pose" },
             }))),
         );
         ctx.set_output(&CHARACTER_CLIP, Arc::new(clip));

@@ -23,6 +23,7 @@
 mod accessor;
 mod builder;
 mod document;
+mod material;
 mod morph;
 mod reader;
 mod writer;
@@ -30,7 +31,7 @@ mod writer;
 pub use builder::GlbChunks;
 pub use morph::write_sequence_glb;
 pub use reader::{GltfAsset, GltfClip, GltfReadOptions, infer_sample_fps, read_gltf, read_gltf_file};
-pub use writer::{build_glb, write_glb, write_glb_file};
+pub use writer::{DEFAULT_ANIMATION_NAME, GlbAnimation, build_glb, build_glb_animations, write_glb, write_glb_file};
 
 use crate::formats::error::{FormatError, FormatErrorKind, Location};
 
