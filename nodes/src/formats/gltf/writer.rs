@@ -85,7 +85,7 @@ pub fn build_glb_animations(
         if animations[..k].iter().any(|b| b.name == a.name) {
             return Err(err(Kind::Value, format!("two animations are named '{}'", a.name)));
         }
-        if !same_hierarchy(a.clip.skeleton(), skeleton) {
+        if !a.clip.skeleton().same_hierarchy(skeleton) {
             return Err(err(
                 Kind::Structure,
                 format!("animation '{}' moves another skeleton than animation '{}'", a.name, first.name),
@@ -185,11 +185,6 @@ pub fn build_glb_animations(
     b.root.scene = Some(scene);
     let chunks = b.finish().map_err(|m| err(Kind::Unsupported, m))?;
     Ok(Loaded { value: chunks, warnings })
-}
-
-/// Same joint names and parents, in the same order.
-fn same_hierarchy(a: &Skeleton, b: &Skeleton) -> bool {
-    a.len() == b.len() && a.joints().iter().zip(b.joints()).all(|(x, y)| x.name == y.name && x.parent == y.parent)
 }
 
 /// Writes one animation: a shared time input (`frame / fps` seconds), a LINEAR rotation
@@ -441,7 +436,7 @@ fn write_mesh(
 /// checked against `skeleton`.
 fn skin_rows(mesh: &Mesh, skin: &Skin, skeleton: &Skeleton) -> Result<(Vec<u16>, Vec<f32>, Vec<f32>), (Kind, String)> {
     let n = mesh.positions.len();
-    if !same_hierarchy(&skin.skeleton, skeleton) {
+    if !skin.skeleton.same_hierarchy(skeleton) {
         return Err((
             Kind::Structure,
             format!("mesh '{}' is skinned to a different skeleton than the clip's", mesh.name),
