@@ -457,9 +457,9 @@ fn several_named_animations_go_into_one_file() {
                 })
                 .collect();
             let world = node_worlds(&doc, &local);
-            for j in 0..clip.joint_count() {
+            for (j, (joint, node)) in clip.skeleton().joints().iter().zip(doc.nodes()).enumerate() {
                 // Node j is joint j (the writer's layout, checked by name).
-                assert_eq!(doc.nodes().nth(j).unwrap().name(), Some(clip.skeleton().joints()[j].name.as_str()));
+                assert_eq!(node.name(), Some(joint.name.as_str()));
                 let want = poses.position(f, j);
                 let got = world[j].w_axis.truncate();
                 // Fox is ~100 units across: f32 resolution there is ~1e-5 per unit.

@@ -380,15 +380,15 @@ fn write_mesh(
                 b.accessor_f32(&gather(uv, 2, &part.vertices), Type::Vec2, Some(Target::ArrayBuffer), Bounds::Omit),
             );
         }
-        if let Some((joint_data, weight_data, _)) = &skin_data {
+        if let Some(rows) = &skin_data {
             attributes.insert(
                 Valid(Semantic::Joints(0)),
-                b.accessor_u16(&gather(joint_data, 4, &part.vertices), Type::Vec4, Some(Target::ArrayBuffer)),
+                b.accessor_u16(&gather(&rows.joints, 4, &part.vertices), Type::Vec4, Some(Target::ArrayBuffer)),
             );
             attributes.insert(
                 Valid(Semantic::Weights(0)),
                 b.accessor_f32(
-                    &gather(weight_data, 4, &part.vertices),
+                    &gather(&rows.weights, 4, &part.vertices),
                     Type::Vec4,
                     Some(Target::ArrayBuffer),
                     Bounds::Omit,
@@ -399,8 +399,8 @@ fn write_mesh(
     }
 
     let mut skin_index = None;
-    if let Some((_, _, ibm)) = &skin_data {
-        let ibm_accessor = b.accessor_f32(ibm, Type::Mat4, None, Bounds::Omit);
+    if let Some(rows) = &skin_data {
+        let ibm_accessor = b.accessor_f32(&rows.inverse_bind_matrices, Type::Mat4, None, Bounds::Omit);
         skin_index = Some(b.root.push(json::Skin {
             extensions: Default::default(),
             extras: Default::default(),
@@ -431,10 +431,20 @@ fn write_mesh(
     Ok(Some(node))
 }
 
+/// A skin's attribute and matrix data as written, flattened.
+struct SkinRows {
+    /// Four joints per vertex.
+    joints: Vec<u16>,
+    /// Four weights per vertex, summing to one.
+    weights: Vec<f32>,
+    /// Sixteen numbers (column-major) per joint.
+    inverse_bind_matrices: Vec<f32>,
+}
+
 /// Per vertex joints and weights (repeated joints merged, zero weights dropped, rows
 /// summing to one) and the inverse bind matrices with glTF's exact affine last row,
 /// checked against `skeleton`.
-fn skin_rows(mesh: &Mesh, skin: &Skin, skeleton: &Skeleton) -> Result<(Vec<u16>, Vec<f32>, Vec<f32>), (Kind, String)> {
+fn skin_rows(mesh: &Mesh, skin: &Skin, skeleton: &Skeleton) -> Result<SkinRows, (Kind, String)> {
     let n = mesh.positions.len();
     if !skin.skeleton.same_hierarchy(skeleton) {
         return Err((
@@ -497,5 +507,5 @@ fn skin_rows(mesh: &Mesh, skin: &Skin, skeleton: &Skeleton) -> Result<(Vec<u16>,
         m.w_axis.w = 1.0;
         ibm.extend_from_slice(&m.to_cols_array());
     }
-    Ok((joint_data, weight_data, ibm))
+    Ok(SkinRows { joints: joint_data, weights: weight_data, inverse_bind_matrices: ibm })
 }
