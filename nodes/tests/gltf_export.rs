@@ -572,3 +572,57 @@ fn file_inverse_bind_matrices_are_kept_when_they_fit() {
         }
     }
 }
+
+/// The synthetic box with its first six triangles (three faces) red and the other six
+/// blue, sharing corner vertices across the two: written as two primitives,
+/// each with its material and six triangles over its own eight corners (shared corners
+/// written once per primitive), every triangle on the same positions as before. Without
+/// UVs a textured material goes out untextured, with a warning.
+#[test]
+fn a_two_material_box_writes_one_primitive_per_material() {
+    use kinegraph_nodes::model::{Image, Material, MaterialRange, Sampler, Texture};
+    let (clip, mut mesh) = synthetic();
+    let paint = |name: &str, rgba: [f32; 4]| Material {
+        name: Some(name.into()),
+        base_color_factor: rgba,
+        metallic_factor: 0.0,
+        ..Material::default()
+    };
+    mesh.materials = vec![paint("red", [1.0, 0.0, 0.0, 1.0]), paint("blue", [0.0, 0.0, 1.0, 1.0])];
+    mesh.material_ranges = vec![
+        MaterialRange { first_triangle: 0, triangle_count: 6, material: Some(0) },
+        MaterialRange { first_triangle: 6, triangle_count: 6, material: Some(1) },
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("two_materials.glb");
+    assert!(write_glb_file(&path, &clip, Some(&mesh)).unwrap().is_empty());
+    let (doc, buffers, _) = gltf::import(&path).unwrap();
+    let prims: Vec<gltf::Primitive<'_>> = doc.meshes().flat_map(|m| m.primitives()).collect();
+    assert_eq!(prims.len(), 2);
+    for (k, prim) in prims.iter().enumerate() {
+        let m = prim.material();
+        assert_eq!(m.name(), mesh.materials[k].name.as_deref());
+        assert_eq!(m.pbr_metallic_roughness().base_color_factor(), mesh.materials[k].base_color_factor);
+        let r = prim.reader(|b| Some(&buffers[b.index()]));
+        let positions: Vec<Vec3> = r.read_positions().unwrap().map(Vec3::from).collect();
+        let indices: Vec<u32> = r.read_indices().unwrap().into_u32().collect();
+        assert_eq!(positions.len(), 8, "every corner of the box is used by both halves");
+        let source = &mesh.triangles[6 * k..6 * k + 6];
+        for (t, want) in indices.chunks_exact(3).zip(source) {
+            for c in 0..3 {
+                assert_eq!(positions[t[c] as usize], mesh.positions[want[c] as usize]);
+            }
+        }
+    }
+    gltf_validator::validate_gltf(std::slice::from_ref(&path));
+
+    // A texture on a mesh without UVs.
+    let image = Arc::new(Image { name: None, mime_type: "image/png".into(), bytes: b"\x89PNG\r\n\x1a\n".to_vec() });
+    mesh.materials[0].base_color_texture = Some(Texture { image, sampler: Sampler::default() });
+    mesh.uvs = None;
+    let warnings = write_glb_file(&path, &clip, Some(&mesh)).unwrap();
+    assert!(warnings.iter().any(|w| w.contains("no UVs")), "{warnings:?}");
+    let (doc, _, images) = gltf::import(&path).unwrap();
+    assert_eq!((doc.textures().count(), images.len()), (0, 0));
+    gltf_validator::validate_gltf(&[path]);
+}

@@ -134,6 +134,18 @@ impl Default for Material {
 }
 
 impl Material {
+    /// The material with its factors only (for a mesh without UVs to sample textures with).
+    pub fn without_textures(&self) -> Material {
+        Material {
+            base_color_texture: None,
+            metallic_roughness_texture: None,
+            normal_texture: None,
+            occlusion_texture: None,
+            emissive_texture: None,
+            ..self.clone()
+        }
+    }
+
     /// The textures the material uses, in a fixed order (base colour, metallic-roughness,
     /// normal, occlusion, emissive).
     pub fn textures(&self) -> impl Iterator<Item = &Texture> {

@@ -102,7 +102,12 @@ pub(crate) fn read_materials(
             alpha_mode,
             double_sided: m.double_sided,
         };
+        let cutoff = match material.alpha_mode {
+            AlphaMode::Mask { cutoff } => cutoff,
+            _ => 0.5,
+        };
         let scalars = [
+            cutoff,
             material.metallic_factor,
             material.roughness_factor,
             material.normal_scale,

@@ -1,5 +1,5 @@
-//! glTF 2.0: reading `.gltf`/`.glb` into skeletons, clips and skinned meshes, and writing
-//! clips (with an optional skinned mesh) as `.glb`.
+//! glTF 2.0: reading `.gltf`/`.glb` into skeletons, clips and skinned meshes with their
+//! materials, and writing clips (with an optional skinned, textured mesh) as `.glb`.
 //!
 //! gltf-json parses and validates the JSON; accessor bytes are decoded here with explicit
 //! bounds checks so that malformed files give a [`FormatError`] located by JSON path
@@ -19,6 +19,9 @@
 //!   pose *is* the bind pose where the file allows: positions are the rest-pose skinned
 //!   positions and inverse bind matrices are adjusted to match (skinning at any pose gives
 //!   exactly what the file's own data would).
+//! - **Materials** (only when [`GltfReadOptions::materials`] asks): each primitive's
+//!   metallic-roughness material with its textures' encoded images, kept on the merged
+//!   mesh as runs of triangles per material (see `material`).
 
 mod accessor;
 mod builder;

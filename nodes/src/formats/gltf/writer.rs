@@ -11,6 +11,7 @@
 //! primitive over all its vertices; with materials, each material's triangles are one
 //! primitive over the vertices they use, and images are embedded in the binary chunk.
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -26,7 +27,7 @@ use crate::formats::atomic::write_atomic_with;
 use crate::formats::error::{FormatError, FormatErrorKind as Kind, Loaded};
 use crate::math::quat_normalize_or_identity;
 use crate::model::fk::rest_world;
-use crate::model::{Clip, Mesh, Skeleton, Skin};
+use crate::model::{Clip, Material, Mesh, Skeleton, Skin};
 
 use super::builder::{Bounds, GlbBuilder, GlbChunks};
 use super::material::write_materials;
@@ -411,7 +412,15 @@ fn write_mesh(
         }));
     }
 
-    let materials = write_materials(b, &mesh.materials);
+    let materials: Cow<'_, [Material]> =
+        if uvs.is_none() && mesh.materials.iter().any(|m| m.textures().next().is_some()) {
+            // A texture needs TEXCOORD_0: without UVs the materials go out with their factors only.
+            warnings.push(format!("mesh '{}' has no UVs; its materials are written without their textures", mesh.name));
+            Cow::Owned(mesh.materials.iter().map(Material::without_textures).collect())
+        } else {
+            Cow::Borrowed(&mesh.materials)
+        };
+    let materials = write_materials(b, &materials);
     let primitives = parts
         .iter()
         .zip(attribute_sets)
