@@ -157,4 +157,48 @@ mod tests {
         }
         assert_eq!(normals[4], Vec3::Y);
     }
+
+    /// Three parts merged: A (2 triangles of `skin`, then 1 of `cloth`), B (no materials, 2
+    /// triangles) and C (1 of its own `cloth`, equal to A's): hand-counted runs, `cloth`
+    /// stored once, B's triangles on the default material.
+    #[test]
+    fn merged_parts_remap_and_share_materials() {
+        use crate::model::{Material, MaterialRange};
+        let named = |n: &str| Material { name: Some(n.into()), ..Material::default() };
+        let part = |triangles: usize, materials: Vec<Material>, ranges: Vec<(usize, usize, Option<usize>)>| Mesh {
+            triangles: vec![[0, 0, 0]; triangles],
+            materials,
+            material_ranges: ranges
+                .into_iter()
+                .map(|(first_triangle, triangle_count, material)| MaterialRange {
+                    first_triangle,
+                    triangle_count,
+                    material,
+                })
+                .collect(),
+            ..Mesh::default()
+        };
+        let a = part(3, vec![named("skin"), named("cloth")], vec![(0, 2, Some(0)), (2, 1, Some(1))]);
+        let b = part(2, vec![], vec![]);
+        let c = part(1, vec![named("cloth")], vec![(0, 1, Some(0))]);
+        let mut merged = Mesh::default();
+        for p in [&a, &b, &c] {
+            merged.triangles.extend_from_slice(&p.triangles);
+            merged.append_materials_of(p);
+        }
+        merged.drop_empty_material_ranges();
+        assert_eq!(merged.materials, vec![named("skin"), named("cloth")]);
+        let runs: Vec<_> =
+            merged.material_ranges.iter().map(|r| (r.first_triangle, r.triangle_count, r.material)).collect();
+        assert_eq!(runs, vec![(0, 2, Some(0)), (2, 1, Some(1)), (3, 2, None), (5, 1, Some(1))]);
+        assert_eq!(merged.check_material_ranges(), Ok(()));
+        // Without any material the ranges go, and a miscount is named.
+        let mut plain = Mesh::default();
+        plain.triangles.extend_from_slice(&b.triangles);
+        plain.append_materials_of(&b);
+        plain.drop_empty_material_ranges();
+        assert!(plain.material_ranges.is_empty());
+        merged.triangles.pop();
+        assert_eq!(merged.check_material_ranges(), Err("material ranges cover 6 of 5 triangles".into()));
+    }
 }
