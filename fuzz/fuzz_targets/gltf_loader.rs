@@ -76,6 +76,9 @@ fn check(asset: &GltfAsset) {
         let vertices = mesh.positions.len();
         assert!(mesh.positions.iter().all(|p| p.is_finite()), "mesh '{}' has a non-finite position", mesh.name);
         assert_eq!(mesh.normals.len(), vertices, "mesh '{}' normal count", mesh.name);
+        if let Err(e) = mesh.check_material_ranges() {
+            panic!("mesh '{}': {e}", mesh.name);
+        }
         if let Some(uvs) = &mesh.uvs {
             assert_eq!(uvs.len(), vertices, "mesh '{}' uv count", mesh.name);
         }
@@ -99,7 +102,8 @@ fn check(asset: &GltfAsset) {
 const MAX_CLIP_BYTES: u64 = 64 << 20;
 
 fuzz_target!(|data: &[u8]| {
-    let options = GltfReadOptions { max_clip_bytes: Some(MAX_CLIP_BYTES), ..Default::default() };
+    // Materials on: their textures, samplers and images are user data too.
+    let options = GltfReadOptions { max_clip_bytes: Some(MAX_CLIP_BYTES), materials: true, ..Default::default() };
     let path = Path::new(FAKE_PATH);
     if let Ok(loaded) = read_gltf(data, path, &options) {
         check(&loaded.value);

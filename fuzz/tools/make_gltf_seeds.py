@@ -16,6 +16,7 @@ import json
 import math
 import os
 import struct
+import zlib
 
 OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "seeds", "gltf_loader")
 
@@ -130,3 +131,59 @@ with open(os.path.join(OUT, "tri_skin_anim.gltf"), "w") as f:
 
 with open(os.path.join(OUT, "minimal.gltf"), "w") as f:
     f.write('{"asset":{"version":"2.0"}}\n')
+
+# A textured triangle hanging from a bone: every material slot on one data-URI PNG (1 × 1
+# RGB), a sampler, alpha mask, the specular and emissive-strength extensions.
+def png_chunk(kind, data):
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+
+png = b"\x89PNG\r\n\x1a\n" + png_chunk(b"IHDR", struct.pack(">IIBBBBB", 1, 1, 8, 2, 0, 0, 0))
+png += png_chunk(b"IDAT", zlib.compress(b"\x00\xff\x80\x00")) + png_chunk(b"IEND", b"")
+tri = b"".join(struct.pack("<f", v) for v in [0, 0, 0, 1, 0, 0, 0, 1, 0]) + struct.pack("<4H", 0, 1, 2, 0)
+tri += b"".join(struct.pack("<f", v) for v in [0, 0, 1, 0, 0.25, 0.75])
+textured = {
+    "asset": {"version": "2.0"},
+    "scene": 0,
+    "scenes": [{"nodes": [0]}],
+    "nodes": [
+        {"name": "root", "translation": [0, 1, 0], "children": [1]},
+        {"name": "bone", "translation": [0, 1, 0], "children": [2]},
+        {"name": "badge", "translation": [0.5, 0, 0], "mesh": 0},
+    ],
+    "skins": [{"joints": [0, 1]}],
+    "meshes": [{"name": "badge", "primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 2}, "indices": 1, "material": 0}]}],
+    "materials": [
+        {
+            "name": "paint",
+            "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicRoughnessTexture": {"index": 0}},
+            "normalTexture": {"index": 0, "scale": 0.5},
+            "occlusionTexture": {"index": 0, "strength": 0.5},
+            "emissiveTexture": {"index": 0},
+            "alphaMode": "MASK",
+            "alphaCutoff": 0.3,
+            "doubleSided": True,
+            "extensions": {
+                "KHR_materials_specular": {"specularFactor": 0.5, "specularColorFactor": [1, 0.5, 0.25]},
+                "KHR_materials_emissive_strength": {"emissiveStrength": 2},
+            },
+        }
+    ],
+    "extensionsUsed": ["KHR_materials_specular", "KHR_materials_emissive_strength"],
+    "textures": [{"source": 0, "sampler": 0}],
+    "samplers": [{"magFilter": 9728, "minFilter": 9987, "wrapS": 33071, "wrapT": 33648}],
+    "images": [{"uri": "data:image/png;base64," + base64.b64encode(png).decode()}],
+    "buffers": [{"byteLength": len(tri), "uri": "data:application/octet-stream;base64," + base64.b64encode(tri).decode()}],
+    "bufferViews": [
+        {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+        {"buffer": 0, "byteOffset": 36, "byteLength": 6},
+        {"buffer": 0, "byteOffset": 44, "byteLength": 24},
+    ],
+    "accessors": [
+        {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+        {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"},
+        {"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC2"},
+    ],
+}
+with open(os.path.join(OUT, "textured_prop.gltf"), "w") as f:
+    json.dump(textured, f, separators=(",", ":"))

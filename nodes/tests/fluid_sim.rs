@@ -218,7 +218,7 @@ fn cube_mesh(centre: DVec3, half: f64) -> Mesh {
         normals: vec![glam::Vec3::Y; 8],
         uvs: None,
         triangles: o.triangles,
-        skin: None,
+        ..Mesh::default()
     }
 }
 

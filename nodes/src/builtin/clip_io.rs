@@ -4,13 +4,13 @@ use std::sync::Arc;
 
 use crate::formats::Loaded;
 use crate::formats::bvh::{BvhUnit, BvhWriteOptions, write_bvh_to};
-use crate::formats::gltf::build_glb;
+use crate::formats::gltf::{DEFAULT_ANIMATION_NAME, GlbAnimation, build_glb_animations};
 use crate::kernels::load::{ClipLoadOptions, UpAxis, load_clip};
 use crate::kernels::resample::resample;
 use crate::model::{Clip, Mesh};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output,
-    OutputPathParam, Registry,
+    OutputPathParam, Registry, TextParam,
 };
 
 /// Registers the clip I/O nodes.
@@ -147,23 +147,37 @@ impl Node for ExportBvh {
     }
 }
 
-const MESH_IN: Input<Arc<Mesh>> =
-    Input::optional("mesh", "A mesh skinned to the clip's skeleton, written with the animation (optional).");
+const MESH_IN: Input<Arc<Mesh>> = Input::optional(
+    "mesh",
+    "A mesh skinned to the clip's skeleton, written with the animation and its materials and textures (optional).",
+);
+const MORE_CLIPS: [Input<Arc<Clip>>; 3] = [
+    Input::optional("clip_2", "A second animation of the same skeleton, written beside the first (optional)."),
+    Input::optional("clip_3", "A third animation of the same skeleton (optional)."),
+    Input::optional("clip_4", "A fourth animation of the same skeleton (optional)."),
+];
+const NAME: TextParam = TextParam::new("name", "Name of the clip's animation in the file.", DEFAULT_ANIMATION_NAME);
+const MORE_NAMES: [TextParam; 3] = [
+    TextParam::new("name_2", "Name of clip_2's animation.", "clip_2"),
+    TextParam::new("name_3", "Name of clip_3's animation.", "clip_3"),
+    TextParam::new("name_4", "Name of clip_4's animation.", "clip_4"),
+];
 const GLB_FILE: OutputPathParam =
     OutputPathParam::new("file", "Where to write, relative to the run's output folder.", "glb", "clip.glb");
 
-/// `export.glb`: writes a clip (and optionally its skinned mesh) as binary glTF.
+/// `export.glb`: writes clips (and optionally their skinned mesh) as binary glTF.
 pub struct ExportGlb;
 
 static EXPORT_GLB: NodeSchema = NodeSchema {
     kind: "export.glb",
     category: "io",
-    doc: "Writes a clip as a binary glTF (.glb): the skeleton as a node hierarchy with its animation, plus a skinned mesh when one is connected.",
-    inputs: &[CLIP_IN.spec(), MESH_IN.spec()],
+    doc: "Writes a clip as a binary glTF (.glb): the skeleton as a node hierarchy with its animation, up to three more clips of the same skeleton as further named animations, plus a skinned mesh when one is connected, one primitive per material with its textures embedded.",
+    inputs: &[CLIP_IN.spec(), MESH_IN.spec(), MORE_CLIPS[0].spec(), MORE_CLIPS[1].spec(), MORE_CLIPS[2].spec()],
     outputs: &[FILE_OUT.spec()],
-    params: &[GLB_FILE.0],
+    params: &[GLB_FILE.0, NAME.0, MORE_NAMES[0].0, MORE_NAMES[1].0, MORE_NAMES[2].0],
     writes_files: true,
-    version: 1,
+    // 2: materials and textures, several named animations.
+    version: 2,
 };
 
 impl Node for ExportGlb {
@@ -173,7 +187,27 @@ impl Node for ExportGlb {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP_IN)?;
         let mesh = ctx.optional_input(&MESH_IN)?;
-        let built = build_glb(&clip, mesh.as_deref())?;
+        let mut clips = vec![(ctx.text_param(&NAME)?.to_owned(), clip)];
+        for (input, param) in MORE_CLIPS.iter().zip(&MORE_NAMES) {
+            if let Some(more) = ctx.optional_input(input)? {
+                let name = ctx.text_param(param)?.to_owned();
+                if clips.iter().any(|(n, _)| *n == name) {
+                    return Err(NodeError::param(
+                        param.0.name,
+                        format!("another animation is already named '{name}'; give each a different name"),
+                    ));
+                }
+                if !more.skeleton().same_hierarchy(clips[0].1.skeleton()) {
+                    return Err(NodeError::input(
+                        input.spec().name,
+                        "moves another skeleton than clip (joint names or parents differ)".to_owned(),
+                    ));
+                }
+                clips.push((name, more));
+            }
+        }
+        let animations: Vec<GlbAnimation<'_>> = clips.iter().map(|(name, clip)| GlbAnimation { name, clip }).collect();
+        let built = build_glb_animations(&animations, mesh.as_deref())?;
         ctx.warn_all(built.warnings);
         let relative = ctx.write_output_with(&GLB_FILE, |out| built.value.write_to(out))?;
         ctx.set_output(&FILE_OUT, Arc::new(relative));

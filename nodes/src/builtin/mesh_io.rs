@@ -83,11 +83,11 @@ const CHARACTER_CLIP: Output<Arc<Clip>> = Output::new(
 );
 const CHARACTER_MESH: Output<Arc<Mesh>> = Output::new(
     "mesh",
-    "Every mesh of the scene as one mesh skinned to the skeleton, in its rest pose, metres: skinned meshes keep their weights, meshes parented to a bone move rigidly with it.",
+    "Every mesh of the scene as one mesh skinned to the skeleton, in its rest pose, metres: skinned meshes keep their weights, meshes parented to a bone move rigidly with it; each triangle keeps its material.",
 );
 const CHARACTER_REPORT: Output<Arc<Report>> = Output::new(
     "report",
-    "Each source mesh: its name, vertex count and how it is bound (skinned or rigid to a joint).",
+    "Each source mesh: its name, vertex count and how it is bound (skinned or rigid to a joint); the materials; whether the file's inverse bind matrices were kept.",
 );
 
 /// `character.load`: a whole rigged character from one glTF/GLB scene.
@@ -96,12 +96,13 @@ pub struct LoadCharacter;
 static LOAD_CHARACTER: NodeSchema = NodeSchema {
     kind: "character.load",
     category: "io",
-    doc: "Loads a rigged character from a glTF/GLB scene: its skeleton and animation, and every mesh merged into one skinned mesh (meshes attached to bones follow them rigidly), ready for export.glb.",
+    doc: "Loads a rigged character from a glTF/GLB scene: its skeleton and animation, and every mesh merged into one skinned mesh (meshes attached to bones follow them rigidly) with each part's material, UVs and textures, ready for export.glb. A texture image file missing beside the glTF is an error naming it.",
     inputs: &[],
     outputs: &[CHARACTER_CLIP.spec(), CHARACTER_MESH.spec(), CHARACTER_REPORT.spec()],
     params: &[CHARACTER_PATH.0, ANIMATION.0],
     writes_files: false,
-    version: 1,
+    // 2: materials, textures and UVs kept; the file's inverse bind matrices when they fit.
+    version: 2,
 };
 
 impl Node for LoadCharacter {
@@ -111,7 +112,8 @@ impl Node for LoadCharacter {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let path = ctx.input_path(&CHARACTER_PATH)?;
         let animation = usize::try_from(ctx.int(&ANIMATION)?).unwrap_or(0);
-        let Loaded { value: Character { clip, mesh, parts }, warnings } = load_character(&path, animation)?;
+        let Loaded { value: Character { clip, mesh, parts, file_inverse_bind_matrices }, warnings } =
+            load_character(&path, animation)?;
         ctx.warn_all(warnings);
         let parts: Vec<_> = parts
             .iter()
@@ -124,6 +126,8 @@ impl Node for LoadCharacter {
                 "frames": clip.frame_count(),
                 "vertices": mesh.positions.len(),
                 "meshes": parts,
+                "materials": mesh.materials.iter().map(|m| m.name.clone().unwrap_or_default()).collect::<Vec<_>>(),
+                "inverse_bind_matrices": if file_inverse_bind_matrices { "the file's (they fit the rest pose)" } else { "computed from the rest pose" },
             }))),
         );
         ctx.set_output(&CHARACTER_CLIP, Arc::new(clip));

@@ -513,7 +513,7 @@ fn read_meshes(
             weights,
             inverse_bind_matrices: inverse_bind_matrices.clone(),
         });
-        out.push(Mesh { name, positions, normals, uvs: has_uvs.then_some(uvs), triangles, skin });
+        out.push(Mesh { name, positions, normals, uvs: has_uvs.then_some(uvs), triangles, skin, ..Mesh::default() });
     }
     Ok(out)
 }

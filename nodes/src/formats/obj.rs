@@ -97,7 +97,7 @@ pub fn read_obj(bytes: &[u8], path: &Path, metres_per_unit: Option<f64>) -> Resu
         }
         let uvs = (m.texcoords.len() == 2 * n && n > 0)
             .then(|| m.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])).collect::<Vec<_>>());
-        let mesh = Mesh { name: model.name, positions, normals, uvs, triangles, skin: None };
+        let mesh = Mesh { name: model.name, positions, normals, uvs, triangles, ..Mesh::default() };
         if metres_per_unit.is_none()
             && let Some((lo, hi)) = mesh.bounds()
         {

@@ -130,7 +130,7 @@ pub fn arm_mesh(rings: usize, segments: usize) -> Mesh {
         triangles.push([cap_start + 1, index(rings - 1, s + 1), index(rings - 1, s)]);
     }
     let normals = Mesh::compute_normals(&positions, &triangles);
-    Mesh { name: "arm".into(), positions, normals, uvs: None, triangles, skin: None }
+    Mesh { name: "arm".into(), positions, normals, uvs: None, triangles, ..Mesh::default() }
 }
 
 #[cfg(test)]

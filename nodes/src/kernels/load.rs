@@ -8,6 +8,8 @@ use crate::formats::fbx::{FbxReadOptions, read_fbx_file};
 use crate::formats::gltf::{GltfReadOptions, read_gltf_file};
 use crate::formats::{FormatError, FormatErrorKind, Loaded};
 use crate::model::fk::rest_world;
+use glam::Mat4;
+
 use crate::model::{Clip, Mesh, Skin};
 
 /// How to read a clip file.
@@ -84,6 +86,7 @@ pub fn load_clip(path: &Path, options: ClipLoadOptions) -> Result<Loaded<Clip>, 
                 skin: None,
                 sample_fps: options.sample_fps,
                 max_clip_bytes: options.max_clip_bytes,
+                materials: false,
             };
             let loaded = read_gltf_file(path, &gltf_options)?;
             let mut warnings = loaded.warnings;
@@ -169,10 +172,43 @@ pub struct Character {
     /// The chosen animation, or the rest pose (one frame) when the file has none.
     pub clip: Clip,
     /// Every mesh and primitive, in file order, skinned to the clip's skeleton in its rest
-    /// pose, with exactly affine inverse bind matrices (the inverse rest world transforms).
+    /// pose, with each primitive's material. Its inverse bind matrices are the file's own
+    /// when they fit the rest pose (see [`IBM_FIT_RELATIVE`]), else the exact inverse rest
+    /// world transforms.
     pub mesh: Mesh,
     /// What each source mesh became, in order.
     pub parts: Vec<CharacterPart>,
+    /// Whether the mesh's inverse bind matrices are the file's own (they fit the rest
+    /// pose) rather than computed.
+    pub file_inverse_bind_matrices: bool,
+}
+
+/// Whether the file's inverse bind matrices `source` (per joint, `None` where the skin has
+/// none) can replace the `computed` ones: every vertex of `mesh` (at rest, skinned to
+/// `joints`) lands within [`IBM_FIT_RELATIVE`] of the character's size of where the
+/// computed ones put it, i.e. the rest pose is the skin's bind pose. Returns the largest
+/// such distance (metres) when they fit.
+fn source_ibms_fit(
+    source: &[Option<Mat4>],
+    computed: &[Mat4],
+    mesh: &Mesh,
+    joints: &[[u16; 4]],
+    weights: &[[f32; 4]],
+) -> Option<f32> {
+    if source.len() != computed.len() || source.iter().all(Option::is_none) {
+        return None;
+    }
+    let mut worst = 0.0f32;
+    for ((p, row), w) in mesh.positions.iter().zip(joints).zip(weights) {
+        for (&j, _) in row.iter().zip(w).filter(|(_, w)| **w > 0.0) {
+            let j = j as usize;
+            if let (Some(Some(s)), Some(c)) = (source.get(j), computed.get(j)) {
+                worst = worst.max(s.transform_point3(*p).distance(c.transform_point3(*p)));
+            }
+        }
+    }
+    let size = mesh.bounds().map_or(0.0, |(lo, hi)| lo.distance(hi));
+    (worst <= IBM_FIT_RELATIVE * size.max(1.0)).then_some(worst)
 }
 
 /// One source mesh of a [`Character`].
@@ -187,12 +223,23 @@ pub struct CharacterPart {
     pub binding: String,
 }
 
+/// Largest distance the file's own inverse bind matrices may move any vertex of a
+/// character at rest, compared with the inverse rest world transforms, and still be
+/// written instead of them, as a fraction of the character's size (its bounding box
+/// diagonal, at least 1 m): 18 µm on a 1.8 m human, far below what a viewer shows, above
+/// the f32 noise of composing a rig's transforms (1.1e-6 m on the Mixamo Xbot, 6.5e-5 on
+/// the 150-unit Fox).
+pub const IBM_FIT_RELATIVE: f32 = 1e-5;
+
 /// Reads a glTF/GLB file as one character (see [`Character`]): skinned meshes keep their
 /// weights and are put in the skeleton's rest pose; meshes without a skin hang rigidly from
 /// the joint their node is parented under (weight 1), or from the root joint with a warning
-/// when they are not under the skeleton. UVs are kept when every mesh has them.
+/// when they are not under the skeleton. Each primitive keeps its material (shared ones
+/// merged); UVs are kept when any mesh has them (zero on the others). A texture whose
+/// image file is missing is an error naming the file.
 pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>, FormatError> {
-    let Loaded { value: asset, mut warnings } = read_gltf_file(path, &GltfReadOptions::default())?;
+    let options = GltfReadOptions { materials: true, ..GltfReadOptions::default() };
+    let Loaded { value: asset, mut warnings } = read_gltf_file(path, &options)?;
     let Some(skeleton) = asset.skeleton.clone() else {
         return Err(FormatError::file(path, FormatErrorKind::Structure, "has no skeleton (no skin and no animation)"));
     };
@@ -211,10 +258,8 @@ pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>
         }
     };
     let rest = rest_world(&skeleton);
-    let all_uvs = asset.meshes.iter().all(|m| m.uvs.as_ref().is_some_and(|u| u.len() == m.positions.len()));
-    if !all_uvs && asset.meshes.iter().any(|m| m.uvs.is_some()) {
-        warnings.push("UVs are on only some meshes; dropped".into());
-    }
+    let has_uvs = |m: &Mesh| m.uvs.as_ref().is_some_and(|u| u.len() == m.positions.len());
+    let any_uvs = asset.meshes.iter().any(has_uvs);
     let name = path.file_stem().map_or_else(|| "character".to_owned(), |s| s.to_string_lossy().into_owned());
     let mut mesh = Mesh { name, ..Mesh::default() };
     let (mut joints, mut weights, mut uvs) = (Vec::new(), Vec::new(), Vec::new());
@@ -268,16 +313,31 @@ pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>
                 format!("rigid to {}", skeleton.joints()[j].name)
             }
         };
-        if all_uvs && let Some(u) = &part.uvs {
-            uvs.extend_from_slice(u);
+        match &part.uvs {
+            Some(u) if has_uvs(part) => uvs.extend_from_slice(u),
+            _ if any_uvs => {
+                if part.materials.iter().any(|m| m.textures().next().is_some()) {
+                    warnings.push(format!("mesh '{}' has textures but no UVs; it draws untextured", part.name));
+                }
+                uvs.extend(std::iter::repeat_n(glam::Vec2::ZERO, n));
+            }
+            _ => {}
         }
         mesh.triangles.extend(part.triangles.iter().map(|t| t.map(|i| i + base)));
+        mesh.append_materials_of(part);
         parts.push(CharacterPart { name: part.name.clone(), vertices: n, binding });
     }
-    if all_uvs {
+    if any_uvs {
         mesh.uvs = Some(uvs);
     }
-    let inverse_bind_matrices = rest.iter().map(|t| t.inverse_to_mat4()).collect();
+    mesh.drop_empty_material_ranges();
+    let computed: Vec<Mat4> = rest.iter().map(|t| t.inverse_to_mat4()).collect();
+    let fit = source_ibms_fit(&asset.skin_inverse_bind_matrices, &computed, &mesh, &joints, &weights);
+    let file_inverse_bind_matrices = fit.is_some();
+    let inverse_bind_matrices = match fit {
+        Some(_) => asset.skin_inverse_bind_matrices.iter().zip(computed).map(|(s, c)| s.unwrap_or(c)).collect(),
+        None => computed,
+    };
     mesh.skin = Some(Skin { skeleton, joints, weights, inverse_bind_matrices });
-    Ok(Loaded { value: Character { clip, mesh, parts }, warnings })
+    Ok(Loaded { value: Character { clip, mesh, parts, file_inverse_bind_matrices }, warnings })
 }

@@ -223,7 +223,13 @@ impl Clip {
     /// [`ANIMATED_TRANSLATION_M`] on some frame: exporters give such joints position
     /// channels.
     pub fn translation_is_animated(&self, joint: usize) -> bool {
-        let rest = self.skeleton.joints()[joint].rest_offset;
+        self.translation_leaves(joint, self.skeleton.joints()[joint].rest_offset)
+    }
+
+    /// Whether joint `joint`'s translation leaves `rest` (metres) by more than
+    /// [`ANIMATED_TRANSLATION_M`] on some frame: a clip exported over another skeleton's
+    /// rest offsets (several animations in one file) needs position channels there.
+    pub fn translation_leaves(&self, joint: usize, rest: Vec3) -> bool {
         (0..self.frames)
             .any(|f| (self.frame_translations(f)[joint] - rest).abs().max_element() > ANIMATED_TRANSLATION_M)
     }

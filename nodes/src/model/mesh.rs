@@ -4,6 +4,7 @@ use std::sync::Arc;
 
 use glam::{Mat4, Vec2, Vec3};
 
+use super::material::{Material, MaterialRange};
 use super::skeleton::Skeleton;
 
 /// Per-vertex joint influences and the bind pose of a skinned mesh.
@@ -34,6 +35,13 @@ pub struct Mesh {
     pub triangles: Vec<[u32; 3]>,
     /// Skin binding, if the mesh deforms with a skeleton.
     pub skin: Option<Skin>,
+    /// Surface materials, referred to by `material_ranges`.
+    #[serde(default)]
+    pub materials: Vec<Material>,
+    /// Which material each run of triangles uses, covering every triangle in order; empty
+    /// when the mesh has no materials (drawn with the viewer's default).
+    #[serde(default)]
+    pub material_ranges: Vec<MaterialRange>,
 }
 
 impl Mesh {
@@ -61,6 +69,74 @@ impl Mesh {
         normals.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Y)).collect()
     }
 
+    /// Index of `material` in the mesh's materials, adding it when no equal one is there
+    /// (merged meshes that share a source material share one entry).
+    pub fn material_index(&mut self, material: &Material) -> usize {
+        match self.materials.iter().position(|m| m == material) {
+            Some(i) => i,
+            None => {
+                self.materials.push(material.clone());
+                self.materials.len() - 1
+            }
+        }
+    }
+
+    /// Records that the next `triangle_count` triangles after those already covered by
+    /// ranges use `material` (merged into the last run when it has the same material).
+    pub fn push_material_range(&mut self, material: Option<usize>, triangle_count: usize) {
+        let first_triangle = self.material_ranges.last().map_or(0, |r| r.first_triangle + r.triangle_count);
+        match self.material_ranges.last_mut() {
+            Some(last) if last.material == material => last.triangle_count += triangle_count,
+            _ if triangle_count > 0 => {
+                self.material_ranges.push(MaterialRange { first_triangle, triangle_count, material })
+            }
+            _ => {}
+        }
+    }
+
+    /// Appends `part`'s materials and ranges after the triangles already covered, its
+    /// material indices remapped into this mesh's list. Call once per merged part, in the
+    /// order its triangles were appended.
+    pub fn append_materials_of(&mut self, part: &Mesh) {
+        let map: Vec<usize> = part.materials.iter().map(|m| self.material_index(m)).collect();
+        if part.material_ranges.is_empty() {
+            self.push_material_range(None, part.triangles.len());
+        }
+        for r in &part.material_ranges {
+            self.push_material_range(r.material.and_then(|m| map.get(m).copied()), r.triangle_count);
+        }
+    }
+
+    /// Drops ranges that carry no material at all, so a mesh without materials keeps the
+    /// plain single-material form.
+    pub fn drop_empty_material_ranges(&mut self) {
+        if self.material_ranges.iter().all(|r| r.material.is_none()) {
+            self.material_ranges.clear();
+        }
+    }
+
+    /// Checks that the ranges cover every triangle once, in order, with valid material
+    /// indices; the message says what is wrong.
+    pub fn check_material_ranges(&self) -> Result<(), String> {
+        if self.material_ranges.is_empty() {
+            return Ok(());
+        }
+        let mut next = 0;
+        for (k, r) in self.material_ranges.iter().enumerate() {
+            if r.first_triangle != next {
+                return Err(format!("material range {k} starts at triangle {}, expected {next}", r.first_triangle));
+            }
+            if let Some(m) = r.material.filter(|&m| m >= self.materials.len()) {
+                return Err(format!("material range {k} uses material {m} of {}", self.materials.len()));
+            }
+            next += r.triangle_count;
+        }
+        if next != self.triangles.len() {
+            return Err(format!("material ranges cover {next} of {} triangles", self.triangles.len()));
+        }
+        Ok(())
+    }
+
     /// Axis-aligned bounds `(min, max)` of the positions, `None` when empty.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let first = *self.positions.first()?;
@@ -80,5 +156,49 @@ mod tests {
             assert!((*n - Vec3::Y).length() < 1e-6);
         }
         assert_eq!(normals[4], Vec3::Y);
+    }
+
+    /// Three parts merged: A (2 triangles of `skin`, then 1 of `cloth`), B (no materials, 2
+    /// triangles) and C (1 of its own `cloth`, equal to A's): hand-counted runs, `cloth`
+    /// stored once, B's triangles on the default material.
+    #[test]
+    fn merged_parts_remap_and_share_materials() {
+        use crate::model::{Material, MaterialRange};
+        let named = |n: &str| Material { name: Some(n.into()), ..Material::default() };
+        let part = |triangles: usize, materials: Vec<Material>, ranges: Vec<(usize, usize, Option<usize>)>| Mesh {
+            triangles: vec![[0, 0, 0]; triangles],
+            materials,
+            material_ranges: ranges
+                .into_iter()
+                .map(|(first_triangle, triangle_count, material)| MaterialRange {
+                    first_triangle,
+                    triangle_count,
+                    material,
+                })
+                .collect(),
+            ..Mesh::default()
+        };
+        let a = part(3, vec![named("skin"), named("cloth")], vec![(0, 2, Some(0)), (2, 1, Some(1))]);
+        let b = part(2, vec![], vec![]);
+        let c = part(1, vec![named("cloth")], vec![(0, 1, Some(0))]);
+        let mut merged = Mesh::default();
+        for p in [&a, &b, &c] {
+            merged.triangles.extend_from_slice(&p.triangles);
+            merged.append_materials_of(p);
+        }
+        merged.drop_empty_material_ranges();
+        assert_eq!(merged.materials, vec![named("skin"), named("cloth")]);
+        let runs: Vec<_> =
+            merged.material_ranges.iter().map(|r| (r.first_triangle, r.triangle_count, r.material)).collect();
+        assert_eq!(runs, vec![(0, 2, Some(0)), (2, 1, Some(1)), (3, 2, None), (5, 1, Some(1))]);
+        assert_eq!(merged.check_material_ranges(), Ok(()));
+        // Without any material the ranges go, and a miscount is named.
+        let mut plain = Mesh::default();
+        plain.triangles.extend_from_slice(&b.triangles);
+        plain.append_materials_of(&b);
+        plain.drop_empty_material_ranges();
+        assert!(plain.material_ranges.is_empty());
+        merged.triangles.pop();
+        assert_eq!(merged.check_material_ranges(), Err("material ranges cover 6 of 5 triangles".into()));
     }
 }

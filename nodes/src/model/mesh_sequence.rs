@@ -115,6 +115,8 @@ impl MeshSequence {
             uvs: self.rest.uvs.clone(),
             triangles: self.rest.triangles.clone(),
             skin: None,
+            materials: self.rest.materials.clone(),
+            material_ranges: self.rest.material_ranges.clone(),
         }
     }
 }

@@ -163,6 +163,13 @@ impl Skeleton {
         Skeleton::new(joints)
     }
 
+    /// Whether `other` has the same joint names and parents in the same order (clips and
+    /// skins of one rig, whatever their rest offsets).
+    pub fn same_hierarchy(&self, other: &Skeleton) -> bool {
+        self.len() == other.len()
+            && self.joints.iter().zip(&other.joints).all(|(a, b)| a.name == b.name && a.parent == b.parent)
+    }
+
     /// Index of the joint called `name`.
     pub fn index_of(&self, name: &str) -> Option<usize> {
         self.by_name.get(name).copied()

@@ -145,6 +145,12 @@ fn view_slice<'a>(doc: &'a Document, view_index: usize, at: &str) -> Result<View
     Ok(ViewSlice { bytes: &data[offset as usize..end as usize], stride })
 }
 
+/// The bytes of buffer view `view_index` (an embedded image), bounds-checked; `at` is the
+/// JSON path holding the view index.
+pub(crate) fn view_bytes<'a>(doc: &'a Document, view_index: usize, at: &str) -> Result<&'a [u8], super::ReadError> {
+    Ok(view_slice(doc, view_index, at)?.bytes)
+}
+
 /// Decodes `count` elements starting `offset` bytes into `view`, checking bounds first.
 #[allow(clippy::too_many_arguments)]
 fn decode_elements(

@@ -18,6 +18,10 @@ pub(crate) struct GlbBuilder {
     bin: Vec<u8>,
 }
 
+/// A primitive's vertex attributes: semantic → accessor.
+pub(crate) type Attributes =
+    std::collections::BTreeMap<json::validation::Checked<json::mesh::Semantic>, json::Index<json::Accessor>>;
+
 /// Whether an accessor records its per-component `min`/`max` (required for POSITION and
 /// animation inputs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -48,7 +52,7 @@ impl GlbBuilder {
     }
 
     /// Appends `bytes` as a new buffer view (4-byte aligned).
-    fn push_view(&mut self, bytes: &[u8], target: Option<Target>) -> json::Index<json::buffer::View> {
+    pub fn push_view(&mut self, bytes: &[u8], target: Option<Target>) -> json::Index<json::buffer::View> {
         while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
@@ -134,21 +138,32 @@ impl GlbBuilder {
         self.push_accessor(&bytes, values.len(), ComponentType::U32, Type::Scalar, target, None)
     }
 
-    /// A one-primitive triangle mesh from `attributes` and `triangles` (indices as `u16`
-    /// when `vertices` fit, else `u32`), with optional morph `targets` and their default
+    /// A one-primitive triangle mesh from `attributes` and `triangles` (see
+    /// [`GlbBuilder::triangle_primitive`]), with optional morph `targets` and their default
     /// `weights`.
     pub fn triangle_mesh(
         &mut self,
         name: &str,
-        attributes: std::collections::BTreeMap<
-            json::validation::Checked<json::mesh::Semantic>,
-            json::Index<json::Accessor>,
-        >,
+        attributes: Attributes,
         triangles: &[[u32; 3]],
         vertices: usize,
         targets: Option<Vec<json::mesh::MorphTarget>>,
         weights: Option<Vec<f32>>,
     ) -> json::Index<json::Mesh> {
+        let primitive = self.triangle_primitive(attributes, triangles, vertices, None, targets);
+        self.mesh(name, vec![primitive], weights)
+    }
+
+    /// A triangle primitive: writes the index accessor (`u16` when `vertices` fit, else
+    /// `u32`) for `triangles` over the accessors in `attributes`.
+    pub fn triangle_primitive(
+        &mut self,
+        attributes: Attributes,
+        triangles: &[[u32; 3]],
+        vertices: usize,
+        material: Option<json::Index<json::Material>>,
+        targets: Option<Vec<json::mesh::MorphTarget>>,
+    ) -> json::mesh::Primitive {
         let flat: Vec<u32> = triangles.iter().flatten().copied().collect();
         let indices = if vertices <= u16::MAX as usize {
             let small: Vec<u16> = flat.iter().map(|&i| i as u16).collect();
@@ -156,19 +171,29 @@ impl GlbBuilder {
         } else {
             self.accessor_u32(&flat, Some(Target::ElementArrayBuffer))
         };
+        json::mesh::Primitive {
+            attributes,
+            extensions: Default::default(),
+            extras: Default::default(),
+            indices: Some(indices),
+            material,
+            mode: Valid(json::mesh::Mode::Triangles),
+            targets,
+        }
+    }
+
+    /// A mesh of `primitives`.
+    pub fn mesh(
+        &mut self,
+        name: &str,
+        primitives: Vec<json::mesh::Primitive>,
+        weights: Option<Vec<f32>>,
+    ) -> json::Index<json::Mesh> {
         self.root.push(json::Mesh {
             extensions: Default::default(),
             extras: Default::default(),
             name: Some(name.to_string()),
-            primitives: vec![json::mesh::Primitive {
-                attributes,
-                extensions: Default::default(),
-                extras: Default::default(),
-                indices: Some(indices),
-                material: None,
-                mode: Valid(json::mesh::Mode::Triangles),
-                targets,
-            }],
+            primitives,
             weights,
         })
     }

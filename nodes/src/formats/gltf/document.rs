@@ -6,7 +6,8 @@
 //! fields) and report the first problem with its JSON path; 4. resolve each buffer: the
 //! GLB BIN chunk, a `data:` URI (base64) or a file relative to the glTF file (absolute
 //! paths, `..`, URL schemes and links that resolve outside the file's folder are refused;
-//! images are never read); 5. check each buffer holds `byteLength` bytes.
+//! images are resolved the same way, but only when materials are read); 5. check each
+//! buffer holds `byteLength` bytes.
 
 use std::path::{Component, Path};
 
@@ -88,7 +89,7 @@ fn json_pointer(path: &str) -> String {
 }
 
 /// Decodes a `data:` URI's payload; `None` when it is not base64.
-fn decode_data_uri(uri: &str) -> Option<Result<Vec<u8>, base64::DecodeError>> {
+pub(crate) fn decode_data_uri(uri: &str) -> Option<Result<Vec<u8>, base64::DecodeError>> {
     let rest = uri.strip_prefix("data:")?;
     let (meta, payload) = rest.split_once(',')?;
     if !meta.ends_with(";base64") {
@@ -119,14 +120,15 @@ fn percent_decode(uri: &str) -> String {
     String::from_utf8_lossy(&out).into_owned()
 }
 
-/// Loads buffer `index` from `uri` relative to `file`.
-fn load_external(uri: &str, index: usize, file: &Path) -> Result<Vec<u8>, ReadError> {
-    let at = format!("/buffers/{index}/uri");
+/// Reads the file `uri` names relative to `file` (a buffer or an image, `what`); `at` is
+/// the JSON path of the URI.
+pub(crate) fn load_external(uri: &str, at: &str, what: &str, file: &Path) -> Result<Vec<u8>, ReadError> {
+    let at = at.to_owned();
     if uri.contains("://") || uri.starts_with("file:") {
         return Err(ReadError::new(
             at,
             Kind::Unsupported,
-            format!("buffer URI '{uri}' is a URL; only relative file names are read"),
+            format!("{what} URI '{uri}' is a URL; only relative file names are read"),
         ));
     }
     let relative = percent_decode(uri);
@@ -137,7 +139,7 @@ fn load_external(uri: &str, index: usize, file: &Path) -> Result<Vec<u8>, ReadEr
         return Err(ReadError::new(
             at,
             Kind::Unsupported,
-            format!("buffer URI '{uri}' leaves the glTF file's folder (absolute or '..'); refusing to read it"),
+            format!("{what} URI '{uri}' leaves the glTF file's folder (absolute or '..'); refusing to read it"),
         ));
     }
     let dir = match file.parent() {
@@ -145,7 +147,7 @@ fn load_external(uri: &str, index: usize, file: &Path) -> Result<Vec<u8>, ReadEr
         _ => Path::new("."),
     };
     let full = dir.join(relative_path);
-    let io = |e: std::io::Error| ReadError::new(at.clone(), Kind::Io, format!("buffer file '{}': {e}", full.display()));
+    let io = |e: std::io::Error| ReadError::new(at.clone(), Kind::Io, format!("{what} file '{}': {e}", full.display()));
     // Links inside the folder may point anywhere: compare where the file really is.
     let real_dir = std::fs::canonicalize(dir).map_err(io)?;
     let real = std::fs::canonicalize(&full).map_err(io)?;
@@ -154,7 +156,7 @@ fn load_external(uri: &str, index: usize, file: &Path) -> Result<Vec<u8>, ReadEr
             at.clone(),
             Kind::Unsupported,
             format!(
-                "buffer URI '{uri}' resolves through a link to {}, outside the glTF file's folder; refusing to read it",
+                "{what} URI '{uri}' resolves through a link to {}, outside the glTF file's folder; refusing to read it",
                 real.display()
             ),
         ));
@@ -268,7 +270,7 @@ pub(crate) fn load(bytes: &[u8], file: &Path) -> Result<Document, ReadError> {
                         "data URI is not base64",
                     ));
                 }
-                None => load_external(uri, index, file)?,
+                None => load_external(uri, &format!("/buffers/{index}/uri"), "buffer", file)?,
             },
         };
         if (data.len() as u64) < buffer.byte_length.0 {
@@ -310,19 +312,19 @@ mod tests {
         std::os::unix::fs::symlink("sub/real.bin", model_dir.join("inside.bin")).unwrap();
         let file = model_dir.join("model.gltf");
         for uri in ["data.bin", "up/secret.bin"] {
-            let err = load_external(uri, 1, &file).unwrap_err();
+            let err = load_external(uri, "/buffers/1/uri", "buffer", &file).unwrap_err();
             assert_eq!(err.path, "/buffers/1/uri", "{uri}");
             assert!(err.message.contains(uri) && err.message.contains("outside"), "{}", err.message);
         }
-        assert_eq!(load_external("inside.bin", 0, &file).unwrap(), b"mesh");
-        assert_eq!(load_external("sub/real.bin", 0, &file).unwrap(), b"mesh");
+        assert_eq!(load_external("inside.bin", "/buffers/0/uri", "buffer", &file).unwrap(), b"mesh");
+        assert_eq!(load_external("sub/real.bin", "/buffers/0/uri", "buffer", &file).unwrap(), b"mesh");
     }
 
     #[test]
     fn external_buffers_may_not_climb_out_or_be_absolute() {
         let file = Path::new("/tmp/model.gltf");
         for uri in ["../secret.bin", "/etc/passwd", "a/../../b.bin", "http://example.com/a.bin"] {
-            let err = load_external(uri, 2, file).unwrap_err();
+            let err = load_external(uri, "/buffers/2/uri", "buffer", file).unwrap_err();
             assert_eq!(err.path, "/buffers/2/uri", "{uri}");
             assert!(err.message.contains(uri), "{}", err.message);
         }

@@ -1,5 +1,5 @@
-//! glTF 2.0: reading `.gltf`/`.glb` into skeletons, clips and skinned meshes, and writing
-//! clips (with an optional skinned mesh) as `.glb`.
+//! glTF 2.0: reading `.gltf`/`.glb` into skeletons, clips and skinned meshes with their
+//! materials, and writing clips (with an optional skinned, textured mesh) as `.glb`.
 //!
 //! gltf-json parses and validates the JSON; accessor bytes are decoded here with explicit
 //! bounds checks so that malformed files give a [`FormatError`] located by JSON path
@@ -19,10 +19,14 @@
 //!   pose *is* the bind pose where the file allows: positions are the rest-pose skinned
 //!   positions and inverse bind matrices are adjusted to match (skinning at any pose gives
 //!   exactly what the file's own data would).
+//! - **Materials** (only when [`GltfReadOptions::materials`] asks): each primitive's
+//!   metallic-roughness material with its textures' encoded images, kept on the merged
+//!   mesh as runs of triangles per material (see `material`).
 
 mod accessor;
 mod builder;
 mod document;
+mod material;
 mod morph;
 mod reader;
 mod writer;
@@ -30,7 +34,7 @@ mod writer;
 pub use builder::GlbChunks;
 pub use morph::write_sequence_glb;
 pub use reader::{GltfAsset, GltfClip, GltfReadOptions, infer_sample_fps, read_gltf, read_gltf_file};
-pub use writer::{build_glb, write_glb, write_glb_file};
+pub use writer::{DEFAULT_ANIMATION_NAME, GlbAnimation, build_glb, build_glb_animations, write_glb, write_glb_file};
 
 use crate::formats::error::{FormatError, FormatErrorKind, Location};
 

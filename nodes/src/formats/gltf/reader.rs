@@ -21,11 +21,12 @@ use gltf_json::validation::Checked;
 use crate::formats::error::{FormatError, FormatErrorKind as Kind, Loaded};
 use crate::math::{quat_normalize_or_identity, slerp_short};
 use crate::model::clip::sampling_refusal;
-use crate::model::{Clip, ImportScale, Joint, Mesh, Skeleton, Skin};
+use crate::model::{Clip, ImportScale, Joint, Material, Mesh, Skeleton, Skin};
 
 use super::ReadError;
 use super::accessor::{Decoded, decode};
 use super::document::{Document, load};
+use super::material::read_materials;
 
 /// Frame rate used when an animation's keys give no spacing to infer one from.
 pub const FALLBACK_SAMPLE_FPS: f64 = 30.0;
@@ -55,6 +56,9 @@ pub struct GltfReadOptions {
     /// Largest clip to sample, in bytes of rotations and translations (the run's memory
     /// limit); `None` uses [`crate::model::clip::DEFAULT_MAX_SAMPLED_BYTES`].
     pub max_clip_bytes: Option<u64>,
+    /// Read the meshes' materials, textures and images (see [`Mesh::materials`]). Off for
+    /// motion and plain mesh loading, which must not fail over a missing texture file.
+    pub materials: bool,
 }
 
 /// One animation of the file, sampled to a fixed-rate clip.
@@ -84,6 +88,10 @@ pub struct GltfAsset {
     /// Per mesh of `meshes`: for a mesh without a skin whose node hangs under a skeleton
     /// joint's node (a prop or armour plate parented to a bone), that joint; else `None`.
     pub mesh_joints: Vec<Option<usize>>,
+    /// Per skeleton joint: the skeleton's skin's own inverse bind matrix for it, in the
+    /// skeleton's unscaled metre frame (a scaled ancestor's scale taken out), or `None`
+    /// for joints the skin does not list and files without a skin.
+    pub skin_inverse_bind_matrices: Vec<Option<Mat4>>,
 }
 
 /// Reads a `.gltf` or `.glb` file from disk.
@@ -449,9 +457,29 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
         warnings.push("animations found but no skeleton could be formed; no clips read".to_string());
     }
 
-    let (meshes, mesh_joints) = read_meshes(&doc, &tree, &joints, skeleton.as_ref(), skin_index, &mut warnings)?;
+    let materials = if options.materials { read_materials(&doc, path, &mut warnings)? } else { Vec::new() };
+    let (meshes, mesh_joints) =
+        read_meshes(&doc, &tree, &joints, skeleton.as_ref(), skin_index, &materials, &mut warnings)?;
+    let mut skin_inverse_bind_matrices = vec![None; joints.nodes.len()];
+    if let Some(s) = skin_index {
+        let ibms = skin_matrices(&doc, s, root.skins[s].joints.len())?;
+        let mut world = vec![Similarity::IDENTITY; tree.parent.len()];
+        world_similarities(&tree, &tree.rest, &mut world);
+        for (k, joint) in root.skins[s].joints.iter().enumerate() {
+            if let Some(j) = joints.joint_of_node[joint.value()] {
+                skin_inverse_bind_matrices[j] = Some(unscaled_ibm(world[joint.value()].scale, ibms[k]));
+            }
+        }
+    }
     Ok(Loaded {
-        value: GltfAsset { skeleton, joint_nodes: joints.nodes.clone(), clips, meshes, mesh_joints },
+        value: GltfAsset {
+            skeleton,
+            joint_nodes: joints.nodes.clone(),
+            clips,
+            meshes,
+            mesh_joints,
+            skin_inverse_bind_matrices,
+        },
         warnings,
     })
 }
@@ -726,6 +754,8 @@ struct PrimitiveData {
     triangles: Vec<[u32; 3]>,
     /// (skin joint indices, weights) per vertex.
     influences: Option<Influences>,
+    /// Index of the file's material the primitive uses.
+    material: Option<usize>,
 }
 
 fn vec3s(d: &Decoded, at: &str, what: &str) -> Result<Vec<Vec3>, ReadError> {
@@ -889,7 +919,14 @@ fn read_primitive(
         }
         (None, _, _) => None,
     };
-    Ok(Some(PrimitiveData { positions, normals, uvs, triangles, influences }))
+    Ok(Some(PrimitiveData {
+        positions,
+        normals,
+        uvs,
+        triangles,
+        influences,
+        material: prim.material.map(|m| m.value()),
+    }))
 }
 
 fn read_meshes(
@@ -898,6 +935,7 @@ fn read_meshes(
     joints: &JointSet,
     skeleton: Option<&Arc<Skeleton>>,
     skin_index: Option<usize>,
+    materials: &[Material],
     warnings: &mut Vec<String>,
 ) -> Result<(Vec<Mesh>, Vec<Option<usize>>), ReadError> {
     let root = &doc.root;
@@ -962,6 +1000,10 @@ fn read_meshes(
         let mut skin_joints: Vec<[u16; 4]> = Vec::new();
         let mut skin_weights: Vec<[f32; 4]> = Vec::new();
         for prim in &prims {
+            if !materials.is_empty() {
+                let material = prim.material.and_then(|m| materials.get(m)).map(|m| mesh.material_index(m));
+                mesh.push_material_range(material, prim.triangles.len());
+            }
             let base = mesh.positions.len() as u32;
             mesh.triangles.extend(prim.triangles.iter().map(|t| t.map(|i| i + base)));
             mesh.positions.extend_from_slice(&prim.positions);
@@ -976,8 +1018,14 @@ fn read_meshes(
                 skin_weights.extend_from_slice(w);
             }
         }
+        mesh.drop_empty_material_ranges();
         if all_uvs {
             mesh.uvs = Some(uvs);
+        } else if mesh.materials.iter().any(|m| m.textures().next().is_some()) {
+            warnings.push(format!(
+                "mesh '{}': textured materials without UVs on every primitive draw untextured",
+                mesh.name
+            ));
         }
         if !all_normals {
             mesh.normals = Mesh::compute_normals(&mesh.positions, &mesh.triangles);
@@ -985,28 +1033,7 @@ fn read_meshes(
 
         match skin {
             Some((s, mapped, skeleton)) => {
-                let ibm_file = match root.skins[s].inverse_bind_matrices {
-                    Some(i) => {
-                        let d = decode(doc, i.value(), &format!("/skins/{s}/inverseBindMatrices"))?;
-                        if d.components != 16 || d.count < mapped.len() {
-                            return Err(ReadError::new(
-                                format!("/skins/{s}/inverseBindMatrices"),
-                                Kind::Structure,
-                                format!(
-                                    "need {} MAT4 elements, accessor {} has {} of {} numbers",
-                                    mapped.len(),
-                                    i.value(),
-                                    d.count,
-                                    d.components
-                                ),
-                            ));
-                        }
-                        (0..mapped.len())
-                            .map(|k| Mat4::from_cols_slice(&d.element(k).iter().map(|&x| x as f32).collect::<Vec<_>>()))
-                            .collect()
-                    }
-                    None => vec![Mat4::IDENTITY; mapped.len()],
-                };
+                let ibm_file = skin_matrices(doc, s, mapped.len())?;
                 // Skinning matrix world × IBM with the scale moved from the joint into the IBM.
                 let fk = |j: usize| {
                     let w = world_sim[joints.nodes[j]];
@@ -1014,8 +1041,7 @@ fn read_meshes(
                 };
                 let mut ibm: Vec<Mat4> = (0..skeleton.len()).map(|j| fk(j).inverse()).collect();
                 for (k, &j) in mapped.iter().enumerate() {
-                    let scale = world_sim[joints.nodes[j]].scale;
-                    ibm[j] = Mat4::from_scale(Vec3::splat(scale)) * ibm_file[k];
+                    ibm[j] = unscaled_ibm(world_sim[joints.nodes[j]].scale, ibm_file[k]);
                 }
                 // Reference joint: the one carrying the most weight.
                 let mut load = vec![0f64; mapped.len()];
@@ -1081,6 +1107,30 @@ fn read_meshes(
         meshes.push(mesh);
     }
     Ok((meshes, mesh_joints))
+}
+
+/// Skin `s`'s first `count` inverse bind matrices as the file stores them (identity when
+/// it has none).
+fn skin_matrices(doc: &Document, s: usize, count: usize) -> Result<Vec<Mat4>, ReadError> {
+    let Some(i) = doc.root.skins[s].inverse_bind_matrices else {
+        return Ok(vec![Mat4::IDENTITY; count]);
+    };
+    let d = decode(doc, i.value(), &format!("/skins/{s}/inverseBindMatrices"))?;
+    if d.components != 16 || d.count < count {
+        return Err(ReadError::new(
+            format!("/skins/{s}/inverseBindMatrices"),
+            Kind::Structure,
+            format!("need {count} MAT4 elements, accessor {} has {} of {} numbers", i.value(), d.count, d.components),
+        ));
+    }
+    Ok((0..count).map(|k| Mat4::from_cols_slice(&d.element(k).iter().map(|&x| x as f32).collect::<Vec<_>>())).collect())
+}
+
+/// A file's inverse bind matrix for a joint whose world transform carries uniform `scale`,
+/// re-expressed against the joint's unscaled frame (the skeleton's): the scale moves from
+/// the joint into the matrix. Scale 1 leaves the file's matrix bit for bit.
+fn unscaled_ibm(scale: f32, ibm: Mat4) -> Mat4 {
+    if scale == 1.0 { ibm } else { Mat4::from_scale(Vec3::splat(scale)) * ibm }
 }
 
 /// Maps positions and normals of `mesh` through `m`.

@@ -1,0 +1,360 @@
+//! Issue 18: whole characters keep their look through `character.load` → `export.glb`.
+//! Both the source file and the exported GLB are read here with the `gltf` crate (not
+//! kinegraph's reader) and drawn the way a viewer draws them at rest: linear blend skinning
+//! with the nodes' rest transforms and the file's inverse bind matrices. Per material, the
+//! two must hold the same parameters, the same image bytes, the same triangles (rest-pose
+//! corners within 1e-5 m) and the same UVs; the Khronos validator must report 0 errors.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed unwrap is a failed test
+
+mod gltf_validator;
+
+use std::path::{Path, PathBuf};
+
+use base64::Engine as _;
+use glam::{Mat4, Vec2, Vec3};
+use kinegraph_nodes::corpus::shared_data;
+use kinegraph_nodes::formats::gltf::write_glb_file;
+use kinegraph_nodes::kernels::load::load_character;
+
+/// What a viewer needs of a texture: the image's bytes (their length and SipHash), the
+/// sampler and the UV set.
+#[derive(Debug, PartialEq)]
+struct TextureFacts {
+    bytes: (usize, u64),
+    mime: Option<String>,
+    sampler: (Option<u32>, Option<u32>, u32, u32),
+    tex_coord: u32,
+}
+
+/// A material's parameters as the `gltf` crate reads them.
+#[derive(Debug, PartialEq)]
+struct MaterialFacts {
+    name: Option<String>,
+    base_color: [f32; 4],
+    metallic: f32,
+    roughness: f32,
+    emissive: [f32; 3],
+    alpha: String,
+    double_sided: bool,
+    normal_scale: Option<f32>,
+    occlusion_strength: Option<f32>,
+    specular: Option<(f32, [f32; 3])>,
+    /// Base colour, metallic-roughness, normal, occlusion and emissive textures.
+    textures: [Option<TextureFacts>; 5],
+}
+
+/// The triangles a material draws: rest-pose corners (metres) and their UVs.
+#[derive(Debug)]
+struct Drawn {
+    material: MaterialFacts,
+    corners: Vec<[Vec3; 3]>,
+    uvs: Vec<[Vec2; 3]>,
+}
+
+fn image_bytes(image: gltf::Image<'_>, buffers: &[gltf::buffer::Data], base: &Path) -> (Vec<u8>, Option<String>) {
+    match image.source() {
+        gltf::image::Source::View { view, mime_type } => {
+            let buffer = &buffers[view.buffer().index()];
+            (buffer[view.offset()..view.offset() + view.length()].to_vec(), Some(mime_type.to_owned()))
+        }
+        gltf::image::Source::Uri { uri, mime_type } => match uri.strip_prefix("data:") {
+            Some(rest) => {
+                let (meta, payload) = rest.split_once(',').unwrap();
+                let mime = meta.strip_suffix(";base64").unwrap().to_owned();
+                (base64::engine::general_purpose::STANDARD.decode(payload).unwrap(), Some(mime))
+            }
+            // Without a mimeType a viewer goes by the file's extension.
+            None => {
+                let mime = mime_type.map(str::to_owned).or_else(|| uri.ends_with(".png").then(|| "image/png".into()));
+                (std::fs::read(base.join(uri.replace("%20", " "))).unwrap(), mime)
+            }
+        },
+    }
+}
+
+/// Length and hash of `bytes`: equal for equal images (a collision of both is not a
+/// concern for a handful of images).
+fn fingerprint(bytes: &[u8]) -> (usize, u64) {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    bytes.hash(&mut h);
+    (bytes.len(), h.finish())
+}
+
+fn texture_facts(
+    texture: Option<(gltf::Texture<'_>, u32)>,
+    buffers: &[gltf::buffer::Data],
+    base: &Path,
+) -> Option<TextureFacts> {
+    let (t, tex_coord) = texture?;
+    let s = t.sampler();
+    let (bytes, mime) = image_bytes(t.source(), buffers, base);
+    Some(TextureFacts {
+        bytes: fingerprint(&bytes),
+        mime,
+        sampler: (
+            s.mag_filter().map(|f| f.as_gl_enum()),
+            s.min_filter().map(|f| f.as_gl_enum()),
+            s.wrap_s().as_gl_enum(),
+            s.wrap_t().as_gl_enum(),
+        ),
+        tex_coord,
+    })
+}
+
+fn info(i: Option<gltf::texture::Info<'_>>) -> Option<(gltf::Texture<'_>, u32)> {
+    i.map(|i| (i.texture(), i.tex_coord()))
+}
+
+fn material_facts(m: gltf::Material<'_>, buffers: &[gltf::buffer::Data], base: &Path) -> MaterialFacts {
+    let pbr = m.pbr_metallic_roughness();
+    MaterialFacts {
+        name: m.name().map(str::to_owned),
+        base_color: pbr.base_color_factor(),
+        metallic: pbr.metallic_factor(),
+        roughness: pbr.roughness_factor(),
+        emissive: m.emissive_factor(),
+        alpha: format!("{:?} {:?}", m.alpha_mode(), m.alpha_cutoff()),
+        double_sided: m.double_sided(),
+        normal_scale: m.normal_texture().map(|n| n.scale()),
+        occlusion_strength: m.occlusion_texture().map(|o| o.strength()),
+        specular: m.specular().map(|s| (s.specular_factor(), s.specular_color_factor())),
+        textures: [
+            texture_facts(info(pbr.base_color_texture()), buffers, base),
+            texture_facts(info(pbr.metallic_roughness_texture()), buffers, base),
+            texture_facts(m.normal_texture().map(|n| (n.texture(), n.tex_coord())), buffers, base),
+            texture_facts(m.occlusion_texture().map(|o| (o.texture(), o.tex_coord())), buffers, base),
+            texture_facts(info(m.emissive_texture()), buffers, base),
+        ],
+    }
+}
+
+/// Every primitive of `path`'s default scene drawn at rest, grouped by material in the
+/// order the materials first appear (nodes in index order), read with the `gltf` crate.
+fn drawn_at_rest(path: &Path) -> Vec<Drawn> {
+    let gltf = gltf::Gltf::open(path).unwrap();
+    let base = path.parent().unwrap();
+    let buffers = gltf::import_buffers(&gltf.document, Some(base), gltf.blob.clone()).unwrap();
+    let doc = &gltf.document;
+    // World matrices of every node under the scene's roots.
+    let mut world = vec![Mat4::IDENTITY; doc.nodes().count()];
+    let mut stack: Vec<(gltf::Node<'_>, Mat4)> =
+        doc.default_scene().unwrap().nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+    while let Some((node, parent)) = stack.pop() {
+        let w = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        world[node.index()] = w;
+        stack.extend(node.children().map(|c| (c, w)));
+    }
+    let mut groups: Vec<Drawn> = Vec::new();
+    for node in doc.nodes() {
+        let Some(mesh) = node.mesh() else { continue };
+        let skinning: Option<Vec<Mat4>> = node.skin().map(|skin| {
+            let ibms: Vec<Mat4> = skin
+                .reader(|b| Some(&buffers[b.index()]))
+                .read_inverse_bind_matrices()
+                .unwrap()
+                .map(|m| Mat4::from_cols_array_2d(&m))
+                .collect();
+            skin.joints().zip(ibms).map(|(j, ibm)| world[j.index()] * ibm).collect()
+        });
+        for prim in mesh.primitives() {
+            let r = prim.reader(|b| Some(&buffers[b.index()]));
+            let positions: Vec<Vec3> = r.read_positions().unwrap().map(Vec3::from).collect();
+            let at_rest: Vec<Vec3> = match &skinning {
+                Some(m) => {
+                    let joints: Vec<[u16; 4]> = r.read_joints(0).unwrap().into_u16().collect();
+                    let weights: Vec<[f32; 4]> = r.read_weights(0).unwrap().into_f32().collect();
+                    positions
+                        .iter()
+                        .enumerate()
+                        .map(|(v, p)| {
+                            (0..4).map(|k| weights[v][k] * m[joints[v][k] as usize].transform_point3(*p)).sum()
+                        })
+                        .collect()
+                }
+                None => positions.iter().map(|p| world[node.index()].transform_point3(*p)).collect(),
+            };
+            let uvs: Option<Vec<Vec2>> = r.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect());
+            let indices: Vec<u32> = match r.read_indices() {
+                Some(i) => i.into_u32().collect(),
+                None => (0..positions.len() as u32).collect(),
+            };
+            let material = material_facts(prim.material(), &buffers, base);
+            let k = match groups.iter().position(|g| g.material == material) {
+                Some(k) => k,
+                None => {
+                    groups.push(Drawn { material, corners: Vec::new(), uvs: Vec::new() });
+                    groups.len() - 1
+                }
+            };
+            for t in indices.chunks_exact(3) {
+                groups[k].corners.push([0, 1, 2].map(|c| at_rest[t[c] as usize]));
+                if let Some(uv) = &uvs {
+                    groups[k].uvs.push([0, 1, 2].map(|c| uv[t[c] as usize]));
+                }
+            }
+        }
+    }
+    groups
+}
+
+/// The exported file draws what the source draws: per material the same parameters and
+/// image bytes, the same triangles in the same order (corners within `tolerance_m`) and
+/// the same UVs. Returns the worst corner distance (metres).
+fn assert_same_look(source: &Path, exported: &Path, tolerance_m: f32) -> f32 {
+    let (a, b) = (drawn_at_rest(source), drawn_at_rest(exported));
+    let name = source.display();
+    assert_eq!(a.len(), b.len(), "{name}: materials");
+    let mut worst = 0.0f32;
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(x.material, y.material, "{name}");
+        assert_eq!(x.corners.len(), y.corners.len(), "{name}: triangles of {:?}", x.material.name);
+        for (cx, cy) in x.corners.iter().zip(&y.corners) {
+            for c in 0..3 {
+                worst = worst.max(cx[c].distance(cy[c]));
+            }
+        }
+        assert_eq!(x.uvs, y.uvs, "{name}: UVs of {:?}", x.material.name);
+        let images: Vec<(usize, u64)> = x.material.textures.iter().flatten().map(|t| t.bytes).collect();
+        println!(
+            "{name}: material {:?}: {} triangles, {} UV triangles, images (bytes, hash) {images:?}",
+            x.material.name,
+            x.corners.len(),
+            x.uvs.len()
+        );
+    }
+    println!("{name}: worst rest-pose corner distance {worst:.2e} m");
+    assert!(worst < tolerance_m, "{name}: {worst} m");
+    worst
+}
+
+#[test]
+fn corpus_characters_keep_materials_textures_and_uvs_through_export() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    // CesiumMan: one JPEG base-colour texture; Fox: one PNG; Xbot: two untextured
+    // materials with KHR_materials_specular, one per mesh.
+    for name in ["CesiumMan.glb", "Fox.glb", "Xbot.glb"] {
+        let source = data.join("gltf").join(name);
+        let character = load_character(&source, 0).unwrap().value;
+        let out = dir.path().join(format!("{name}.character.glb"));
+        write_glb_file(&out, &character.clip, Some(&character.mesh)).unwrap();
+        // Fox is ~150 units tall in a file declared metres: f32 resolution scales with it.
+        let tolerance = if name == "Fox.glb" { 1e-3 } else { 1e-5 };
+        assert_same_look(&source, &out, tolerance);
+        files.push(out);
+    }
+    let drawn = drawn_at_rest(&files[0]);
+    assert!(drawn[0].material.textures[0].as_ref().is_some_and(|t| t.mime.as_deref() == Some("image/jpeg")));
+    gltf_validator::validate_gltf(&files);
+}
+
+/// A two-joint rig with a textured triangle hanging from its bone (`character.load` binds
+/// it rigidly), its base-colour image at `uri`.
+fn textured_prop(uri: &str) -> String {
+    // Positions (3 × VEC3), indices (3 × u16 + 2 padding), UVs (3 × VEC2).
+    let mut bin = Vec::new();
+    for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+        bin.extend_from_slice(&v.to_le_bytes());
+    }
+    for i in [0u16, 1, 2, 0] {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    for v in [0.0f32, 0.0, 1.0, 0.0, 0.25, 0.75] {
+        bin.extend_from_slice(&v.to_le_bytes());
+    }
+    let data = base64::engine::general_purpose::STANDARD.encode(&bin);
+    format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "scene": 0,
+  "scenes": [{{"nodes": [0]}}],
+  "nodes": [
+    {{"name": "root", "translation": [0, 1, 0], "children": [1]}},
+    {{"name": "bone", "translation": [0, 1, 0], "children": [2]}},
+    {{"name": "badge", "translation": [0.5, 0, 0], "mesh": 0}}
+  ],
+  "skins": [{{"joints": [0, 1]}}],
+  "meshes": [{{"name": "badge", "primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 2}}, "indices": 1, "material": 0}}]}}],
+  "materials": [{{"name": "badge_paint", "pbrMetallicRoughness": {{"baseColorTexture": {{"index": 0}}, "metallicFactor": 0.25, "roughnessFactor": 0.75}},
+                  "alphaMode": "MASK", "alphaCutoff": 0.3, "doubleSided": true, "emissiveFactor": [0.1, 0.2, 0.3]}}],
+  "textures": [{{"source": 0, "sampler": 0}}],
+  "samplers": [{{"magFilter": 9728, "wrapS": 33071, "wrapT": 33648}}],
+  "images": [{{"uri": "{uri}"}}],
+  "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{data}"}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 6}}, {{"buffer": 0, "byteOffset": 44, "byteLength": 24}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}},
+    {{"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}},
+    {{"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC2"}}
+  ]
+}}"#,
+        len = bin.len()
+    )
+}
+
+/// The PNG of the Fox sample, as stored in its GLB.
+fn fox_png(data: &Path) -> Vec<u8> {
+    let path = data.join("gltf/Fox.glb");
+    let gltf = gltf::Gltf::open(&path).unwrap();
+    let buffers = gltf::import_buffers(&gltf.document, None, gltf.blob.clone()).unwrap();
+    image_bytes(gltf.document.images().next().unwrap(), &buffers, Path::new(".")).0
+}
+
+/// Images given as a file beside the glTF (a percent-encoded name in a subfolder) and as a
+/// `data:` URI are embedded byte for byte in the exported GLB, with the material's
+/// parameters and sampler; a missing image file stops `character.load` with an error that
+/// names the file.
+#[test]
+fn images_from_files_and_data_uris_are_embedded_and_a_missing_one_is_named() {
+    let Some(data) = shared_data() else { return };
+    let png = fox_png(&data);
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(dir.path().join("maps")).unwrap();
+    std::fs::write(dir.path().join("maps/badge paint.png"), &png).unwrap();
+    let data_uri = format!("data:image/png;base64,{}", base64::engine::general_purpose::STANDARD.encode(&png));
+    let mut files = Vec::new();
+    for (name, uri) in [("file", "maps/badge%20paint.png"), ("data_uri", data_uri.as_str())] {
+        let source = dir.path().join(format!("{name}.gltf"));
+        std::fs::write(&source, textured_prop(uri)).unwrap();
+        let character = load_character(&source, 0).unwrap().value;
+        assert_eq!(character.parts[0].binding, "rigid to bone");
+        let out = dir.path().join(format!("{name}.glb"));
+        write_glb_file(&out, &character.clip, Some(&character.mesh)).unwrap();
+        assert_same_look(&source, &out, 1e-6);
+        let drawn = drawn_at_rest(&out);
+        let texture = drawn[0].material.textures[0].as_ref().unwrap();
+        assert_eq!(texture.bytes, fingerprint(&png), "{name}");
+        // Hand-written in the JSON above: NEAREST, no min filter, CLAMP_TO_EDGE, MIRRORED_REPEAT.
+        assert_eq!(texture.sampler, (Some(9728), None, 33071, 33648));
+        assert_eq!(drawn[0].material.alpha, "Mask Some(0.3)");
+        files.push(out);
+    }
+    gltf_validator::validate_gltf(&files);
+
+    let missing = dir.path().join("missing.gltf");
+    std::fs::write(&missing, textured_prop("maps/gone.png")).unwrap();
+    let err = load_character(&missing, 0).unwrap_err();
+    let text = err.to_string();
+    println!("missing image: {text}");
+    assert!(text.contains("missing.gltf") && text.contains("/images/0/uri") && text.contains("gone.png"), "{text}");
+}
+
+/// A character without materials exports as before: one primitive, no material, no image.
+#[test]
+fn a_character_without_materials_writes_none() {
+    let Some(data) = shared_data() else { return };
+    let source: PathBuf = data.join("gltf/SimpleSkin.gltf");
+    let character = load_character(&source, 0).unwrap().value;
+    assert!(character.mesh.materials.is_empty() && character.mesh.material_ranges.is_empty());
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("simple.glb");
+    write_glb_file(&out, &character.clip, Some(&character.mesh)).unwrap();
+    let (doc, _, images) = gltf::import(&out).unwrap();
+    assert_eq!((doc.materials().count(), images.len()), (0, 0));
+    let prims: Vec<_> = doc.meshes().flat_map(|m| m.primitives()).collect();
+    assert_eq!(prims.len(), 1);
+    assert!(prims[0].material().index().is_none());
+}
