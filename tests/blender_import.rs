@@ -43,3 +43,57 @@ fn exported_glbs_import_into_blender_as_armatures() {
         assert_eq!(line.contains("skinned=1"), skinned, "{line}");
     }
 }
+
+/// Characters exported whole (`character.load` → `export.glb`) import into Blender like their
+/// source files do, read by the same importer: the same bones, materials, images and faces.
+/// Opt-in as above, and needs the shared corpus.
+#[test]
+fn exported_characters_import_into_blender_like_their_sources() {
+    let Some(blender) = std::env::var_os("KG_BLENDER") else {
+        eprintln!("skipping: set KG_BLENDER to a Blender binary to run the import check");
+        return;
+    };
+    let Some(data) = kinegraph::nodes::corpus::shared_data() else { return };
+    let root = env!("CARGO_MANIFEST_DIR");
+    let dir = tempfile::tempdir().unwrap();
+    let mut pairs = Vec::new();
+    for (graph, source, export) in [
+        ("graphs/walk_on_xbot.ron", "gltf/Xbot.glb", "walk_on_xbot.glb"),
+        ("graphs/walk_on_cesium_man.ron", "gltf/CesiumMan.glb", "walk_on_cesium_man.glb"),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_kg"))
+            .args(["run", graph, "--out", dir.path().to_str().unwrap()])
+            .current_dir(root)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        pairs.push((data.join(source), dir.path().join(export)));
+    }
+    let mut args: Vec<String> =
+        ["-b", "--factory-startup", "--python", &format!("{root}/tests/tools/blender_import.py"), "--"]
+            .map(String::from)
+            .to_vec();
+    args.extend(pairs.iter().flat_map(|(a, b)| [a, b]).map(|p| p.to_string_lossy().into_owned()));
+    let out = Command::new(blender).args(&args).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    let field = |file: &std::path::Path, key: &str| -> String {
+        let line = stdout.lines().find(|l| l.starts_with(file.to_str().unwrap())).unwrap_or_else(|| panic!("{stdout}"));
+        let at = line.find(&format!(" {key}=")).unwrap_or_else(|| panic!("{key} in {line}")) + key.len() + 2;
+        line[at..].split_whitespace().next().unwrap_or_default().to_string()
+    };
+    for (source, export) in &pairs {
+        println!("{}", stdout.lines().filter(|l| l.contains(".glb:")).collect::<Vec<_>>().join("\n"));
+        assert_eq!(field(export, "armatures"), "1");
+        assert_ne!(field(export, "skinned"), "0", "{}", export.display());
+        for key in ["bones", "materials", "images", "faces"] {
+            assert_eq!(
+                field(export, key),
+                field(source, key),
+                "{key}: {} against {}",
+                export.display(),
+                source.display()
+            );
+        }
+    }
+}

@@ -265,15 +265,20 @@ fn copy_and_paste_carry_a_fragment_with_its_inner_wire_in_one_undo_step() {
     assert_eq!(document::to_string(&harness.state().doc()), before);
 }
 
-#[test]
-fn tab_over_the_canvas_opens_the_add_menu_at_the_pointer() {
-    let mut harness = harness(Some(&demo_path()));
+/// Presses Tab over the canvas and types `text` into the add menu's search.
+fn search_the_tab_menu(harness: &mut Harness<'static, EditorApp>, text: &str) {
     harness.hover_at(egui::pos2(200.0, 120.0));
     harness.run_steps(1);
     harness.key_press(egui::Key::Tab);
     harness.run_steps(2);
-    harness.get_by_role(Role::TextInput).type_text("contacts");
+    harness.get_by_role(Role::TextInput).type_text(text);
     harness.run_steps(2);
+}
+
+#[test]
+fn tab_over_the_canvas_opens_the_add_menu_at_the_pointer() {
+    let mut harness = harness(Some(&demo_path()));
+    search_the_tab_menu(&mut harness, "contacts");
     harness.get_by_label("motion.contacts").click();
     harness.run_steps(3);
     assert_eq!(harness.state().doc().nodes.get("contacts").map(|n| n.kind.as_str()), Some("motion.contacts"));
@@ -548,12 +553,7 @@ fn the_displayed_node_stays_on_show_and_goes_stale_not_blank() {
 #[test]
 fn enter_in_the_add_menu_adds_the_first_match() {
     let mut harness = harness(Some(&demo_path()));
-    harness.hover_at(egui::pos2(200.0, 120.0));
-    harness.run_steps(1);
-    harness.key_press(egui::Key::Tab);
-    harness.run_steps(2);
-    harness.get_by_role(Role::TextInput).type_text("foot_lock");
-    harness.run_steps(2);
+    search_the_tab_menu(&mut harness, "foot_lock");
     harness.key_press(egui::Key::Enter);
     harness.run_steps(3);
     assert_eq!(harness.state().doc().nodes.get("foot_lock").map(|n| n.kind.as_str()), Some("motion.foot_lock"));

@@ -20,9 +20,11 @@ for path in files:
     bones = sum(len(a.data.bones) for a in armatures)
     actions = [(a.name, tuple(a.frame_range)) for a in bpy.data.actions]
     verts = sum(len(m.data.vertices) for m in meshes)
+    faces = sum(len(m.data.polygons) for m in meshes)
     skinned = sum(1 for m in meshes if any(mod.type == "ARMATURE" for mod in m.modifiers))
     print(f"{path}: {result}, armatures={len(armatures)} bones={bones} meshes={len(meshes)} "
-          f"skinned={skinned} vertices={verts} actions={actions}")
+          f"skinned={skinned} vertices={verts} faces={faces} materials={len(bpy.data.materials)} "
+          f"images={len(bpy.data.images)} actions={actions}")
     if not armatures:
         failed = True
 sys.exit(1 if failed else 0)
