@@ -1,7 +1,8 @@
 //! What the selected node produced besides clips, at the bottom of the panel: its report
-//! as a readable tree, its curves as a plot, its phases and foot contacts as time ranges.
+//! as a readable tree, its curves as a plot with its phases or ground and flight stages
+//! shaded behind, its phases, stages and foot contacts as time ranges.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 
 use egui::{CollapsingHeader, Color32, RichText, Ui};
 use egui_plot::{Line, Plot, Span};
@@ -16,15 +17,49 @@ pub(crate) struct ResultsState {
     shown: BTreeSet<String>,
     /// `node.port` whose default channels were already switched on once.
     initialised: BTreeSet<String>,
+    /// The bands shaded behind each curve plot (`node.port`) when it was last drawn.
+    bands: BTreeMap<String, Vec<Band>>,
 }
 
-/// Draws the results of node `id`: one section per non-clip output.
-pub(crate) fn show(ui: &mut Ui, state: &mut ResultsState, id: &str, ports: &[PortSpec], outputs: &[Option<Value>]) {
-    // Phases the node also gives are shaded on its curve plots.
-    let phases = outputs.iter().find_map(|v| match v {
-        Some(Value::Phases(p)) => Some(p.clone()),
+impl ResultsState {
+    /// The bands shaded behind the curve plot of `node`'s output `port` when it was last
+    /// drawn.
+    pub(crate) fn bands(&self, node: &str, port: &str) -> Option<&[Band]> {
+        self.bands.get(&format!("{node}.{port}")).map(Vec::as_slice)
+    }
+}
+
+/// A time range shaded behind a curve plot: a phase or a stage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Band {
+    /// `preparatory`, `main`, `posterior`, `ground` or `flight`.
+    pub name: &'static str,
+    /// Start, seconds.
+    pub start_secs: f64,
+    /// End, seconds.
+    pub end_secs: f64,
+}
+
+/// Draws the results of node `id`: one section per non-clip output. `inputs` are the values
+/// it took: stages it was given (as momentum splines are) shade its curves too.
+pub(crate) fn show(
+    ui: &mut Ui,
+    state: &mut ResultsState,
+    id: &str,
+    ports: &[PortSpec],
+    outputs: &[Option<Value>],
+    inputs: &[Value],
+) {
+    // Phases or stages the node gives (else the stages it takes) are shaded on its curve plots.
+    let phases = outputs.iter().flatten().find_map(|v| match v {
+        Value::Phases(p) => Some(phase_bands(p)),
         _ => None,
     });
+    let stages = outputs.iter().flatten().chain(inputs).find_map(|v| match v {
+        Value::Stages(s) => Some(stage_bands(s)),
+        _ => None,
+    });
+    let bands = phases.or(stages).unwrap_or_default();
     for (port, value) in ports.iter().zip(outputs) {
         let key = format!("{id}.{}", port.name);
         match value {
@@ -42,7 +77,7 @@ pub(crate) fn show(ui: &mut Ui, state: &mut ResultsState, id: &str, ports: &[Por
                 CollapsingHeader::new(format!("Curves ({})", port.name))
                     .id_salt(&key)
                     .default_open(true)
-                    .show(ui, |ui| curves_plot(ui, state, &key, curves, phases.as_deref()));
+                    .show(ui, |ui| curves_plot(ui, state, &key, curves, &bands));
             }
             Some(Value::Phases(phases)) => {
                 CollapsingHeader::new(format!("Phases ({})", port.name))
@@ -103,9 +138,44 @@ fn scalar_text(value: &Json) -> String {
     }
 }
 
-/// Checkboxes per channel and one plot against time (seconds), `phases` shaded behind. The
+/// The phases as bands.
+fn phase_bands(p: &Phases) -> Vec<Band> {
+    [("preparatory", p.preparatory), ("main", Some(p.main)), ("posterior", p.posterior)]
+        .into_iter()
+        .filter_map(|(name, range)| range.map(|r| band(name, r, p.fps)))
+        .collect()
+}
+
+/// The ground and flight stages as bands.
+fn stage_bands(s: &Stages) -> Vec<Band> {
+    s.stages.iter().map(|stage| band(stage_name(stage.kind), stage.frames, s.fps)).collect()
+}
+
+fn band(name: &'static str, range: FrameRange, fps: f64) -> Band {
+    Band { name, start_secs: range.start as f64 / fps, end_secs: range.end as f64 / fps }
+}
+
+fn stage_name(kind: StageKind) -> &'static str {
+    match kind {
+        StageKind::Ground => "ground",
+        StageKind::Flight => "flight",
+    }
+}
+
+/// The fill of a band: phases blue, red, green; ground stages brown, flights sky blue.
+fn band_colour(name: &str) -> Color32 {
+    match name {
+        "preparatory" => Color32::from_rgba_unmultiplied(90, 140, 255, 40),
+        "main" => Color32::from_rgba_unmultiplied(255, 110, 90, 40),
+        "posterior" => Color32::from_rgba_unmultiplied(110, 220, 130, 40),
+        "ground" => Color32::from_rgba_unmultiplied(170, 120, 70, 45),
+        _ => Color32::from_rgba_unmultiplied(120, 200, 255, 45),
+    }
+}
+
+/// Checkboxes per channel and one plot against time (seconds), `bands` shaded behind. The
 /// first channel's unit is shown by default, so the first view has one scale.
-fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves, phases: Option<&Phases>) {
+fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves, bands: &[Band]) {
     let channels = curves.channels();
     if state.initialised.insert(key.to_string()) {
         let unit = channels.first().map(|c| c.unit.clone()).unwrap_or_default();
@@ -134,23 +204,15 @@ fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves
     // A y axis wide enough for its tick labels (a narrow one showed only "0").
     let plot = Plot::new(format!("{key}.plot")).height(180.0).x_axis_label("s").y_axis_min_width(52.0);
     plot.y_axis_label(unit.unwrap_or_default()).show(ui, |plot| {
-        if let Some(p) = phases {
-            let shades = [
-                ("preparatory", p.preparatory, Color32::from_rgba_unmultiplied(90, 140, 255, 40)),
-                ("main", Some(p.main), Color32::from_rgba_unmultiplied(255, 110, 90, 40)),
-                ("posterior", p.posterior, Color32::from_rgba_unmultiplied(110, 220, 130, 40)),
-            ];
-            for (name, range, colour) in shades {
-                if let Some(r) = range {
-                    plot.span(Span::new(name, r.start as f64 / p.fps..=r.end as f64 / p.fps).fill(colour));
-                }
-            }
+        for b in bands {
+            plot.span(Span::new(b.name, b.start_secs..=b.end_secs).fill(band_colour(b.name)));
         }
         for (i, c) in channels.iter().enumerate().filter(|(_, c)| state.shown.contains(&format!("{key}.{}", c.name))) {
             let points: Vec<[f64; 2]> = c.values.iter().enumerate().map(|(i, v)| [i as f64 / fps, *v]).collect();
             plot.line(Line::new(c.name.clone(), points).color(channel_colour(i)));
         }
     });
+    state.bands.insert(key.to_string(), bands.to_vec());
 }
 
 /// The colour of channel `i` of a curve set: the toggles and the lines share it.
@@ -201,10 +263,6 @@ fn contacts_text(ui: &mut Ui, contacts: &Contacts) {
 fn stages_text(ui: &mut Ui, stages: &Stages) {
     ui.label(format!("gravity fitted to the flights: {:.3} m/s²", stages.gravity_mps2));
     for (i, stage) in stages.stages.iter().enumerate() {
-        let kind = match stage.kind {
-            StageKind::Ground => "ground",
-            StageKind::Flight => "flight",
-        };
-        ui.label(format!("{i}: {kind}, {}", seconds(stage.frames, stages.fps)));
+        ui.label(format!("{i}: {}, {}", stage_name(stage.kind), seconds(stage.frames, stages.fps)));
     }
 }
