@@ -754,8 +754,43 @@ fn stages_are_shaded_on_the_curve_plots() {
         harness.state_mut().select(Some(node));
         harness.run_steps(3);
         let bands: Vec<(&str, f64, f64)> = (harness.state().plot_bands(node, port).unwrap().iter())
-            .map(|b| (b.name, b.start_secs, b.end_secs))
+            .map(|b| (b.name.as_str(), b.start_secs, b.end_secs))
             .collect();
         assert_eq!(bands, expected, "{node}.{port}");
     }
+}
+
+/// The controllers' activations of a physics simulation are labelled time ranges in the
+/// panel and bands on its curves: one per activation, in the report's order of controllers,
+/// tiling the simulated clip's time.
+#[test]
+fn the_controller_timeline_is_shown_as_labelled_ranges() {
+    let Some(path) = corpus_graph("push_and_recover.ron") else { return };
+    let mut harness = harness(Some(&path));
+    harness.state_mut().select(Some("simulate"));
+    harness.run_steps(3);
+    let app = harness.state();
+    let outputs = &app.report().unwrap().outputs["simulate"];
+    let (mut controllers, mut duration) = (Vec::new(), 0.0);
+    for value in outputs.iter().flatten() {
+        match value {
+            kinegraph::nodes::node::Value::Report(r) => {
+                controllers = r["controllers"].as_array().unwrap().iter().map(|c| c.as_str().unwrap()).collect();
+            }
+            kinegraph::nodes::node::Value::Clip(c) => duration = c.frame_count() as f64 / c.fps(),
+            _ => {}
+        }
+    }
+    let bands = app.plot_bands("simulate", "curves").unwrap();
+    println!("{:?}", bands.iter().map(|b| (&b.name, b.start_secs, b.end_secs)).collect::<Vec<_>>());
+    assert!(controllers.len() >= 2, "push_and_recover hands over from balance: {controllers:?}");
+    assert_eq!(bands.iter().map(|b| b.name.as_str()).collect::<Vec<_>>(), controllers);
+    assert_eq!(bands[0].start_secs, 0.0);
+    for pair in bands.windows(2) {
+        assert!((pair[1].start_secs - pair[0].end_secs).abs() < 1e-6, "no gap between activations: {pair:?}");
+    }
+    let end = bands.last().unwrap().end_secs;
+    assert!((end - duration).abs() <= 1.0 / 30.0 + 1e-6, "the last ends with the clip ({duration} s): {end} s");
+    harness.get_by_label("Controller timeline");
+    harness.get_by_label_contains(&format!("{}: 0.000 – ", controllers[0]));
 }

@@ -1,13 +1,14 @@
 //! What the selected node produced besides clips, at the bottom of the panel: its report
-//! as a readable tree, its curves as a plot with its phases or ground and flight stages
-//! shaded behind, its phases, stages and foot contacts as time ranges.
+//! as a readable tree, its curves as a plot with its phases, ground and flight stages or
+//! controller activations shaded behind, its phases, stages, controller timeline and foot
+//! contacts as time ranges.
 
 use std::collections::{BTreeMap, BTreeSet};
 
 use egui::{CollapsingHeader, Color32, RichText, Ui};
 use egui_plot::{Line, Plot, Span};
 use kinegraph_nodes::model::{Contacts, Curves, FrameRange, Phases, StageKind, Stages};
-use kinegraph_nodes::node::{PortSpec, Value};
+use kinegraph_nodes::node::{PortSpec, Report, Value};
 use serde_json::Value as Json;
 
 /// Which curve channels the user turned on, per node and port.
@@ -29,11 +30,11 @@ impl ResultsState {
     }
 }
 
-/// A time range shaded behind a curve plot: a phase or a stage.
+/// A time range shaded behind a curve plot: a phase, a stage or a controller's activation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Band {
-    /// `preparatory`, `main`, `posterior`, `ground` or `flight`.
-    pub name: &'static str,
+    /// `preparatory`, `main`, `posterior`, `ground`, `flight` or the controller's name.
+    pub name: String,
     /// Start, seconds.
     pub start_secs: f64,
     /// End, seconds.
@@ -59,7 +60,12 @@ pub(crate) fn show(
         Value::Stages(s) => Some(stage_bands(s)),
         _ => None,
     });
-    let bands = phases.or(stages).unwrap_or_default();
+    let controllers = outputs.iter().flatten().find_map(|v| match v {
+        Value::Report(r) => Some(timeline_of(r)).filter(|t| !t.is_empty()),
+        _ => None,
+    });
+    let controller_bands = controllers.as_ref().map(|t| t.iter().map(|a| a.band.clone()).collect());
+    let bands = phases.or(stages).or(controller_bands).unwrap_or_default();
     for (port, value) in ports.iter().zip(outputs) {
         let key = format!("{id}.{}", port.name);
         match value {
@@ -72,6 +78,13 @@ pub(crate) fn show(
                         }
                     },
                 );
+                let timeline = timeline_of(report);
+                if !timeline.is_empty() {
+                    CollapsingHeader::new("Controller timeline")
+                        .id_salt(format!("{key}.timeline"))
+                        .default_open(true)
+                        .show(ui, |ui| timeline_strip(ui, &timeline));
+                }
             }
             Some(Value::Curves(curves)) => {
                 CollapsingHeader::new(format!("Curves ({})", port.name))
@@ -151,8 +164,61 @@ fn stage_bands(s: &Stages) -> Vec<Band> {
     s.stages.iter().map(|stage| band(stage_name(stage.kind), stage.frames, s.fps)).collect()
 }
 
-fn band(name: &'static str, range: FrameRange, fps: f64) -> Band {
-    Band { name, start_secs: range.start as f64 / fps, end_secs: range.end as f64 / fps }
+fn band(name: &str, range: FrameRange, fps: f64) -> Band {
+    Band { name: name.to_string(), start_secs: range.start as f64 / fps, end_secs: range.end as f64 / fps }
+}
+
+/// One controller activation of a report's `timeline` (physics.simulate): its band and how
+/// it ended.
+struct Activation {
+    band: Band,
+    outcome: String,
+}
+
+/// The activations listed under a report's `timeline` key (objects with `controller`,
+/// `start_secs`, `end_secs` and `outcome`); none when the report has no such list.
+fn timeline_of(report: &Report) -> Vec<Activation> {
+    let Some(Json::Array(items)) = report.get("timeline") else { return Vec::new() };
+    items
+        .iter()
+        .filter_map(|a| {
+            let band = Band {
+                name: a.get("controller")?.as_str()?.to_string(),
+                start_secs: a.get("start_secs")?.as_f64()?,
+                end_secs: a.get("end_secs")?.as_f64()?,
+            };
+            let outcome = match a.get("outcome")? {
+                Json::Object(map) => {
+                    map.iter().map(|(k, v)| format!("{k}: {}", scalar_text(v))).collect::<Vec<_>>().join(", ")
+                }
+                other => scalar_text(other),
+            };
+            Some(Activation { band, outcome })
+        })
+        .collect()
+}
+
+/// The activations as labelled boxes along the run's time, then one line each.
+fn timeline_strip(ui: &mut Ui, timeline: &[Activation]) {
+    let end = timeline.iter().map(|a| a.band.end_secs).fold(0.0, f64::max).max(1e-6);
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(ui.available_width(), 18.0), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 2.0, Color32::from_gray(40));
+    for a in timeline {
+        let x = |secs: f64| rect.left() + rect.width() * (secs / end) as f32;
+        let cell = egui::Rect::from_x_y_ranges(x(a.band.start_secs)..=x(a.band.end_secs), rect.y_range());
+        painter.rect_filled(cell.shrink2(egui::vec2(0.5, 0.0)), 2.0, band_colour(&a.band.name, 160));
+        painter.with_clip_rect(cell).text(
+            cell.left_center() + egui::vec2(3.0, 0.0),
+            egui::Align2::LEFT_CENTER,
+            &a.band.name,
+            egui::FontId::proportional(11.0),
+            Color32::WHITE,
+        );
+    }
+    for a in timeline {
+        ui.label(format!("{}: {:.3} – {:.3} s, {}", a.band.name, a.band.start_secs, a.band.end_secs, a.outcome));
+    }
 }
 
 fn stage_name(kind: StageKind) -> &'static str {
@@ -162,15 +228,22 @@ fn stage_name(kind: StageKind) -> &'static str {
     }
 }
 
-/// The fill of a band: phases blue, red, green; ground stages brown, flights sky blue.
-fn band_colour(name: &str) -> Color32 {
-    match name {
-        "preparatory" => Color32::from_rgba_unmultiplied(90, 140, 255, 40),
-        "main" => Color32::from_rgba_unmultiplied(255, 110, 90, 40),
-        "posterior" => Color32::from_rgba_unmultiplied(110, 220, 130, 40),
-        "ground" => Color32::from_rgba_unmultiplied(170, 120, 70, 45),
-        _ => Color32::from_rgba_unmultiplied(120, 200, 255, 45),
-    }
+/// The fill of a band at opacity `alpha`: phases blue, red, green; ground stages brown,
+/// flights sky blue; a controller a palette colour picked by its name (so it keeps it
+/// across runs).
+fn band_colour(name: &str, alpha: u8) -> Color32 {
+    let [r, g, b] = match name {
+        "preparatory" => [90, 140, 255],
+        "main" => [255, 110, 90],
+        "posterior" => [110, 220, 130],
+        "ground" => [170, 120, 70],
+        "flight" => [120, 200, 255],
+        controller => {
+            let c = channel_colour(controller.bytes().map(usize::from).sum());
+            [c.r(), c.g(), c.b()]
+        }
+    };
+    Color32::from_rgba_unmultiplied(r, g, b, alpha)
 }
 
 /// Checkboxes per channel and one plot against time (seconds), `bands` shaded behind. The
@@ -205,7 +278,7 @@ fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves
     let plot = Plot::new(format!("{key}.plot")).height(180.0).x_axis_label("s").y_axis_min_width(52.0);
     plot.y_axis_label(unit.unwrap_or_default()).show(ui, |plot| {
         for b in bands {
-            plot.span(Span::new(b.name, b.start_secs..=b.end_secs).fill(band_colour(b.name)));
+            plot.span(Span::new(b.name.as_str(), b.start_secs..=b.end_secs).fill(band_colour(&b.name, 40)));
         }
         for (i, c) in channels.iter().enumerate().filter(|(_, c)| state.shown.contains(&format!("{key}.{}", c.name))) {
             let points: Vec<[f64; 2]> = c.values.iter().enumerate().map(|(i, v)| [i as f64 / fps, *v]).collect();
