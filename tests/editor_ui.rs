@@ -656,3 +656,141 @@ fn the_wheel_zooms_the_canvas_at_the_pointer() {
     assert!(after.x > before.x * 1.05, "zoomed in: {before:?} → {after:?}");
     assert!(moved.length() < 1.0, "about the pointer: moved {moved:?}");
 }
+
+/// An example graph that reads the shared corpus, or `None` (skipped; CI fails) without it.
+fn corpus_graph(name: &str) -> Option<PathBuf> {
+    kinegraph::nodes::corpus::shared_data()?;
+    Some(Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs").join(name))
+}
+
+/// Moves the viewport's time slider to `secs`, as a drag or a screen reader does (the
+/// slider pauses playback).
+fn seek(harness: &mut Harness<'static, EditorApp>, secs: f64) {
+    use egui_kittest::kittest::NodeT;
+    let (target_node, target_tree) = harness.get_by_role_and_label(Role::Slider, "time").accesskit_node().locate();
+    harness.event(egui::Event::AccessKitActionRequest(egui::accesskit::ActionRequest {
+        action: egui::accesskit::Action::SetValue,
+        target_node,
+        target_tree,
+        data: Some(egui::accesskit::ActionData::NumericValue(secs)),
+    }));
+    harness.run_steps(2);
+}
+
+fn volumes_output(app: &EditorApp, id: &str) -> std::sync::Arc<kinegraph::nodes::model::VolumeSequence> {
+    app.report().unwrap().outputs[id]
+        .iter()
+        .flatten()
+        .find_map(|v| match v {
+            kinegraph::nodes::node::Value::VolumeSequence(v) => Some(v.clone()),
+            _ => None,
+        })
+        .unwrap()
+}
+
+/// Viewing the smoke simulation of a kick draws the kicking mesh (its obstacle) and the
+/// smoke's particles of the frame at the playhead, by the volumes' own frame rate.
+#[test]
+fn the_smoke_plays_its_particles_with_the_obstacle() {
+    let Some(path) = corpus_graph("kick_through_smoke.ron") else { return };
+    let mut harness = harness(Some(&path));
+    harness.state_mut().select(Some("smoke"));
+    harness.run_steps(3);
+    harness.get_by_role_and_label(Role::CheckBox, "mesh");
+    let volumes = volumes_output(harness.state(), "smoke");
+    for secs in [0.3, 0.8] {
+        seek(&mut harness, secs);
+        let frame = (secs * volumes.fps).floor() as usize;
+        let particles = volumes.frames[frame].particles_m.len();
+        println!("{secs} s: frame {frame} of {}, {particles} particles", volumes.frames.len());
+        assert!(particles > 0, "the source has seeded particles by frame {frame}");
+        let drawn = harness.state().viewport_smoke().unwrap();
+        assert_eq!(drawn, kinegraph::editor::SmokeDrawn { frame, particles });
+        harness.get_by_label(&format!("smoke frame {frame} @ {:.0} fps", volumes.fps));
+    }
+}
+
+/// Smoke without a clip (balls in a smoke column) still plays: the timeline lasts the
+/// volumes' frames at their rate.
+#[test]
+fn smoke_without_a_clip_plays_for_its_frames() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/ball_in_smoke.ron");
+    let mut harness = harness(Some(&path));
+    harness.state_mut().select(Some("points"));
+    harness.run_steps(3);
+    let volumes = volumes_output(harness.state(), "smoke");
+    // 0.9 s is frame 10 of 12 at 12 fps; past the end (5 s) the slider holds the last.
+    for (secs, frame) in [(0.9, 10), (5.0, volumes.frames.len() - 1)] {
+        seek(&mut harness, secs);
+        let drawn = harness.state().viewport_smoke().unwrap();
+        assert_eq!(drawn, kinegraph::editor::SmokeDrawn { frame, particles: volumes.frames[frame].particles_m.len() });
+    }
+}
+
+/// The ground and flight stages of a jump are shaded on the curves of the node that finds
+/// them and of the momentum splines fitted to them.
+#[test]
+fn stages_are_shaded_on_the_curve_plots() {
+    let Some(path) = corpus_graph("jump_stages.ron") else { return };
+    let mut harness = harness(Some(&path));
+    let stages = harness.state().report().unwrap().outputs["stages"]
+        .iter()
+        .flatten()
+        .find_map(|v| match v {
+            kinegraph::nodes::node::Value::Stages(s) => Some(s.clone()),
+            _ => None,
+        })
+        .unwrap();
+    assert!(stages.stages.len() >= 3, "a jump: ground, flight, ground");
+    let expected: Vec<(&str, f64, f64)> = stages
+        .stages
+        .iter()
+        .map(|s| {
+            let name = if s.kind == kinegraph::nodes::model::StageKind::Flight { "flight" } else { "ground" };
+            (name, s.frames.start as f64 / stages.fps, s.frames.end as f64 / stages.fps)
+        })
+        .collect();
+    for (node, port) in [("stages", "curves"), ("splines", "curves")] {
+        harness.state_mut().select(Some(node));
+        harness.run_steps(3);
+        let bands: Vec<(&str, f64, f64)> = (harness.state().plot_bands(node, port).unwrap().iter())
+            .map(|b| (b.name.as_str(), b.start_secs, b.end_secs))
+            .collect();
+        assert_eq!(bands, expected, "{node}.{port}");
+    }
+}
+
+/// The controllers' activations of a physics simulation are labelled time ranges in the
+/// panel and bands on its curves: one per activation, in the report's order of controllers,
+/// tiling the simulated clip's time.
+#[test]
+fn the_controller_timeline_is_shown_as_labelled_ranges() {
+    let Some(path) = corpus_graph("push_and_recover.ron") else { return };
+    let mut harness = harness(Some(&path));
+    harness.state_mut().select(Some("simulate"));
+    harness.run_steps(3);
+    let app = harness.state();
+    let outputs = &app.report().unwrap().outputs["simulate"];
+    let (mut controllers, mut duration) = (Vec::new(), 0.0);
+    for value in outputs.iter().flatten() {
+        match value {
+            kinegraph::nodes::node::Value::Report(r) => {
+                controllers = r["controllers"].as_array().unwrap().iter().map(|c| c.as_str().unwrap()).collect();
+            }
+            kinegraph::nodes::node::Value::Clip(c) => duration = c.frame_count() as f64 / c.fps(),
+            _ => {}
+        }
+    }
+    let bands = app.plot_bands("simulate", "curves").unwrap();
+    println!("{:?}", bands.iter().map(|b| (&b.name, b.start_secs, b.end_secs)).collect::<Vec<_>>());
+    assert!(controllers.len() >= 2, "push_and_recover hands over from balance: {controllers:?}");
+    assert_eq!(bands.iter().map(|b| b.name.as_str()).collect::<Vec<_>>(), controllers);
+    assert_eq!(bands[0].start_secs, 0.0);
+    for pair in bands.windows(2) {
+        assert!((pair[1].start_secs - pair[0].end_secs).abs() < 1e-6, "no gap between activations: {pair:?}");
+    }
+    let end = bands.last().unwrap().end_secs;
+    assert!((end - duration).abs() <= 1.0 / 30.0 + 1e-6, "the last ends with the clip ({duration} s): {end} s");
+    harness.get_by_label("Controller timeline");
+    harness.get_by_label_contains(&format!("{}: 0.000 – ", controllers[0]));
+}

@@ -16,7 +16,7 @@ use super::files::{self, Autosave, RecentFiles, default_settings_dir};
 use super::fragment;
 use super::panel::{self, PanelState};
 use super::results::{self, ResultsState};
-use super::viewport::{ShownMesh, Viewport};
+use super::viewport::{Motion, ShownMesh, SmokeDrawn, Viewport};
 use super::worker::{Worker, WorkerMessage};
 use crate::document;
 use crate::engine::{Engine, GraphErrors, NodeStatus, RunReport};
@@ -54,9 +54,9 @@ pub struct EditorApp {
     snarl_selection: Vec<String>,
     /// The node with the display flag: the viewport plays it whatever is selected.
     displayed: Option<String>,
-    /// The last clip the viewport played, with its node and mesh: kept on show, marked
-    /// stale, while that node has no result (an error, a block, an edit evaluating).
-    last_shown: Option<(String, Arc<Clip>, Option<ShownMesh>)>,
+    /// The last motion the viewport played, with its node: kept on show, marked stale,
+    /// while that node has no result (an error, a block, an edit evaluating).
+    last_shown: Option<(String, Motion)>,
     panel: PanelState,
     results: ResultsState,
     viewport: Viewport,
@@ -196,6 +196,17 @@ impl EditorApp {
     /// The foot contacts the viewport shows with its clip, if any.
     pub fn viewport_contacts(&self) -> Option<&Contacts> {
         self.viewport.contacts()
+    }
+
+    /// The bands (phases, stages) shaded behind the curve plot of `node`'s output `port`
+    /// when the panel last drew it.
+    pub fn plot_bands(&self, node: &str, port: &str) -> Option<&[results::Band]> {
+        self.results.bands(node, port)
+    }
+
+    /// The smoke frame the viewport drew last and its particles on screen, if it drew smoke.
+    pub fn viewport_smoke(&self) -> Option<SmokeDrawn> {
+        self.viewport.smoke_drawn()
     }
 
     /// Over the canvas the plain mouse wheel zooms at the pointer, as in other node editors
@@ -540,10 +551,11 @@ impl EditorApp {
     }
 
     /// What the viewport plays for the selected node: its clip (or its mesh sequence's
-    /// clip), or, for a node that outputs neither (an export), the clip it takes; with the
-    /// mesh sequence it outputs, or a skinned mesh it outputs or takes.
-    fn selected_motion(&self) -> (Option<Arc<Clip>>, Option<ShownMesh>) {
-        let Some(id) = self.viewed() else { return (None, None) };
+    /// clip), or, for a node that outputs neither (an export, a smoke simulation), the clip
+    /// it takes; with the mesh sequence it outputs, or a skinned mesh it outputs or takes;
+    /// and the smoke it outputs or takes.
+    fn selected_motion(&self) -> Motion {
+        let Some(id) = self.viewed() else { return Motion::default() };
         let outputs: Vec<&Value> = self
             .report
             .as_ref()
@@ -568,7 +580,11 @@ impl EditorApp {
             Value::Mesh(m) if m.skin.is_some() => Some(m.clone()),
             _ => None,
         });
-        (clip, sequence.map(ShownMesh::Baked).or(skinned.map(ShownMesh::Skinned)))
+        let smoke = outputs.iter().chain(&inputs).find_map(|v| match v {
+            Value::VolumeSequence(s) => Some(s.clone()),
+            _ => None,
+        });
+        Motion { clip, mesh: sequence.map(ShownMesh::Baked).or(skinned.map(ShownMesh::Skinned)), smoke }
     }
 
     /// The node the viewport plays: the one with the display flag, else the active one.
@@ -579,30 +595,28 @@ impl EditorApp {
     /// True when the viewport shows a result older than the document (see `last_shown`).
     pub fn viewport_is_stale(&self) -> bool {
         self.viewed()
-            .is_some_and(|id| self.selected_motion().0.is_none() && self.last_shown.as_ref().is_some_and(|s| s.0 == id))
+            .is_some_and(|id| self.selected_motion().is_empty() && self.last_shown.as_ref().is_some_and(|s| s.0 == id))
     }
 
     /// The viewport: the viewed node's motion, or its last good one marked stale.
     fn viewport(&mut self, ui: &mut Ui) {
         let viewed = self.viewed().map(str::to_string);
-        let (mut clip, mut mesh) = self.selected_motion();
-        match (&clip, &viewed) {
-            (Some(c), Some(id)) => self.last_shown = Some((id.clone(), c.clone(), mesh.clone())),
-            (None, Some(id)) => {
-                if let Some((shown, c, m)) = self.last_shown.as_ref().filter(|s| &s.0 == id) {
-                    let state = self.node_state(shown);
-                    ui.colored_label(
-                        egui::Color32::from_rgb(230, 160, 60),
-                        format!("stale: {shown} is {state}; showing its last result"),
-                    );
-                    (clip, mesh) = (Some(c.clone()), m.clone());
-                }
+        let mut motion = self.selected_motion();
+        if let Some(id) = &viewed {
+            if !motion.is_empty() {
+                self.last_shown = Some((id.clone(), motion.clone()));
+            } else if let Some((shown, last)) = self.last_shown.as_ref().filter(|s| &s.0 == id) {
+                let state = self.node_state(shown);
+                ui.colored_label(
+                    egui::Color32::from_rgb(230, 160, 60),
+                    format!("stale: {shown} is {state}; showing its last result"),
+                );
+                motion = last.clone();
             }
-            _ => {}
         }
         let title = viewed.unwrap_or_default();
-        let contacts = clip.as_ref().and_then(|c| self.graph_contacts(c));
-        self.viewport.show(ui, &title, clip.as_ref(), mesh, contacts.as_ref());
+        let contacts = motion.clip.as_ref().and_then(|c| self.graph_contacts(c));
+        self.viewport.show(ui, &title, motion, contacts.as_ref());
     }
 
     /// The foot contacts the graph itself computed from `clip` (a node fed this very clip
@@ -867,7 +881,9 @@ impl EditorApp {
         let schema = self.graph.node(&id).and_then(|n| self.registry.get(&n.kind)).map(|n| n.schema());
         if let (Some(outputs), Some(schema)) = (outputs, schema) {
             ui.separator();
-            results::show(ui, &mut self.results, &id, schema.outputs, outputs);
+            // Owned (each value is a shared pointer), as the panel state is borrowed mutably.
+            let inputs: Vec<Value> = self.input_values(&id).into_iter().cloned().collect();
+            results::show(ui, &mut self.results, &id, schema.outputs, outputs, &inputs);
         }
     }
 

@@ -28,3 +28,7 @@ mod viewport;
 
 #[cfg(feature = "editor")]
 pub use app::{EditorApp, StartError, run};
+#[cfg(feature = "editor")]
+pub use results::Band;
+#[cfg(feature = "editor")]
+pub use viewport::SmokeDrawn;

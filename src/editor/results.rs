@@ -1,12 +1,14 @@
 //! What the selected node produced besides clips, at the bottom of the panel: its report
-//! as a readable tree, its curves as a plot, its phases and foot contacts as time ranges.
+//! as a readable tree, its curves as a plot with its phases, ground and flight stages or
+//! controller activations shaded behind, its phases, stages, controller timeline and foot
+//! contacts as time ranges.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 
 use egui::{CollapsingHeader, Color32, RichText, Ui};
 use egui_plot::{Line, Plot, Span};
 use kinegraph_nodes::model::{Contacts, Curves, FrameRange, Phases, StageKind, Stages};
-use kinegraph_nodes::node::{PortSpec, Value};
+use kinegraph_nodes::node::{PortSpec, Report, Value};
 use serde_json::Value as Json;
 
 /// Which curve channels the user turned on, per node and port.
@@ -16,15 +18,54 @@ pub(crate) struct ResultsState {
     shown: BTreeSet<String>,
     /// `node.port` whose default channels were already switched on once.
     initialised: BTreeSet<String>,
+    /// The bands shaded behind each curve plot (`node.port`) when it was last drawn.
+    bands: BTreeMap<String, Vec<Band>>,
 }
 
-/// Draws the results of node `id`: one section per non-clip output.
-pub(crate) fn show(ui: &mut Ui, state: &mut ResultsState, id: &str, ports: &[PortSpec], outputs: &[Option<Value>]) {
-    // Phases the node also gives are shaded on its curve plots.
-    let phases = outputs.iter().find_map(|v| match v {
-        Some(Value::Phases(p)) => Some(p.clone()),
+impl ResultsState {
+    /// The bands shaded behind the curve plot of `node`'s output `port` when it was last
+    /// drawn.
+    pub(crate) fn bands(&self, node: &str, port: &str) -> Option<&[Band]> {
+        self.bands.get(&format!("{node}.{port}")).map(Vec::as_slice)
+    }
+}
+
+/// A time range shaded behind a curve plot: a phase, a stage or a controller's activation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Band {
+    /// `preparatory`, `main`, `posterior`, `ground`, `flight` or the controller's name.
+    pub name: String,
+    /// Start, seconds.
+    pub start_secs: f64,
+    /// End, seconds.
+    pub end_secs: f64,
+}
+
+/// Draws the results of node `id`: one section per non-clip output. `inputs` are the values
+/// it took: stages it was given (as momentum splines are) shade its curves too.
+pub(crate) fn show(
+    ui: &mut Ui,
+    state: &mut ResultsState,
+    id: &str,
+    ports: &[PortSpec],
+    outputs: &[Option<Value>],
+    inputs: &[Value],
+) {
+    // Phases or stages the node gives (else the stages it takes) are shaded on its curve plots.
+    let phases = outputs.iter().flatten().find_map(|v| match v {
+        Value::Phases(p) => Some(phase_bands(p)),
         _ => None,
     });
+    let stages = outputs.iter().flatten().chain(inputs).find_map(|v| match v {
+        Value::Stages(s) => Some(stage_bands(s)),
+        _ => None,
+    });
+    let controllers = outputs.iter().flatten().find_map(|v| match v {
+        Value::Report(r) => Some(timeline_of(r)).filter(|t| !t.is_empty()),
+        _ => None,
+    });
+    let controller_bands = controllers.as_ref().map(|t| t.iter().map(|a| a.band.clone()).collect());
+    let bands = phases.or(stages).or(controller_bands).unwrap_or_default();
     for (port, value) in ports.iter().zip(outputs) {
         let key = format!("{id}.{}", port.name);
         match value {
@@ -37,12 +78,19 @@ pub(crate) fn show(ui: &mut Ui, state: &mut ResultsState, id: &str, ports: &[Por
                         }
                     },
                 );
+                let timeline = timeline_of(report);
+                if !timeline.is_empty() {
+                    CollapsingHeader::new("Controller timeline")
+                        .id_salt(format!("{key}.timeline"))
+                        .default_open(true)
+                        .show(ui, |ui| timeline_strip(ui, &timeline));
+                }
             }
             Some(Value::Curves(curves)) => {
                 CollapsingHeader::new(format!("Curves ({})", port.name))
                     .id_salt(&key)
                     .default_open(true)
-                    .show(ui, |ui| curves_plot(ui, state, &key, curves, phases.as_deref()));
+                    .show(ui, |ui| curves_plot(ui, state, &key, curves, &bands));
             }
             Some(Value::Phases(phases)) => {
                 CollapsingHeader::new(format!("Phases ({})", port.name))
@@ -103,9 +151,104 @@ fn scalar_text(value: &Json) -> String {
     }
 }
 
-/// Checkboxes per channel and one plot against time (seconds), `phases` shaded behind. The
+/// The phases as bands.
+fn phase_bands(p: &Phases) -> Vec<Band> {
+    [("preparatory", p.preparatory), ("main", Some(p.main)), ("posterior", p.posterior)]
+        .into_iter()
+        .filter_map(|(name, range)| range.map(|r| band(name, r, p.fps)))
+        .collect()
+}
+
+/// The ground and flight stages as bands.
+fn stage_bands(s: &Stages) -> Vec<Band> {
+    s.stages.iter().map(|stage| band(stage_name(stage.kind), stage.frames, s.fps)).collect()
+}
+
+fn band(name: &str, range: FrameRange, fps: f64) -> Band {
+    Band { name: name.to_string(), start_secs: range.start as f64 / fps, end_secs: range.end as f64 / fps }
+}
+
+/// One controller activation of a report's `timeline` (physics.simulate): its band and how
+/// it ended.
+struct Activation {
+    band: Band,
+    outcome: String,
+}
+
+/// The activations listed under a report's `timeline` key (objects with `controller`,
+/// `start_secs`, `end_secs` and `outcome`); none when the report has no such list.
+fn timeline_of(report: &Report) -> Vec<Activation> {
+    let Some(Json::Array(items)) = report.get("timeline") else { return Vec::new() };
+    items
+        .iter()
+        .filter_map(|a| {
+            let band = Band {
+                name: a.get("controller")?.as_str()?.to_string(),
+                start_secs: a.get("start_secs")?.as_f64()?,
+                end_secs: a.get("end_secs")?.as_f64()?,
+            };
+            let outcome = match a.get("outcome")? {
+                Json::Object(map) => {
+                    map.iter().map(|(k, v)| format!("{k}: {}", scalar_text(v))).collect::<Vec<_>>().join(", ")
+                }
+                other => scalar_text(other),
+            };
+            Some(Activation { band, outcome })
+        })
+        .collect()
+}
+
+/// The activations as labelled boxes along the run's time, then one line each.
+fn timeline_strip(ui: &mut Ui, timeline: &[Activation]) {
+    let end = timeline.iter().map(|a| a.band.end_secs).fold(0.0, f64::max).max(1e-6);
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(ui.available_width(), 18.0), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 2.0, Color32::from_gray(40));
+    for a in timeline {
+        let x = |secs: f64| rect.left() + rect.width() * (secs / end) as f32;
+        let cell = egui::Rect::from_x_y_ranges(x(a.band.start_secs)..=x(a.band.end_secs), rect.y_range());
+        painter.rect_filled(cell.shrink2(egui::vec2(0.5, 0.0)), 2.0, band_colour(&a.band.name, 160));
+        painter.with_clip_rect(cell).text(
+            cell.left_center() + egui::vec2(3.0, 0.0),
+            egui::Align2::LEFT_CENTER,
+            &a.band.name,
+            egui::FontId::proportional(11.0),
+            Color32::WHITE,
+        );
+    }
+    for a in timeline {
+        ui.label(format!("{}: {:.3} – {:.3} s, {}", a.band.name, a.band.start_secs, a.band.end_secs, a.outcome));
+    }
+}
+
+fn stage_name(kind: StageKind) -> &'static str {
+    match kind {
+        StageKind::Ground => "ground",
+        StageKind::Flight => "flight",
+    }
+}
+
+/// The fill of a band at opacity `alpha`: phases blue, red, green; ground stages brown,
+/// flights sky blue; a controller a palette colour picked by its name (so it keeps it
+/// across runs).
+fn band_colour(name: &str, alpha: u8) -> Color32 {
+    let [r, g, b] = match name {
+        "preparatory" => [90, 140, 255],
+        "main" => [255, 110, 90],
+        "posterior" => [110, 220, 130],
+        "ground" => [170, 120, 70],
+        "flight" => [120, 200, 255],
+        controller => {
+            let c = channel_colour(controller.bytes().map(usize::from).sum());
+            [c.r(), c.g(), c.b()]
+        }
+    };
+    Color32::from_rgba_unmultiplied(r, g, b, alpha)
+}
+
+/// Checkboxes per channel and one plot against time (seconds), `bands` shaded behind. The
 /// first channel's unit is shown by default, so the first view has one scale.
-fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves, phases: Option<&Phases>) {
+fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves, bands: &[Band]) {
     let channels = curves.channels();
     if state.initialised.insert(key.to_string()) {
         let unit = channels.first().map(|c| c.unit.clone()).unwrap_or_default();
@@ -134,23 +277,15 @@ fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves
     // A y axis wide enough for its tick labels (a narrow one showed only "0").
     let plot = Plot::new(format!("{key}.plot")).height(180.0).x_axis_label("s").y_axis_min_width(52.0);
     plot.y_axis_label(unit.unwrap_or_default()).show(ui, |plot| {
-        if let Some(p) = phases {
-            let shades = [
-                ("preparatory", p.preparatory, Color32::from_rgba_unmultiplied(90, 140, 255, 40)),
-                ("main", Some(p.main), Color32::from_rgba_unmultiplied(255, 110, 90, 40)),
-                ("posterior", p.posterior, Color32::from_rgba_unmultiplied(110, 220, 130, 40)),
-            ];
-            for (name, range, colour) in shades {
-                if let Some(r) = range {
-                    plot.span(Span::new(name, r.start as f64 / p.fps..=r.end as f64 / p.fps).fill(colour));
-                }
-            }
+        for b in bands {
+            plot.span(Span::new(b.name.as_str(), b.start_secs..=b.end_secs).fill(band_colour(&b.name, 40)));
         }
         for (i, c) in channels.iter().enumerate().filter(|(_, c)| state.shown.contains(&format!("{key}.{}", c.name))) {
             let points: Vec<[f64; 2]> = c.values.iter().enumerate().map(|(i, v)| [i as f64 / fps, *v]).collect();
             plot.line(Line::new(c.name.clone(), points).color(channel_colour(i)));
         }
     });
+    state.bands.insert(key.to_string(), bands.to_vec());
 }
 
 /// The colour of channel `i` of a curve set: the toggles and the lines share it.
@@ -201,10 +336,6 @@ fn contacts_text(ui: &mut Ui, contacts: &Contacts) {
 fn stages_text(ui: &mut Ui, stages: &Stages) {
     ui.label(format!("gravity fitted to the flights: {:.3} m/s²", stages.gravity_mps2));
     for (i, stage) in stages.stages.iter().enumerate() {
-        let kind = match stage.kind {
-            StageKind::Ground => "ground",
-            StageKind::Flight => "flight",
-        };
-        ui.label(format!("{i}: {kind}, {}", seconds(stage.frames, stages.fps)));
+        ui.label(format!("{i}: {}, {}", stage_name(stage.kind), seconds(stage.frames, stages.fps)));
     }
 }

@@ -2,7 +2,7 @@
 //! drawn with egui's painter, with its mesh when it has one (a baked mesh sequence, or a
 //! skinned mesh posed by linear blend skinning), a timeline, an orbit camera, a ground grid,
 //! the root and foot trajectories, foot contacts, and a second clip pinned beside it for
-//! comparison.
+//! comparison; smoke (a volume sequence) as its marker particles, on the same clock.
 //!
 //! Steps: 1. forward kinematics and foot contacts once per clip (kept while the same
 //! `Arc<Clip>` is shown); 2. the bounding box of every joint over every frame frames the
@@ -17,7 +17,7 @@ use egui::{Color32, Pos2, Rect, Sense, Stroke, Ui, Vec2};
 use glam::Vec3;
 use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
 use kinegraph_nodes::kernels::skinning::{blend_matrices, check_skin, skinning_matrices};
-use kinegraph_nodes::model::{Clip, ClipPoses, Contacts, Mesh, MeshSequence, forward_kinematics};
+use kinegraph_nodes::model::{Clip, ClipPoses, Contacts, Mesh, MeshSequence, VolumeSequence, forward_kinematics};
 
 /// Vertical field of view of the camera (radians).
 const FOV_Y: f32 = 0.8;
@@ -31,6 +31,68 @@ const JOINT: Color32 = Color32::from_rgb(80, 170, 255);
 const COMPARED: Color32 = Color32::from_rgb(255, 150, 60);
 const CONTACT: Color32 = Color32::from_rgb(90, 220, 120);
 const SKIN: Color32 = Color32::from_rgb(150, 140, 130);
+/// Half the side of a smoke particle's square, points.
+const PARTICLE_HALF: f32 = 1.2;
+
+/// What a node gives the viewport to play: a clip with the mesh that moves with it, and
+/// smoke; any of them may be missing.
+#[derive(Clone, Default)]
+pub(crate) struct Motion {
+    pub(crate) clip: Option<Arc<Clip>>,
+    pub(crate) mesh: Option<ShownMesh>,
+    pub(crate) smoke: Option<Arc<VolumeSequence>>,
+}
+
+impl Motion {
+    /// Whether there is nothing to play (a mesh needs its clip).
+    pub(crate) fn is_empty(&self) -> bool {
+        self.clip.is_none() && self.smoke.is_none()
+    }
+}
+
+/// The frame of a sequence at `fps` with `frame_count` frames shown at `time_secs`: frame
+/// `f` covers [f/fps, (f+1)/fps); held at the last frame past the end.
+fn frame_at(time_secs: f64, fps: f64, frame_count: usize) -> usize {
+    ((time_secs * fps).max(0.0) as usize).min(frame_count.saturating_sub(1))
+}
+
+/// Smoke ready to draw: its volumes and the box of its voxel grid (metres).
+struct ShownSmoke {
+    volumes: Arc<VolumeSequence>,
+    lo: Vec3,
+    hi: Vec3,
+}
+
+impl ShownSmoke {
+    fn new(volumes: &Arc<VolumeSequence>) -> Self {
+        let grid = volumes.grid;
+        let half = Vec3::splat(grid.voxel_m * 0.5);
+        let (lo, hi) = if grid.is_empty() {
+            (Vec3::ZERO, Vec3::ONE)
+        } else {
+            (grid.centre_m(0) - half, grid.centre_m(grid.len() - 1) + half)
+        };
+        ShownSmoke { volumes: volumes.clone(), lo, hi }
+    }
+
+    /// Seconds the frames last at their own rate.
+    fn duration_secs(&self) -> f64 {
+        self.volumes.frames.len() as f64 / self.volumes.fps.max(1e-6)
+    }
+
+    fn frame_at(&self, time_secs: f64) -> usize {
+        frame_at(time_secs, self.volumes.fps, self.volumes.frames.len())
+    }
+}
+
+/// The smoke frame the viewport drew last, and how many of its particles were on screen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SmokeDrawn {
+    /// Frame index in the volume sequence.
+    pub frame: usize,
+    /// Particles drawn (those in front of the camera).
+    pub particles: usize,
+}
 
 /// A mesh that moves with the clip on show.
 #[derive(Clone)]
@@ -229,7 +291,7 @@ impl Shown {
 
     /// The frame shown at `time_secs` (held at the last frame past the end).
     fn frame_at(&self, time_secs: f64) -> usize {
-        ((time_secs * self.clip.fps()).max(0.0) as usize).min(self.poses.frame_count().saturating_sub(1))
+        frame_at(time_secs, self.clip.fps(), self.poses.frame_count())
     }
 
     fn in_contact(&self, foot: usize, frame: usize) -> bool {
@@ -247,6 +309,7 @@ struct Overlays {
     grid: bool,
     trajectories: bool,
     contacts: bool,
+    smoke: bool,
 }
 
 /// Playback state, camera, the clip on show and the clip pinned for comparison.
@@ -261,6 +324,9 @@ pub(crate) struct Viewport {
     overlays: Overlays,
     shown: Option<Shown>,
     compared: Option<Shown>,
+    smoke: Option<ShownSmoke>,
+    /// What the last draw showed of the smoke.
+    smoke_drawn: Option<SmokeDrawn>,
 }
 
 impl Default for Viewport {
@@ -272,9 +338,11 @@ impl Default for Viewport {
             time_secs: 0.0,
             camera: Camera::default(),
             reframe: true,
-            overlays: Overlays { mesh: true, grid: true, trajectories: true, contacts: true },
+            overlays: Overlays { mesh: true, grid: true, trajectories: true, contacts: true, smoke: true },
             shown: None,
             compared: None,
+            smoke: None,
+            smoke_drawn: None,
         }
     }
 }
@@ -285,17 +353,25 @@ impl Viewport {
         self.shown.as_ref()?.contacts.as_ref()
     }
 
-    /// Draws `clip` (or a hint when there is none) and its `mesh`, with the timeline above;
-    /// `contacts` are the graph's own for this clip, if it computed them.
-    pub(crate) fn show(
-        &mut self,
-        ui: &mut Ui,
-        title: &str,
-        clip: Option<&Arc<Clip>>,
-        mesh: Option<ShownMesh>,
-        contacts: Option<&Arc<Contacts>>,
-    ) {
-        match clip {
+    /// The smoke frame drawn last and its particles on screen, if smoke was drawn.
+    pub(crate) fn smoke_drawn(&self) -> Option<SmokeDrawn> {
+        self.smoke_drawn
+    }
+
+    /// Draws the `motion`'s clip and mesh and its smoke (or a hint when there is none), with
+    /// the timeline above; `contacts` are the graph's own for this clip, if it computed them.
+    pub(crate) fn show(&mut self, ui: &mut Ui, title: &str, motion: Motion, contacts: Option<&Arc<Contacts>>) {
+        let Motion { clip, mesh, smoke } = motion;
+        match &smoke {
+            Some(v) if !self.smoke.as_ref().is_some_and(|s| Arc::ptr_eq(&s.volumes, v)) => {
+                self.reframe |= self.smoke.is_none();
+                self.smoke = Some(ShownSmoke::new(v));
+            }
+            Some(_) => {}
+            None => self.smoke = None,
+        }
+        self.smoke_drawn = None;
+        match clip.as_ref() {
             Some(clip) if !self.shown.as_ref().is_some_and(|s| Arc::ptr_eq(&s.clip, clip)) => {
                 let first = self.shown.is_none();
                 self.shown = Some(Shown::new(clip, title));
@@ -317,13 +393,15 @@ impl Viewport {
                 shown.mesh = mesh;
             }
         }
-        if self.shown.is_none() && self.compared.is_none() {
+        if self.shown.is_none() && self.compared.is_none() && self.smoke.is_none() {
             ui.centered_and_justified(|ui| {
-                ui.label(egui::RichText::new("Select a node with a clip output to play it here.").weak());
+                ui.label(egui::RichText::new("Select a node with a clip or smoke output to play it here.").weak());
             });
             return;
         }
-        let duration = self.shown.iter().chain(&self.compared).map(Shown::duration_secs).fold(0.0, f64::max);
+        let duration = (self.shown.iter().chain(&self.compared).map(Shown::duration_secs))
+            .chain(self.smoke.as_ref().map(ShownSmoke::duration_secs))
+            .fold(0.0, f64::max);
         self.advance(ui, duration);
         self.timeline(ui, duration);
         self.contact_strip(ui);
@@ -351,6 +429,11 @@ impl Viewport {
                 draw_trajectories(&painter, &project, shown, floor, colour);
             }
             draw_skeleton(&painter, &project, shown, shown.frame_at(self.time_secs), colour, self.overlays.contacts);
+        }
+        if let Some(smoke) = self.smoke.as_ref().filter(|_| self.overlays.smoke) {
+            let frame = smoke.frame_at(self.time_secs);
+            let particles = draw_smoke(&painter, &project, &smoke.volumes, frame);
+            self.smoke_drawn = Some(SmokeDrawn { frame, particles });
         }
     }
 
@@ -392,6 +475,9 @@ impl Viewport {
             if let Some(s) = &self.shown {
                 ui.label(format!("frame {} @ {:.0} fps", s.frame_at(self.time_secs), s.clip.fps()));
             }
+            if let Some(s) = &self.smoke {
+                ui.label(format!("smoke frame {} @ {:.0} fps", s.frame_at(self.time_secs), s.volumes.fps));
+            }
             egui::ComboBox::from_id_salt("kg_speed").selected_text(format!("{}×", self.speed)).width(54.0).show_ui(
                 ui,
                 |ui| {
@@ -418,6 +504,9 @@ impl Viewport {
             ui.separator();
             if self.shown.as_ref().is_some_and(|s| s.mesh_fits) {
                 ui.checkbox(&mut self.overlays.mesh, "mesh");
+            }
+            if self.smoke.is_some() {
+                ui.checkbox(&mut self.overlays.smoke, "smoke");
             }
             ui.checkbox(&mut self.overlays.grid, "grid");
             ui.checkbox(&mut self.overlays.trajectories, "trails");
@@ -485,12 +574,10 @@ impl Viewport {
         }
     }
 
-    /// The box around both clips on show.
+    /// The box around both clips and the smoke's grid on show.
     fn bounds(&self) -> (Vec3, Vec3) {
-        self.shown
-            .iter()
-            .chain(&self.compared)
-            .map(|s| (s.lo, s.hi))
+        (self.shown.iter().chain(&self.compared).map(|s| (s.lo, s.hi)))
+            .chain(self.smoke.iter().map(|s| (s.lo, s.hi)))
             .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
             .unwrap_or((Vec3::ZERO, Vec3::ONE))
     }
@@ -582,6 +669,31 @@ fn draw_mesh(painter: &egui::Painter, project: &impl Fn(Vec3) -> Option<Pos2>, e
         out.add_triangle(base, base + 1, base + 2);
     }
     painter.add(egui::Shape::mesh(out));
+}
+
+/// The smoke's marker particles at `frame` as small squares, grey where the smoke is thin
+/// and white where it is densest in this frame; returns how many were drawn (in front of
+/// the camera).
+fn draw_smoke(
+    painter: &egui::Painter,
+    project: &impl Fn(Vec3) -> Option<Pos2>,
+    volumes: &VolumeSequence,
+    frame: usize,
+) -> usize {
+    let Some(frame) = volumes.frames.get(frame) else { return 0 };
+    let densest = frame.density.iter().copied().fold(0.0_f32, f32::max);
+    let mut out = egui::epaint::Mesh::default();
+    for p in &frame.particles_m {
+        let Some(at) = project(Vec3::from(*p)) else { continue };
+        let density = volumes.grid.index_at(Vec3::from(*p)).and_then(|n| frame.density.get(n)).copied();
+        // Thin (or unsampled) smoke is dim grey, the frame's densest voxel white.
+        let share = if densest > 0.0 { density.unwrap_or(0.0).clamp(0.0, densest) / densest } else { 0.0 };
+        let colour = Color32::from_gray((110.0 + 145.0 * share) as u8).gamma_multiply(0.5 + 0.5 * share);
+        out.add_colored_rect(Rect::from_center_size(at, Vec2::splat(2.0 * PARTICLE_HALF)), colour);
+    }
+    let drawn = out.vertices.len() / 4;
+    painter.add(egui::Shape::mesh(out));
+    drawn
 }
 
 /// Bones as lines from each joint to its parent, joints as dots; a foot in contact at

@@ -116,6 +116,14 @@ impl VoxelGrid {
     pub fn centre_m(&self, n: usize) -> Vec3 {
         self.coord(n).as_vec3() * self.voxel_m
     }
+
+    /// Array index of the voxel holding the point `p_m` (metres), if it is on the grid: the
+    /// inverse of [`VoxelGrid::centre_m`].
+    pub fn index_at(&self, p_m: Vec3) -> Option<usize> {
+        let local = (p_m / self.voxel_m).round().as_ivec3() - self.origin;
+        let inside = (0..3).all(|a| local[a] >= 0 && (local[a] as usize) < self.dims[a]);
+        inside.then(|| self.index(local.x as usize, local.y as usize, local.z as usize))
+    }
 }
 
 /// One frame of a volume sequence: values per voxel of the sequence's grid (0 outside the
@@ -157,5 +165,26 @@ impl VolumeSequence {
             "smoke_mass_last_frame": mass.last().copied().unwrap_or(0.0),
             "particles_last_frame": self.frames.last().map_or(0, |f| f.particles_m.len()),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_point_near_a_voxel_centre_finds_that_voxel_and_points_off_the_grid_none() {
+        let grid = VoxelGrid { origin: IVec3::new(-3, 0, 2), dims: [4, 3, 2], voxel_m: 0.1 };
+        for n in 0..grid.len() {
+            // Anywhere within the voxel's half-width of its centre.
+            let p = grid.centre_m(n) + Vec3::new(0.04, -0.04, 0.03);
+            assert_eq!(grid.index_at(p), Some(n), "voxel {n} at {}", grid.centre_m(n));
+        }
+        // The centres one voxel beyond each face (x: -0.4 and 0.1 m; y: -0.1 and 0.3; z: 0.1 and 0.4).
+        for p in
+            [[-0.4, 0.0, 0.2], [0.1, 0.0, 0.2], [-0.3, -0.1, 0.2], [-0.3, 0.3, 0.2], [-0.3, 0.0, 0.1], [-0.3, 0.0, 0.4]]
+        {
+            assert_eq!(grid.index_at(Vec3::from(p)), None, "{p:?}");
+        }
     }
 }
