@@ -794,3 +794,27 @@ fn the_controller_timeline_is_shown_as_labelled_ranges() {
     harness.get_by_label("Controller timeline");
     harness.get_by_label_contains(&format!("{}: 0.000 – ", controllers[0]));
 }
+
+/// Home fits the graph again after zooming, as when it was opened.
+#[test]
+fn home_frames_the_whole_graph_again() {
+    let mut harness = harness(Some(&demo_path()));
+    let opened = (harness.state().canvas_to_screen((0.0, 0.0)), harness.state().canvas_to_screen((100.0, 0.0)));
+    harness.hover_at(harness.state().canvas_to_screen((330.0, 20.0)));
+    harness.run_steps(1);
+    let mut raw = egui::RawInput::default();
+    raw.events.push(egui::Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Point,
+        delta: egui::vec2(0.0, 60.0),
+        phase: egui::TouchPhase::Move,
+        modifiers: egui::Modifiers::NONE,
+    });
+    harness.state().wheel_zooms_canvas(&harness.ctx, &mut raw);
+    raw.events.into_iter().for_each(|e| harness.event(e));
+    harness.run_steps(3);
+    assert_ne!(harness.state().canvas_to_screen((100.0, 0.0)), opened.1, "zoomed");
+    harness.key_press(egui::Key::Home);
+    harness.run_steps(4);
+    let framed = (harness.state().canvas_to_screen((0.0, 0.0)), harness.state().canvas_to_screen((100.0, 0.0)));
+    assert!((framed.0 - opened.0).length() < 0.5 && (framed.1 - opened.1).length() < 0.5, "{framed:?} vs {opened:?}");
+}

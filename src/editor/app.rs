@@ -176,6 +176,12 @@ impl EditorApp {
         self.selection = id.filter(|id| self.graph.contains(id)).map(str::to_string).into_iter().collect();
     }
 
+    /// Fits the whole graph in the canvas (Home; also done when a graph is opened).
+    pub fn frame_all(&mut self) {
+        self.canvas.frame_all();
+        self.snarl_selection.clear();
+    }
+
     /// Where a point of the canvas (graph coordinates, as in a graph file's `layout`) is on
     /// screen, as last drawn.
     pub fn canvas_to_screen(&self, pos: (f32, f32)) -> egui::Pos2 {
@@ -454,7 +460,8 @@ impl EditorApp {
         self.last_shown = None;
         self.badges.clear();
         self.report = None;
-        self.canvas = Canvas::default();
+        self.canvas = self.canvas.replaced();
+        self.snarl_selection.clear();
         self.document_changed();
     }
 
@@ -699,9 +706,16 @@ impl EditorApp {
         if typing {
             return;
         }
-        let (delete, duplicate) = ui.input_mut(|i| {
-            (i.key_pressed(Key::Delete) || i.key_pressed(Key::Backspace), i.consume_key(Modifiers::COMMAND, Key::D))
+        let (delete, duplicate, home) = ui.input_mut(|i| {
+            (
+                i.key_pressed(Key::Delete) || i.key_pressed(Key::Backspace),
+                i.consume_key(Modifiers::COMMAND, Key::D),
+                i.consume_key(Modifiers::NONE, Key::Home),
+            )
         });
+        if home {
+            self.frame_all();
+        }
         let clipboard: Vec<egui::Event> = ui.input(|i| {
             i.events
                 .iter()
@@ -861,9 +875,9 @@ impl EditorApp {
                 "Click a node's title to select it and edit its parameters (shift-click adds to the \
                  selection, which is outlined). Right-click the canvas (or press Tab) \
                  to add nodes, or drop a wire on empty canvas to add a node already connected; \
-                 right-click a node to delete it. Shift-drag a box to select several; Ctrl+C, \
+                 right-click a node's title for its menu. Shift-drag a box to select several; Ctrl+C, \
                  Ctrl+V and Ctrl+D copy, paste and duplicate them as graph-file text. \
-                 Double-click the canvas to fit the graph in view.",
+                 Double-click the canvas or press Home to fit the graph in view.",
             );
             if !self.graph.description().is_empty() {
                 ui.separator();

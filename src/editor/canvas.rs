@@ -30,8 +30,8 @@ pub(crate) struct Marks<'a> {
     pub(crate) displayed: Option<&'a str>,
 }
 
-/// The canvas' egui id (snarl keeps selection under it).
-pub(crate) const CANVAS_ID: &str = "kg_canvas";
+/// The canvas' egui id (snarl keeps its view and selection under it, per [`Canvas::view`]).
+const CANVAS_ID: &str = "kg_canvas";
 
 /// What the editor shows as a node's state.
 #[derive(Clone, Debug, PartialEq)]
@@ -123,6 +123,9 @@ pub(crate) struct Canvas {
     to_screen: TSTransform,
     /// The canvas' screen area, as last drawn (none before the first draw).
     rect: Option<egui::Rect>,
+    /// Which view of the graph snarl shows: a new number is a fresh snarl state, which
+    /// snarl opens fitted to the nodes (a graph opened, Home).
+    view: u64,
 }
 
 impl Canvas {
@@ -199,6 +202,7 @@ impl Canvas {
         marks: Marks<'_>,
     ) -> CanvasOutput {
         self.level_of_detail(ui.max_rect());
+        let id = self.widget_id();
         let mut viewer =
             Viewer { graph, registry, badges, marks, search: &mut self.search, out: CanvasOutput::default() };
         let mut style = SnarlStyle::new();
@@ -213,11 +217,11 @@ impl Canvas {
             stroke: egui::Stroke::NONE,
         });
         self.rect = Some(ui.max_rect());
-        SnarlWidget::new().id(egui::Id::new(CANVAS_ID)).style(style).show(&mut self.snarl, &mut viewer, ui);
+        SnarlWidget::new().id(id).style(style).show(&mut self.snarl, &mut viewer, ui);
         let mut out = viewer.out;
         self.to_screen = out.to_screen;
         self.tab_menu(ui, graph, registry, &mut out);
-        out.selected = egui_snarl::ui::get_selected_nodes(egui::Id::new(CANVAS_ID), ui.ctx())
+        out.selected = egui_snarl::ui::get_selected_nodes(self.widget_id(), ui.ctx())
             .into_iter()
             .filter_map(|nid| self.snarl.get_node(nid).cloned())
             .collect();
@@ -301,6 +305,22 @@ impl Canvas {
                 self.snarl.open_node(nid, open);
             }
         }
+    }
+
+    /// A canvas for another document: nothing of this one's kept, and a view fitted to the
+    /// new graph when it is first drawn.
+    pub(crate) fn replaced(&self) -> Canvas {
+        Canvas { view: self.view + 1, ..Canvas::default() }
+    }
+
+    /// Frames the whole graph from the next draw on (snarl's own box selection and view
+    /// start afresh).
+    pub(crate) fn frame_all(&mut self) {
+        self.view += 1;
+    }
+
+    fn widget_id(&self) -> egui::Id {
+        egui::Id::new(CANVAS_ID).with(self.view)
     }
 
     /// The canvas' screen area, as last drawn.
@@ -476,7 +496,7 @@ impl SnarlViewer<String> for Viewer<'_> {
             .get_node(pin.id.node)
             .and_then(|id| schema(self.graph, self.registry, id))
             .and_then(|s| s.inputs.get(pin.id.input));
-        port_pin(ui, port, |p| if p.required { p.name.to_string() } else { format!("{} (optional)", p.name) })
+        port_pin(ui, port, false, |p| if p.required { p.name.to_string() } else { format!("{} (optional)", p.name) })
     }
 
     fn show_output(
@@ -489,7 +509,7 @@ impl SnarlViewer<String> for Viewer<'_> {
             .get_node(pin.id.node)
             .and_then(|id| schema(self.graph, self.registry, id))
             .and_then(|s| s.outputs.get(pin.id.output));
-        port_pin(ui, port, |p| p.name.to_string())
+        port_pin(ui, port, true, |p| p.name.to_string())
     }
 
     fn connect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<String>) {
@@ -694,11 +714,19 @@ fn add_connected(
     ]))
 }
 
-/// A port's label (with its type and doc as tooltip) and its pin, coloured by type.
-fn port_pin(ui: &mut Ui, port: Option<&PortSpec>, label: impl Fn(&PortSpec) -> String) -> PinInfo {
+/// Space between an output's label and its pin, which snarl draws over the label's end.
+const OUTPUT_PIN_CLEARANCE: f32 = 14.0;
+
+/// A port's label (with its type and doc as tooltip) and its pin, coloured by type; an
+/// output's label (laid out from the right) keeps clear of the pin.
+fn port_pin(ui: &mut Ui, port: Option<&PortSpec>, output: bool, label: impl Fn(&PortSpec) -> String) -> PinInfo {
     match port {
         Some(p) => {
-            ui.label(label(p)).on_hover_ui(|ui| {
+            if output {
+                ui.add_space(OUTPUT_PIN_CLEARANCE);
+            }
+            // Never wrapped or elided: the node grows to its ports' names.
+            ui.add(egui::Label::new(label(p)).extend()).on_hover_ui(|ui| {
                 ui.label(format!("{} — {}", p.ty.name(), p.doc));
             });
             PinInfo::circle().with_fill(type_color(p.ty))
