@@ -624,6 +624,21 @@ fn the_viewport_shows_the_graphs_own_contacts() {
     assert_eq!(app.viewport_contacts(), Some(&tuned));
 }
 
+/// One plain wheel step up where the pointer is, through the editor's input hook (as the
+/// eframe window runs it on every frame's input).
+fn wheel_step(harness: &mut Harness<'static, EditorApp>) {
+    let mut raw = egui::RawInput::default();
+    raw.events.push(egui::Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Point,
+        delta: egui::vec2(0.0, 60.0),
+        phase: egui::TouchPhase::Move,
+        modifiers: egui::Modifiers::NONE,
+    });
+    harness.state().wheel_zooms_canvas(&harness.ctx, &mut raw);
+    raw.events.into_iter().for_each(|e| harness.event(e));
+    harness.run_steps(1);
+}
+
 /// The plain wheel over the canvas zooms about the pointer (it panned); the eframe window
 /// runs every frame's input through `wheel_zooms_canvas`, here called by hand.
 #[test]
@@ -633,18 +648,8 @@ fn the_wheel_zooms_the_canvas_at_the_pointer() {
     harness.hover_at(at);
     harness.run_steps(1);
     let before = harness.state().canvas_to_screen((430.0, 120.0)) - at;
-    let mut raw = egui::RawInput::default();
-    raw.events.push(egui::Event::MouseWheel {
-        unit: egui::MouseWheelUnit::Point,
-        delta: egui::vec2(0.0, 60.0),
-        phase: egui::TouchPhase::Move,
-        modifiers: egui::Modifiers::NONE,
-    });
-    harness.state().wheel_zooms_canvas(&harness.ctx, &mut raw);
-    for event in raw.events {
-        harness.event(event);
-    }
-    harness.run_steps(4);
+    wheel_step(&mut harness);
+    harness.run_steps(3);
     let after = harness.state().canvas_to_screen((430.0, 120.0)) - harness.state().canvas_to_screen((330.0, 20.0));
     let moved = harness.state().canvas_to_screen((330.0, 20.0)) - at;
     println!(
@@ -802,16 +807,8 @@ fn home_frames_the_whole_graph_again() {
     let opened = (harness.state().canvas_to_screen((0.0, 0.0)), harness.state().canvas_to_screen((100.0, 0.0)));
     harness.hover_at(harness.state().canvas_to_screen((330.0, 20.0)));
     harness.run_steps(1);
-    let mut raw = egui::RawInput::default();
-    raw.events.push(egui::Event::MouseWheel {
-        unit: egui::MouseWheelUnit::Point,
-        delta: egui::vec2(0.0, 60.0),
-        phase: egui::TouchPhase::Move,
-        modifiers: egui::Modifiers::NONE,
-    });
-    harness.state().wheel_zooms_canvas(&harness.ctx, &mut raw);
-    raw.events.into_iter().for_each(|e| harness.event(e));
-    harness.run_steps(3);
+    wheel_step(&mut harness);
+    harness.run_steps(2);
     assert_ne!(harness.state().canvas_to_screen((100.0, 0.0)), opened.1, "zoomed");
     harness.key_press(egui::Key::Home);
     harness.run_steps(4);
