@@ -289,6 +289,64 @@ fn mixamo_skinned_mesh() {
     assert!(worst < 1e-5, "{worst}");
 }
 
+/// `character.load` on a Mixamo FBX download: the whole character (skeleton, the take, its
+/// skinned mesh) in one step, as for glTF; exported with its animation it is a GLB the
+/// Khronos validator accepts, and a reader that knows nothing of FBX (the `gltf` crate,
+/// posing the skin at rest through the file's own inverse bind matrices) finds every vertex
+/// where the FBX rest mesh has it.
+#[test]
+fn a_mixamo_fbx_loads_as_a_whole_character() {
+    let Some(dir) = fbx_dir() else { return };
+    let path = dir.join("standard_walk.fbx");
+    let loaded = kinegraph_nodes::kernels::load::load_character(&path, 0).unwrap();
+    let character = loaded.value;
+    let fbx = read_fbx_file(&path, &FbxReadOptions { meshes: true, ..Default::default() }).unwrap().value;
+    assert_eq!(character.clip.frame_count(), fbx.clips[0].clip.frame_count());
+    assert_eq!(character.parts.len(), 1);
+    assert_eq!(character.parts[0].binding, "skinned");
+    assert_eq!(character.mesh.positions.len(), fbx.meshes[0].positions.len());
+    assert_eq!(character.mesh.triangles, fbx.meshes[0].triangles);
+
+    let tmp = tempfile::tempdir().unwrap();
+    let glb = tmp.path().join("mixamo_character.glb");
+    write_glb_file(&glb, &character.clip, Some(&character.mesh)).unwrap();
+    gltf_validator::validate_gltf(std::slice::from_ref(&glb));
+    let (doc, buffers, _) = gltf::import(&glb).unwrap();
+    let mut world = vec![glam::Mat4::IDENTITY; doc.nodes().count()];
+    let mut stack: Vec<(gltf::Node<'_>, glam::Mat4)> =
+        doc.default_scene().unwrap().nodes().map(|n| (n, glam::Mat4::IDENTITY)).collect();
+    while let Some((node, parent)) = stack.pop() {
+        let w = parent * glam::Mat4::from_cols_array_2d(&node.transform().matrix());
+        world[node.index()] = w;
+        stack.extend(node.children().map(|c| (c, w)));
+    }
+    let (node, skin) = doc.nodes().find_map(|n| Some((n.clone(), n.skin()?))).unwrap();
+    let mesh = node.mesh().unwrap();
+    let ibms: Vec<glam::Mat4> = skin
+        .reader(|b| Some(&buffers[b.index()]))
+        .read_inverse_bind_matrices()
+        .unwrap()
+        .map(|m| glam::Mat4::from_cols_array_2d(&m))
+        .collect();
+    let bones: Vec<glam::Mat4> = skin.joints().zip(ibms).map(|(j, ibm)| world[j.index()] * ibm).collect();
+    let mut worst = 0.0f32;
+    let mut count = 0;
+    for primitive in mesh.primitives() {
+        let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+        let positions: Vec<glam::Vec3> = reader.read_positions().unwrap().map(glam::Vec3::from).collect();
+        let joints: Vec<[u16; 4]> = reader.read_joints(0).unwrap().into_u16().collect();
+        let weights: Vec<[f32; 4]> = reader.read_weights(0).unwrap().into_f32().collect();
+        for ((p, j), w) in positions.iter().zip(&joints).zip(&weights) {
+            let m: glam::Mat4 = (0..4).map(|k| bones[j[k] as usize] * w[k]).fold(glam::Mat4::ZERO, |a, b| a + b);
+            worst = worst.max(m.transform_point3(*p).distance(fbx.meshes[0].positions[count]));
+            count += 1;
+        }
+    }
+    println!("Mixamo FBX character through GLB: {count} vertices, worst rest-pose difference {worst:e} m");
+    assert_eq!(count, fbx.meshes[0].positions.len());
+    assert!(worst < 1e-5, "{worst}");
+}
+
 /// `load.clip_set` over a folder of Mixamo FBX downloads: the three takes become one set
 /// on one skeleton, each as long as the file says (Blender's frame counts at the file's
 /// 30 fps) once resampled to 30 fps.

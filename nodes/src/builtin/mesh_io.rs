@@ -72,11 +72,16 @@ impl Node for LoadMesh {
 
 const CHARACTER_PATH: InputPathParam = InputPathParam::new(
     "path",
-    "glTF or GLB file of a rigged character. Relative paths start at the graph file's folder.",
-    &["gltf", "glb"],
+    "glTF, GLB or FBX file of a rigged character (a Mixamo download with its skin). Relative paths start at the graph file's folder.",
+    &["gltf", "glb", "fbx"],
 );
-const ANIMATION: IntParam =
-    IntParam::new("animation", "Which animation of the file to output as the clip (0 = first).", 0, 0, 100_000);
+const ANIMATION: IntParam = IntParam::new(
+    "animation",
+    "Which animation (FBX: take) of the file to output as the clip (0 = first).",
+    0,
+    0,
+    100_000,
+);
 const CHARACTER_CLIP: Output<Arc<Clip>> = Output::new(
     "clip",
     "The character's skeleton moving through the chosen animation (its rest pose when the file has none).",
@@ -90,13 +95,13 @@ const CHARACTER_REPORT: Output<Arc<Report>> = Output::new(
     "Each source mesh: its name, vertex count and how it is bound (skinned or rigid to a joint); the materials; whether the file's inverse bind matrices were kept.",
 );
 
-/// `character.load`: a whole rigged character from one glTF/GLB scene.
+/// `character.load`: a whole rigged character from one glTF/GLB or FBX scene.
 pub struct LoadCharacter;
 
 static LOAD_CHARACTER: NodeSchema = NodeSchema {
     kind: "character.load",
     category: "io",
-    doc: "Loads a rigged character from a glTF/GLB scene: its skeleton and animation, and every mesh merged into one skinned mesh (meshes attached to bones follow them rigidly) with each part's material, UVs and textures, ready for export.glb. A texture image file missing beside the glTF is an error naming it.",
+    doc: "Loads a rigged character from a glTF/GLB or FBX scene: its skeleton and animation, and every mesh merged into one skinned mesh (meshes attached to bones follow them rigidly) with each part's material, UVs and textures (glTF; FBX materials are not read), ready for export.glb. A texture image file missing beside the glTF is an error naming it.",
     inputs: &[],
     outputs: &[CHARACTER_CLIP.spec(), CHARACTER_MESH.spec(), CHARACTER_REPORT.spec()],
     params: &[CHARACTER_PATH.0, ANIMATION.0],

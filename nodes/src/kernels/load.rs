@@ -231,40 +231,90 @@ pub struct CharacterPart {
 /// the 150-unit Fox).
 pub const IBM_FIT_RELATIVE: f32 = 1e-5;
 
-/// Reads a glTF/GLB file as one character (see [`Character`]): skinned meshes keep their
-/// weights and are put in the skeleton's rest pose; meshes without a skin hang rigidly from
-/// the joint their node is parented under (weight 1), or from the root joint with a warning
-/// when they are not under the skeleton. Each primitive keeps its material (shared ones
-/// merged); UVs are kept when any mesh has them (zero on the others). A texture whose
-/// image file is missing is an error naming the file.
-pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>, FormatError> {
+/// What a character file holds, whatever its format: the skeleton, the chosen clip, the
+/// meshes with the joint each unskinned one hangs under, and the file's own inverse bind
+/// matrices per joint where it has them.
+struct CharacterSource {
+    skeleton: std::sync::Arc<crate::model::Skeleton>,
+    clip: Clip,
+    meshes: Vec<Mesh>,
+    mesh_joints: Vec<Option<usize>>,
+    file_ibms: Vec<Option<Mat4>>,
+}
+
+/// The clip a character file's animation `animation` gives, or its rest pose (one frame)
+/// when the file has no animation at all.
+fn character_clip(
+    path: &Path,
+    skeleton: &std::sync::Arc<crate::model::Skeleton>,
+    clips: impl IntoIterator<Item = Clip>,
+    animation: usize,
+    warnings: &mut Vec<String>,
+) -> Result<Clip, FormatError> {
+    match clips.into_iter().nth(animation) {
+        Some(c) => Ok(c),
+        None if animation == 0 => {
+            warnings.push("the file has no animation; the character stands in its rest pose".into());
+            Clip::rest_pose(skeleton.clone(), 30.0, 1)
+                .map_err(|e| FormatError::file(path, FormatErrorKind::Structure, e.to_string()))
+        }
+        None => Err(FormatError::file(path, FormatErrorKind::Structure, format!("has no animation {animation}"))),
+    }
+}
+
+/// A glTF/GLB scene as a [`CharacterSource`] (materials read).
+fn gltf_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSource>, FormatError> {
     let options = GltfReadOptions { materials: true, ..GltfReadOptions::default() };
     let Loaded { value: asset, mut warnings } = read_gltf_file(path, &options)?;
     let Some(skeleton) = asset.skeleton.clone() else {
         return Err(FormatError::file(path, FormatErrorKind::Structure, "has no skeleton (no skin and no animation)"));
     };
-    if asset.meshes.is_empty() {
+    let clip = character_clip(path, &skeleton, asset.clips.into_iter().map(|c| c.clip), animation, &mut warnings)?;
+    let value = CharacterSource {
+        skeleton,
+        clip,
+        meshes: asset.meshes,
+        mesh_joints: asset.mesh_joints,
+        file_ibms: asset.skin_inverse_bind_matrices,
+    };
+    Ok(Loaded { value, warnings })
+}
+
+/// An FBX scene as a [`CharacterSource`]: its meshes come skinned to the skeleton in the
+/// rest pose (see [`read_fbx_file`]); the clip is take `animation`.
+fn fbx_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSource>, FormatError> {
+    let options = FbxReadOptions { meshes: true, ..FbxReadOptions::default() };
+    let Loaded { value: asset, mut warnings } = read_fbx_file(path, &options)?;
+    let clip =
+        character_clip(path, &asset.skeleton, asset.clips.into_iter().map(|c| c.clip), animation, &mut warnings)?;
+    let mesh_joints = vec![None; asset.meshes.len()];
+    let value =
+        CharacterSource { skeleton: asset.skeleton, clip, meshes: asset.meshes, mesh_joints, file_ibms: Vec::new() };
+    Ok(Loaded { value, warnings })
+}
+
+/// Reads a glTF/GLB or FBX file as one character (see [`Character`]): skinned meshes keep
+/// their weights and are put in the skeleton's rest pose; meshes without a skin hang rigidly
+/// from the joint their node is parented under (weight 1), or from the root joint with a
+/// warning when they are not under the skeleton. Each primitive keeps its material (shared
+/// ones merged; FBX materials are not read); UVs are kept when any mesh has them (zero on
+/// the others). A texture whose image file is missing is an error naming the file.
+pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>, FormatError> {
+    let fbx = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("fbx"));
+    let Loaded { value: source, mut warnings } =
+        if fbx { fbx_character(path, animation)? } else { gltf_character(path, animation)? };
+    let CharacterSource { skeleton, clip, meshes, mesh_joints, file_ibms } = source;
+    if meshes.is_empty() {
         return Err(FormatError::file(path, FormatErrorKind::Structure, "has no mesh"));
     }
-    let clip = match asset.clips.into_iter().nth(animation) {
-        Some(c) => c.clip,
-        None if animation == 0 => {
-            warnings.push("the file has no animation; the character stands in its rest pose".into());
-            Clip::rest_pose(skeleton.clone(), 30.0, 1)
-                .map_err(|e| FormatError::file(path, FormatErrorKind::Structure, e.to_string()))?
-        }
-        None => {
-            return Err(FormatError::file(path, FormatErrorKind::Structure, format!("has no animation {animation}")));
-        }
-    };
     let rest = rest_world(&skeleton);
     let has_uvs = |m: &Mesh| m.uvs.as_ref().is_some_and(|u| u.len() == m.positions.len());
-    let any_uvs = asset.meshes.iter().any(has_uvs);
+    let any_uvs = meshes.iter().any(has_uvs);
     let name = path.file_stem().map_or_else(|| "character".to_owned(), |s| s.to_string_lossy().into_owned());
     let mut mesh = Mesh { name, ..Mesh::default() };
     let (mut joints, mut weights, mut uvs) = (Vec::new(), Vec::new(), Vec::new());
     let mut parts = Vec::new();
-    for (part, attached) in asset.meshes.iter().zip(&asset.mesh_joints) {
+    for (part, attached) in meshes.iter().zip(&mesh_joints) {
         let base = mesh.positions.len() as u32;
         let n = part.positions.len();
         let normals = if part.normals.len() == n {
@@ -286,6 +336,10 @@ pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>
                         {
                             m += (world.to_mat4() * *ibm) * w;
                         }
+                    }
+                    // A vertex no bone weighs stays where the file put it.
+                    if m == glam::Mat4::ZERO {
+                        m = glam::Mat4::IDENTITY;
                     }
                     mesh.positions.push(m.transform_point3(*p));
                     mesh.normals.push(m.transform_vector3(*normal).try_normalize().unwrap_or(glam::Vec3::Y));
@@ -332,10 +386,10 @@ pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>
     }
     mesh.drop_empty_material_ranges();
     let computed: Vec<Mat4> = rest.iter().map(|t| t.inverse_to_mat4()).collect();
-    let fit = source_ibms_fit(&asset.skin_inverse_bind_matrices, &computed, &mesh, &joints, &weights);
+    let fit = source_ibms_fit(&file_ibms, &computed, &mesh, &joints, &weights);
     let file_inverse_bind_matrices = fit.is_some();
     let inverse_bind_matrices = match fit {
-        Some(_) => asset.skin_inverse_bind_matrices.iter().zip(computed).map(|(s, c)| s.unwrap_or(c)).collect(),
+        Some(_) => file_ibms.iter().zip(computed).map(|(s, c)| s.unwrap_or(c)).collect(),
         None => computed,
     };
     mesh.skin = Some(Skin { skeleton, joints, weights, inverse_bind_matrices });
