@@ -815,3 +815,26 @@ fn home_frames_the_whole_graph_again() {
     let framed = (harness.state().canvas_to_screen((0.0, 0.0)), harness.state().canvas_to_screen((100.0, 0.0)));
     assert!((framed.0 - opened.0).length() < 0.5 && (framed.1 - opened.1).length() < 0.5, "{framed:?} vs {opened:?}");
 }
+
+/// Down moves the add menu's highlight to the next kind it shows, and Enter adds that one.
+#[test]
+fn arrow_keys_pick_in_the_add_menu() {
+    use egui_kittest::kittest::NodeT as _;
+    let mut harness = harness(Some(&demo_path()));
+    search_the_tab_menu(&mut harness, "motion.con");
+    let registry = kinegraph::nodes::builtin::registry();
+    // The kinds the menu shows, in its order (the canvas' titles are labels, not buttons).
+    let shown: Vec<String> = harness
+        .get_all_by_role(Role::Button)
+        .filter_map(|n| n.accesskit_node().label())
+        .filter(|l| registry.get(l).is_some())
+        .collect();
+    assert!(shown.len() >= 2, "{shown:?}");
+    harness.key_press(egui::Key::ArrowDown);
+    harness.run_steps(1);
+    harness.key_press(egui::Key::Enter);
+    harness.run_steps(3);
+    let added: Vec<String> =
+        harness.state().doc().nodes.values().map(|n| n.kind.clone()).filter(|k| k.starts_with("motion.")).collect();
+    assert_eq!(added, [shown[1].clone()], "{shown:?}");
+}

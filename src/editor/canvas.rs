@@ -115,8 +115,8 @@ pub(crate) struct Canvas {
     synced: BTreeMap<NodeId, Pos2>,
     /// Where nodes the file gives no position were placed ([`layered_layout`]), by id.
     auto_placed: BTreeMap<String, Pos2>,
-    /// Text of the add-node search box.
-    pub(crate) search: String,
+    /// The add-node menu's search.
+    pub(crate) search: CatalogueSearch,
     /// Where the Tab add-node menu is open (screen).
     add_at: Option<Pos2>,
     /// Canvas (graph) space → screen, as last drawn.
@@ -401,7 +401,7 @@ struct Viewer<'a> {
     registry: &'a Registry,
     badges: &'a BTreeMap<String, Badge>,
     marks: Marks<'a>,
-    search: &'a mut String,
+    search: &'a mut CatalogueSearch,
     out: CanvasOutput,
 }
 
@@ -643,19 +643,42 @@ impl Viewer<'_> {
     }
 }
 
+/// What is typed into the add-node menu's search, and which of the kinds it shows is
+/// highlighted (the arrow keys move it, Enter adds it).
+#[derive(Default)]
+pub(crate) struct CatalogueSearch {
+    text: String,
+    highlight: usize,
+}
+
+impl CatalogueSearch {
+    /// Empties the search (after a node was added).
+    pub(crate) fn clear(&mut self) {
+        *self = CatalogueSearch::default();
+    }
+}
+
 /// A focused search box over the node catalogue grouped by category, narrowed to the kinds
-/// `accepts` and filtered by `search` (kind, category or doc text); returns the kind clicked.
+/// `accepts` and filtered by the search text (kind, category or doc text); returns the kind
+/// clicked, or the highlighted one on Enter (Up and Down move the highlight).
 pub(crate) fn catalogue_menu(
     ui: &mut Ui,
     registry: &Registry,
-    search: &mut String,
+    search: &mut CatalogueSearch,
     accepts: impl Fn(&NodeSchema) -> bool,
 ) -> Option<&'static str> {
-    let field =
-        ui.add(egui::TextEdit::singleline(search).hint_text("search… (Enter adds the first)").desired_width(180.0));
+    let field = ui.add(
+        egui::TextEdit::singleline(&mut search.text)
+            .hint_text("search… (arrows pick, Enter adds)")
+            .desired_width(180.0),
+    );
     let enter = field.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+    let (down, up) = ui.input(|i| (i.key_pressed(egui::Key::ArrowDown), i.key_pressed(egui::Key::ArrowUp)));
+    if field.changed() {
+        search.highlight = 0;
+    }
     field.request_focus();
-    let needle = search.trim().to_lowercase();
+    let needle = search.text.trim().to_lowercase();
     let mut groups: BTreeMap<&str, Vec<&'static NodeSchema>> = BTreeMap::new();
     for node in registry.iter() {
         let s = node.schema();
@@ -668,16 +691,30 @@ pub(crate) fn catalogue_menu(
             groups.entry(s.category).or_default().push(s);
         }
     }
-    let mut picked = if enter { groups.values().flatten().next().map(|s| s.kind) } else { None };
+    let shown = groups.values().map(Vec::len).sum::<usize>();
+    if down {
+        search.highlight = (search.highlight + 1).min(shown.saturating_sub(1));
+    }
+    if up {
+        search.highlight = search.highlight.saturating_sub(1);
+    }
+    let mut picked = if enter { groups.values().flatten().nth(search.highlight).map(|s| s.kind) } else { None };
     // The catalogue is taller than a laptop screen: the list scrolls under the search field.
     let max_height = ui.ctx().content_rect().height() * 0.7;
     egui::ScrollArea::vertical().max_height(max_height).show(ui, |ui| {
+        let mut index = 0;
         for (category, schemas) in groups {
             ui.label(RichText::new(category).small().weak());
             for s in schemas {
-                if ui.button(s.kind).on_hover_text(s.doc).clicked() {
+                let highlighted = index == search.highlight;
+                let button = ui.add(egui::Button::new(s.kind).selected(highlighted)).on_hover_text(s.doc);
+                if highlighted && (down || up) {
+                    button.scroll_to_me(None);
+                }
+                if button.clicked() {
                     picked = Some(s.kind);
                 }
+                index += 1;
             }
         }
     });
