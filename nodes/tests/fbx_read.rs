@@ -312,23 +312,10 @@ fn a_mixamo_fbx_loads_as_a_whole_character() {
     write_glb_file(&glb, &character.clip, Some(&character.mesh)).unwrap();
     gltf_validator::validate_gltf(std::slice::from_ref(&glb));
     let (doc, buffers, _) = gltf::import(&glb).unwrap();
-    let mut world = vec![glam::Mat4::IDENTITY; doc.nodes().count()];
-    let mut stack: Vec<(gltf::Node<'_>, glam::Mat4)> =
-        doc.default_scene().unwrap().nodes().map(|n| (n, glam::Mat4::IDENTITY)).collect();
-    while let Some((node, parent)) = stack.pop() {
-        let w = parent * glam::Mat4::from_cols_array_2d(&node.transform().matrix());
-        world[node.index()] = w;
-        stack.extend(node.children().map(|c| (c, w)));
-    }
+    let world = gltf_validator::rest_worlds(&doc);
     let (node, skin) = doc.nodes().find_map(|n| Some((n.clone(), n.skin()?))).unwrap();
     let mesh = node.mesh().unwrap();
-    let ibms: Vec<glam::Mat4> = skin
-        .reader(|b| Some(&buffers[b.index()]))
-        .read_inverse_bind_matrices()
-        .unwrap()
-        .map(|m| glam::Mat4::from_cols_array_2d(&m))
-        .collect();
-    let bones: Vec<glam::Mat4> = skin.joints().zip(ibms).map(|(j, ibm)| world[j.index()] * ibm).collect();
+    let bones = gltf_validator::skin_matrices(&skin, &buffers, &world);
     let mut worst = 0.0f32;
     let mut count = 0;
     for primitive in mesh.primitives() {

@@ -386,19 +386,6 @@ fn a_mesh_parented_to_a_bone_moves_rigidly_with_it() {
     gltf_validator::validate_gltf(&[out]);
 }
 
-/// World matrices of every node of a `gltf` document whose nodes take local transforms
-/// `local` (by node index), from the default scene's roots.
-fn node_worlds(doc: &gltf::Document, local: &[Mat4]) -> Vec<Mat4> {
-    let mut world = vec![Mat4::IDENTITY; local.len()];
-    let mut stack: Vec<(gltf::Node<'_>, Mat4)> =
-        doc.default_scene().unwrap().nodes().map(|n| (n, Mat4::IDENTITY)).collect();
-    while let Some((node, parent)) = stack.pop() {
-        world[node.index()] = parent * local[node.index()];
-        stack.extend(node.children().map(|c| (c, world[node.index()])));
-    }
-    world
-}
-
 /// Issue 18: Fox's three animations (Survey, Walk, Run) written into one GLB beside its
 /// mesh. Read back with the `gltf` crate: three animations with the given names, keys at
 /// frame / fps for each clip's frame count, and at every fifth key the joints placed by
@@ -456,7 +443,7 @@ fn several_named_animations_go_into_one_file() {
                     Mat4::from_scale_rotation_translation(s, r, t)
                 })
                 .collect();
-            let world = node_worlds(&doc, &local);
+            let world = gltf_validator::node_worlds(&doc, &local);
             for (j, (joint, node)) in clip.skeleton().joints().iter().zip(doc.nodes()).enumerate() {
                 // Node j is joint j (the writer's layout, checked by name).
                 assert_eq!(node.name(), Some(joint.name.as_str()));

@@ -137,27 +137,12 @@ fn drawn_at_rest(path: &Path) -> Vec<Drawn> {
     let base = path.parent().unwrap();
     let buffers = gltf::import_buffers(&gltf.document, Some(base), gltf.blob.clone()).unwrap();
     let doc = &gltf.document;
-    // World matrices of every node under the scene's roots.
-    let mut world = vec![Mat4::IDENTITY; doc.nodes().count()];
-    let mut stack: Vec<(gltf::Node<'_>, Mat4)> =
-        doc.default_scene().unwrap().nodes().map(|n| (n, Mat4::IDENTITY)).collect();
-    while let Some((node, parent)) = stack.pop() {
-        let w = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-        world[node.index()] = w;
-        stack.extend(node.children().map(|c| (c, w)));
-    }
+    let world = gltf_validator::rest_worlds(doc);
     let mut groups: Vec<Drawn> = Vec::new();
     for node in doc.nodes() {
         let Some(mesh) = node.mesh() else { continue };
-        let skinning: Option<Vec<Mat4>> = node.skin().map(|skin| {
-            let ibms: Vec<Mat4> = skin
-                .reader(|b| Some(&buffers[b.index()]))
-                .read_inverse_bind_matrices()
-                .unwrap()
-                .map(|m| Mat4::from_cols_array_2d(&m))
-                .collect();
-            skin.joints().zip(ibms).map(|(j, ibm)| world[j.index()] * ibm).collect()
-        });
+        let skinning: Option<Vec<Mat4>> =
+            node.skin().map(|skin| gltf_validator::skin_matrices(&skin, &buffers, &world));
         for prim in mesh.primitives() {
             let r = prim.reader(|b| Some(&buffers[b.index()]));
             let positions: Vec<Vec3> = r.read_positions().unwrap().map(Vec3::from).collect();

@@ -3,7 +3,11 @@
 //! (`${KG_TOOLS_DIR:-$HOME/.cache/kinegraph-tools}/khronos-validator`). Missing node or
 //! validator: the calling test fails when `CI` is set and skips validation otherwise.
 
+//! Also the independent reading of a file's node hierarchy and skins with the `gltf` crate
+//! that several glTF tests pose vertices with.
+
 #![allow(clippy::unwrap_used)] // test code: a failed unwrap is a failed test
+#![allow(dead_code)] // each test binary that includes this module uses part of it
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -41,4 +45,30 @@ pub fn validate_gltf(files: &[PathBuf]) {
     eprintln!("{report}{}", String::from_utf8_lossy(&out.stderr));
     assert!(out.status.success(), "validator reported errors:\n{report}");
     assert_eq!(report.matches("errors=0").count(), files.len(), "{report}");
+}
+
+/// World matrices of every node of a `gltf` document whose nodes take local transforms
+/// `local` (by node index), from the default scene's roots.
+pub fn node_worlds(doc: &gltf::Document, local: &[glam::Mat4]) -> Vec<glam::Mat4> {
+    let mut world = vec![glam::Mat4::IDENTITY; local.len()];
+    let mut stack: Vec<(gltf::Node<'_>, glam::Mat4)> =
+        doc.default_scene().unwrap().nodes().map(|n| (n, glam::Mat4::IDENTITY)).collect();
+    while let Some((node, parent)) = stack.pop() {
+        world[node.index()] = parent * local[node.index()];
+        stack.extend(node.children().map(|c| (c, world[node.index()])));
+    }
+    world
+}
+
+/// World matrices of every node in the file's own rest pose (its nodes' transforms).
+pub fn rest_worlds(doc: &gltf::Document) -> Vec<glam::Mat4> {
+    let local: Vec<glam::Mat4> = doc.nodes().map(|n| glam::Mat4::from_cols_array_2d(&n.transform().matrix())).collect();
+    node_worlds(doc, &local)
+}
+
+/// Per joint of `skin`, the matrix that takes a bind-pose vertex to where the joints'
+/// `world` matrices put it: world · inverse bind matrix, read from the file.
+pub fn skin_matrices(skin: &gltf::Skin<'_>, buffers: &[gltf::buffer::Data], world: &[glam::Mat4]) -> Vec<glam::Mat4> {
+    let ibms = skin.reader(|b| Some(&buffers[b.index()])).read_inverse_bind_matrices().unwrap();
+    skin.joints().zip(ibms).map(|(j, ibm)| world[j.index()] * glam::Mat4::from_cols_array_2d(&ibm)).collect()
 }
