@@ -838,3 +838,142 @@ fn arrow_keys_pick_in_the_add_menu() {
         harness.state().doc().nodes.values().map(|n| n.kind.clone()).filter(|k| k.starts_with("motion.")).collect();
     assert_eq!(added, [shown[1].clone()], "{shown:?}");
 }
+
+/// A stage used as a subgraph: trim to 1 s, resample to 24 fps, `clip` in and out, the
+/// end time promoted as `end`.
+const CLEAN_STAGE: &str = r#"(format: "kinegraph.graph", version: 3,
+ description: "trim and resample",
+ inputs: { "end": "trim.end_secs" },
+ nodes: {
+   "trim": (kind: "clip.trim", params: { "end_secs": 1.0 }),
+   "resample": (kind: "clip.resample", params: { "fps": 24.0 }),
+ },
+ edges: [ (from: "trim.clip", to: "resample.clip") ],
+ layout: { "trim": (0.0, 0.0), "resample": (300.0, 0.0) },
+ ports: ( inputs: { "clip": ["trim.clip"] }, outputs: { "clip": "resample.clip" } ))"#;
+
+/// A folder with `staged.ron`: the shipped walk (30 fps, 2 s) → subgraph `clean`
+/// (`stages/clean.ron`) → contacts, and a mesh node to wire wrongly.
+fn staged_graph() -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    std::fs::copy(assets.join("mannequin_walk.bvh"), dir.path().join("walk.bvh")).unwrap();
+    std::fs::copy(assets.join("mannequin.glb"), dir.path().join("mannequin.glb")).unwrap();
+    std::fs::create_dir_all(dir.path().join("stages")).unwrap();
+    std::fs::write(dir.path().join("stages/clean.ron"), CLEAN_STAGE).unwrap();
+    let graph = dir.path().join("staged.ron");
+    std::fs::write(
+        &graph,
+        r#"(format: "kinegraph.graph", version: 3,
+ nodes: {
+   "load": (kind: "clip.load", params: { "path": "walk.bvh" }),
+   "clean": (kind: "graph.subgraph", params: { "file": "stages/clean.ron" }),
+   "contacts": (kind: "motion.contacts"),
+   "mesh": (kind: "mesh.load", params: { "path": "mannequin.glb" }),
+ },
+ edges: [ (from: "load.clip", to: "clean.clip"), (from: "clean.clip", to: "contacts.clip") ],
+ layout: { "load": (0.0, 0.0), "clean": (300.0, 0.0), "contacts": (600.0, 0.0), "mesh": (0.0, 200.0) })"#,
+    )
+    .unwrap();
+    (dir, graph)
+}
+
+fn clip_at(app: &EditorApp, id: &str, port: &str) -> std::sync::Arc<kinegraph::nodes::model::Clip> {
+    match app.output(id, port) {
+        Some(kinegraph::nodes::node::Value::Clip(c)) => c.clone(),
+        other => panic!("{id}.{port}: {other:?}"),
+    }
+}
+
+/// A subgraph node shows its file's ports as pins (it showed none, and its wires ended
+/// nowhere), its state is its inner nodes', and its output is the stage's: 24 fps, 1 s,
+/// where the walk it takes is 30 fps, 2 s.
+#[test]
+fn a_subgraph_node_shows_its_files_ports_state_and_output() {
+    let (_dir, path) = staged_graph();
+    let mut harness = harness(Some(&path));
+    assert_eq!(harness.state().node_state("clean"), "ok");
+    // The clip arriving at contacts comes out of the subgraph's pin.
+    let out = clip_at(harness.state(), "clean", "clip");
+    assert_eq!(out.fps(), 24.0);
+    assert!((out.duration_secs() - 1.0).abs() < 1e-9, "{}", out.duration_secs());
+    assert_eq!(clip_at(harness.state(), "load", "clip").fps(), 30.0);
+    assert_eq!(harness.state().node_state("contacts"), "ok");
+    // Its panel names the file, shows the promoted parameter with the file's value and
+    // the ports, and it plays in the viewport.
+    harness.get_by_label("clean").click_accesskit();
+    harness.run_steps(3);
+    harness.get_by_label_contains("stages/clean.ron");
+    harness.get_by_label("trim and resample");
+    harness.get_by_role_and_label(Role::SpinButton, "end");
+    harness.get_by_label("pause");
+    // Setting the promoted parameter on the node changes what comes out.
+    let set = EditorCommand::SetParam { param: ParamPath::parse("clean.end").unwrap(), value: ParamValue::Float(0.5) };
+    harness.state_mut().edit(set).unwrap();
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(2);
+    assert!((clip_at(harness.state(), "clean", "clip").duration_secs() - 0.5).abs() < 1e-9);
+}
+
+/// Wiring a mesh into the subgraph's clip input is refused in the editor with the words
+/// `kg check` gives for the same wire written in the file.
+#[test]
+fn a_wrong_wire_into_a_subgraph_is_refused_as_kg_check_refuses_it() {
+    let (dir, path) = staged_graph();
+    let mut harness = harness(Some(&path));
+    let (from, to) = (PortRef::parse("mesh.mesh").unwrap(), PortRef::parse("clean.clip").unwrap());
+    let refused = harness.state_mut().edit(EditorCommand::Connect { from, to }).unwrap_err().to_string();
+    assert!(!harness.state().is_dirty());
+    // The same wire in the file, checked as `kg check` does.
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace(r#"(from: "load.clip", to: "clean.clip")"#, r#"(from: "mesh.mesh", to: "clean.clip")"#);
+    let written = dir.path().join("wrong.ron");
+    std::fs::write(&written, text).unwrap();
+    let loaded = kinegraph::graph::GraphFile::load(&written).unwrap();
+    let checked = kinegraph::engine::compile_file(&loaded, &kinegraph::nodes::builtin::registry()).err().unwrap();
+    let words: Vec<&str> = checked.diagnostics.iter().map(|d| d.message.as_str()).collect();
+    assert!(words.iter().any(|w| refused.contains(w)), "editor: {refused}\nkg check: {words:?}");
+    assert!(refused.contains("mesh.mesh gives a mesh, but clean.clip takes a clip"), "{refused}");
+}
+
+/// Opening the subgraph edits its file in the editor, evaluated inside the graph it was
+/// opened from (alone, its trim would have no clip); an unsaved change shows there at
+/// once, and going back asks, saves the file, and the graph picks the change up.
+#[test]
+fn an_opened_subgraph_is_evaluated_in_its_graph_and_saved_on_the_way_back() {
+    let (dir, path) = staged_graph();
+    let mut harness = harness(Some(&path));
+    right_click_title(&mut harness, "clean");
+    harness.get_by_label("Open subgraph").click();
+    harness.run_steps(2);
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(2);
+    let stage = dir.path().join("stages/clean.ron");
+    assert_eq!(harness.state().path(), Some(stage.as_path()));
+    assert_eq!(harness.state().subgraph_path(), [("staged.ron".to_string(), "clean".to_string())]);
+    assert!(matches!(harness.state().node_state("trim"), "ok" | "cached"), "{}", harness.state().node_state("trim"));
+    assert_eq!(clip_at(harness.state(), "trim", "clip").fps(), 30.0, "the walk, trimmed, arrives");
+    // An unsaved edit inside is evaluated in the outer graph.
+    let set =
+        EditorCommand::SetParam { param: ParamPath::parse("resample.fps").unwrap(), value: ParamValue::Float(12.0) };
+    harness.state_mut().edit(set).unwrap();
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(2);
+    assert_eq!(clip_at(harness.state(), "resample", "clip").fps(), 12.0);
+    assert_eq!(std::fs::read_to_string(&stage).unwrap(), CLEAN_STAGE, "not saved yet");
+    // Back asks about the unsaved edit; saving writes the file and returns.
+    harness.get_by_label("Back").click();
+    harness.run_steps(2);
+    harness.get_by_label("Save and go back").click();
+    harness.run_steps(2);
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(2);
+    assert_eq!(harness.state().path(), Some(path.as_path()));
+    assert!(harness.state().subgraph_path().is_empty());
+    assert_eq!(harness.state().selected(), Some("clean"));
+    assert!(!harness.state().is_dirty());
+    let saved = kinegraph::graph::GraphFile::load(&stage).unwrap();
+    assert_eq!(saved.graph.node("resample").unwrap().params.get("fps"), Some(&ParamValue::Float(12.0)));
+    assert_eq!(clip_at(harness.state(), "clean", "clip").fps(), 12.0);
+}

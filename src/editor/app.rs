@@ -10,7 +10,7 @@ use egui::{Key, Modifiers, RichText, Ui};
 use kinegraph_nodes::model::{Clip, Contacts};
 use kinegraph_nodes::node::{Registry, Value};
 
-use super::canvas::{Badge, Canvas, Marks};
+use super::canvas::{Badge, Canvas, Face, Faces, Marks};
 use super::commands::{EditError, EditorCommand, History};
 use super::files::{self, Autosave, RecentFiles, default_settings_dir};
 use super::fragment;
@@ -20,7 +20,7 @@ use super::viewport::{Motion, ShownMesh, SmokeDrawn, Viewport};
 use super::worker::{Worker, WorkerMessage};
 use crate::document;
 use crate::engine::{Engine, GraphErrors, NodeStatus, RunReport};
-use crate::graph::{Graph, GraphFile, NodeId};
+use crate::graph::{Graph, GraphFile, NodeId, PortRef, Side};
 
 /// What the file dialog is open for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -41,6 +41,12 @@ pub struct EditorApp {
     clean_text: String,
     dirty: bool,
     history: History,
+    /// The faces of the graph's subgraph nodes, read from their files at every change.
+    faces: Faces,
+    /// The graphs the document was opened from as a subgraph, outermost first.
+    parents: Vec<Parent>,
+    /// Going back from a subgraph with unsaved edits: the question is open.
+    leaving: bool,
     canvas: Canvas,
     worker: Worker,
     badges: BTreeMap<String, Badge>,
@@ -106,6 +112,9 @@ impl EditorApp {
             clean_text: document::to_string(&Graph::new().to_doc()),
             dirty: false,
             history: History::new(),
+            faces: Faces::new(),
+            parents: Vec::new(),
+            leaving: false,
             canvas: Canvas::default(),
             worker,
             badges: BTreeMap::new(),
@@ -250,13 +259,33 @@ impl EditorApp {
     }
 
     fn edit_coalescing(&mut self, cmd: EditorCommand, coalesce: bool) -> Result<bool, EditError> {
-        let result = self.history.apply_coalescing(&mut self.graph, &self.registry, cmd, coalesce);
+        let result = self
+            .check_subgraph_wires(&cmd)
+            .and_then(|()| self.history.apply_coalescing(&mut self.graph, &self.registry, cmd, coalesce));
         match &result {
             Ok(true) => self.document_changed(),
             Ok(false) => {}
             Err(e) => self.message = Some((e.to_string(), true)),
         }
         result
+    }
+
+    /// A wire to or from a subgraph node must fit the port its file shows (the graph's own
+    /// rules leave those ports to the file): refused here with the words a run would use.
+    fn check_subgraph_wires(&self, cmd: &EditorCommand) -> Result<(), EditError> {
+        match cmd {
+            EditorCommand::Connect { from, to } => {
+                Ok(crate::engine::check_face_types(&self.graph, &self.registry, &self.faces, from, to)?)
+            }
+            EditorCommand::Batch(cmds) => cmds.iter().try_for_each(|c| self.check_subgraph_wires(c)),
+            _ => Ok(()),
+        }
+    }
+
+    /// The value node `id`'s output `port` gave in the latest evaluation, as the panel and
+    /// the viewport show it (a subgraph node's through the port its file shows).
+    pub fn output(&self, id: &str, port: &str) -> Option<&Value> {
+        self.output_value(&PortRef::new(id, port))
     }
 
     /// The selected nodes (clicked, box-selected, shift-clicked, pasted or added), which
@@ -320,6 +349,9 @@ impl EditorApp {
 
     /// Opens a graph file, replacing the document (and forgetting the history).
     pub fn open(&mut self, path: &Path) {
+        if self.inside_subgraph() {
+            return;
+        }
         match GraphFile::load(path) {
             Ok(loaded) => {
                 self.graph = loaded.graph;
@@ -371,6 +403,15 @@ impl EditorApp {
     /// Writes the unsaved document to its autosave now (also done every
     /// [`AUTOSAVE_SECS`] while there are unsaved edits, and when the window closes).
     pub fn autosave_now(&mut self) {
+        // The graphs a subgraph was opened from keep their unsaved edits too.
+        for parent in &self.parents {
+            let text = document::to_string(&parent.graph.to_doc());
+            if text != parent.clean_text
+                && let Err(e) = files::write_autosave(&self.settings_dir, parent.path.as_deref(), &text)
+            {
+                self.message = Some((format!("autosave failed: {e}"), true));
+            }
+        }
         if !self.dirty {
             return;
         }
@@ -465,20 +506,147 @@ impl EditorApp {
         self.document_changed();
     }
 
+    /// The folder the document's relative paths (input files, subgraph files) resolve against.
+    fn base_dir(&self) -> PathBuf {
+        dir_of(self.path.as_deref())
+    }
+
     fn document_changed(&mut self) {
         self.dirty = document::to_string(&self.graph.to_doc()) != self.clean_text;
-        self.canvas.sync(&self.graph, &self.registry);
+        self.faces = subgraph_faces(&self.graph, &self.registry, &self.base_dir());
+        self.canvas.sync(&self.graph, &self.registry, &self.faces);
         self.selection.retain(|id| self.graph.contains(id));
         self.badges.retain(|id, _| self.graph.contains(id));
-        let base_dir = self
-            .path
-            .as_deref()
-            .and_then(Path::parent)
-            .map(Path::to_path_buf)
-            .or_else(|| std::env::current_dir().ok())
-            .unwrap_or_default();
-        self.worker.submit(self.graph.clone(), base_dir);
+        self.submit();
         self.submitted = Instant::now();
+    }
+
+    /// Asks the worker for an evaluation of the document; inside a subgraph, of the graph it
+    /// was opened from (outermost first), with the unsaved edits of every level, so the
+    /// subgraph's nodes show what they compute there.
+    fn submit(&mut self) {
+        let Some(outermost) = self.parents.first() else {
+            self.worker.submit(self.graph.clone(), self.base_dir());
+            return;
+        };
+        let levels = self.parents.iter().skip(1).map(|p| (&p.path, &p.graph)).chain([(&self.path, &self.graph)]);
+        let unsaved = levels.filter_map(|(path, graph)| Some((path.clone()?, graph.clone()))).collect();
+        let base_dir = dir_of(outermost.path.as_deref());
+        self.worker.submit_with(outermost.graph.clone(), base_dir, unsaved);
+    }
+
+    /// How the outermost graph names the nodes of the document: `node/` per subgraph level
+    /// opened (empty at the top).
+    fn scope_prefix(&self) -> String {
+        self.parents.iter().map(|p| format!("{}/", p.node)).collect()
+    }
+
+    /// Node `id` of the document as the evaluated (outermost) graph names it.
+    fn scoped(&self, id: &str) -> String {
+        format!("{}{id}", self.scope_prefix())
+    }
+
+    /// The document's name for evaluated node `name`; none for a node outside the subgraph
+    /// being edited.
+    fn local(&self, name: &str) -> Option<String> {
+        name.strip_prefix(&self.scope_prefix()).map(str::to_string)
+    }
+
+    /// Opens subgraph node `id`'s file for editing in place of the document, which is kept
+    /// (unsaved edits and undo history too) until [`EditorApp::back`]. The subgraph is
+    /// evaluated inside the graph it was opened from.
+    pub fn open_subgraph(&mut self, id: &str) {
+        let Some(path) = self.faces.get(id).map(|f| f.path.clone()) else {
+            self.message = Some((format!("{id} is not a subgraph whose file can be read"), true));
+            return;
+        };
+        match GraphFile::load(&path) {
+            Ok(loaded) => {
+                let parent = Parent {
+                    path: self.path.replace(path.clone()),
+                    graph: std::mem::replace(&mut self.graph, loaded.graph),
+                    clean_text: std::mem::take(&mut self.clean_text),
+                    history: std::mem::take(&mut self.history),
+                    node: id.to_string(),
+                };
+                self.parents.push(parent);
+                self.clean_text = document::to_string(&self.graph.to_doc());
+                self.message = Some((format!("editing subgraph {id} ({}); Back returns", path.display()), false));
+                self.document_replaced();
+            }
+            Err(e) => self.message = Some((e.to_string(), true)),
+        }
+    }
+
+    /// True (and the status bar says to go back first) while a subgraph is open: the
+    /// graphs it was opened from may hold unsaved edits another document would drop.
+    fn inside_subgraph(&mut self) -> bool {
+        let Some(outermost) = self.parents.first() else { return false };
+        let name = file_name(outermost.path.as_deref());
+        self.message = Some((format!("go Back to {name} first: a subgraph of it is open"), true));
+        true
+    }
+
+    /// The subgraph levels open, outermost first: `(file name, node opened)`.
+    pub fn subgraph_path(&self) -> Vec<(String, String)> {
+        self.parents.iter().map(|p| (file_name(p.path.as_deref()), p.node.clone())).collect()
+    }
+
+    /// Goes back to the graph the subgraph was opened from. With unsaved edits it asks
+    /// first (save them, discard them, or stay); `Some(save)` answers that question.
+    pub fn back(&mut self, answer: Option<bool>) {
+        if self.parents.is_empty() {
+            return;
+        }
+        match answer {
+            None if self.dirty => {
+                self.leaving = true;
+                return;
+            }
+            Some(true) => {
+                self.save();
+                if self.dirty {
+                    return;
+                }
+            }
+            _ => {}
+        }
+        self.leaving = false;
+        let Some(parent) = self.parents.pop() else { return };
+        self.path = parent.path;
+        self.graph = parent.graph;
+        self.clean_text = parent.clean_text;
+        self.history = parent.history;
+        self.document_replaced();
+        self.selection = vec![parent.node];
+    }
+
+    /// Asks what to do with a subgraph's unsaved edits when going back.
+    fn leaving_window(&mut self, ctx: &egui::Context) {
+        if !self.leaving {
+            return;
+        }
+        let mut answer = None;
+        let name = file_name(self.path.as_deref());
+        egui::Window::new("Unsaved subgraph").collapsible(false).resizable(false).show(ctx, |ui| {
+            ui.label(format!("{name} has unsaved edits, which every graph using it would see."));
+            ui.horizontal(|ui| {
+                if ui.button("Save and go back").clicked() {
+                    answer = Some(Some(true));
+                }
+                if ui.button("Discard and go back").clicked() {
+                    answer = Some(Some(false));
+                }
+                if ui.button("Stay").clicked() {
+                    answer = Some(None);
+                }
+            });
+        });
+        match answer {
+            Some(None) => self.leaving = false,
+            Some(choice) => self.back(choice),
+            None => {}
+        }
     }
 
     /// Takes in what the worker reported since the last frame.
@@ -497,6 +665,27 @@ impl EditorApp {
     }
 
     fn take_message(&mut self, message: WorkerMessage) {
+        self.take_message_unrolled(message);
+        self.roll_up_subgraph_badges();
+    }
+
+    /// A subgraph node shows its inner nodes' (`id/…`) state: an error or a block if one
+    /// has it, running while one runs, ok (cached) when all are. A problem with the node
+    /// itself (its file) stays on it.
+    fn roll_up_subgraph_badges(&mut self) {
+        for id in self.faces.keys().map(|id| id.as_str()) {
+            if matches!(self.badges.get(id), Some(Badge::Error(_))) {
+                continue;
+            }
+            let prefix = format!("{id}/");
+            let inner: Vec<(&String, &Badge)> =
+                self.badges.range(prefix.clone()..).take_while(|(k, _)| k.starts_with(&prefix)).collect();
+            let Some(rolled) = roll_up(&inner) else { continue };
+            self.badges.insert(id.to_string(), rolled);
+        }
+    }
+
+    fn take_message_unrolled(&mut self, message: WorkerMessage) {
         if matches!(message, WorkerMessage::Done { .. } | WorkerMessage::Invalid(_)) {
             self.waited_secs = Some(self.submitted.elapsed().as_secs_f64());
         }
@@ -505,13 +694,16 @@ impl EditorApp {
                 self.graph_problems.clear();
                 self.badges.clear();
                 for (id, node) in &report.nodes {
-                    self.badges.insert(id.clone(), badge_of(node.status, node.error.clone()));
+                    if let Some(id) = self.local(id) {
+                        self.badges.insert(id, badge_of(node.status, node.error.clone()));
+                    }
                 }
                 self.report = Some(report);
                 if let Some(problems) = problems {
                     self.show_problems(problems);
                 }
                 // Left out for being downstream of an invalid node: blocked, as after a failure.
+                let left_out: Vec<String> = left_out.iter().filter_map(|id| self.local(id)).collect();
                 for id in left_out {
                     self.badges
                         .entry(id)
@@ -525,10 +717,14 @@ impl EditorApp {
                 self.show_problems(errors);
             }
             WorkerMessage::Started { node } => {
-                self.badges.insert(node, Badge::Running);
+                if let Some(node) = self.local(&node) {
+                    self.badges.insert(node, Badge::Running);
+                }
             }
             WorkerMessage::Finished { node, status } => {
-                self.badges.insert(node, badge_of(status, None));
+                if let Some(node) = self.local(&node) {
+                    self.badges.insert(node, badge_of(status, None));
+                }
             }
         }
     }
@@ -539,6 +735,10 @@ impl EditorApp {
         for d in errors.diagnostics {
             let Some(node) = d.node else {
                 self.graph_problems.push(d.message);
+                continue;
+            };
+            let Some(node) = self.local(&node) else {
+                self.graph_problems.push(format!("outside this subgraph, {node}: {}", d.message));
                 continue;
             };
             let text = match d.item {
@@ -563,12 +763,7 @@ impl EditorApp {
     /// and the smoke it outputs or takes.
     fn selected_motion(&self) -> Motion {
         let Some(id) = self.viewed() else { return Motion::default() };
-        let outputs: Vec<&Value> = self
-            .report
-            .as_ref()
-            .and_then(|r| r.outputs.get(id))
-            .map(|o| o.iter().flatten().collect())
-            .unwrap_or_default();
+        let outputs: Vec<&Value> = self.output_values(id).into_iter().filter_map(|(_, v)| v).collect();
         let inputs = self.input_values(id);
         let moving = |v: &&Value| matches!(v, Value::Clip(_) | Value::MeshSequence(_));
         let played = if outputs.iter().any(moving) { &outputs } else { &inputs };
@@ -630,10 +825,8 @@ impl EditorApp {
     /// that outputs contacts), so the viewport's contact rings and strips never disagree
     /// with the graph's `motion.contacts`.
     fn graph_contacts(&self, clip: &Arc<Clip>) -> Option<Arc<Contacts>> {
-        let report = self.report.as_ref()?;
         self.graph.nodes().keys().find_map(|id| {
-            let outputs = report.outputs.get(id.as_str())?;
-            let contacts = outputs.iter().flatten().find_map(|v| match v {
+            let contacts = self.output_values(id.as_str()).into_iter().find_map(|(_, v)| match v? {
                 Value::Contacts(c) => Some(c.clone()),
                 _ => None,
             })?;
@@ -645,17 +838,29 @@ impl EditorApp {
 
     /// The values arriving at node `id`'s inputs from the last evaluation.
     fn input_values(&self, id: &str) -> Vec<&Value> {
-        let Some(report) = &self.report else { return Vec::new() };
-        self.graph
-            .edges()
-            .filter(|e| e.to.node.as_str() == id)
-            .filter_map(|e| {
-                let from = e.from.node.as_str();
-                let schema = self.registry.get(&self.graph.node(from)?.kind)?.schema();
-                let index = schema.outputs.iter().position(|p| p.name == e.from.port)?;
-                report.outputs.get(from)?.get(index)?.as_ref()
-            })
-            .collect()
+        self.graph.edges().filter(|e| e.to.node.as_str() == id).filter_map(|e| self.output_value(&e.from)).collect()
+    }
+
+    /// Node `id`'s outputs from the last evaluation, by port name, in port order.
+    fn output_values(&self, id: &str) -> Vec<(&str, Option<&Value>)> {
+        let Some(face) = Face::of(&self.graph, &self.registry, &self.faces, id) else { return Vec::new() };
+        face.pins(Side::Output).map(|p| (p.name, self.output_value(&PortRef::new(id, p.name)))).collect()
+    }
+
+    /// The value at output `port` from the last evaluation; a subgraph node's output is the
+    /// one of the inner node it leads to (`id/inner`).
+    fn output_value(&self, port: &PortRef) -> Option<&Value> {
+        let report = self.report.as_ref()?;
+        let inner;
+        let port = match self.faces.get(&port.node) {
+            Some(face) => {
+                let source = face.port(&port.port, Side::Output)?.inner.first()?;
+                inner = PortRef::new(format!("{}/{}", port.node.as_str(), source.node.as_str()), source.port.as_str());
+                &inner
+            }
+            None => port,
+        };
+        report.output(&self.registry, &PortRef::new(self.scoped(port.node.as_str()), port.port.as_str()))
     }
 
     /// Draws one frame of the editor into `ui` (the whole window).
@@ -674,6 +879,7 @@ impl EditorApp {
         egui::CentralPanel::default().show(ui, |ui| self.canvas(ui));
         self.file_dialog(ui.ctx());
         self.recovery_window(ui.ctx());
+        self.leaving_window(ui.ctx());
         self.autosave_tick(ui.ctx());
         self.refusal_tooltip(ui);
         self.frame_ms = started.elapsed().as_secs_f32() * 1e3;
@@ -757,7 +963,7 @@ impl EditorApp {
     fn menu_bar(&mut self, ui: &mut Ui) {
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
-                if ui.button("New").clicked() {
+                if ui.button("New").clicked() && !self.inside_subgraph() {
                     self.graph = Graph::new();
                     self.path = None;
                     self.clean_text = document::to_string(&self.graph.to_doc());
@@ -836,6 +1042,14 @@ impl EditorApp {
                     ui.close();
                 }
             });
+            if !self.parents.is_empty() {
+                if ui.button("Back").on_hover_text("to the graph this subgraph was opened from").clicked() {
+                    self.back(None);
+                }
+                for (file, node) in self.subgraph_path() {
+                    ui.label(RichText::new(format!("{file} › {node} ›")).weak());
+                }
+            }
             let name = self.path.as_ref().map_or("untitled".into(), |p| p.display().to_string());
             ui.label(RichText::new(format!("{name}{}", if self.dirty { " •" } else { "" })).weak());
         });
@@ -886,30 +1100,39 @@ impl EditorApp {
             return;
         };
         let badge = self.badges.get(&id).cloned().unwrap_or(Badge::Idle);
-        let report = self.report.as_ref().and_then(|r| r.nodes.get(&id)).cloned();
-        let edits = panel::show(ui, &mut self.panel, &self.graph, &self.registry, &id, &badge, report.as_ref());
+        let report = self.report.as_ref().and_then(|r| r.nodes.get(&self.scoped(&id))).cloned();
+        let face = self.faces.get(id.as_str());
+        if face.is_some() && ui.button("Open subgraph").on_hover_text("edit its file here; Back returns").clicked() {
+            self.open_subgraph(&id);
+            return;
+        }
+        let edits = panel::show(ui, &mut self.panel, &self.graph, &self.registry, face, &id, &badge, report.as_ref());
         for e in edits {
             let _ = self.edit_coalescing(e.command, e.coalesce);
         }
-        let outputs = self.report.as_ref().and_then(|r| r.outputs.get(&id));
-        let schema = self.graph.node(&id).and_then(|n| self.registry.get(&n.kind)).map(|n| n.schema());
-        if let (Some(outputs), Some(schema)) = (outputs, schema) {
+        // Owned (each value is a shared pointer), as the panel state is borrowed mutably.
+        let outputs: Vec<(String, Option<Value>)> =
+            self.output_values(&id).into_iter().map(|(name, v)| (name.to_string(), v.cloned())).collect();
+        if outputs.iter().any(|(_, v)| v.is_some()) {
             ui.separator();
-            // Owned (each value is a shared pointer), as the panel state is borrowed mutably.
             let inputs: Vec<Value> = self.input_values(&id).into_iter().cloned().collect();
-            results::show(ui, &mut self.results, &id, schema.outputs, outputs, &inputs);
+            results::show(ui, &mut self.results, &id, &outputs, &inputs);
         }
     }
 
     fn canvas(&mut self, ui: &mut Ui) {
         let marks = Marks { selection: &self.selection, displayed: self.displayed.as_deref() };
-        let out = self.canvas.show(ui, &self.graph, &self.registry, &self.badges, marks);
+        let out = self.canvas.show(ui, &self.graph, &self.registry, &self.faces, &self.badges, marks);
         if let Some(id) = out.display {
             self.displayed = if self.displayed.as_ref() == Some(&id) { None } else { Some(id) };
         }
         if let Some(id) = out.duplicate {
             self.selection = vec![id];
             self.duplicate_selection();
+        }
+        if let Some(id) = out.open {
+            self.open_subgraph(&id);
+            return;
         }
         if let Some(reason) = out.refused {
             self.message = Some((format!("connection refused: {reason}"), true));
@@ -954,6 +1177,66 @@ impl EditorApp {
         });
         ui.ctx().request_repaint();
     }
+}
+
+/// The folder of a graph file (relative paths resolve against it); the working folder for
+/// an untitled graph.
+fn dir_of(path: Option<&Path>) -> PathBuf {
+    path.and_then(Path::parent).map(Path::to_path_buf).or_else(|| std::env::current_dir().ok()).unwrap_or_default()
+}
+
+/// A graph file's name for menus, `untitled` without a file.
+fn file_name(path: Option<&Path>) -> String {
+    path.and_then(Path::file_name).map_or("untitled".into(), |n| n.to_string_lossy().into_owned())
+}
+
+/// A graph a subgraph was opened from, kept whole to come back to.
+struct Parent {
+    path: Option<PathBuf>,
+    graph: Graph,
+    clean_text: String,
+    history: History,
+    /// The subgraph node that was opened.
+    node: String,
+}
+
+/// The faces of `graph`'s subgraph nodes whose files can be read (relative to `base_dir`);
+/// one that cannot is left out, and the run reports why on its node.
+fn subgraph_faces(graph: &Graph, registry: &kinegraph_nodes::node::Registry, base_dir: &Path) -> Faces {
+    graph
+        .nodes()
+        .iter()
+        .filter(|(_, n)| n.kind == document::SUBGRAPH_KIND)
+        .filter_map(|(id, n)| match n.params.get(document::SUBGRAPH_FILE_PARAM) {
+            Some(kinegraph_nodes::node::ParamValue::Text(file)) => {
+                crate::engine::face(&base_dir.join(file), registry).ok().map(|f| (id.clone(), f))
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+/// One state for several inner nodes: the first error, else the first block, else running
+/// while any runs, else ok (cached when all were); none when there are none or they differ
+/// otherwise (cancelled, idle).
+fn roll_up(inner: &[(&String, &Badge)]) -> Option<Badge> {
+    if inner.is_empty() {
+        return None;
+    }
+    let named = |id: &str, m: &str| format!("{id}: {m}");
+    if let Some((id, b)) = inner.iter().find(|(_, b)| matches!(b, Badge::Error(_))) {
+        return Some(Badge::Error(named(id, b.message().unwrap_or("failed"))));
+    }
+    if let Some((id, b)) = inner.iter().find(|(_, b)| matches!(b, Badge::Blocked(_))) {
+        return Some(Badge::Blocked(named(id, b.message().unwrap_or("blocked"))));
+    }
+    if inner.iter().any(|(_, b)| **b == Badge::Running) {
+        return Some(Badge::Running);
+    }
+    if inner.iter().all(|(_, b)| **b == Badge::Cached) {
+        return Some(Badge::Cached);
+    }
+    inner.iter().all(|(_, b)| matches!(b, Badge::Ok | Badge::Cached)).then_some(Badge::Ok)
 }
 
 fn badge_of(status: NodeStatus, message: Option<String>) -> Badge {

@@ -14,7 +14,8 @@ use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 use kinegraph_nodes::node::{NodeSchema, PortSpec, PortType, Registry};
 
 use super::commands::{EditorCommand, fresh_node_id};
-use crate::graph::{Graph, PortRef, rules};
+use crate::engine::{FacePort, SubgraphFace};
+use crate::graph::{Graph, PortRef, Side};
 
 /// The outline of selected nodes.
 pub(crate) const SELECTED: Color32 = Color32::from_rgb(255, 200, 60);
@@ -130,7 +131,7 @@ pub(crate) struct Canvas {
 
 impl Canvas {
     /// Brings the view in line with `graph`: nodes added and removed, positions and wires reset.
-    pub(crate) fn sync(&mut self, graph: &Graph, registry: &Registry) {
+    pub(crate) fn sync(&mut self, graph: &Graph, registry: &Registry, faces: &Faces) {
         let gone: Vec<(String, NodeId)> =
             self.ids.iter().filter(|(id, _)| !graph.contains(id)).map(|(i, n)| (i.clone(), *n)).collect();
         for (id, nid) in gone {
@@ -172,22 +173,22 @@ impl Canvas {
         }
         for edge in graph.edges() {
             if let (Some(out), Some(inp)) =
-                (self.out_pin(graph, registry, &edge.from), self.in_pin(graph, registry, &edge.to))
+                (self.out_pin(graph, registry, faces, &edge.from), self.in_pin(graph, registry, faces, &edge.to))
             {
                 self.snarl.connect(out, inp);
             }
         }
     }
 
-    fn out_pin(&self, graph: &Graph, registry: &Registry, port: &PortRef) -> Option<OutPinId> {
+    fn out_pin(&self, graph: &Graph, registry: &Registry, faces: &Faces, port: &PortRef) -> Option<OutPinId> {
         let node = port.node.as_str();
-        let output = schema(graph, registry, node)?.outputs.iter().position(|p| p.name == port.port)?;
+        let output = Face::of(graph, registry, faces, node)?.index(Side::Output, &port.port)?;
         Some(OutPinId { node: *self.ids.get(node)?, output })
     }
 
-    fn in_pin(&self, graph: &Graph, registry: &Registry, port: &PortRef) -> Option<InPinId> {
+    fn in_pin(&self, graph: &Graph, registry: &Registry, faces: &Faces, port: &PortRef) -> Option<InPinId> {
         let node = port.node.as_str();
-        let input = schema(graph, registry, node)?.inputs.iter().position(|p| p.name == port.port)?;
+        let input = Face::of(graph, registry, faces, node)?.index(Side::Input, &port.port)?;
         Some(InPinId { node: *self.ids.get(node)?, input })
     }
 
@@ -198,13 +199,14 @@ impl Canvas {
         ui: &mut Ui,
         graph: &Graph,
         registry: &Registry,
+        faces: &Faces,
         badges: &BTreeMap<String, Badge>,
         marks: Marks<'_>,
     ) -> CanvasOutput {
         self.level_of_detail(ui.max_rect());
         let id = self.widget_id();
         let mut viewer =
-            Viewer { graph, registry, badges, marks, search: &mut self.search, out: CanvasOutput::default() };
+            Viewer { graph, registry, faces, badges, marks, search: &mut self.search, out: CanvasOutput::default() };
         let mut style = SnarlStyle::new();
         style.collapsible = Some(false);
         style.centering = Some(true);
@@ -388,34 +390,101 @@ pub(crate) struct CanvasOutput {
     pub(crate) display: Option<String>,
     /// The node to duplicate, from its menu.
     pub(crate) duplicate: Option<String>,
+    /// The subgraph node to open for editing, from its menu or a double-click on its title.
+    pub(crate) open: Option<String>,
     /// Canvas (graph) space → screen, as drawn this frame.
     pub(crate) to_screen: TSTransform,
 }
 
-fn schema(graph: &Graph, registry: &Registry, id: &str) -> Option<&'static NodeSchema> {
-    graph.node(id).and_then(|n| registry.get(&n.kind)).map(|n| n.schema())
+/// The faces of a graph's subgraph nodes, by node id, as read from their files.
+pub(crate) type Faces = BTreeMap<crate::graph::NodeId, SubgraphFace>;
+
+/// A node's ports as the canvas shows them: its kind's schema, or the face of its subgraph
+/// file.
+#[derive(Clone, Copy)]
+pub(crate) enum Face<'a> {
+    Kind(&'static NodeSchema),
+    Subgraph(&'a SubgraphFace),
+}
+
+/// One port as drawn.
+pub(crate) struct Pin<'a> {
+    pub(crate) name: &'a str,
+    pub(crate) ty: PortType,
+    pub(crate) required: bool,
+    pub(crate) doc: &'a str,
+}
+
+impl<'a> Face<'a> {
+    /// The face of node `id`; none for an unknown kind or a subgraph whose file cannot be read.
+    pub(crate) fn of(graph: &Graph, registry: &Registry, faces: &'a Faces, id: &str) -> Option<Face<'a>> {
+        let node = graph.node(id)?;
+        match faces.get(id) {
+            Some(face) => Some(Face::Subgraph(face)),
+            None => registry.get(&node.kind).map(|n| Face::Kind(n.schema())),
+        }
+    }
+
+    /// How many ports it has on `side`.
+    pub(crate) fn count(self, side: Side) -> usize {
+        match (self, side) {
+            (Face::Kind(s), Side::Input) => s.inputs.len(),
+            (Face::Kind(s), Side::Output) => s.outputs.len(),
+            (Face::Subgraph(f), Side::Input) => f.inputs.len(),
+            (Face::Subgraph(f), Side::Output) => f.outputs.len(),
+        }
+    }
+
+    /// Its `index`th port on `side`.
+    pub(crate) fn pin(self, side: Side, index: usize) -> Option<Pin<'a>> {
+        let kind_pin = |p: &'static PortSpec| Pin { name: p.name, ty: p.ty, required: p.required, doc: p.doc };
+        let face_pin = |p: &'a FacePort| Pin { name: &p.name, ty: p.ty, required: p.required, doc: p.doc };
+        match (self, side) {
+            (Face::Kind(s), Side::Input) => s.inputs.get(index).map(kind_pin),
+            (Face::Kind(s), Side::Output) => s.outputs.get(index).map(kind_pin),
+            (Face::Subgraph(f), Side::Input) => f.inputs.get(index).map(face_pin),
+            (Face::Subgraph(f), Side::Output) => f.outputs.get(index).map(face_pin),
+        }
+    }
+
+    /// Its ports on `side`, in order.
+    pub(crate) fn pins(self, side: Side) -> impl Iterator<Item = Pin<'a>> {
+        (0..self.count(side)).filter_map(move |i| self.pin(side, i))
+    }
+
+    /// The index of its port `name` on `side`.
+    fn index(self, side: Side, name: &str) -> Option<usize> {
+        self.pins(side).position(|p| p.name == name)
+    }
 }
 
 struct Viewer<'a> {
     graph: &'a Graph,
     registry: &'a Registry,
+    faces: &'a Faces,
     badges: &'a BTreeMap<String, Badge>,
     marks: Marks<'a>,
     search: &'a mut CatalogueSearch,
     out: CanvasOutput,
 }
 
-impl Viewer<'_> {
+impl<'a> Viewer<'a> {
+    fn face(&self, id: &str) -> Option<Face<'a>> {
+        Face::of(self.graph, self.registry, self.faces, id)
+    }
+
+    fn endpoint(&self, node: NodeId, side: Side, index: usize, snarl: &Snarl<String>) -> Option<PortRef> {
+        let id = snarl.get_node(node)?;
+        let pin = self.face(id)?.pin(side, index)?;
+        Some(PortRef::new(id.as_str(), pin.name))
+    }
+
     fn endpoint_out(&self, pin: &OutPin, snarl: &Snarl<String>) -> Option<PortRef> {
-        let id = snarl.get_node(pin.id.node)?;
-        let port = schema(self.graph, self.registry, id)?.outputs.get(pin.id.output)?;
-        Some(PortRef::new(id.as_str(), port.name))
+        self.endpoint(pin.id.node, Side::Output, pin.id.output, snarl)
     }
 
     fn endpoint_in(&self, pin: &InPin, snarl: &Snarl<String>) -> Option<PortRef> {
-        let id = snarl.get_node(pin.id.node)?;
-        let port = schema(self.graph, self.registry, id)?.inputs.get(pin.id.input)?;
-        Some(PortRef::new(id.as_str(), port.name))
+        self.endpoint(pin.id.node, Side::Input, pin.id.input, snarl)
     }
 }
 
@@ -443,6 +512,9 @@ impl SnarlViewer<String> for Viewer<'_> {
                 .on_hover_text("click to select and edit its parameters; shift-click to add; right-click for its menu");
             if title.clicked() {
                 self.out.clicked = Some((id.clone(), ui.input(|i| i.modifiers.shift)));
+            }
+            if title.double_clicked() && self.faces.contains_key(id.as_str()) {
+                self.out.open = Some(id.clone());
             }
             title.context_menu(|ui| self.node_menu(ui, id));
             if self.marks.displayed == Some(id.as_str()) {
@@ -479,11 +551,11 @@ impl SnarlViewer<String> for Viewer<'_> {
     }
 
     fn inputs(&mut self, node: &String) -> usize {
-        schema(self.graph, self.registry, node).map_or(0, |s| s.inputs.len())
+        self.face(node).map_or(0, |f| f.count(Side::Input))
     }
 
     fn outputs(&mut self, node: &String) -> usize {
-        schema(self.graph, self.registry, node).map_or(0, |s| s.outputs.len())
+        self.face(node).map_or(0, |f| f.count(Side::Output))
     }
 
     fn show_input(
@@ -492,10 +564,8 @@ impl SnarlViewer<String> for Viewer<'_> {
         ui: &mut Ui,
         snarl: &mut Snarl<String>,
     ) -> impl egui_snarl::ui::SnarlPin + 'static {
-        let port = snarl
-            .get_node(pin.id.node)
-            .and_then(|id| schema(self.graph, self.registry, id))
-            .and_then(|s| s.inputs.get(pin.id.input));
+        let port =
+            snarl.get_node(pin.id.node).and_then(|id| self.face(id)).and_then(|f| f.pin(Side::Input, pin.id.input));
         port_pin(ui, port, false, |p| if p.required { p.name.to_string() } else { format!("{} (optional)", p.name) })
     }
 
@@ -505,16 +575,14 @@ impl SnarlViewer<String> for Viewer<'_> {
         ui: &mut Ui,
         snarl: &mut Snarl<String>,
     ) -> impl egui_snarl::ui::SnarlPin + 'static {
-        let port = snarl
-            .get_node(pin.id.node)
-            .and_then(|id| schema(self.graph, self.registry, id))
-            .and_then(|s| s.outputs.get(pin.id.output));
+        let port =
+            snarl.get_node(pin.id.node).and_then(|id| self.face(id)).and_then(|f| f.pin(Side::Output, pin.id.output));
         port_pin(ui, port, true, |p| p.name.to_string())
     }
 
     fn connect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<String>) {
         let (Some(from), Some(to)) = (self.endpoint_out(from, snarl), self.endpoint_in(to, snarl)) else { return };
-        match rules::check_connect(self.graph, self.registry, &from, &to) {
+        match crate::engine::check_connect(self.graph, self.registry, self.faces, &from, &to) {
             Ok(()) => self.out.commands.push(EditorCommand::Connect { from, to }),
             Err(e) => self.out.refused = Some(e.to_string()),
         }
@@ -573,28 +641,23 @@ impl SnarlViewer<String> for Viewer<'_> {
     /// A wire dropped on empty canvas offers the kinds that can take it (or feed it) and
     /// adds the chosen node already connected, as one undo step.
     fn show_dropped_wire_menu(&mut self, pos: Pos2, ui: &mut Ui, src_pins: AnyPins, snarl: &mut Snarl<String>) {
-        let (endpoint, ty, from_output) = match src_pins {
+        let (node, side, index) = match src_pins {
             AnyPins::Out(pins) => {
                 let Some(pin) = pins.first() else { return };
-                let Some(id) = snarl.get_node(pin.node) else { return };
-                let Some(port) = schema(self.graph, self.registry, id).and_then(|s| s.outputs.get(pin.output)) else {
-                    return;
-                };
-                (PortRef::new(id.as_str(), port.name), port.ty, true)
+                (pin.node, Side::Output, pin.output)
             }
             AnyPins::In(pins) => {
                 let Some(pin) = pins.first() else { return };
-                let Some(id) = snarl.get_node(pin.node) else { return };
-                let Some(port) = schema(self.graph, self.registry, id).and_then(|s| s.inputs.get(pin.input)) else {
-                    return;
-                };
-                (PortRef::new(id.as_str(), port.name), port.ty, false)
+                (pin.node, Side::Input, pin.input)
             }
         };
+        let Some(id) = snarl.get_node(node) else { return };
+        let Some(port) = self.face(id).and_then(|f| f.pin(side, index)) else { return };
+        let (endpoint, ty, from_output) = (PortRef::new(id.as_str(), port.name), port.ty, side == Side::Output);
         ui.label(format!("Add a node that {} a {}", if from_output { "takes" } else { "gives" }, ty.name()));
         let picked = catalogue_menu(ui, self.registry, self.search, |s| facing_port(s, ty, from_output).is_some());
         if let Some(cmd) =
-            picked.and_then(|kind| add_connected(self.graph, self.registry, &endpoint, from_output, kind, pos))
+            picked.and_then(|kind| add_connected(self.graph, self.registry, &endpoint, ty, from_output, kind, pos))
         {
             self.out.commands.push(cmd);
             self.search.clear();
@@ -630,6 +693,12 @@ impl Viewer<'_> {
         let display = if self.marks.displayed == Some(id) { "Stop displaying" } else { "Display in viewport" };
         if ui.button(display).on_hover_text("the viewport plays this node whatever is selected").clicked() {
             self.out.display = Some(id.to_string());
+            ui.close();
+        }
+        if self.faces.contains_key(id)
+            && ui.button("Open subgraph").on_hover_text("edit its file (double-click the title)").clicked()
+        {
+            self.out.open = Some(id.to_string());
             ui.close();
         }
         if ui.button("Duplicate").clicked() {
@@ -734,13 +803,11 @@ fn add_connected(
     graph: &Graph,
     registry: &Registry,
     endpoint: &PortRef,
+    ty: PortType,
     from_output: bool,
     kind: &str,
     pos: Pos2,
 ) -> Option<EditorCommand> {
-    let dragged = schema(graph, registry, endpoint.node.as_str())?;
-    let ports = if from_output { dragged.outputs } else { dragged.inputs };
-    let ty = ports.iter().find(|p| p.name == endpoint.port)?.ty;
     let facing = facing_port(registry.get(kind)?.schema(), ty, from_output)?;
     let id = fresh_node_id(graph, kind);
     let new_end = PortRef::new(id.clone(), facing);
@@ -756,14 +823,14 @@ const OUTPUT_PIN_CLEARANCE: f32 = 14.0;
 
 /// A port's label (with its type and doc as tooltip) and its pin, coloured by type; an
 /// output's label (laid out from the right) keeps clear of the pin.
-fn port_pin(ui: &mut Ui, port: Option<&PortSpec>, output: bool, label: impl Fn(&PortSpec) -> String) -> PinInfo {
+fn port_pin(ui: &mut Ui, port: Option<Pin<'_>>, output: bool, label: impl Fn(&Pin<'_>) -> String) -> PinInfo {
     match port {
         Some(p) => {
             if output {
                 ui.add_space(OUTPUT_PIN_CLEARANCE);
             }
             // Never wrapped or elided: the node grows to its ports' names.
-            ui.add(egui::Label::new(label(p)).extend()).on_hover_ui(|ui| {
+            ui.add(egui::Label::new(label(&p)).extend()).on_hover_ui(|ui| {
                 ui.label(format!("{} — {}", p.ty.name(), p.doc));
             });
             PinInfo::circle().with_fill(type_color(p.ty))
@@ -789,20 +856,32 @@ mod tests {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron");
         let mut doc = GraphFile::load(&path).unwrap().graph;
         // From an output: the new node's clip input takes it.
-        let cmd =
-            add_connected(&doc, &registry, &port("clip.clip"), true, "motion.contacts", Pos2::new(5.0, 6.0)).unwrap();
+        let cmd = add_connected(
+            &doc,
+            &registry,
+            &port("clip.clip"),
+            PortType::Clip,
+            true,
+            "motion.contacts",
+            Pos2::new(5.0, 6.0),
+        )
+        .unwrap();
         apply(&mut doc, &registry, &cmd).unwrap();
         assert_eq!(doc.node("contacts").unwrap().kind, "motion.contacts");
         assert_eq!(doc.layout()["contacts"], (5.0, 6.0));
         assert!(doc.has_edge(&port("clip.clip"), &port("contacts.clip")));
         // From an input: the new node's output feeds it (replacing what fed it).
-        let cmd = add_connected(&doc, &registry, &port("resample.clip"), false, "clip.trim", Pos2::ZERO).unwrap();
+        let cmd =
+            add_connected(&doc, &registry, &port("resample.clip"), PortType::Clip, false, "clip.trim", Pos2::ZERO)
+                .unwrap();
         apply(&mut doc, &registry, &cmd).unwrap();
         assert!(doc.has_edge(&port("trim_2.clip"), &port("resample.clip")));
         // A kind with no port of the wire's type is neither offered nor wired.
         let load_mesh = registry.get("mesh.load").unwrap().schema();
         assert!(facing_port(load_mesh, PortType::Clip, true).is_none());
-        assert!(add_connected(&doc, &registry, &port("clip.clip"), true, "mesh.load", Pos2::ZERO).is_none());
+        assert!(
+            add_connected(&doc, &registry, &port("clip.clip"), PortType::Clip, true, "mesh.load", Pos2::ZERO).is_none()
+        );
     }
 
     /// A graph file without `layout` opens with every wire running left to right and no two
@@ -814,7 +893,7 @@ mod tests {
         let doc = GraphFile::load(&path).unwrap().graph;
         assert!(doc.layout().is_empty());
         let mut canvas = Canvas::default();
-        canvas.sync(&doc, &registry);
+        canvas.sync(&doc, &registry, &Faces::new());
         let pos = |id: &str| canvas.snarl.get_node_info(canvas.ids[id]).unwrap().pos;
         for e in doc.edges() {
             assert!(pos(e.from.node.as_str()).x < pos(e.to.node.as_str()).x, "{} → {}", e.from, e.to);
@@ -832,7 +911,7 @@ mod tests {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/demo.ron");
         let doc = GraphFile::load(&path).unwrap().graph;
         let mut canvas = Canvas::default();
-        canvas.sync(&doc, &registry);
+        canvas.sync(&doc, &registry, &Faces::new());
         let open = |c: &Canvas, id: &str| c.snarl.get_node_info(c.ids[id]).unwrap().open;
         let screen = egui::Rect::from_min_size(Pos2::ZERO, egui::vec2(400.0, 300.0));
         // 1:1, the view at the origin: `clip` (at 0, 0) is on screen, `glb` (at 660, 80)

@@ -46,7 +46,7 @@ pub fn paste(graph: &Graph, registry: &Registry, text: &str) -> Result<(EditorCo
         return Err(EditError::BadFragment("it holds no nodes".into()));
     }
     for (id, node) in fragment.nodes() {
-        rules::schema_of_kind(registry, id, &node.kind)?;
+        rules::check_kind(registry, id, &node.kind)?;
     }
     let mut renamed: BTreeMap<&NodeId, NodeId> = BTreeMap::new();
     let mut taken: BTreeSet<String> = graph.nodes().keys().map(|id| id.as_str().to_string()).collect();

@@ -8,7 +8,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use egui::{CollapsingHeader, Color32, RichText, Ui};
 use egui_plot::{Line, Plot, Span};
 use kinegraph_nodes::model::{Contacts, Curves, FrameRange, Phases, StageKind, Stages};
-use kinegraph_nodes::node::{PortSpec, Report, Value};
+use kinegraph_nodes::node::{Report, Value};
 use serde_json::Value as Json;
 
 /// Which curve channels the user turned on, per node and port.
@@ -47,37 +47,33 @@ pub(crate) fn show(
     ui: &mut Ui,
     state: &mut ResultsState,
     id: &str,
-    ports: &[PortSpec],
-    outputs: &[Option<Value>],
+    outputs: &[(String, Option<Value>)],
     inputs: &[Value],
 ) {
     // Phases or stages the node gives (else the stages it takes) are shaded on its curve plots.
-    let phases = outputs.iter().flatten().find_map(|v| match v {
+    let phases = outputs.iter().filter_map(|(_, v)| v.as_ref()).find_map(|v| match v {
         Value::Phases(p) => Some(phase_bands(p)),
         _ => None,
     });
-    let stages = outputs.iter().flatten().chain(inputs).find_map(|v| match v {
+    let stages = outputs.iter().filter_map(|(_, v)| v.as_ref()).chain(inputs).find_map(|v| match v {
         Value::Stages(s) => Some(stage_bands(s)),
         _ => None,
     });
-    let controllers = outputs.iter().flatten().find_map(|v| match v {
+    let controllers = outputs.iter().filter_map(|(_, v)| v.as_ref()).find_map(|v| match v {
         Value::Report(r) => Some(timeline_of(r)).filter(|t| !t.is_empty()),
         _ => None,
     });
     let controller_bands = controllers.as_ref().map(|t| t.iter().map(|a| a.band.clone()).collect());
     let bands = phases.or(stages).or(controller_bands).unwrap_or_default();
-    for (port, value) in ports.iter().zip(outputs) {
-        let key = format!("{id}.{}", port.name);
+    for (port, value) in outputs {
+        let key = format!("{id}.{port}");
         match value {
             Some(Value::Report(report)) => {
-                CollapsingHeader::new(format!("Report ({})", port.name)).id_salt(&key).default_open(true).show(
-                    ui,
-                    |ui| {
-                        for (name, v) in report.iter() {
-                            json_row(ui, &format!("{key}.{name}"), name, v);
-                        }
-                    },
-                );
+                CollapsingHeader::new(format!("Report ({port})")).id_salt(&key).default_open(true).show(ui, |ui| {
+                    for (name, v) in report.iter() {
+                        json_row(ui, &format!("{key}.{name}"), name, v);
+                    }
+                });
                 let timeline = timeline_of(report);
                 if !timeline.is_empty() {
                     CollapsingHeader::new("Controller timeline")
@@ -87,25 +83,25 @@ pub(crate) fn show(
                 }
             }
             Some(Value::Curves(curves)) => {
-                CollapsingHeader::new(format!("Curves ({})", port.name))
+                CollapsingHeader::new(format!("Curves ({port})"))
                     .id_salt(&key)
                     .default_open(true)
                     .show(ui, |ui| curves_plot(ui, state, &key, curves, &bands));
             }
             Some(Value::Phases(phases)) => {
-                CollapsingHeader::new(format!("Phases ({})", port.name))
+                CollapsingHeader::new(format!("Phases ({port})"))
                     .id_salt(&key)
                     .default_open(true)
                     .show(ui, |ui| phases_text(ui, phases));
             }
             Some(Value::Stages(stages)) => {
-                CollapsingHeader::new(format!("Stages ({})", port.name))
+                CollapsingHeader::new(format!("Stages ({port})"))
                     .id_salt(&key)
                     .default_open(true)
                     .show(ui, |ui| stages_text(ui, stages));
             }
             Some(Value::Contacts(contacts)) => {
-                CollapsingHeader::new(format!("Contacts ({})", port.name))
+                CollapsingHeader::new(format!("Contacts ({port})"))
                     .id_salt(&key)
                     .default_open(true)
                     .show(ui, |ui| contacts_text(ui, contacts));

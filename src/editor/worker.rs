@@ -18,7 +18,9 @@ use std::thread::JoinHandle;
 
 use kinegraph_nodes::node::Registry;
 
-use crate::engine::{CompiledGraph, Engine, GraphErrors, NodeStatus, RunEvent, RunOptions, RunReport, compile_file};
+use crate::engine::{
+    CompiledGraph, Engine, GraphErrors, NodeStatus, RunEvent, RunOptions, RunReport, Unsaved, compile_file_with,
+};
 use crate::graph::{Graph, GraphFile, NodeId};
 
 /// Called from the worker thread whenever it has news (the editor asks for a repaint).
@@ -70,12 +72,17 @@ struct Runnable<'r> {
 /// Compiles `graph`; while it does not validate, the nodes its problems name are left out
 /// with everything downstream of them and the rest is tried again. `Err` holds every problem
 /// found when nothing can run.
-fn runnable<'r>(graph: &Graph, path: &Path, registry: &'r Registry) -> Result<Runnable<'r>, GraphErrors> {
+fn runnable<'r>(
+    graph: &Graph,
+    path: &Path,
+    registry: &'r Registry,
+    unsaved: &Unsaved,
+) -> Result<Runnable<'r>, GraphErrors> {
     let mut graph = graph.clone();
     let mut problems: Option<GraphErrors> = None;
     let mut left_out = BTreeSet::new();
     loop {
-        let errors = match compile_file(&GraphFile::in_memory(graph.clone(), path), registry) {
+        let errors = match compile_file_with(&GraphFile::in_memory(graph.clone(), path), registry, unsaved) {
             Ok(compiled) => return Ok(Runnable { compiled, problems, left_out }),
             Err(errors) => errors,
         };
@@ -110,6 +117,7 @@ struct Job {
     request: u64,
     graph: Graph,
     base_dir: PathBuf,
+    unsaved: Unsaved,
     cancel: Arc<AtomicBool>,
 }
 
@@ -138,10 +146,15 @@ impl Worker {
     /// Asks for an evaluation of `graph` (relative paths resolve against `base_dir`),
     /// cancelling the one in flight. Returns the new request id.
     pub fn submit(&mut self, graph: Graph, base_dir: PathBuf) -> u64 {
+        self.submit_with(graph, base_dir, Unsaved::new())
+    }
+
+    /// [`Worker::submit`], with subgraph files read from `unsaved` where it has them.
+    pub fn submit_with(&mut self, graph: Graph, base_dir: PathBuf, unsaved: Unsaved) -> u64 {
         self.cancel.store(true, Ordering::Relaxed);
         self.cancel = Arc::new(AtomicBool::new(false));
         self.latest += 1;
-        let job = Job { request: self.latest, graph, base_dir, cancel: self.cancel.clone() };
+        let job = Job { request: self.latest, graph, base_dir, unsaved, cancel: self.cancel.clone() };
         if let Some(jobs) = &self.jobs {
             // A closed channel means the thread is gone; `running` then stays true and the
             // editor shows the graph as not evaluated, which is the honest state.
@@ -214,7 +227,7 @@ fn worker_loop(engine: Engine, jobs: &Receiver<Job>, messages: &Sender<(u64, Wor
         };
         // Relative paths (subgraph files among them) resolve against the graph's folder.
         let Runnable { compiled, problems, left_out } =
-            match runnable(&job.graph, &job.base_dir.join("(editor)"), engine.registry()) {
+            match runnable(&job.graph, &job.base_dir.join("(editor)"), engine.registry(), &job.unsaved) {
                 Ok(runnable) => runnable,
                 Err(errors) => {
                     send(WorkerMessage::Invalid(errors));

@@ -16,4 +16,7 @@ pub use evaluate::{Engine, MEMORY_KEEP_RUNS, RunEvent, RunOptions};
 pub use fingerprint::{FileIdentity, Fingerprint};
 pub use memory::{default_memory_limit, parse_memory_size};
 pub use report::{NodeReport, NodeStatus, RunReport};
-pub use subgraph::{MAX_DEPTH, compile_file, expand_subgraphs};
+pub use subgraph::{
+    FaceParam, FacePort, MAX_DEPTH, SubgraphFace, Unsaved, check_connect, check_face_types, compile_file,
+    compile_file_with, expand_subgraphs, face,
+};

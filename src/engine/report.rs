@@ -3,7 +3,9 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use kinegraph_nodes::node::{Report, Value};
+use kinegraph_nodes::node::{Registry, Report, Value};
+
+use crate::graph::PortRef;
 use serde::Serialize;
 
 /// How a node's evaluation ended.
@@ -55,6 +57,13 @@ pub struct RunReport {
 }
 
 impl RunReport {
+    /// The value a node gave at output `port` (found by its kind's schema), if it ran.
+    pub fn output(&self, registry: &Registry, port: &PortRef) -> Option<&Value> {
+        let kind = &self.nodes.get(port.node.as_str())?.kind;
+        let index = registry.get(kind)?.schema().outputs.iter().position(|p| p.name == port.port)?;
+        self.outputs.get(port.node.as_str())?.get(index)?.as_ref()
+    }
+
     /// True when every needed node succeeded (ran or cached).
     pub fn succeeded(&self) -> bool {
         self.nodes.values().all(|n| matches!(n.status, NodeStatus::Ok | NodeStatus::Cached))

@@ -14,10 +14,10 @@
 //!    its ports (types checked at the boundary), and point outer graph inputs that named
 //!    the node's parameters at the inner parameters.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-use kinegraph_nodes::node::{ParamValue, Registry};
+use kinegraph_nodes::node::{ParamSpec, ParamValue, PortType, Registry};
 
 use super::compile::{CompiledGraph, compile_fed};
 use crate::document::{SUBGRAPH_FILE_PARAM, SUBGRAPH_KIND};
@@ -29,11 +29,26 @@ use crate::graph::{
 /// How deep subgraphs may nest.
 pub const MAX_DEPTH: usize = 16;
 
+/// Graphs being edited and not yet saved, by the file they come from: a subgraph whose file
+/// is one of these is read from here (the editor evaluates a subgraph opened from a graph
+/// in that graph, with its unsaved edits).
+pub type Unsaved = BTreeMap<PathBuf, Graph>;
+
 /// A graph file ready to run: its subgraphs expanded, then validated. Every front end
 /// (`kg run`, `kg check`, `kg watch`, the farm, the editor) prepares graphs through this.
 pub fn compile_file<'r>(file: &GraphFile, registry: &'r Registry) -> Result<CompiledGraph<'r>, GraphErrors> {
+    compile_file_with(file, registry, &Unsaved::new())
+}
+
+/// [`compile_file`], reading the subgraph files named in `unsaved` from there.
+pub fn compile_file_with<'r>(
+    file: &GraphFile,
+    registry: &'r Registry,
+    unsaved: &Unsaved,
+) -> Result<CompiledGraph<'r>, GraphErrors> {
     let mut includes = BTreeSet::new();
-    let expanded = expand_subgraphs(file, registry, &mut includes)?;
+    let unsaved: Unsaved = unsaved.iter().map(|(path, graph)| (identity(path), graph.clone())).collect();
+    let expanded = expand(file, registry, &unsaved, &mut includes)?;
     let mut compiled = super::compile(&expanded.graph, registry, &file.path, &file.source)?;
     compiled.includes = includes.into_iter().collect();
     Ok(compiled)
@@ -46,8 +61,17 @@ pub fn expand_subgraphs(
     registry: &Registry,
     includes: &mut BTreeSet<PathBuf>,
 ) -> Result<GraphFile, GraphErrors> {
+    expand(file, registry, &Unsaved::new(), includes)
+}
+
+fn expand(
+    file: &GraphFile,
+    registry: &Registry,
+    unsaved: &Unsaved,
+    includes: &mut BTreeSet<PathBuf>,
+) -> Result<GraphFile, GraphErrors> {
     let mut stack = vec![identity(&file.path)];
-    let graph = expand(file, registry, &mut stack, includes)?;
+    let graph = expand_in(file, registry, unsaved, &mut stack, includes)?;
     Ok(GraphFile { graph, ..file.clone() })
 }
 
@@ -56,9 +80,10 @@ fn identity(path: &Path) -> PathBuf {
     std::fs::canonicalize(path).unwrap_or_else(|_| std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf()))
 }
 
-fn expand(
+fn expand_in(
     file: &GraphFile,
     registry: &Registry,
+    unsaved: &Unsaved,
     stack: &mut Vec<PathBuf>,
     includes: &mut BTreeSet<PathBuf>,
 ) -> Result<Graph, GraphErrors> {
@@ -70,7 +95,7 @@ fn expand(
     let mut out = file.graph.clone();
     let mut errors = Vec::new();
     for id in ids {
-        if let Err(e) = inline(&mut out, file, &id, registry, stack, includes) {
+        if let Err(e) = inline(&mut out, file, &id, registry, unsaved, stack, includes) {
             match e {
                 Failure::Here(list) => errors.extend(list),
                 Failure::Inside(inner) => return Err(inner),
@@ -99,6 +124,7 @@ fn inline(
     file: &GraphFile,
     id: &NodeId,
     registry: &Registry,
+    unsaved: &Unsaved,
     stack: &mut Vec<PathBuf>,
     includes: &mut BTreeSet<PathBuf>,
 ) -> Result<(), Failure> {
@@ -117,7 +143,11 @@ fn inline(
     if stack.len() > MAX_DEPTH {
         return Err(fail(format!("subgraphs nest deeper than {MAX_DEPTH} files at '{rel}'")).into());
     }
-    let mut child = match GraphFile::load(&path) {
+    let loaded = match unsaved.get(&key) {
+        Some(graph) => Ok(GraphFile::in_memory(graph.clone(), &path)),
+        None => GraphFile::load(&path),
+    };
+    let mut child = match loaded {
         Ok(child) => child,
         Err(LoadError::Document(e)) => return Err(fail(format!("subgraph file: {e}")).into()),
         Err(LoadError::Structure(e)) => return Err(Failure::Inside(e)),
@@ -160,13 +190,15 @@ fn inline(
 
     // 3. Its own subgraphs, then the file validated alone.
     stack.push(key);
-    let inner = expand(&child, registry, stack, includes);
+    let inner = expand_in(&child, registry, unsaved, stack, includes);
     stack.pop();
     let inner = inner.map_err(Failure::Inside)?;
     // Its ports as expanded (a port may lead into one of its own subgraphs).
     let ports = inner.ports().clone();
     let fed: BTreeSet<PortRef> = ports.inputs.values().flatten().cloned().collect();
     compile_fed(&inner, registry, &child.path, &child.source, &fed).map_err(Failure::Inside)?;
+    let (face_inputs, _) =
+        face_ports(&inner, registry).map_err(|e| Failure::Inside(located(&child.path, &child.source, e)))?;
 
     // 4. Inline under `id/`, rewire the outer edges through the ports.
     let into: Vec<Edge> = out.edges().filter(|e| &e.to.node == id).cloned().collect();
@@ -192,15 +224,20 @@ fn inline(
         },
     };
     for e in into {
-        let Some(targets) = ports.inputs.get(&e.to.port) else {
+        let Some(face) = face_inputs.iter().find(|p| p.name == e.to.port) else {
             errors.push(unknown_port(&e.to, Side::Input));
             continue;
         };
-        for target in targets {
-            if let Err(err) = boundary_types(out, &inner, registry, &e.from, target, &e.to) {
+        // An outer end that is itself a subgraph is checked when the expanded graph is compiled.
+        if !rules::is_subgraph(out, &e.from.node) && !e.from.node.as_str().contains('/') {
+            let checked = rules::port_type(out, registry, &e.from, Side::Output)
+                .and_then(|ty| rules::same_type(&e.from, ty, &e.to, face.ty));
+            if let Err(err) = checked {
                 errors.push(err);
                 continue;
             }
+        }
+        for target in &face.inner {
             out.insert_edge_unchecked(Edge { from: e.from.clone(), to: prefixed(target) });
         }
     }
@@ -249,29 +286,178 @@ fn inline(
     if errors.is_empty() { Ok(()) } else { Err(Failure::Here(errors)) }
 }
 
-/// An outer output feeding a subgraph's inner input must carry the inner input's type;
-/// checked here, where the outer edge can still be pointed at in the outer file. An outer
-/// end that is itself a subgraph is checked when the expanded graph is compiled.
-fn boundary_types(
-    out: &Graph,
-    inner: &Graph,
+/// A port a subgraph file shows, typed by the inner ports it leads to.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FacePort {
+    /// The port's public name.
+    pub name: String,
+    /// Its type.
+    pub ty: PortType,
+    /// Inputs: whether an inner input it feeds refuses to run without it.
+    pub required: bool,
+    /// The inner port's doc text (the first one's, for an input feeding several).
+    pub doc: &'static str,
+    /// Where it leads in the expanded file: the inner inputs it feeds, or the one inner
+    /// output it gives.
+    pub inner: Vec<PortRef>,
+}
+
+/// A parameter a subgraph node takes: one of its file's graph inputs.
+#[derive(Clone, Debug)]
+pub struct FaceParam {
+    /// The graph input's name (the node's parameter name).
+    pub name: String,
+    /// The spec of the inner parameter it sets.
+    pub spec: &'static ParamSpec,
+    /// The value the file itself gives that parameter, if any (else the spec's default).
+    pub value: Option<ParamValue>,
+}
+
+/// What a subgraph node shows of its file: typed ports and parameters, for the editor to
+/// draw pins and parameter fields as for any node.
+#[derive(Clone, Debug)]
+pub struct SubgraphFace {
+    /// The subgraph's file.
+    pub path: PathBuf,
+    /// The file's description.
+    pub description: String,
+    /// Its input ports.
+    pub inputs: Vec<FacePort>,
+    /// Its output ports.
+    pub outputs: Vec<FacePort>,
+    /// Its graph inputs, in name order.
+    pub params: Vec<FaceParam>,
+}
+
+impl SubgraphFace {
+    /// The port called `name` on `side`.
+    pub fn port(&self, name: &str, side: Side) -> Option<&FacePort> {
+        let ports = match side {
+            Side::Input => &self.inputs,
+            Side::Output => &self.outputs,
+        };
+        ports.iter().find(|p| p.name == name)
+    }
+}
+
+/// The face of the subgraph file at `path`: its own subgraphs expanded, each port typed by
+/// what it leads to. The error names the file and what is wrong in it.
+pub fn face(path: &Path, registry: &Registry) -> Result<SubgraphFace, String> {
+    let file = GraphFile::load(path).map_err(|e| e.to_string())?;
+    let mut includes = BTreeSet::new();
+    let expanded = expand_subgraphs(&file, registry, &mut includes).map_err(|e| e.to_string())?;
+    let inner = &expanded.graph;
+    let (inputs, outputs) =
+        face_ports(inner, registry).map_err(|e| located(&file.path, &file.source, e).to_string())?;
+    let mut params = Vec::new();
+    for (name, target) in inner.inputs() {
+        let spec = rules::param_spec(inner, registry, target)
+            .map_err(|e| format!("{}: graph input '{name}': {e}", path.display()))?;
+        let value = inner.node(target.node.as_str()).and_then(|n| n.params.get(&target.param)).cloned();
+        params.push(FaceParam { name: name.clone(), spec, value });
+    }
+    Ok(SubgraphFace { path: path.to_path_buf(), description: inner.description().to_string(), inputs, outputs, params })
+}
+
+/// The typed ports of an expanded subgraph file; an input leading to inner inputs of
+/// different types is refused, as no outer wire could feed it.
+fn face_ports(inner: &Graph, registry: &Registry) -> Result<(Vec<FacePort>, Vec<FacePort>), Vec<GraphError>> {
+    let mut errors = Vec::new();
+    let mut inputs = Vec::new();
+    for (name, targets) in &inner.ports().inputs {
+        let mut face: Option<FacePort> = None;
+        for target in targets {
+            let spec = match rules::port_spec(inner, registry, target, Side::Input) {
+                Ok(spec) => spec,
+                Err(e) => {
+                    errors.push(e);
+                    continue;
+                }
+            };
+            match &mut face {
+                None => {
+                    face = Some(FacePort {
+                        name: name.clone(),
+                        ty: spec.ty,
+                        required: spec.required,
+                        doc: spec.doc,
+                        inner: vec![target.clone()],
+                    });
+                }
+                Some(face) => match rules::same_type(&face.inner[0], face.ty, target, spec.ty) {
+                    Ok(()) => {
+                        face.required |= spec.required;
+                        face.inner.push(target.clone());
+                    }
+                    Err(e) => errors.push(e),
+                },
+            }
+        }
+        inputs.extend(face);
+    }
+    let mut outputs = Vec::new();
+    for (name, source) in &inner.ports().outputs {
+        match rules::port_spec(inner, registry, source, Side::Output) {
+            Ok(spec) => outputs.push(FacePort {
+                name: name.clone(),
+                ty: spec.ty,
+                required: false,
+                doc: spec.doc,
+                inner: vec![source.clone()],
+            }),
+            Err(e) => errors.push(e),
+        }
+    }
+    if errors.is_empty() { Ok((inputs, outputs)) } else { Err(errors) }
+}
+
+/// Whether `from → to` may be added to `graph` whose subgraph nodes show `faces` (by node
+/// id): the graph's own rules ([`rules::check_connect`]) and [`check_face_types`]. The
+/// editor refuses with this what a run would refuse.
+pub fn check_connect(
+    graph: &Graph,
     registry: &Registry,
-    outer_from: &PortRef,
-    inner_to: &PortRef,
-    outer_to: &PortRef,
+    faces: &BTreeMap<NodeId, SubgraphFace>,
+    from: &PortRef,
+    to: &PortRef,
 ) -> Result<(), GraphError> {
-    if rules::is_subgraph(out, &outer_from.node) || outer_from.node.as_str().contains('/') {
+    rules::check_connect(graph, registry, from, to)?;
+    check_face_types(graph, registry, faces, from, to)
+}
+
+/// At a subgraph end of `from → to`, the port its file shows exists and carries the other
+/// end's type. An end whose type is not known here (a node not in `graph` yet, a subgraph
+/// whose file cannot be read) is left to the run.
+pub fn check_face_types(
+    graph: &Graph,
+    registry: &Registry,
+    faces: &BTreeMap<NodeId, SubgraphFace>,
+    from: &PortRef,
+    to: &PortRef,
+) -> Result<(), GraphError> {
+    if !faces.contains_key(&from.node) && !faces.contains_key(&to.node) {
         return Ok(());
     }
-    let from_ty = rules::port_type(out, registry, outer_from, Side::Output)?;
-    let to_ty = rules::port_type(inner, registry, inner_to, Side::Input)?;
-    if from_ty != to_ty {
-        return Err(GraphError::TypeMismatch {
-            from: outer_from.clone(),
-            from_ty: from_ty.name(),
-            to: outer_to.clone(),
-            to_ty: to_ty.name(),
-        });
+    let typed = |port: &PortRef, side: Side| -> Result<Option<PortType>, GraphError> {
+        let Some(face) = faces.get(&port.node) else {
+            let known = graph.contains(port.node.as_str()) && !rules::is_subgraph(graph, &port.node);
+            return if known { rules::port_type(graph, registry, port, side).map(Some) } else { Ok(None) };
+        };
+        match face.port(&port.port, side) {
+            Some(p) => Ok(Some(p.ty)),
+            None => Err(GraphError::UnknownSubgraphPort {
+                port: port.clone(),
+                file: face.path.display().to_string(),
+                side,
+                shown: match side {
+                    Side::Input => face.inputs.iter().map(|p| p.name.clone()).collect(),
+                    Side::Output => face.outputs.iter().map(|p| p.name.clone()).collect(),
+                },
+            }),
+        }
+    };
+    match (typed(from, Side::Output)?, typed(to, Side::Input)?) {
+        (Some(from_ty), Some(to_ty)) => rules::same_type(from, from_ty, to, to_ty),
+        _ => Ok(()),
     }
-    Ok(())
 }

@@ -229,13 +229,13 @@ impl Graph {
         &self.layout
     }
 
-    /// Adds node `id` of `kind` (both checked) at canvas position `pos`.
+    /// Adds node `id` of `kind` (both checked; see [`rules::check_kind`]) at canvas position `pos`.
     pub fn add_node(&mut self, registry: &Registry, id: NodeId, kind: &str, pos: (f32, f32)) -> Result<(), GraphError> {
         id.check()?;
         if self.nodes.contains_key(&id) {
             return Err(GraphError::DuplicateId(id));
         }
-        rules::schema_of_kind(registry, &id, kind)?;
+        rules::check_kind(registry, &id, kind)?;
         self.layout.insert(id.clone(), pos);
         self.nodes.insert(id, GraphNode { kind: kind.to_string(), params: BTreeMap::new() });
         Ok(())
@@ -337,7 +337,9 @@ impl Graph {
 
     /// Removes a parameter's value so the schema default applies; returns the old value.
     pub fn reset_param(&mut self, registry: &Registry, path: &ParamPath) -> Result<Option<ParamValue>, GraphError> {
-        rules::param_spec(self, registry, path)?;
+        if !rules::is_subgraph(self, &path.node) {
+            rules::param_spec(self, registry, path)?;
+        }
         let node = self.nodes.get_mut(&path.node).ok_or_else(|| rules::unknown_node(&path.node))?;
         Ok(node.params.remove(&path.param))
     }

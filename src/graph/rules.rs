@@ -2,7 +2,7 @@
 //! reports every breach of a file at once, and the editor refuses an edit that would break
 //! one, with the same words.
 
-use kinegraph_nodes::node::{NodeSchema, ParamSpec, ParamValue, PortType, Registry, did_you_mean, hint_for};
+use kinegraph_nodes::node::{NodeSchema, ParamSpec, ParamValue, PortSpec, PortType, Registry, did_you_mean, hint_for};
 
 use super::{Graph, GraphError, NodeId, ParamPath, PortRef, Side};
 
@@ -20,6 +20,12 @@ pub fn schema_of_kind(registry: &Registry, id: &NodeId, kind: &str) -> Result<&'
     })
 }
 
+/// `kind` may be given to node `id`: a registered kind, or a subgraph (whose file is
+/// checked when it is expanded).
+pub fn check_kind(registry: &Registry, id: &NodeId, kind: &str) -> Result<(), GraphError> {
+    if kind == crate::document::SUBGRAPH_KIND { Ok(()) } else { schema_of_kind(registry, id, kind).map(|_| ()) }
+}
+
 /// The schema of node `id` of `graph`.
 pub fn schema_of(graph: &Graph, registry: &Registry, id: &NodeId) -> Result<&'static NodeSchema, GraphError> {
     let node = graph.node(id.as_str()).ok_or_else(|| unknown_node(id))?;
@@ -28,6 +34,16 @@ pub fn schema_of(graph: &Graph, registry: &Registry, id: &NodeId) -> Result<&'st
 
 /// The type of port `port` on `side`, from its node's schema.
 pub fn port_type(graph: &Graph, registry: &Registry, port: &PortRef, side: Side) -> Result<PortType, GraphError> {
+    port_spec(graph, registry, port, side).map(|p| p.ty)
+}
+
+/// The schema entry of port `port` on `side`.
+pub fn port_spec(
+    graph: &Graph,
+    registry: &Registry,
+    port: &PortRef,
+    side: Side,
+) -> Result<&'static PortSpec, GraphError> {
     if !graph.contains(port.node.as_str()) {
         return Err(GraphError::EdgeToUnknownNode {
             port: port.clone(),
@@ -39,7 +55,7 @@ pub fn port_type(graph: &Graph, registry: &Registry, port: &PortRef, side: Side)
         Side::Input => schema.inputs,
         Side::Output => schema.outputs,
     };
-    ports.iter().find(|p| p.name == port.port).map(|p| p.ty).ok_or_else(|| GraphError::UnknownPort {
+    ports.iter().find(|p| p.name == port.port).ok_or_else(|| GraphError::UnknownPort {
         port: port.clone(),
         kind: schema.kind,
         side,
@@ -47,10 +63,21 @@ pub fn port_type(graph: &Graph, registry: &Registry, port: &PortRef, side: Side)
     })
 }
 
-/// Both ends exist and carry the same type: what every edge of a file must keep.
+/// Both ends exist and carry the same type: what every edge of a file must keep. A
+/// subgraph node's ports are its file's: they are checked where the file is read (subgraph
+/// expansion, the editor's subgraph faces), so only the other end is checked here.
 pub fn check_edge(graph: &Graph, registry: &Registry, from: &PortRef, to: &PortRef) -> Result<(), GraphError> {
-    let from_ty = port_type(graph, registry, from, Side::Output)?;
-    let to_ty = port_type(graph, registry, to, Side::Input)?;
+    let typed = |port: &PortRef, side: Side| {
+        if is_subgraph(graph, &port.node) { Ok(None) } else { port_type(graph, registry, port, side).map(Some) }
+    };
+    match (typed(from, Side::Output)?, typed(to, Side::Input)?) {
+        (Some(from_ty), Some(to_ty)) => same_type(from, from_ty, to, to_ty),
+        _ => Ok(()),
+    }
+}
+
+/// An output of type `from_ty` may feed an input of type `to_ty` only when they are equal.
+pub fn same_type(from: &PortRef, from_ty: PortType, to: &PortRef, to_ty: PortType) -> Result<(), GraphError> {
     if from_ty != to_ty {
         return Err(GraphError::TypeMismatch {
             from: from.clone(),
@@ -133,6 +160,10 @@ pub fn check_input(graph: &Graph, registry: &Registry, name: &str, target: &Para
     let bad = || GraphError::BadGraphInput { name: name.to_string(), target: target.to_string() };
     if !graph.contains(target.node.as_str()) {
         return Err(bad());
+    }
+    // A subgraph node's parameters are its file's graph inputs, checked when it is expanded.
+    if is_subgraph(graph, &target.node) {
+        return Ok(());
     }
     let schema = schema_of(graph, registry, &target.node).map_err(|_| bad())?;
     if schema.param(&target.param).is_none() {
