@@ -977,3 +977,63 @@ fn an_opened_subgraph_is_evaluated_in_its_graph_and_saved_on_the_way_back() {
     assert_eq!(saved.graph.node("resample").unwrap().params.get("fps"), Some(&ParamValue::Float(12.0)));
     assert_eq!(clip_at(harness.state(), "clean", "clip").fps(), 12.0);
 }
+
+/// Collapsing `load` and `trim` of a flat pipeline into `stages/front.ron` changes nothing
+/// it computes (the resampled clip is equal, frame for frame), the file's relative input
+/// path is rewritten for its folder, the graph input on `trim` now sets the new node, and
+/// undo gives back the flat graph byte for byte.
+#[test]
+fn collapsing_a_selection_into_a_subgraph_changes_no_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    std::fs::copy(assets.join("mannequin_walk.bvh"), dir.path().join("walk.bvh")).unwrap();
+    let path = dir.path().join("flat.ron");
+    std::fs::write(
+        &path,
+        r#"(format: "kinegraph.graph", version: 3,
+ inputs: { "end": "trim.end_secs" },
+ nodes: {
+   "load": (kind: "clip.load", params: { "path": "walk.bvh" }),
+   "trim": (kind: "clip.trim", params: { "end_secs": 1.5 }),
+   "resample": (kind: "clip.resample", params: { "fps": 24.0 }),
+ },
+ edges: [ (from: "load.clip", to: "trim.clip"), (from: "trim.clip", to: "resample.clip") ],
+ layout: { "load": (0.0, 0.0), "trim": (300.0, 0.0), "resample": (600.0, 0.0) })"#,
+    )
+    .unwrap();
+    let mut harness = harness(Some(&path));
+    let flat = document::to_string(&harness.state().doc());
+    let before = clip_at(harness.state(), "resample", "clip");
+    harness.get_by_label("load").click_accesskit();
+    harness.run_steps(2);
+    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::SHIFT));
+    harness.get_by_label("trim").click_accesskit();
+    harness.run_steps(2);
+    harness.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    harness.run_steps(1);
+    assert_eq!(sorted(harness.state().selection()), ["load", "trim"]);
+    let file = dir.path().join("stages/front.ron");
+    std::fs::create_dir_all(file.parent().unwrap()).unwrap();
+    harness.state_mut().collapse_selection(&file);
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(3);
+
+    let doc = harness.state().doc();
+    assert_eq!(doc.nodes.keys().cloned().collect::<Vec<_>>(), ["front", "resample"]);
+    assert_eq!(doc.nodes["front"].params.get("file"), Some(&ParamValue::Text("stages/front.ron".into())));
+    assert_eq!(doc.inputs.get("end").map(String::as_str), Some("front.end"));
+    let stage = kinegraph::graph::GraphFile::load(&file).unwrap().graph;
+    assert_eq!(stage.node("load").unwrap().params.get("path"), Some(&ParamValue::Text("../walk.bvh".into())));
+    assert_eq!(stage.ports().outputs.keys().cloned().collect::<Vec<_>>(), ["clip"]);
+    assert!(stage.ports().inputs.is_empty());
+    assert_eq!(harness.state().node_state("front"), "ok", "{:?}", harness.state().message());
+    assert_eq!(*clip_at(harness.state(), "resample", "clip"), *before);
+    // The promoted input still drives the trim, now through the subgraph.
+    let set = EditorCommand::SetParam { param: ParamPath::parse("front.end").unwrap(), value: ParamValue::Float(0.5) };
+    harness.state_mut().edit(set).unwrap();
+    harness.state_mut().wait_for_evaluation();
+    assert!((clip_at(harness.state(), "resample", "clip").duration_secs() - 0.5).abs() < 1e-9);
+    harness.state_mut().undo();
+    harness.state_mut().undo();
+    assert_eq!(document::to_string(&harness.state().doc()), flat);
+}

@@ -27,6 +27,8 @@ use crate::graph::{Graph, GraphFile, NodeId, PortRef, Side};
 enum Prompt {
     Open,
     SaveAs,
+    /// The file to collapse the selection into.
+    Collapse,
 }
 
 /// How often unsaved edits are autosaved (seconds).
@@ -331,6 +333,34 @@ impl EditorApp {
         }
     }
 
+    /// Moves the selection into a new subgraph file `file` (never one that exists) and puts
+    /// a node using it in its place, wired as the selection was: one undo step (the file
+    /// stays when it is undone).
+    pub fn collapse_selection(&mut self, file: &Path) {
+        if file.exists() {
+            self.message = Some((format!("{} exists: collapse into a new file", file.display()), true));
+            return;
+        }
+        let ids: Vec<NodeId> = self.selection.iter().map(|s| NodeId::from(s.as_str())).collect();
+        let stem = file.file_stem().map_or("subgraph".into(), |s| s.to_string_lossy().into_owned());
+        let id = super::commands::fresh_node_id(&self.graph, &stem);
+        let collapsed =
+            super::collapse::collapse(&self.graph, &self.registry, &ids, id.clone(), &self.base_dir(), file);
+        let done = collapsed.map_err(|e| e.to_string()).and_then(|c| {
+            document::save_file(&c.file.to_doc(), file).map_err(|e| e.to_string())?;
+            Ok(c.command)
+        });
+        match done {
+            Ok(command) => {
+                if self.edit(command).is_ok() {
+                    self.selection = vec![id.to_string()];
+                    self.message = Some((format!("collapsed into {} ({})", id, file.display()), false));
+                }
+            }
+            Err(e) => self.message = Some((format!("cannot collapse: {e}"), true)),
+        }
+    }
+
     /// Undoes the latest edit.
     pub fn undo(&mut self) {
         match self.history.undo(&mut self.graph, &self.registry) {
@@ -442,7 +472,7 @@ impl EditorApp {
         }
         match prompt {
             Prompt::Open => self.dialog.pick_file(),
-            Prompt::SaveAs => self.dialog.save_file(),
+            Prompt::SaveAs | Prompt::Collapse => self.dialog.save_file(),
         }
         self.prompt = Some(prompt);
     }
@@ -455,6 +485,7 @@ impl EditorApp {
             match prompt {
                 Prompt::Open => self.open(&path),
                 Prompt::SaveAs => self.save_as(&path),
+                Prompt::Collapse => self.collapse_selection(&path),
             }
         } else if !matches!(self.dialog.state(), egui_file_dialog::DialogState::Open) {
             self.prompt = None;
@@ -1028,6 +1059,16 @@ impl EditorApp {
                 }
                 if ui.add_enabled(any, egui::Button::new("Delete")).on_hover_text("Delete").clicked() {
                     self.delete_selection();
+                    ui.close();
+                }
+                ui.separator();
+                let collapse = egui::Button::new("Collapse into subgraph…");
+                if ui
+                    .add_enabled(any, collapse)
+                    .on_hover_text("move the selection into a new graph file used as one node")
+                    .clicked()
+                {
+                    self.open_dialog(Prompt::Collapse);
                     ui.close();
                 }
             });
