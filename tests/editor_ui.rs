@@ -1037,3 +1037,79 @@ fn collapsing_a_selection_into_a_subgraph_changes_no_result() {
     harness.state_mut().undo();
     assert_eq!(document::to_string(&harness.state().doc()), flat);
 }
+
+/// A left click at `pos` (screen), as the pointer gives it.
+fn click_at(harness: &mut Harness<'static, EditorApp>, pos: egui::Pos2) {
+    harness.event(egui::Event::PointerMoved(pos));
+    harness.run_steps(1);
+    for pressed in [true, false] {
+        harness.event(egui::Event::PointerButton {
+            pos,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+        harness.run_steps(1);
+    }
+}
+
+/// A click on a curve plot takes the viewport to that time, paused: a click further right
+/// is later, and both fall inside the 2 s walk the curves were computed from.
+#[test]
+fn a_click_on_a_curve_plot_moves_the_viewport_there() {
+    use egui_kittest::kittest::NodeT as _;
+    let dir = tempfile::tempdir().unwrap();
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    std::fs::copy(assets.join("mannequin_walk.bvh"), dir.path().join("walk.bvh")).unwrap();
+    let path = dir.path().join("momentum.ron");
+    std::fs::write(
+        &path,
+        r#"(format: "kinegraph.graph", version: 3,
+ nodes: {
+   "load": (kind: "clip.load", params: { "path": "walk.bvh" }),
+   "momentum": (kind: "motion.angular_momentum"),
+ },
+ edges: [ (from: "load.clip", to: "momentum.clip") ],
+ layout: { "load": (0.0, 0.0), "momentum": (300.0, 0.0) })"#,
+    )
+    .unwrap();
+    let mut harness = harness(Some(&path));
+    harness.state_mut().select(Some("momentum"));
+    harness.run_steps(3);
+    // The plot is drawn right below its channel toggles.
+    let toggles = harness
+        .get_all_by_role(Role::CheckBox)
+        .filter(|n| n.accesskit_node().label().is_some_and(|l| l.contains('(')))
+        .map(|n| n.rect())
+        .reduce(|a, b| a.union(b))
+        .unwrap();
+    let y = toggles.bottom() + 90.0;
+    let mut times = Vec::new();
+    for x in [toggles.left() + 120.0, toggles.left() + 240.0] {
+        click_at(&mut harness, egui::pos2(x, y));
+        harness.run_steps(2);
+        let (secs, playing) = harness.state().viewport_time();
+        assert!(!playing, "a click pauses");
+        times.push(secs);
+    }
+    assert!(0.0 < times[0] && times[0] < times[1] && times[1] <= 2.0, "{times:?}");
+}
+
+/// An input file parameter has a browse button that opens a file picker in the folder of
+/// the file it names; a picked file is written relative to the graph's folder, as graph
+/// files keep paths.
+#[test]
+fn a_path_param_is_browsed_for_and_kept_relative() {
+    let (dir, path) = staged_graph();
+    let mut harness = harness(Some(&path));
+    harness.state_mut().select(Some("load"));
+    harness.run_steps(2);
+    harness.get_by_label("…").click();
+    harness.run_steps(3);
+    harness.get_by_label_contains("Open File");
+    // What the picker hands back for a file in a subfolder is stored relative.
+    let picked = dir.path().join("stages").join("walk.bvh");
+    std::fs::copy(dir.path().join("walk.bvh"), &picked).unwrap();
+    harness.state_mut().set_path_param(ParamPath::parse("load.path").unwrap(), &picked);
+    assert_eq!(harness.state().doc().nodes["load"].params.get("path"), Some(&ParamValue::Text("stages/walk.bvh".into())));
+}

@@ -20,7 +20,7 @@ use super::viewport::{Motion, ShownMesh, SmokeDrawn, Viewport};
 use super::worker::{Worker, WorkerMessage};
 use crate::document;
 use crate::engine::{Engine, GraphErrors, NodeStatus, RunReport};
-use crate::graph::{Graph, GraphFile, NodeId, PortRef, Side};
+use crate::graph::{Graph, GraphFile, NodeId, ParamPath, PortRef, Side};
 
 /// What the file dialog is open for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -73,6 +73,10 @@ pub struct EditorApp {
     /// The file dialog and what it is open for.
     dialog: egui_file_dialog::FileDialog,
     prompt: Option<Prompt>,
+    /// The dialog picking an input file or folder for a parameter (any file type), and the
+    /// parameter.
+    browse_dialog: egui_file_dialog::FileDialog,
+    browsing: Option<ParamPath>,
     /// Recent files and autosaves live here.
     settings_dir: PathBuf,
     recent: RecentFiles,
@@ -137,6 +141,8 @@ impl EditorApp {
                 .add_save_extension("graph", "ron")
                 .default_save_extension("graph"),
             prompt: None,
+            browse_dialog: egui_file_dialog::FileDialog::new(),
+            browsing: None,
             recent: RecentFiles::load(&settings_dir),
             settings_dir,
             autosaved: (0.0, String::new()),
@@ -208,6 +214,11 @@ impl EditorApp {
     /// The latest evaluation's report (outputs included), if one came in.
     pub fn report(&self) -> Option<&RunReport> {
         self.report.as_ref()
+    }
+
+    /// The time the viewport shows (seconds) and whether it is playing.
+    pub fn viewport_time(&self) -> (f64, bool) {
+        (self.viewport.time_secs(), self.viewport.is_playing())
     }
 
     /// The foot contacts the viewport shows with its clip, if any.
@@ -490,6 +501,43 @@ impl EditorApp {
         } else if !matches!(self.dialog.state(), egui_file_dialog::DialogState::Open) {
             self.prompt = None;
         }
+    }
+
+    /// Opens the browse dialog for an input file or folder parameter, in the folder its
+    /// current value is in (else the graph's).
+    fn browse(&mut self, param: ParamPath, folder: bool) {
+        let current = self.graph.node(param.node.as_str()).and_then(|n| match n.params.get(&param.param) {
+            Some(kinegraph_nodes::node::ParamValue::Text(t)) => Some(self.base_dir().join(t)),
+            _ => None,
+        });
+        let dir = current.as_deref().and_then(|p| if folder { Some(p) } else { p.parent() }).map(Path::to_path_buf);
+        let dir = dir.filter(|d| d.is_dir()).unwrap_or_else(|| self.base_dir());
+        self.browse_dialog.config_mut().initial_directory = std::path::absolute(&dir).unwrap_or(dir);
+        if folder {
+            self.browse_dialog.pick_directory();
+        } else {
+            self.browse_dialog.pick_file();
+        }
+        self.browsing = Some(param);
+    }
+
+    /// The browse dialog: a picked path is set relative to the graph's folder.
+    fn browse_dialog(&mut self, ctx: &egui::Context) {
+        let Some(param) = self.browsing.clone() else { return };
+        self.browse_dialog.update(ctx);
+        if let Some(path) = self.browse_dialog.take_picked() {
+            self.browsing = None;
+            self.set_path_param(param, &path);
+        } else if !matches!(self.browse_dialog.state(), egui_file_dialog::DialogState::Open) {
+            self.browsing = None;
+        }
+    }
+
+    /// Sets a file or folder parameter to `path`, written relative to the graph's folder (as
+    /// graph files keep them, so the graph moves with its data).
+    pub fn set_path_param(&mut self, param: ParamPath, path: &Path) {
+        let text = crate::farm::plan::relative_to(path, &self.base_dir());
+        let _ = self.edit(EditorCommand::SetParam { param, value: kinegraph_nodes::node::ParamValue::Text(text) });
     }
 
     /// Offers unsaved work from an earlier session back: restore it (unsaved, so the file
@@ -909,6 +957,7 @@ impl EditorApp {
         egui::Panel::bottom("kg_viewport").resizable(true).default_size(380.0).show(ui, |ui| self.viewport(ui));
         egui::CentralPanel::default().show(ui, |ui| self.canvas(ui));
         self.file_dialog(ui.ctx());
+        self.browse_dialog(ui.ctx());
         self.recovery_window(ui.ctx());
         self.leaving_window(ui.ctx());
         self.autosave_tick(ui.ctx());
@@ -1151,13 +1200,20 @@ impl EditorApp {
         for e in edits {
             let _ = self.edit_coalescing(e.command, e.coalesce);
         }
+        if let Some((param, folder)) = self.panel.browse.take() {
+            self.browse(param, folder);
+        }
         // Owned (each value is a shared pointer), as the panel state is borrowed mutably.
         let outputs: Vec<(String, Option<Value>)> =
             self.output_values(&id).into_iter().map(|(name, v)| (name.to_string(), v.cloned())).collect();
         if outputs.iter().any(|(_, v)| v.is_some()) {
             ui.separator();
             let inputs: Vec<Value> = self.input_values(&id).into_iter().cloned().collect();
+            self.results.playhead = self.viewport.time_secs();
             results::show(ui, &mut self.results, &id, &outputs, &inputs);
+            if let Some(secs) = self.results.seek.take() {
+                self.viewport.seek(secs);
+            }
         }
     }
 

@@ -20,9 +20,12 @@ pub(crate) struct PanelEdit {
     pub(crate) coalesce: bool,
 }
 
-/// Text being typed into path fields, kept until Enter or focus loss.
+/// Text being typed into path fields, kept until Enter or focus loss, and a file asked for.
 #[derive(Default)]
 pub(crate) struct PanelState {
+    /// An input file or folder parameter whose browse button was pressed, and whether it
+    /// takes a folder.
+    pub(crate) browse: Option<(ParamPath, bool)>,
     /// `(node, param, text)` of the field being edited.
     editing: Option<(String, String, String)>,
 }
@@ -232,6 +235,12 @@ fn param_row(
                 if text != stored {
                     edits.push(PanelEdit { command: set_cmd(ParamValue::Text(text)), coalesce: false });
                 }
+            }
+            let folder = matches!(spec.kind, ParamKind::InputFolder { .. });
+            if matches!(spec.kind, ParamKind::InputPath { .. } | ParamKind::InputFolder { .. })
+                && ui.small_button("…").on_hover_text(if folder { "pick a folder" } else { "pick a file" }).clicked()
+            {
+                state.browse = Some((ParamPath::new(id, name), folder));
             }
         }
     }

@@ -6,14 +6,19 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use egui::{CollapsingHeader, Color32, RichText, Ui};
-use egui_plot::{Line, Plot, Span};
+use egui_plot::{Line, Plot, Span, VLine};
 use kinegraph_nodes::model::{Contacts, Curves, FrameRange, Phases, StageKind, Stages};
 use kinegraph_nodes::node::{Report, Value};
 use serde_json::Value as Json;
 
-/// Which curve channels the user turned on, per node and port.
+/// Which curve channels the user turned on, per node and port, and the viewport's time the
+/// plots mark.
 #[derive(Default)]
 pub(crate) struct ResultsState {
+    /// The viewport's time (seconds), drawn as a line on every curve plot.
+    pub(crate) playhead: f64,
+    /// A time picked by a click on a curve plot, for the viewport to jump to.
+    pub(crate) seek: Option<f64>,
     /// `node.port.channel` of every channel switched on.
     shown: BTreeSet<String>,
     /// `node.port` whose default channels were already switched on once.
@@ -272,7 +277,7 @@ fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves
     let unit = channels.iter().find(|c| state.shown.contains(&format!("{key}.{}", c.name))).map(|c| c.unit.clone());
     // A y axis wide enough for its tick labels (a narrow one showed only "0").
     let plot = Plot::new(format!("{key}.plot")).height(180.0).x_axis_label("s").y_axis_min_width(52.0);
-    plot.y_axis_label(unit.unwrap_or_default()).show(ui, |plot| {
+    let response = plot.y_axis_label(unit.unwrap_or_default()).show(ui, |plot| {
         for b in bands {
             plot.span(Span::new(b.name.as_str(), b.start_secs..=b.end_secs).fill(band_colour(&b.name, 40)));
         }
@@ -280,9 +285,18 @@ fn curves_plot(ui: &mut Ui, state: &mut ResultsState, key: &str, curves: &Curves
             let points: Vec<[f64; 2]> = c.values.iter().enumerate().map(|(i, v)| [i as f64 / fps, *v]).collect();
             plot.line(Line::new(c.name.clone(), points).color(channel_colour(i)));
         }
+        plot.vline(VLine::new("time", state.playhead).color(PLAYHEAD).width(1.5));
+        // A click on the plot moves the viewport there (drags still pan and zoom the plot).
+        plot.response().clicked().then(|| plot.pointer_coordinate()).flatten().map(|p| p.x)
     });
+    if let Some(secs) = response.inner {
+        state.seek = Some(secs.max(0.0));
+    }
     state.bands.insert(key.to_string(), bands.to_vec());
 }
+
+/// The colour of the viewport's time on the plots.
+const PLAYHEAD: Color32 = Color32::from_rgb(255, 80, 80);
 
 /// The colour of channel `i` of a curve set: the toggles and the lines share it.
 fn channel_colour(i: usize) -> Color32 {

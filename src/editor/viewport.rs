@@ -348,6 +348,22 @@ impl Default for Viewport {
 }
 
 impl Viewport {
+    /// The time shown (seconds).
+    pub(crate) fn time_secs(&self) -> f64 {
+        self.time_secs
+    }
+
+    /// Whether it is playing.
+    pub(crate) fn is_playing(&self) -> bool {
+        self.playing
+    }
+
+    /// Shows time `secs` (seconds), paused, as a drag of the time slider does.
+    pub(crate) fn seek(&mut self, secs: f64) {
+        self.time_secs = secs;
+        self.playing = false;
+    }
+
     /// The foot contacts shown with the played clip, if any.
     pub(crate) fn contacts(&self) -> Option<&Contacts> {
         self.shown.as_ref()?.contacts.as_ref()
