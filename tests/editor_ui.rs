@@ -626,11 +626,12 @@ fn the_viewport_shows_the_graphs_own_contacts() {
 
 /// One plain wheel step up where the pointer is, through the editor's input hook (as the
 /// eframe window runs it on every frame's input).
-fn wheel_step(harness: &mut Harness<'static, EditorApp>) {
+/// One wheel step of `dy` points (positive zooms in) through the editor's wheel hook.
+fn wheel_step(harness: &mut Harness<'static, EditorApp>, dy: f32) {
     let mut raw = egui::RawInput::default();
     raw.events.push(egui::Event::MouseWheel {
         unit: egui::MouseWheelUnit::Point,
-        delta: egui::vec2(0.0, 60.0),
+        delta: egui::vec2(0.0, dy),
         phase: egui::TouchPhase::Move,
         modifiers: egui::Modifiers::NONE,
     });
@@ -648,7 +649,7 @@ fn the_wheel_zooms_the_canvas_at_the_pointer() {
     harness.hover_at(at);
     harness.run_steps(1);
     let before = harness.state().canvas_to_screen((430.0, 120.0)) - at;
-    wheel_step(&mut harness);
+    wheel_step(&mut harness, 60.0);
     harness.run_steps(3);
     let after = harness.state().canvas_to_screen((430.0, 120.0)) - harness.state().canvas_to_screen((330.0, 20.0));
     let moved = harness.state().canvas_to_screen((330.0, 20.0)) - at;
@@ -807,7 +808,7 @@ fn home_frames_the_whole_graph_again() {
     let opened = (harness.state().canvas_to_screen((0.0, 0.0)), harness.state().canvas_to_screen((100.0, 0.0)));
     harness.hover_at(harness.state().canvas_to_screen((330.0, 20.0)));
     harness.run_steps(1);
-    wheel_step(&mut harness);
+    wheel_step(&mut harness, 60.0);
     harness.run_steps(2);
     assert_ne!(harness.state().canvas_to_screen((100.0, 0.0)), opened.1, "zoomed");
     harness.key_press(egui::Key::Home);
@@ -1111,5 +1112,33 @@ fn a_path_param_is_browsed_for_and_kept_relative() {
     let picked = dir.path().join("stages").join("walk.bvh");
     std::fs::copy(dir.path().join("walk.bvh"), &picked).unwrap();
     harness.state_mut().set_path_param(ParamPath::parse("load.path").unwrap(), &picked);
-    assert_eq!(harness.state().doc().nodes["load"].params.get("path"), Some(&ParamValue::Text("stages/walk.bvh".into())));
+    assert_eq!(
+        harness.state().doc().nodes["load"].params.get("path"),
+        Some(&ParamValue::Text("stages/walk.bvh".into()))
+    );
+}
+
+/// Zoomed out as far as the canvas goes (a fifth of full size), node titles grow against the zoom, so an
+/// overview keeps readable ids: on screen at least twice the size plain text would have.
+#[test]
+fn titles_stay_readable_zoomed_far_out() {
+    let mut harness = harness(Some(&demo_path()));
+    let centre = harness.state().canvas_to_screen((300.0, 100.0));
+    harness.hover_at(centre);
+    harness.run_steps(1);
+    let zoom = |h: &Harness<'static, EditorApp>| {
+        (h.state().canvas_to_screen((100.0, 0.0)).x - h.state().canvas_to_screen((0.0, 0.0)).x) / 100.0
+    };
+    for _ in 0..40 {
+        if zoom(&harness) < 0.201 {
+            break;
+        }
+        wheel_step(&mut harness, -60.0);
+    }
+    harness.run_steps(3);
+    let z = zoom(&harness);
+    assert!(z < 0.201, "zoomed out to {z} (the canvas stops at 0.2)");
+    let plain = egui::TextStyle::Body.resolve(&egui::Style::default()).size * z;
+    let title = harness.get_by_label("resample").rect().height();
+    assert!(title >= 2.0 * plain, "title {title:.1} px high at zoom {z:.3}; plain text would be {plain:.1}");
 }

@@ -205,8 +205,16 @@ impl Canvas {
     ) -> CanvasOutput {
         self.level_of_detail(ui.max_rect());
         let id = self.widget_id();
-        let mut viewer =
-            Viewer { graph, registry, faces, badges, marks, search: &mut self.search, out: CanvasOutput::default() };
+        let mut viewer = Viewer {
+            graph,
+            registry,
+            faces,
+            badges,
+            marks,
+            zoom: self.to_screen.scaling,
+            search: &mut self.search,
+            out: CanvasOutput::default(),
+        };
         let mut style = SnarlStyle::new();
         style.collapsible = Some(false);
         style.centering = Some(true);
@@ -243,6 +251,16 @@ impl Canvas {
         out
     }
 }
+
+/// A node's id as its title (text of `size` points at a readable zoom): zoomed out past [`DETAIL_ZOOM`] it grows (up to
+/// [`TITLE_GROWTH`] times) against the zoom, so ids stay readable in an overview instead of
+/// shrinking until their letters drop out.
+fn title_text(id: &str, zoom: f32, size: f32) -> RichText {
+    let growth = (DETAIL_ZOOM / zoom.max(1e-3)).clamp(1.0, TITLE_GROWTH);
+    RichText::new(id).strong().size(size * growth)
+}
+/// How much a title may grow when zoomed out.
+const TITLE_GROWTH: f32 = 2.5;
 
 /// Canvas distance between the columns and rows of [`layered_layout`] (points at 1:1).
 const COLUMN: f32 = 300.0;
@@ -462,6 +480,8 @@ struct Viewer<'a> {
     graph: &'a Graph,
     registry: &'a Registry,
     faces: &'a Faces,
+    /// The canvas' scale (screen points per graph unit) as last drawn.
+    zoom: f32,
     badges: &'a BTreeMap<String, Badge>,
     marks: Marks<'a>,
     search: &'a mut CatalogueSearch,
@@ -507,7 +527,8 @@ impl SnarlViewer<String> for Viewer<'_> {
         let badge = self.badges.get(id).unwrap_or(&Badge::Idle);
         let (text, color) = badge.label();
         ui.horizontal(|ui| {
-            let title = ui.add(egui::Label::new(RichText::new(id).strong()).sense(egui::Sense::click()));
+            let body = egui::TextStyle::Body.resolve(ui.style()).size;
+            let title = ui.add(egui::Label::new(title_text(id, self.zoom, body)).sense(egui::Sense::click()));
             let title = title
                 .on_hover_text("click to select and edit its parameters; shift-click to add; right-click for its menu");
             if title.clicked() {
