@@ -14,7 +14,9 @@ use super::angular::central_difference;
 use super::body::{Landmarks, limb_tip};
 use super::roles::roles_of;
 use crate::model::names::did_you_mean;
-use crate::model::{Clip, ClipPoses, Contacts, FootContacts, FrameRange, Skeleton, intervals::intersect_all};
+use crate::model::{
+    Clip, ClipPoses, Contacts, FootContacts, FrameRange, Skeleton, intervals::intersect_all, intervals::union_all,
+};
 
 /// Foot joints named by the user where detection fails (an unusual rig): the ankles and the
 /// toe points watched with them, left then right. `None`: the ankles come from the body
@@ -104,20 +106,6 @@ fn point_contacts(track: &[DVec3], fps: f64, t: &ContactThresholds) -> Vec<Frame
     out
 }
 
-/// Union of two sorted, disjoint interval lists.
-fn union(a: &[FrameRange], b: &[FrameRange]) -> Vec<FrameRange> {
-    let mut all: Vec<FrameRange> = a.iter().chain(b).copied().collect();
-    all.sort();
-    let mut out: Vec<FrameRange> = Vec::new();
-    for r in all {
-        match out.last_mut() {
-            Some(last) if r.start <= last.end => last.end = last.end.max(r.end),
-            _ => out.push(r),
-        }
-    }
-    out
-}
-
 /// Contacts of both feet of `clip` from precomputed world `poses`.
 pub fn detect_contacts(
     clip: &Clip,
@@ -148,7 +136,7 @@ fn feet_contacts(
             let intervals = if toe == ankle {
                 ankle_contacts
             } else {
-                union(&ankle_contacts, &point_contacts(&track(toe), clip.fps(), thresholds))
+                union_all(&ankle_contacts, &point_contacts(&track(toe), clip.fps(), thresholds))
             };
             FootContacts { foot: skeleton.joints()[ankle].name.clone(), intervals }
         })
@@ -224,12 +212,5 @@ mod tests {
         assert_eq!(got[0].start, 0);
         assert!((100..125).contains(&got[0].end), "{got:?}");
         assert!((175..200).contains(&got[1].start) && got[1].end == 300, "{got:?}");
-    }
-
-    #[test]
-    fn union_merges_overlaps() {
-        let a = [FrameRange::new(0, 5), FrameRange::new(10, 12)];
-        let b = [FrameRange::new(4, 8), FrameRange::new(20, 21)];
-        assert_eq!(union(&a, &b), vec![FrameRange::new(0, 8), FrameRange::new(10, 12), FrameRange::new(20, 21)]);
     }
 }

@@ -102,6 +102,21 @@ pub fn intersect_all(a: &[FrameRange], b: &[FrameRange]) -> Vec<FrameRange> {
     out
 }
 
+/// The frames inside either sorted, disjoint interval list, as one sorted, disjoint list
+/// (touching intervals merged).
+pub fn union_all(a: &[FrameRange], b: &[FrameRange]) -> Vec<FrameRange> {
+    let mut all: Vec<FrameRange> = a.iter().chain(b).copied().filter(|r| !r.is_empty()).collect();
+    all.sort();
+    let mut out: Vec<FrameRange> = Vec::with_capacity(all.len());
+    for r in all {
+        match out.last_mut() {
+            Some(last) if r.start <= last.end => last.end = last.end.max(r.end),
+            _ => out.push(r),
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -115,6 +130,13 @@ mod tests {
         let want: Vec<usize> = frames(&a).into_iter().filter(|f| frames(&b).contains(f)).collect();
         assert_eq!(frames(&got), want);
         assert_eq!(got.len(), 3);
+    }
+
+    #[test]
+    fn union_merges_overlapping_and_touching_intervals() {
+        let a = [FrameRange::new(0, 5), FrameRange::new(10, 12)];
+        let b = [FrameRange::new(4, 8), FrameRange::new(12, 14), FrameRange::new(20, 21), FrameRange::new(30, 30)];
+        assert_eq!(union_all(&a, &b), vec![FrameRange::new(0, 8), FrameRange::new(10, 14), FrameRange::new(20, 21)]);
     }
 
     #[test]

@@ -494,7 +494,7 @@ static CONCAT: NodeSchema = NodeSchema {
         SMOOTHING.0,
     ],
     writes_files: false,
-    version: 3,
+    version: 4,
 };
 
 fn set_joined(ctx: &mut NodeContext<'_>, joined: Concatenated) {

@@ -287,7 +287,7 @@ static TRANSITION: NodeSchema = NodeSchema {
     outputs: &[JOINED_OUT.spec(), TRANSITION_OUT.spec(), REPORT.spec()],
     params: &[SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0, FOOT_LOCK.0],
     writes_files: false,
-    version: 3,
+    version: 4,
 };
 
 impl Node for Transition {
@@ -315,8 +315,8 @@ impl Node for Transition {
 
 const FOOT_LOCK: ChoiceParam = ChoiceParam::new(
     "foot_lock",
-    "After synthesis, feet planted anywhere in the result (contacts detected on it) are held where they were put down by \
-     the foot lock's IK, and planted feet that a joined clip put under the floor are lifted onto it: the synthesised \
+    "After synthesis, feet planted anywhere in the result (contacts detected on it, and on the held result until the \
+     two agree) are held where they were put down by the foot lock's IK, and planted feet that a joined clip put under the floor are lifted onto it: the synthesised \
      transitions otherwise let the stance foot glide ('off' keeps the raw synthesis).",
     &["on", "off"],
     "on",
@@ -363,7 +363,7 @@ static SEQUENCE: NodeSchema = NodeSchema {
     outputs: &[SEQUENCE_OUT.spec(), REPORT.spec()],
     params: &[ACTIONS.0, LABELS.0, SEED.0, WINDOW_OUT.0, WINDOW_IN.0, MAX_CLIP_SECS.0, SIGMA.0, FOOT_LOCK.0],
     writes_files: false,
-    version: 3,
+    version: 4,
 };
 
 /// Plays `actions` (at least one, from the graph's clip set) one after another with a

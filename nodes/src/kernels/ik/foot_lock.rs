@@ -47,7 +47,10 @@ use crate::kernels::skinning::SkinError;
 use crate::kernels::soles::{foot_joints, lowest_sole_heights};
 use crate::math::smoothstep;
 use crate::model::fk::pose_world;
-use crate::model::{Clip, ClipError, ClipPoses, Contacts, FrameRange, Mesh, Transform, forward_kinematics};
+use crate::model::intervals::union_all;
+use crate::model::{
+    Clip, ClipError, ClipPoses, Contacts, FootContacts, FrameRange, Mesh, Transform, forward_kinematics,
+};
 
 /// Controls of a foot lock.
 #[derive(Clone, Debug, PartialEq)]
@@ -340,27 +343,67 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
 /// feet above: the corpus's ground.
 pub const CLEAN_UP_FLOOR_M: f64 = 0.0;
 
+/// Most times the clean-up re-detects contacts on its own result ([`hold_detected_plants`]);
+/// each pass can only widen plants, and one or two settle them on real clips.
+const CLEAN_UP_PASSES: usize = 4;
+
 /// The clean-up after a blend or a synthesised transition (Shum's foot-sliding fix after
 /// the blend, feet held through Peng's joins): the plants detected on `clip` with
 /// `thresholds`, narrowed by `select`, held where they were put down and lifted onto the
 /// floor where the joined clips put them under ([`Ground::AboveFloor`]). Gives the held
 /// clip and how many plants were held, or `None` when `select` leaves none (the clip needs
 /// no change).
+///
+/// A plant's shift fading in before it slows a landing foot (and fading out after it, a
+/// lifting one), so the same detection run on the held clip can find the plant starting
+/// earlier or ending later, on frames that were only partly held and still slide. Those
+/// frames join the plant and the clip is held again, until detection on the result finds
+/// no planted frame next to a plant that is not held (at most [`CLEAN_UP_PASSES`] times).
 pub fn hold_detected_plants(
     clip: &Clip,
     thresholds: &ContactThresholds,
     select: impl FnOnce(Contacts) -> Contacts,
 ) -> Result<Option<(Clip, usize)>, String> {
     let (detected, _) = contacts_of(clip, &forward_kinematics(clip), thresholds)?;
-    let plants = select(detected);
+    let mut plants = select(detected);
     let held: usize = plants.feet.iter().map(|c| c.intervals.len()).sum();
     if held == 0 {
         return Ok(None);
     }
     let params =
         FootLockParams { ground: Ground::AboveFloor { floor_height_m: CLEAN_UP_FLOOR_M }, ..FootLockParams::default() };
-    let locked = foot_lock(clip, &plants, &params).map_err(|e| e.to_string())?;
+    let mut locked = foot_lock(clip, &plants, &params).map_err(|e| e.to_string())?;
+    for _ in 1..CLEAN_UP_PASSES {
+        let (on_result, _) = contacts_of(&locked.clip, &forward_kinematics(&locked.clip), thresholds)?;
+        let widened = widen_plants(&plants, &on_result);
+        if widened == plants {
+            break;
+        }
+        plants = widened;
+        locked = foot_lock(clip, &plants, &params).map_err(|e| e.to_string())?;
+    }
+    let held: usize = plants.feet.iter().map(|c| c.intervals.len()).sum();
     Ok(Some((locked.clip, held)))
+}
+
+/// `plants` with every contact of `found` that overlaps or touches one of a foot's plants
+/// joined to it; contacts of `found` away from the plants are left out.
+fn widen_plants(plants: &Contacts, found: &Contacts) -> Contacts {
+    let feet = plants
+        .feet
+        .iter()
+        .zip(&found.feet)
+        .map(|(held, seen)| {
+            let touching: Vec<FrameRange> = seen
+                .intervals
+                .iter()
+                .filter(|r| held.intervals.iter().any(|h| r.start <= h.end && h.start <= r.end))
+                .copied()
+                .collect();
+            FootContacts { foot: held.foot.clone(), intervals: union_all(&held.intervals, &touching) }
+        })
+        .collect();
+    Contacts { feet, ..plants.clone() }
 }
 
 /// Horizontal travel of joint `point` between consecutive frames that are both fully
@@ -634,6 +677,30 @@ mod tests {
         // The 0.84 m leg holds the foot while the body is within reach of the plant, then
         // drags it: still much less sliding than the 1.7 m before (measured: 0.97 m).
         assert!(locked.feet[0].skate_after_m < 0.7 * locked.feet[0].skate_before_m, "{:?}", locked.feet[0]);
+    }
+
+    #[test]
+    fn plants_widen_by_the_contacts_found_next_to_them_and_only_those() {
+        let contacts = |left: Vec<FrameRange>, right: Vec<FrameRange>| Contacts {
+            fps: 30.0,
+            frame_count: 40,
+            feet: vec![
+                FootContacts { foot: "LeftFoot".into(), intervals: left },
+                FootContacts { foot: "RightFoot".into(), intervals: right },
+            ],
+            double_support: Vec::new(),
+        };
+        let r = FrameRange::new;
+        let held = contacts(vec![r(5, 10)], vec![r(20, 25)]);
+        // Found on the held clip: the left plant starting two frames earlier and a contact
+        // touching its end (10..11), one away from it (12..15); the right plant running on
+        // to 30, and one far before it (0..2).
+        let found = contacts(vec![r(3, 10), r(10, 11), r(12, 15)], vec![r(0, 2), r(24, 30)]);
+        let widened = widen_plants(&held, &found);
+        assert_eq!(widened.feet[0].intervals, vec![r(3, 11)]);
+        assert_eq!(widened.feet[1].intervals, vec![r(20, 30)]);
+        // Found nothing new: unchanged, so the clean-up stops.
+        assert_eq!(widen_plants(&held, &held), held);
     }
 
     #[test]
