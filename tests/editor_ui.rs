@@ -1142,3 +1142,58 @@ fn titles_stay_readable_zoomed_far_out() {
     let title = harness.get_by_label("resample").rect().height();
     assert!(title >= 2.0 * plain, "title {title:.1} px high at zoom {z:.3}; plain text would be {plain:.1}");
 }
+
+/// A row of nodes wider than the canvas at 1:1, with long ids.
+fn wide_graph(dir: &Path) -> PathBuf {
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    std::fs::copy(assets.join("mannequin_walk.bvh"), dir.join("walk.bvh")).unwrap();
+    let ids =
+        ["load_the_walk", "trim_the_start", "resample_for_export", "trim_again_longer_name", "final_resample_step"];
+    let mut nodes = String::new();
+    let mut edges = String::new();
+    let mut layout = String::new();
+    for (i, id) in ids.iter().enumerate() {
+        let (kind, params) = match i {
+            0 => ("clip.load", r#"params: { "path": "walk.bvh" }"#),
+            1 | 3 => ("clip.trim", ""),
+            _ => ("clip.resample", ""),
+        };
+        nodes += &format!("\"{id}\": (kind: \"{kind}\", {params}),\n");
+        layout += &format!("\"{id}\": ({}.0, 0.0),\n", i * 300);
+        if i > 0 {
+            edges += &format!("(from: \"{}.clip\", to: \"{id}.clip\"),\n", ids[i - 1]);
+        }
+    }
+    let path = dir.join("wide.ron");
+    std::fs::write(
+        &path,
+        format!("(format: \"kinegraph.graph\", version: 3, nodes: {{ {nodes} }}, edges: [ {edges} ], layout: {{ {layout} }})"),
+    )
+    .unwrap();
+    path
+}
+
+/// A graph opens with every node whole in view (the first view fitted node corners, so the
+/// last node's body hung off the right edge), and F fits the selected node: it fills more of
+/// the canvas, centred.
+#[test]
+fn a_graph_opens_fitted_whole_and_f_frames_the_selection() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = wide_graph(dir.path());
+    let mut harness = harness(Some(&path));
+    harness.run_steps(3);
+    let app = harness.state();
+    for id in app.graph().nodes().keys() {
+        let (node, canvas) = app.node_on_screen(id.as_str()).unwrap();
+        assert!(canvas.contains_rect(node), "{id}: {node:?} outside the canvas {canvas:?}");
+    }
+    let before = app.node_on_screen("trim_the_start").unwrap().0;
+    harness.get_by_label("trim_the_start").click_accesskit();
+    harness.run_steps(2);
+    harness.key_press(egui::Key::F);
+    harness.run_steps(3);
+    let (node, canvas) = harness.state().node_on_screen("trim_the_start").unwrap();
+    assert!(node.width() > 1.3 * before.width(), "zoomed onto it (up to 1:1): {before:?} → {node:?}");
+    assert!((node.center() - canvas.center()).length() < 2.0, "centred: {node:?} in {canvas:?}");
+    assert!(canvas.contains_rect(node));
+}

@@ -195,14 +195,23 @@ impl EditorApp {
 
     /// Fits the whole graph in the canvas (Home; also done when a graph is opened).
     pub fn frame_all(&mut self) {
-        self.canvas.frame_all();
-        self.snarl_selection.clear();
+        self.canvas.frame(&[]);
+    }
+
+    /// Fits the selection in the canvas (F), or the whole graph when nothing is selected.
+    pub fn frame_selection(&mut self) {
+        self.canvas.frame(&self.selection);
     }
 
     /// Where a point of the canvas (graph coordinates, as in a graph file's `layout`) is on
     /// screen, as last drawn.
     pub fn canvas_to_screen(&self, pos: (f32, f32)) -> egui::Pos2 {
         self.canvas.to_screen(egui::Pos2::new(pos.0, pos.1))
+    }
+
+    /// Node `id`'s area on screen and the canvas' area, as last drawn.
+    pub fn node_on_screen(&self, id: &str) -> Option<(egui::Rect, egui::Rect)> {
+        Some((self.canvas.node_rect(id)?, self.canvas.rect()?))
     }
 
     /// How many evaluations the editor has asked for since it opened (one per edit that
@@ -992,15 +1001,19 @@ impl EditorApp {
         if typing {
             return;
         }
-        let (delete, duplicate, home) = ui.input_mut(|i| {
+        let (delete, duplicate, home, frame) = ui.input_mut(|i| {
             (
                 i.key_pressed(Key::Delete) || i.key_pressed(Key::Backspace),
                 i.consume_key(Modifiers::COMMAND, Key::D),
                 i.consume_key(Modifiers::NONE, Key::Home),
+                i.consume_key(Modifiers::NONE, Key::F),
             )
         });
         if home {
             self.frame_all();
+        }
+        if frame {
+            self.frame_selection();
         }
         let clipboard: Vec<egui::Event> = ui.input(|i| {
             i.events
@@ -1181,7 +1194,7 @@ impl EditorApp {
                  to add nodes, or drop a wire on empty canvas to add a node already connected; \
                  right-click a node's title for its menu. Shift-drag a box to select several; Ctrl+C, \
                  Ctrl+V and Ctrl+D copy, paste and duplicate them as graph-file text. \
-                 Double-click the canvas or press Home to fit the graph in view.",
+                 Double-click the canvas or press Home to fit the graph in view, F to fit the selection.",
             );
             if !self.graph.description().is_empty() {
                 ui.separator();

@@ -124,9 +124,19 @@ pub(crate) struct Canvas {
     to_screen: TSTransform,
     /// The canvas' screen area, as last drawn (none before the first draw).
     rect: Option<egui::Rect>,
-    /// Which view of the graph snarl shows: a new number is a fresh snarl state, which
-    /// snarl opens fitted to the nodes (a graph opened, Home).
+    /// Which view of the graph snarl shows: a new number is a fresh snarl state (a graph
+    /// opened).
     view: u64,
+    /// Each node's extent (graph space) as last drawn: what framing fits.
+    extents: BTreeMap<String, egui::Rect>,
+    /// Graph area to show on the next draw (Home, F, a graph opened).
+    frame_next: Option<egui::Rect>,
+    /// Frames left in which every node is framed again once all are measured and their
+    /// extent changed (a graph opened: snarl's own first view fits node corners, not their
+    /// widths, and nodes open up, or titles shrink, at the zoom the fit gives).
+    fitting_frames: u8,
+    /// The extent of all nodes the last fit framed.
+    fitted: Option<egui::Rect>,
 }
 
 impl Canvas {
@@ -212,6 +222,7 @@ impl Canvas {
             badges,
             marks,
             zoom: self.to_screen.scaling,
+            frame: self.frame_next.take().map(|r| (r, ui.max_rect())),
             search: &mut self.search,
             out: CanvasOutput::default(),
         };
@@ -230,6 +241,16 @@ impl Canvas {
         SnarlWidget::new().id(id).style(style).show(&mut self.snarl, &mut viewer, ui);
         let mut out = viewer.out;
         self.to_screen = out.to_screen;
+        self.extents = std::mem::take(&mut out.extents);
+        if self.fitting_frames > 0 && graph.nodes().keys().all(|id| self.extents.contains_key(id.as_str())) {
+            self.fitting_frames -= 1;
+            let all = self.extents.values().fold(egui::Rect::NOTHING, |a, r| a.union(*r));
+            if self.fitted.is_none_or(|f| (f.min - all.min).length() + (f.max - all.max).length() > 0.5) {
+                self.fitted = Some(all);
+                self.frame(&[]);
+                ui.ctx().request_repaint();
+            }
+        }
         self.tab_menu(ui, graph, registry, &mut out);
         out.selected = egui_snarl::ui::get_selected_nodes(self.widget_id(), ui.ctx())
             .into_iter()
@@ -261,6 +282,22 @@ fn title_text(id: &str, zoom: f32, size: f32) -> RichText {
 }
 /// How much a title may grow when zoomed out.
 const TITLE_GROWTH: f32 = 2.5;
+
+/// The view that shows graph `area` (with a margin) centred in `screen`, at a zoom within the
+/// canvas' range.
+fn fitting(area: egui::Rect, screen: egui::Rect) -> TSTransform {
+    let area = area.expand(FRAME_MARGIN);
+    let scaling = (screen.width() / area.width()).min(screen.height() / area.height()).clamp(MIN_ZOOM, 1.0);
+    TSTransform::new(screen.center().to_vec2() - area.center().to_vec2() * scaling, scaling)
+}
+
+/// How many frames after a graph opens its fit may be redone as its nodes settle.
+const FIT_FRAMES: u8 = 6;
+
+/// Graph units kept around framed nodes.
+const FRAME_MARGIN: f32 = 40.0;
+/// The canvas' farthest zoom (snarl's default minimum scale).
+const MIN_ZOOM: f32 = 0.2;
 
 /// Canvas distance between the columns and rows of [`layered_layout`] (points at 1:1).
 const COLUMN: f32 = 300.0;
@@ -328,19 +365,30 @@ impl Canvas {
     }
 
     /// A canvas for another document: nothing of this one's kept, and a view fitted to the
-    /// new graph when it is first drawn.
+    /// new graph once its nodes are measured.
     pub(crate) fn replaced(&self) -> Canvas {
-        Canvas { view: self.view + 1, ..Canvas::default() }
+        Canvas { view: self.view + 1, fitting_frames: FIT_FRAMES, ..Canvas::default() }
     }
 
-    /// Frames the whole graph from the next draw on (snarl's own box selection and view
-    /// start afresh).
-    pub(crate) fn frame_all(&mut self) {
-        self.view += 1;
+    /// Fits nodes `ids` (every node when empty), as last drawn, in the canvas on the next draw.
+    pub(crate) fn frame(&mut self, ids: &[String]) {
+        let rect = self
+            .extents
+            .iter()
+            .filter(|(id, _)| ids.is_empty() || ids.contains(id))
+            .fold(egui::Rect::NOTHING, |all, (_, r)| all.union(*r));
+        if rect.is_positive() {
+            self.frame_next = Some(rect);
+        }
     }
 
     fn widget_id(&self) -> egui::Id {
         egui::Id::new(CANVAS_ID).with(self.view)
+    }
+
+    /// Node `id`'s extent on screen, as last drawn.
+    pub(crate) fn node_rect(&self, id: &str) -> Option<egui::Rect> {
+        self.extents.get(id).map(|r| self.to_screen * *r)
     }
 
     /// The canvas' screen area, as last drawn.
@@ -412,6 +460,8 @@ pub(crate) struct CanvasOutput {
     pub(crate) open: Option<String>,
     /// Canvas (graph) space → screen, as drawn this frame.
     pub(crate) to_screen: TSTransform,
+    /// Each drawn node's extent in graph space (header and pin rows).
+    pub(crate) extents: BTreeMap<String, egui::Rect>,
 }
 
 /// The faces of a graph's subgraph nodes, by node id, as read from their files.
@@ -482,6 +532,8 @@ struct Viewer<'a> {
     faces: &'a Faces,
     /// The canvas' scale (screen points per graph unit) as last drawn.
     zoom: f32,
+    /// Graph area to fit in the screen rect given with it, this draw.
+    frame: Option<(egui::Rect, egui::Rect)>,
     badges: &'a BTreeMap<String, Badge>,
     marks: Marks<'a>,
     search: &'a mut CatalogueSearch,
@@ -489,6 +541,12 @@ struct Viewer<'a> {
 }
 
 impl<'a> Viewer<'a> {
+    /// Adds `rect` (graph space) to node `id`'s extent.
+    fn measure(&mut self, id: &str, rect: egui::Rect) {
+        let extent = self.out.extents.entry(id.to_string()).or_insert(egui::Rect::NOTHING);
+        *extent = extent.union(rect);
+    }
+
     fn face(&self, id: &str) -> Option<Face<'a>> {
         Face::of(self.graph, self.registry, self.faces, id)
     }
@@ -524,6 +582,7 @@ impl SnarlViewer<String> for Viewer<'_> {
     ) {
         let Some(info) = snarl.get_node_info(node) else { return };
         let (id, open) = (&info.value, info.open);
+        self.measure(id, ui.max_rect());
         let badge = self.badges.get(id).unwrap_or(&Badge::Idle);
         let (text, color) = badge.label();
         ui.horizontal(|ui| {
@@ -585,6 +644,9 @@ impl SnarlViewer<String> for Viewer<'_> {
         ui: &mut Ui,
         snarl: &mut Snarl<String>,
     ) -> impl egui_snarl::ui::SnarlPin + 'static {
+        if let Some(id) = snarl.get_node(pin.id.node) {
+            self.measure(id, ui.max_rect());
+        }
         let port =
             snarl.get_node(pin.id.node).and_then(|id| self.face(id)).and_then(|f| f.pin(Side::Input, pin.id.input));
         port_pin(ui, port, false, |p| if p.required { p.name.to_string() } else { format!("{} (optional)", p.name) })
@@ -596,6 +658,9 @@ impl SnarlViewer<String> for Viewer<'_> {
         ui: &mut Ui,
         snarl: &mut Snarl<String>,
     ) -> impl egui_snarl::ui::SnarlPin + 'static {
+        if let Some(id) = snarl.get_node(pin.id.node) {
+            self.measure(id, ui.max_rect());
+        }
         let port =
             snarl.get_node(pin.id.node).and_then(|id| self.face(id)).and_then(|f| f.pin(Side::Output, pin.id.output));
         port_pin(ui, port, true, |p| p.name.to_string())
@@ -687,6 +752,9 @@ impl SnarlViewer<String> for Viewer<'_> {
     }
 
     fn current_transform(&mut self, to_global: &mut TSTransform, _snarl: &mut Snarl<String>) {
+        if let Some((area, screen)) = self.frame {
+            *to_global = fitting(area, screen);
+        }
         self.out.to_screen = *to_global;
     }
 
