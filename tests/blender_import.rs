@@ -62,6 +62,7 @@ fn exported_characters_import_into_blender_like_their_sources() {
         ("graphs/walk_on_xbot.ron", "gltf/Xbot.glb", "walk_on_xbot.glb"),
         ("graphs/run_on_xbot.ron", "gltf/Xbot.glb", "run_on_xbot.glb"),
         ("graphs/walk_on_cesium_man.ron", "gltf/CesiumMan.glb", "walk_on_cesium_man.glb"),
+        ("graphs/run_on_cesium_man.ron", "gltf/CesiumMan.glb", "run_on_cesium_man.glb"),
     ] {
         let out = Command::new(env!("CARGO_BIN_EXE_kg"))
             .args(["run", graph, "--out", dir.path().to_str().unwrap()])
