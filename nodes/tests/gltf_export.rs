@@ -273,7 +273,7 @@ fn an_unskinned_mesh_beside_an_animated_skeleton_is_warned_about() {
 
 /// Issue 18, `character.load` → `export.glb` round trip on the corpus characters: the
 /// Mixamo Xbot's two skinned meshes (Beta_Joints, Beta_Surface) and CesiumMan come back from
-/// the exported GLB with the same rest-pose vertex positions (< 1e-5 m) as the reader gives
+/// the exported GLB as the same meshes (names, vertex counts), with the same rest-pose vertex positions (< 1e-5 m) as the reader gives
 /// for the original file's meshes, the same skin weights on the same joints (by name), and
 /// the validator reports 0 errors.
 #[test]
@@ -296,14 +296,15 @@ fn whole_characters_round_trip_through_export() {
             character.mesh.positions.len()
         );
         let back = read_gltf_file(&out, &GltfReadOptions::default()).unwrap().value;
-        assert_eq!(back.meshes.len(), 1);
-        let m = &back.meshes[0];
-        let skin = m.skin.as_ref().unwrap();
-        // The original meshes, concatenated in order: positions, and weights per joint name.
-        let (mut v, mut worst_pos, mut worst_weight) = (0usize, 0.0f32, 0.0f32);
-        for part in &original.meshes {
+        // One mesh back per original mesh, by name, with its vertices in order: positions,
+        // and weights per joint name.
+        let names = |meshes: &[Mesh]| meshes.iter().map(|m| (m.name.clone(), m.positions.len())).collect::<Vec<_>>();
+        assert_eq!(names(&back.meshes), names(&original.meshes), "{name}");
+        let (mut worst_pos, mut worst_weight) = (0.0f32, 0.0f32);
+        for (part, m) in original.meshes.iter().zip(&back.meshes) {
             let ps = part.skin.as_ref().unwrap();
-            for (k, p) in part.positions.iter().enumerate() {
+            let skin = m.skin.as_ref().unwrap();
+            for (v, p) in part.positions.iter().enumerate() {
                 worst_pos = worst_pos.max(p.distance(m.positions[v]));
                 let by_name = |sk: &Skeleton, joints: [u16; 4], weights: [f32; 4]| {
                     let mut w: std::collections::BTreeMap<String, f32> = Default::default();
@@ -315,17 +316,15 @@ fn whole_characters_round_trip_through_export() {
                     w
                 };
                 let (a, b) = (
-                    by_name(&ps.skeleton, ps.joints[k], ps.weights[k]),
+                    by_name(&ps.skeleton, ps.joints[v], ps.weights[v]),
                     by_name(&skin.skeleton, skin.joints[v], skin.weights[v]),
                 );
                 assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>(), "{name} vertex {v}");
                 for (x, y) in a.values().zip(b.values()) {
                     worst_weight = worst_weight.max((x - y).abs());
                 }
-                v += 1;
             }
         }
-        assert_eq!(v, m.positions.len());
         println!(
             "{name}: worst rest-pose vertex distance {worst_pos:.2e} m, worst weight difference {worst_weight:.2e}"
         );
@@ -612,4 +611,70 @@ fn a_two_material_box_writes_one_primitive_per_material() {
     let (doc, _, images) = gltf::import(&path).unwrap();
     assert_eq!((doc.textures().count(), images.len()), (0, 0));
     gltf_validator::validate_gltf(&[path]);
+}
+
+/// Two synthetic boxes merged as the parts "left" and "right" (8 vertices and 12
+/// triangles each), red over the left box and the right box's first six triangles (one
+/// material run across the parts' boundary), blue over the rest, "left" held by an object
+/// named "left box": written as two glTF meshes named after the parts, on two nodes named
+/// after their objects ("left box", and "right" for the part without one), bound to the
+/// same skin, "left" one red
+/// primitive of 12 triangles, "right" a red and a blue one of 6, every triangle on the
+/// positions it had. A part whose triangle reaches into another part is refused by name.
+#[test]
+fn parts_are_written_as_separate_meshes_sharing_the_skin() {
+    use kinegraph_nodes::model::{Material, MaterialRange};
+    let (clip, mut mesh) = synthetic();
+    let box_triangles = mesh.triangles.clone();
+    mesh.push_part("left", Some("left box"));
+    let skin = mesh.skin.as_mut().unwrap();
+    skin.joints.extend_from_within(..);
+    skin.weights.extend_from_within(..);
+    mesh.positions.extend(mesh.positions.clone().iter().map(|p| *p + Vec3::X * 2.0));
+    mesh.normals.extend_from_within(..);
+    mesh.uvs.as_mut().unwrap().extend_from_within(..);
+    mesh.triangles.extend(box_triangles.iter().map(|t| t.map(|i| i + 8)));
+    mesh.push_part("right", None);
+    let paint = |name: &str| Material { name: Some(name.into()), ..Material::default() };
+    mesh.materials = vec![paint("red"), paint("blue")];
+    mesh.material_ranges = vec![
+        MaterialRange { first_triangle: 0, triangle_count: 18, material: Some(0) },
+        MaterialRange { first_triangle: 18, triangle_count: 6, material: Some(1) },
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("parts.glb");
+    assert!(write_glb_file(&path, &clip, Some(&mesh)).unwrap().is_empty());
+    let (doc, buffers, _) = gltf::import(&path).unwrap();
+    let nodes: Vec<gltf::Node<'_>> = doc.nodes().filter(|n| n.mesh().is_some()).collect();
+    let names: Vec<_> = nodes.iter().map(|n| (n.name().unwrap(), n.mesh().unwrap().name().unwrap())).collect();
+    assert_eq!(names, vec![("left box", "left"), ("right", "right")]);
+    assert_eq!(nodes.iter().map(|n| n.skin().unwrap().index()).collect::<Vec<_>>(), vec![0, 0]);
+    let mut drawn = Vec::new();
+    for (k, node) in nodes.iter().enumerate() {
+        for prim in node.mesh().unwrap().primitives() {
+            let r = prim.reader(|b| Some(&buffers[b.index()]));
+            let positions: Vec<Vec3> = r.read_positions().unwrap().map(Vec3::from).collect();
+            let indices: Vec<u32> = r.read_indices().unwrap().into_u32().collect();
+            assert_eq!(positions.len(), 8, "part {k}: its own box's corners only");
+            drawn.push((k, prim.material().name().unwrap().to_owned(), indices.len() / 3));
+            let first = if k == 0 {
+                0
+            } else if drawn.last().unwrap().1 == "red" {
+                12
+            } else {
+                18
+            };
+            for (t, want) in indices.chunks_exact(3).zip(&mesh.triangles[first..]) {
+                for c in 0..3 {
+                    assert_eq!(positions[t[c] as usize], mesh.positions[want[c] as usize]);
+                }
+            }
+        }
+    }
+    assert_eq!(drawn, vec![(0, "red".into(), 12), (1, "red".into(), 6), (1, "blue".into(), 6)]);
+    gltf_validator::validate_gltf(std::slice::from_ref(&path));
+
+    mesh.triangles[12][0] = 7;
+    let err = write_glb(&clip, Some(&mesh)).unwrap_err().to_string();
+    assert!(err.contains("mesh 'box': part 'right' triangle 12 uses a vertex outside its vertices 8..16"), "{err}");
 }

@@ -214,6 +214,37 @@ fn assert_same_look(source: &Path, exported: &Path, tolerance_m: f32) -> f32 {
     worst
 }
 
+/// A mesh object as a viewer lists it.
+#[derive(Debug, PartialEq)]
+struct MeshObject {
+    node: Option<String>,
+    mesh: Option<String>,
+    triangles: usize,
+    /// Joints of its skin (`None`: not skinned).
+    skin_joints: Option<usize>,
+}
+
+/// The mesh objects of a file read with the `gltf` crate: one per node holding a mesh,
+/// nodes in index order.
+fn mesh_objects(path: &Path) -> Vec<MeshObject> {
+    let gltf = gltf::Gltf::open(path).unwrap();
+    let mut objects = Vec::new();
+    for node in gltf.document.nodes() {
+        let Some(mesh) = node.mesh() else { continue };
+        let corners = |p: gltf::Primitive<'_>| {
+            p.indices().map_or_else(|| p.get(&gltf::Semantic::Positions).unwrap().count(), |i| i.count())
+        };
+        let triangles = mesh.primitives().map(|p| corners(p) / 3).sum();
+        objects.push(MeshObject {
+            node: node.name().map(str::to_owned),
+            mesh: mesh.name().map(str::to_owned),
+            triangles,
+            skin_joints: node.skin().map(|s| s.joints().count()),
+        });
+    }
+    objects
+}
+
 #[test]
 fn corpus_characters_keep_materials_textures_and_uvs_through_export() {
     let Some(data) = shared_data() else { return };
@@ -229,6 +260,10 @@ fn corpus_characters_keep_materials_textures_and_uvs_through_export() {
         // Fox is ~150 units tall in a file declared metres: f32 resolution scales with it.
         let tolerance = if name == "Fox.glb" { 1e-3 } else { 1e-5 };
         assert_same_look(&source, &out, tolerance);
+        // The same mesh objects, one per source mesh, under the same names and skin.
+        let (a, b) = (mesh_objects(&source), mesh_objects(&out));
+        println!("{name}: mesh objects {a:?}");
+        assert_eq!(a, b, "{name}: mesh objects of the source, then of the export");
         files.push(out);
     }
     let drawn = drawn_at_rest(&files[0]);

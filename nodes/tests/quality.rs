@@ -369,3 +369,173 @@ fn on_a_cmu_walk_the_floor_matches_independent_kinematics_and_an_injected_kink_i
     assert_eq!(got.acceleration_spike_frame, Some(at));
     assert!(got.summary.acceleration_over_sources.unwrap() > 1.0, "{:?}", got.summary);
 }
+
+/// A walk built by hand on the mannequin (legs 0.42 + 0.42 m, hips 0.09 m either side) at
+/// 60 fps: nine plants alternating left, right, … 0.7 m apart along Z, plant `i` centred
+/// on frame 30 i + 15 (25 frames, contacts connected), so each step spans 0.7 m forward
+/// and 0.18 m across: √(0.7² + 0.18²) = 0.7228 m, 0.8604 legs. The hips travel
+/// z(t) = 1.4 t + 0.02 sin(4π t): speed 1.4 + 0.02·4π cos(4π t) m/s. Over a centred
+/// 0.1 s difference (±3 frames) a cosine of angular rate ω keeps its phase and shrinks by
+/// sin(0.05 ω)/(0.05 ω); the 270 frames measured (3..273, nine periods of 30 frames) hold
+/// each of the 30 phases 2πk/30 nine times, so sorted ascending the lowest phase (k = 15,
+/// cos −1) fills ranks 0–8 and the next (k = 14, 16, cos −cos(π/15)) ranks 9–26: the 5th
+/// percentile (rank 13.45) is 1.4 − A cos(π/15), and likewise the 95th (rank 255.55)
+/// 1.4 + A cos(π/15), with A = 0.02·4π · sin(0.2π)/(0.2π).
+#[test]
+fn a_hand_built_walk_has_its_step_length_and_pelvis_speed_range() {
+    use std::f64::consts::PI;
+    let skeleton = Arc::new(mannequin_skeleton().unwrap());
+    let (fps, frames, step_m, speed) = (60.0, 276usize, 0.7f64, 1.4f64);
+    let index = |n: &str| skeleton.index_of(n).unwrap();
+    let (left, right) = (index("LeftFoot"), index("RightFoot"));
+    let hips_z = |f: usize| {
+        let t = f as f64 / fps;
+        speed * t + 0.02 * (4.0 * PI * t).sin()
+    };
+    let plants: Vec<(usize, usize, f64)> = (0..9).map(|i| (i % 2, 30 * i + 15, step_m * i as f64)).collect();
+    let mut translations = Vec::new();
+    for f in 0..frames {
+        for (j, joint) in skeleton.joints().iter().enumerate() {
+            let mut t = joint.rest_offset;
+            if j == 0 {
+                t.z += hips_z(f) as f32;
+            }
+            for (side, ankle) in [left, right].into_iter().enumerate() {
+                if j == ankle {
+                    // The foot stands at its nearest plant, whatever the hips do.
+                    let (_, _, z) = *plants.iter().filter(|p| p.0 == side).min_by_key(|p| p.1.abs_diff(f)).unwrap();
+                    t.z = (z - hips_z(f)) as f32;
+                }
+            }
+            translations.push(t);
+        }
+    }
+    let rotations = vec![glam::Quat::IDENTITY; frames * skeleton.len()];
+    let clip = Clip::new(skeleton.clone(), fps, rotations, translations, ImportScale::METRES).unwrap();
+    let intervals = |side: usize| {
+        plants.iter().filter(|p| p.0 == side).map(|p| FrameRange::new(p.1 - 12, p.1 + 13)).collect::<Vec<_>>()
+    };
+    let contacts = Contacts {
+        fps,
+        frame_count: frames,
+        feet: vec![
+            FootContacts { foot: "LeftFoot".into(), intervals: intervals(0) },
+            FootContacts { foot: "RightFoot".into(), intervals: intervals(1) },
+        ],
+        double_support: Vec::new(),
+    };
+    let r = measure_quality(&clip, Some(&contacts), &[], None, &QualityOptions::default());
+    let stride = r.stride.as_ref().unwrap();
+    let step = (step_m * step_m + 0.18 * 0.18).sqrt();
+    let amplitude = 0.02 * 4.0 * PI * (0.2 * PI).sin() / (0.2 * PI) * (PI / 15.0).cos();
+    println!("{stride:?}; want step {step:.4} m, pelvis {:.4}–{:.4} m/s", speed - amplitude, speed + amplitude);
+    assert!((stride.leg_length_m - 0.84).abs() < 1e-6, "{stride:?}");
+    assert_eq!(stride.steps, 8);
+    assert!(close(stride.step_length_m, step, 1e-5), "{stride:?}");
+    assert!(close(stride.step_over_leg, step / 0.84, 1e-5), "{stride:?}");
+    assert!(close(r.summary.step_over_leg, step / 0.84, 1e-5), "{:?}", r.summary);
+    assert!(close(stride.pelvis_speed_low_mps, speed - amplitude, 1e-4), "{stride:?}");
+    assert!(close(stride.pelvis_speed_high_mps, speed + amplitude, 1e-4), "{stride:?}");
+    // Without a source there is nothing to compare with, and a gate on it fails.
+    assert!(r.stride_against_source.is_none() && r.summary.step_over_leg_change_pct.is_none());
+    let gate: QualityGate = ron::from_str("(max_step_ratio_change_pct: 10)").unwrap();
+    assert_eq!(
+        gate.violations(&r.summary),
+        vec![
+            "step_over_leg_change_pct was not measured (see the report's findings), so max_step_ratio_change_pct fails"
+        ]
+    );
+}
+
+/// Contacts found in the test itself on a clip's joint positions: frames where the ankle
+/// is within 5 cm of its lowest and moves slower than 0.4 m/s horizontally (one-frame
+/// centred difference), in runs of at least 10 frames; each plant at the ankle's mean
+/// horizontal position over its run. Returns (start frame, foot, x, z) per plant.
+fn threshold_plants(clip: &Clip, ankles: [usize; 2]) -> Vec<(usize, usize, f64, f64)> {
+    let poses = kinegraph_nodes::model::forward_kinematics(clip);
+    let n = clip.frame_count();
+    let mut plants = Vec::new();
+    for (side, ankle) in ankles.into_iter().enumerate() {
+        let p: Vec<glam::DVec3> = (0..n).map(|f| poses.position(f, ankle).as_dvec3()).collect();
+        let lowest = p.iter().map(|q| q.y).fold(f64::INFINITY, f64::min);
+        let planted = |f: usize| {
+            let (a, b) = (p[f.saturating_sub(1)], p[(f + 1).min(n - 1)]);
+            let span = ((f + 1).min(n - 1) - f.saturating_sub(1)) as f64 / clip.fps();
+            let horizontal = glam::DVec2::new(b.x - a.x, b.z - a.z).length() / span;
+            p[f].y < lowest + 0.05 && horizontal < 0.4
+        };
+        let mut f = 0;
+        while f < n {
+            let start = f;
+            while f < n && planted(f) {
+                f += 1;
+            }
+            if f - start >= 10 {
+                let mean = p[start..f].iter().fold(glam::DVec3::ZERO, |s, q| s + *q) / (f - start) as f64;
+                plants.push((start, side, mean.x, mean.z));
+            }
+            f += 1;
+        }
+    }
+    plants.sort_by_key(|p| (p.0, p.1));
+    plants
+}
+
+/// CMU 02_01 (the walk graphs/walk_on_xbot.ron carries), its T-pose frame cut: the step
+/// length `motion.quality` measures from its detected contacts matches the one found here
+/// by another route (threshold contacts and mean plant positions, above) within 2 cm, a
+/// thirtieth of a step; the leg length is the rest offsets' lengths (knee and ankle
+/// offsets) to 1e-6 m; the pelvis speed range matches the root joint's own translations
+/// differenced over ±6 frames (0.1 s at 120 fps) and ranked by nearest rank within 0.01
+/// m/s. The same walk on a skeleton 1.2 times larger, against the original as its source,
+/// keeps its step ÷ leg within 2 % and its pelvis speed inside the source's range scaled
+/// by 1.2 within 1 %.
+#[test]
+fn on_a_cmu_walk_the_stride_matches_one_measured_another_way() {
+    let Some(data) = shared_data() else { return };
+    let clip = load_clip(&data.join("bvh/cmu/02_01.bvh"), ClipLoadOptions::default()).unwrap().value;
+    let walk = clip.slice(1, clip.frame_count());
+    let r = measure(&walk, None, &[]);
+    let stride = r.stride.clone().unwrap();
+    let skeleton = walk.skeleton();
+    let joint = |n: &str| skeleton.index_of(n).unwrap();
+    let offset = |n: &str| f64::from(skeleton.joints()[joint(n)].rest_offset.length());
+    let leg = 0.5 * (offset("LeftLeg") + offset("LeftFoot") + offset("RightLeg") + offset("RightFoot"));
+    let plants = threshold_plants(&walk, [joint("LeftFoot"), joint("RightFoot")]);
+    let steps: Vec<f64> = plants
+        .windows(2)
+        .filter(|w| w[0].1 != w[1].1)
+        .map(|w| ((w[0].2 - w[1].2).powi(2) + (w[0].3 - w[1].3).powi(2)).sqrt())
+        .collect();
+    let step = steps.iter().sum::<f64>() / steps.len() as f64;
+    let n = walk.joint_count();
+    let half = 6;
+    let mut speeds: Vec<f64> = (half..walk.frame_count() - half)
+        .map(|f| {
+            let (a, b) = (walk.translations()[(f - half) * n], walk.translations()[(f + half) * n]);
+            f64::from(glam::Vec2::new(b.x - a.x, b.z - a.z).length()) * walk.fps() / (2 * half) as f64
+        })
+        .collect();
+    speeds.sort_by(f64::total_cmp);
+    let rank = |p: f64| speeds[((p / 100.0 * speeds.len() as f64).ceil() as usize).saturating_sub(1)];
+    println!(
+        "kernel {stride:?}\nhere: leg {leg:.4} m, {} steps {step:.4} m ({steps:.3?}), pelvis {:.3}–{:.3} m/s",
+        steps.len(),
+        rank(5.0),
+        rank(95.0)
+    );
+    assert!((stride.leg_length_m - leg).abs() < 1e-6, "{leg}");
+    assert!(close(stride.step_length_m, step, 0.02), "{step}");
+    assert!(close(stride.pelvis_speed_low_mps, rank(5.0), 0.01));
+    assert!(close(stride.pelvis_speed_high_mps, rank(95.0), 0.01));
+
+    let big = Arc::new(skeleton.scaled(1.2).unwrap());
+    let translations = walk.translations().iter().map(|t| *t * 1.2).collect();
+    let scaled = Clip::new(big, walk.fps(), walk.rotations().to_vec(), translations, walk.import_scale).unwrap();
+    let r = measure(&scaled, None, &[&walk]);
+    let against = r.stride_against_source.clone().unwrap();
+    println!("scaled 1.2: {:?}\n{against:?}", r.stride);
+    assert!((against.leg_length_ratio - 1.2).abs() < 1e-5, "{against:?}");
+    assert!(r.summary.step_over_leg_change_pct.unwrap() < 2.0, "{against:?}");
+    assert!(r.summary.pelvis_speed_outside_source_pct.unwrap() < 1.0, "{against:?}");
+}

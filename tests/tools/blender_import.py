@@ -22,7 +22,9 @@ for path in files:
     verts = sum(len(m.data.vertices) for m in meshes)
     faces = sum(len(m.data.polygons) for m in meshes)
     skinned = sum(1 for m in meshes if any(mod.type == "ARMATURE" for mod in m.modifiers))
-    print(f"{path}: {result}, armatures={len(armatures)} bones={bones} meshes={len(meshes)} "
+    # Object names joined by '|', spaces as %20, so the line stays one field per key.
+    names = "|".join(sorted(m.name for m in meshes)).replace(" ", "%20")
+    print(f"{path}: {result}, armatures={len(armatures)} bones={bones} meshes={len(meshes)} mesh_names={names} "
           f"skinned={skinned} vertices={verts} faces={faces} materials={len(bpy.data.materials)} "
           f"images={len(bpy.data.images)} actions={actions}")
     if not armatures:

@@ -171,13 +171,14 @@ pub struct ExportGlb;
 static EXPORT_GLB: NodeSchema = NodeSchema {
     kind: "export.glb",
     category: "io",
-    doc: "Writes a clip as a binary glTF (.glb): the skeleton as a node hierarchy with its animation, up to three more clips of the same skeleton as further named animations, plus a skinned mesh when one is connected, one primitive per material with its textures embedded.",
+    doc: "Writes a clip as a binary glTF (.glb): the skeleton as a node hierarchy with its animation, up to three more clips of the same skeleton as further named animations, plus a skinned mesh when one is connected, each of its parts (a character's source meshes) its own named object on the one skin, one primitive per material with its textures embedded.",
     inputs: &[CLIP_IN.spec(), MESH_IN.spec(), MORE_CLIPS[0].spec(), MORE_CLIPS[1].spec(), MORE_CLIPS[2].spec()],
     outputs: &[FILE_OUT.spec()],
     params: &[GLB_FILE.0, NAME.0, MORE_NAMES[0].0, MORE_NAMES[1].0, MORE_NAMES[2].0],
     writes_files: true,
     // 2: materials and textures, several named animations.
-    version: 2,
+    // 3: each part of the mesh (a character's source meshes) its own mesh and node.
+    version: 3,
 };
 
 impl Node for ExportGlb {

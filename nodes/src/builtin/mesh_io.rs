@@ -88,7 +88,7 @@ const CHARACTER_CLIP: Output<Arc<Clip>> = Output::new(
 );
 const CHARACTER_MESH: Output<Arc<Mesh>> = Output::new(
     "mesh",
-    "Every mesh of the scene as one mesh skinned to the skeleton, in its rest pose, metres: skinned meshes keep their weights, meshes parented to a bone move rigidly with it; each triangle keeps its material.",
+    "Every mesh of the scene as one mesh skinned to the skeleton, in its rest pose, metres: skinned meshes keep their weights, meshes parented to a bone move rigidly with it; each triangle keeps its material, and each source mesh stays a named part that export.glb writes as its own object.",
 );
 const CHARACTER_REPORT: Output<Arc<Report>> = Output::new(
     "report",
@@ -107,7 +107,8 @@ static LOAD_CHARACTER: NodeSchema = NodeSchema {
     params: &[CHARACTER_PATH.0, ANIMATION.0],
     writes_files: false,
     // 2: materials, textures and UVs kept; the file's inverse bind matrices when they fit.
-    version: 2,
+    // 3: the mesh remembers its source meshes as parts (export.glb writes them apart).
+    version: 3,
 };
 
 impl Node for LoadCharacter {

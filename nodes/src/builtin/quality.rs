@@ -14,7 +14,8 @@ pub fn register(registry: &mut Registry) {
 const CLIP: Input<Arc<Clip>> = Input::required("clip", "The motion to check.");
 const SOURCE: Input<Arc<Clip>> = Input::optional(
     "source",
-    "A clip the motion was made from (e.g. a join's first clip): spikes and root jumps are compared with its own.",
+    "A clip the motion was made from (e.g. a join's first clip): spikes and root jumps are compared with its own, \
+     and its stride (step ÷ leg length, pelvis speed scaled by the leg-length ratio) with the motion's.",
 );
 const OTHER_SOURCE: Input<Arc<Clip>> =
     Input::optional("other_source", "A second clip the motion was made from (e.g. a join's second clip).");
@@ -33,7 +34,8 @@ const MESH: Input<Arc<Mesh>> = Input::optional(
 const REPORT: Output<Arc<Report>> = Output::new(
     "report",
     "Foot skate (cm per frame), feet under or above the floor (cm), acceleration spikes (m/s², ratios), \
-     one-frame root velocity changes (m/s), bone-length drift (cm), pops and findings.",
+     one-frame root velocity changes (m/s), bone-length drift (cm), pops, stride (step length m and ÷ leg length, \
+     pelvis horizontal speed 5th–95th percentile m/s; against the source's) and findings.",
 );
 const FLOOR: FloatParam = FloatParam::new(
     "floor_height_m",
@@ -75,12 +77,14 @@ static MEASURE_QUALITY: NodeSchema = NodeSchema {
     category: "motion",
     doc: "Checks a motion the way an animator does: planted feet that slide, feet through or above the floor, \
           jerky joints against the source clips, sudden root speed changes, stretching bones and pops, \
-          over the whole clip or a window of it. Expectation files can gate on its report.",
+          over the whole clip or a window of it, and the stride (step length ÷ leg length, pelvis speed) \
+          against the source's. Expectation files can gate on its report.",
     inputs: &[CLIP.spec(), SOURCE.spec(), OTHER_SOURCE.spec(), SOURCE_SET.spec(), CONTACTS.spec(), MESH.spec()],
     outputs: &[REPORT.spec()],
     params: &[FLOOR.0, NEIGHBOURHOOD.0, WINDOW_START.0, WINDOW_END.0],
     writes_files: false,
-    version: 1,
+    // 2: stride (step length ÷ leg length, pelvis speed range) and its comparison with the source.
+    version: 2,
 };
 
 impl Node for MeasureQuality {

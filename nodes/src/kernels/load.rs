@@ -172,7 +172,8 @@ pub struct Character {
     /// The chosen animation, or the rest pose (one frame) when the file has none.
     pub clip: Clip,
     /// Every mesh and primitive, in file order, skinned to the clip's skeleton in its rest
-    /// pose, with each primitive's material. Its inverse bind matrices are the file's own
+    /// pose, with each primitive's material; each source mesh is one of its parts, so an
+    /// export writes them back as separate objects. Its inverse bind matrices are the file's own
     /// when they fit the rest pose (see [`IBM_FIT_RELATIVE`]), else the exact inverse rest
     /// world transforms.
     pub mesh: Mesh,
@@ -232,13 +233,14 @@ pub struct CharacterPart {
 pub const IBM_FIT_RELATIVE: f32 = 1e-5;
 
 /// What a character file holds, whatever its format: the skeleton, the chosen clip, the
-/// meshes with the joint each unskinned one hangs under, and the file's own inverse bind
-/// matrices per joint where it has them.
+/// meshes with the joint each unskinned one hangs under and the name of the object holding
+/// it, and the file's own inverse bind matrices per joint where it has them.
 struct CharacterSource {
     skeleton: std::sync::Arc<crate::model::Skeleton>,
     clip: Clip,
     meshes: Vec<Mesh>,
     mesh_joints: Vec<Option<usize>>,
+    mesh_objects: Vec<Option<String>>,
     file_ibms: Vec<Option<Mat4>>,
 }
 
@@ -275,6 +277,7 @@ fn gltf_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSourc
         clip,
         meshes: asset.meshes,
         mesh_joints: asset.mesh_joints,
+        mesh_objects: asset.mesh_nodes,
         file_ibms: asset.skin_inverse_bind_matrices,
     };
     Ok(Loaded { value, warnings })
@@ -288,8 +291,15 @@ fn fbx_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSource
     let clip =
         character_clip(path, &asset.skeleton, asset.clips.into_iter().map(|c| c.clip), animation, &mut warnings)?;
     let mesh_joints = vec![None; asset.meshes.len()];
-    let value =
-        CharacterSource { skeleton: asset.skeleton, clip, meshes: asset.meshes, mesh_joints, file_ibms: Vec::new() };
+    let mesh_objects = vec![None; asset.meshes.len()];
+    let value = CharacterSource {
+        skeleton: asset.skeleton,
+        clip,
+        meshes: asset.meshes,
+        mesh_joints,
+        mesh_objects,
+        file_ibms: Vec::new(),
+    };
     Ok(Loaded { value, warnings })
 }
 
@@ -303,7 +313,7 @@ pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>
     let fbx = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("fbx"));
     let Loaded { value: source, mut warnings } =
         if fbx { fbx_character(path, animation)? } else { gltf_character(path, animation)? };
-    let CharacterSource { skeleton, clip, meshes, mesh_joints, file_ibms } = source;
+    let CharacterSource { skeleton, clip, meshes, mesh_joints, mesh_objects, file_ibms } = source;
     if meshes.is_empty() {
         return Err(FormatError::file(path, FormatErrorKind::Structure, "has no mesh"));
     }
@@ -314,7 +324,7 @@ pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>
     let mut mesh = Mesh { name, ..Mesh::default() };
     let (mut joints, mut weights, mut uvs) = (Vec::new(), Vec::new(), Vec::new());
     let mut parts = Vec::new();
-    for (part, attached) in meshes.iter().zip(&mesh_joints) {
+    for ((part, attached), object) in meshes.iter().zip(&mesh_joints).zip(&mesh_objects) {
         let base = mesh.positions.len() as u32;
         let n = part.positions.len();
         let normals = if part.normals.len() == n {
@@ -379,6 +389,7 @@ pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>
         }
         mesh.triangles.extend(part.triangles.iter().map(|t| t.map(|i| i + base)));
         mesh.append_materials_of(part);
+        mesh.push_part(&part.name, object.as_deref());
         parts.push(CharacterPart { name: part.name.clone(), vertices: n, binding });
     }
     if any_uvs {

@@ -17,6 +17,7 @@
 //! | blend-and-splice, foot skate, join result | [`join`] |
 //! | the Motion-Graphs crossfade baseline | [`baseline`] |
 //! | motion quality measures and gates (skate, floor, spikes, pops) | [`quality`] |
+//! | stride: step length ÷ leg length, pelvis speed range | [`stride`] |
 //! | ground / flight stages, ballistic gravity fit | [`stages`] |
 //! | momentum pre-fit: flight lines, ground B-splines | [`momentum_splines`] |
 //! | ground-stage edits, the naive edit (initial guess), edit measures | [`momentum_edit`] |
@@ -62,5 +63,6 @@ pub mod roles;
 pub mod skinning;
 pub mod soles;
 pub mod stages;
+pub mod stride;
 pub mod transition_graph;
 pub mod wrap;

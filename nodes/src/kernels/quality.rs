@@ -34,6 +34,11 @@
 //! 7. Pops: a joint that moves in one frame more than [`POP_RATIO`] times as far as in
 //!    the frame before and the frame after, and faster than [`POP_MIN_SPEED_MPS`] (a
 //!    teleporting root pops every joint).
+//! 8. Stride ([`super::stride`]): step length ÷ leg length and the pelvis's horizontal
+//!    speed range (5th–95th percentile), of the clip and of its first source (contacts
+//!    detected on it); the change of step ÷ leg against the source, and how far the
+//!    clip's pelvis speed range reaches outside the source's scaled by the leg-length
+//!    ratio.
 //!
 //! With a window (e.g. a transition's frames) only the frames inside it are looked at:
 //! contacts are cut to it, while accelerations and pops still see the frames around it.
@@ -49,6 +54,7 @@ use serde::{Deserialize, Serialize};
 use super::contacts::{ContactThresholds, contacts_of};
 use super::skinning::SkinError;
 use super::soles::{foot_joints, lowest_sole_heights};
+use super::stride::{FootPlants, Stride, StrideComparison, compare_stride, measure_stride};
 use crate::model::{Clip, Contacts, FrameRange, Mesh, forward_kinematics};
 
 /// A foot more than this far under the floor (metres) counts as below it: capture noise
@@ -128,6 +134,16 @@ pub struct QualitySummary {
     pub bone_length_drift_max_cm: Option<f64>,
     /// Frames in which some joint pops.
     pub pop_frames: Option<usize>,
+    /// Mean step length over leg length (dimensionless).
+    #[serde(default)]
+    pub step_over_leg: Option<f64>,
+    /// Change of that against the first source's, percent of the source's.
+    #[serde(default)]
+    pub step_over_leg_change_pct: Option<f64>,
+    /// How far the pelvis's horizontal speed range (5th–95th percentile) reaches outside
+    /// the first source's scaled by the leg-length ratio, percent of the scaled range's top.
+    #[serde(default)]
+    pub pelvis_speed_outside_source_pct: Option<f64>,
 }
 
 /// One foot's measures.
@@ -195,6 +211,12 @@ pub struct QualityReport {
     pub sources_root_velocity_change_max_mps: Option<f64>,
     /// The joint whose bone drifts most.
     pub bone_length_drift_joint: Option<String>,
+    /// The clip's stride (step length, leg length, pelvis speed range).
+    pub stride: Option<Stride>,
+    /// The first source's stride, its contacts detected.
+    pub source_stride: Option<Stride>,
+    /// The clip's stride against the source's, scaled by leg length.
+    pub stride_against_source: Option<StrideComparison>,
     /// What an animator would be told, one line each.
     pub findings: Vec<String>,
 }
@@ -251,6 +273,45 @@ impl Tracks {
     }
 }
 
+/// The stride of `clip` (with its `feet`, over `window`) and of `source` (with its tracks,
+/// contacts detected with `options.contacts`, whole), each `None` with a finding saying
+/// why when it cannot be measured.
+fn strides(
+    clip: &Clip,
+    tracks: &Tracks,
+    feet: &[Foot],
+    window: FrameRange,
+    source: Option<(&&Clip, &Tracks)>,
+    options: &QualityOptions,
+    findings: &mut Vec<String>,
+) -> (Option<Stride>, Option<Stride>) {
+    let mut note = |what: &str, result: Result<Stride, String>| {
+        result.map_err(|why| findings.push(format!("the {what}'s stride is not measured: {why}"))).ok()
+    };
+    let plants: Vec<FootPlants<'_>> =
+        feet.iter().map(|f| FootPlants { ankle: f.ankle, contacts: &f.intervals }).collect();
+    let stride = (!feet.is_empty()).then(|| {
+        let measured =
+            measure_stride(clip.skeleton(), clip.fps(), clip.frame_count(), window, |f, j| tracks.at(f, j), &plants);
+        note("clip", measured)
+    });
+    let source_stride = source.map(|(source, t)| {
+        let measured = contacts_of(source, &forward_kinematics(source), &options.contacts).and_then(|(contacts, _)| {
+            let ankles: Vec<(usize, &[FrameRange])> = contacts
+                .feet
+                .iter()
+                .filter_map(|c| Some((source.skeleton().index_of(&c.foot)?, c.intervals.as_slice())))
+                .collect();
+            let plants: Vec<FootPlants<'_>> =
+                ankles.iter().map(|&(ankle, contacts)| FootPlants { ankle, contacts }).collect();
+            let whole = FrameRange::new(0, source.frame_count());
+            measure_stride(source.skeleton(), source.fps(), source.frame_count(), whole, |f, j| t.at(f, j), &plants)
+        });
+        note("source", measured)
+    });
+    (stride.flatten(), source_stride.flatten())
+}
+
 /// The larger of `best` and `candidate` by value, the earlier on a tie (for folds).
 fn larger(best: Option<(f64, usize)>, candidate: (f64, usize)) -> Option<(f64, usize)> {
     match best {
@@ -291,6 +352,7 @@ fn spike_ratios(peaks: &[f64], half_width: usize) -> Vec<f64> {
 /// A foot of the clip: its joints, its sole's vertices and its contacts.
 struct Foot {
     name: String,
+    ankle: usize,
     joints: Vec<usize>,
     intervals: Vec<FrameRange>,
 }
@@ -309,7 +371,7 @@ fn feet_of(clip: &Clip, contacts: &Contacts, window: FrameRange, findings: &mut 
             };
             let joints = foot_joints(skeleton, ankle);
             let intervals = c.intervals.iter().filter_map(|r| r.intersect(&window)).collect();
-            Some(Foot { name: c.foot.clone(), joints, intervals })
+            Some(Foot { name: c.foot.clone(), ankle, joints, intervals })
         })
         .collect()
 }
@@ -577,6 +639,9 @@ pub fn measure_quality(
         ));
     }
     let drift = bone_length_drift(clip, &tracks, window);
+    let (stride, source_stride) =
+        strides(clip, &tracks, &feet, window, sources.first().zip(source_tracks.first()), options, &mut findings);
+    let stride_against_source = stride.as_ref().zip(source_stride.as_ref()).map(|(c, s)| compare_stride(c, s));
     let joint_name = |j: usize| clip.skeleton().joints()[j].name.clone();
     if findings.len() > MAX_LISTED_FINDINGS {
         let more = findings.len() - MAX_LISTED_FINDINGS;
@@ -602,6 +667,9 @@ pub fn measure_quality(
         root_velocity_change_over_sources: ratio(root.map(|r| r.0), sources_root),
         bone_length_drift_max_cm: drift.map(|d| d.0 * 100.0),
         pop_frames: (clip.frame_count() > 1).then_some(pop_frames),
+        step_over_leg: stride.as_ref().and_then(|s| s.step_over_leg),
+        step_over_leg_change_pct: stride_against_source.as_ref().and_then(|c| c.step_over_leg_change_pct),
+        pelvis_speed_outside_source_pct: stride_against_source.as_ref().and_then(|c| c.pelvis_speed_outside_source_pct),
     };
     QualityReport {
         units: "lengths cm, speeds m/s, accelerations m/s²; per frame = between consecutive frames at fps",
@@ -619,6 +687,9 @@ pub fn measure_quality(
         root_velocity_change_frame: root.map(|r| r.1),
         sources_root_velocity_change_max_mps: sources_root,
         bone_length_drift_joint: drift.map(|d| joint_name(d.1)),
+        stride,
+        source_stride,
+        stride_against_source,
         findings,
     }
 }
@@ -658,6 +729,12 @@ pub struct QualityGate {
     /// Limit on `pop_frames`.
     #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
     pub max_pop_frames: Option<f64>,
+    /// Limit on `step_over_leg_change_pct`, percent (issue 18 asks 10).
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_step_ratio_change_pct: Option<f64>,
+    /// Limit on `pelvis_speed_outside_source_pct`, percent.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_pelvis_speed_outside_source_pct: Option<f64>,
 }
 
 impl QualityGate {
@@ -713,6 +790,20 @@ impl QualityGate {
                 " cm",
             ),
             ("max_pop_frames", self.max_pop_frames, "pop_frames", count(summary.pop_frames), ""),
+            (
+                "max_step_ratio_change_pct",
+                self.max_step_ratio_change_pct,
+                "step_over_leg_change_pct",
+                summary.step_over_leg_change_pct,
+                " %",
+            ),
+            (
+                "max_pelvis_speed_outside_source_pct",
+                self.max_pelvis_speed_outside_source_pct,
+                "pelvis_speed_outside_source_pct",
+                summary.pelvis_speed_outside_source_pct,
+                " %",
+            ),
         ];
         checks
             .into_iter()

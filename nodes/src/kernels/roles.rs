@@ -60,6 +60,17 @@ pub struct BodyRoles {
     pub arms: [Limb; 2],
 }
 
+impl BodyRoles {
+    /// Mean leg length, hip to knee to ankle (metres), with joint `j` at `position(j)`.
+    pub fn leg_length_m(&self, position: impl Fn(usize) -> Vec3) -> f32 {
+        let leg = |l: &Limb| {
+            let [a, b, c] = l.joints().map(&position);
+            a.distance(b) + b.distance(c)
+        };
+        0.5 * (leg(&self.legs[0]) + leg(&self.legs[1]))
+    }
+}
+
 /// Reads the body roles of `skeleton` posed at `pos_in_world` (one position per joint),
 /// or says which part of the body it could not find.
 pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRoles, String> {

@@ -42,6 +42,31 @@ pub struct Mesh {
     /// when the mesh has no materials (drawn with the viewer's default).
     #[serde(default)]
     pub material_ranges: Vec<MaterialRange>,
+    /// The source meshes this one was merged from (a character's body, joints, eyes…), in
+    /// order, covering every vertex and triangle, so an export writes them back as separate
+    /// objects; empty when the mesh is one object.
+    #[serde(default)]
+    pub parts: Vec<MeshPart>,
+}
+
+/// A source mesh inside a merged [`Mesh`]: a run of its vertices and a run of its triangles
+/// that index only those vertices.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct MeshPart {
+    /// The source mesh's name.
+    pub name: String,
+    /// The name of the object (glTF node) that held it in the source, when it had one:
+    /// what a viewer lists, which may differ from the mesh's own name.
+    #[serde(default)]
+    pub object: Option<String>,
+    /// Index of its first vertex in the merged mesh.
+    pub first_vertex: usize,
+    /// How many vertices it has.
+    pub vertex_count: usize,
+    /// Index of its first triangle in the merged mesh.
+    pub first_triangle: usize,
+    /// How many triangles it has.
+    pub triangle_count: usize,
 }
 
 impl Mesh {
@@ -137,6 +162,80 @@ impl Mesh {
         Ok(())
     }
 
+    /// Records that the vertices and triangles appended since the parts already recorded
+    /// came from the source mesh `name`, held by the object named `object`.
+    pub fn push_part(&mut self, name: &str, object: Option<&str>) {
+        let (first_vertex, first_triangle) = self
+            .parts
+            .last()
+            .map_or((0, 0), |p| (p.first_vertex + p.vertex_count, p.first_triangle + p.triangle_count));
+        self.parts.push(MeshPart {
+            name: name.to_owned(),
+            object: object.map(str::to_owned),
+            first_vertex,
+            vertex_count: self.positions.len().saturating_sub(first_vertex),
+            first_triangle,
+            triangle_count: self.triangles.len().saturating_sub(first_triangle),
+        });
+    }
+
+    /// The objects an export writes: the parts, or the whole mesh under its own name when
+    /// it has none.
+    pub fn objects(&self) -> Vec<MeshPart> {
+        if !self.parts.is_empty() {
+            return self.parts.clone();
+        }
+        vec![MeshPart {
+            name: self.name.clone(),
+            object: None,
+            first_vertex: 0,
+            vertex_count: self.positions.len(),
+            first_triangle: 0,
+            triangle_count: self.triangles.len(),
+        }]
+    }
+
+    /// Checks that the parts cover every vertex and triangle once, in order, and that each
+    /// part's triangles use only its own vertices; the message says what is wrong.
+    pub fn check_parts(&self) -> Result<(), String> {
+        if self.parts.is_empty() {
+            return Ok(());
+        }
+        let (mut vertex, mut triangle) = (0, 0);
+        for p in &self.parts {
+            if p.first_vertex != vertex || p.first_triangle != triangle {
+                return Err(format!(
+                    "part '{}' starts at vertex {} and triangle {}, expected {vertex} and {triangle}",
+                    p.name, p.first_vertex, p.first_triangle
+                ));
+            }
+            let vertices = p.first_vertex..p.first_vertex + p.vertex_count;
+            let triangles = self.triangles.get(p.first_triangle..p.first_triangle + p.triangle_count);
+            let Some(triangles) = triangles else {
+                return Err(format!("part '{}' runs past the {} triangles", p.name, self.triangles.len()));
+            };
+            if let Some(t) = triangles.iter().position(|t| t.iter().any(|&i| !vertices.contains(&(i as usize)))) {
+                return Err(format!(
+                    "part '{}' triangle {} uses a vertex outside its vertices {}..{}",
+                    p.name,
+                    p.first_triangle + t,
+                    vertices.start,
+                    vertices.end
+                ));
+            }
+            vertex = vertices.end;
+            triangle += p.triangle_count;
+        }
+        if vertex != self.positions.len() || triangle != self.triangles.len() {
+            return Err(format!(
+                "parts cover {vertex} of {} vertices and {triangle} of {} triangles",
+                self.positions.len(),
+                self.triangles.len()
+            ));
+        }
+        Ok(())
+    }
+
     /// Axis-aligned bounds `(min, max)` of the positions, `None` when empty.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let first = *self.positions.first()?;
@@ -200,5 +299,35 @@ mod tests {
         assert!(plain.material_ranges.is_empty());
         merged.triangles.pop();
         assert_eq!(merged.check_material_ranges(), Err("material ranges cover 6 of 5 triangles".into()));
+    }
+
+    /// Two source meshes appended one after the other (a quad of 4 vertices and 2
+    /// triangles, then a triangle of 3): hand-counted runs, and each way of breaking them is
+    /// named.
+    #[test]
+    fn parts_record_appended_meshes_and_broken_ones_are_named() {
+        let mut mesh = Mesh::default();
+        mesh.positions.extend([Vec3::ZERO; 4]);
+        mesh.triangles.extend([[0, 1, 2], [0, 2, 3]]);
+        mesh.push_part("quad", Some("lid"));
+        mesh.positions.extend([Vec3::ZERO; 3]);
+        mesh.triangles.push([4, 5, 6]);
+        mesh.push_part("tri", None);
+        let runs: Vec<_> =
+            mesh.parts.iter().map(|p| (p.first_vertex, p.vertex_count, p.first_triangle, p.triangle_count)).collect();
+        assert_eq!(runs, vec![(0, 4, 0, 2), (4, 3, 2, 1)]);
+        assert_eq!(mesh.check_parts(), Ok(()));
+        assert_eq!(mesh.objects(), mesh.parts);
+        let mut crossing = mesh.clone();
+        crossing.triangles[2] = [3, 5, 6];
+        assert_eq!(crossing.check_parts(), Err("part 'tri' triangle 2 uses a vertex outside its vertices 4..7".into()));
+        let mut short = mesh.clone();
+        short.positions.push(Vec3::ZERO);
+        assert_eq!(short.check_parts(), Err("parts cover 7 of 8 vertices and 3 of 3 triangles".into()));
+        // Without parts the mesh is one object under its own name.
+        let whole = Mesh { name: "body".into(), parts: Vec::new(), ..mesh };
+        let objects = whole.objects();
+        assert_eq!(objects.len(), 1);
+        assert_eq!((objects[0].name.as_str(), objects[0].vertex_count, objects[0].triangle_count), ("body", 7, 3));
     }
 }

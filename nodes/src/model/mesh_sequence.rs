@@ -117,6 +117,7 @@ impl MeshSequence {
             skin: None,
             materials: self.rest.materials.clone(),
             material_ranges: self.rest.material_ranges.clone(),
+            parts: self.rest.parts.clone(),
         }
     }
 }

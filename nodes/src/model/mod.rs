@@ -37,7 +37,7 @@ pub use family::{Family, FamilyKind, FamilySample, SampleOutcome};
 pub use fk::{ClipPoses, Transform, forward_kinematics};
 pub use intervals::{Contacts, FootContacts, FrameRange, Phases};
 pub use material::{AlphaMode, Image, Material, MaterialRange, Sampler, Specular, Texture};
-pub use mesh::{Mesh, Skin};
+pub use mesh::{Mesh, MeshPart, Skin};
 pub use mesh_sequence::{MeshSequence, MeshSequenceError};
 pub use report::{Report, into_report};
 pub use skeleton::{Channel, Joint, JointLimits, Skeleton, SkeletonError};

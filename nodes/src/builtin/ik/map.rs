@@ -272,15 +272,6 @@ impl Bodies {
     }
 }
 
-/// Mean leg length (hip to knee to ankle, metres) of a skeleton in a reference pose.
-fn leg_length(roles: &BodyRoles, world: &[Transform]) -> f32 {
-    let leg = |l: &Limb| {
-        let [a, b, c] = l.joints().map(|j| world[j].translation);
-        a.distance(b) + b.distance(c)
-    };
-    0.5 * (leg(&roles.legs[0]) + leg(&roles.legs[1]))
-}
-
 /// The rotation that best turns the unit directions `from` onto `to` (Kabsch, through the SVD
 /// of their 3×3 correlation); the shortest arc for a single pair, identity for none.
 fn best_rotation(pairs: &[(Vec3, Vec3)]) -> Quat {
@@ -396,8 +387,8 @@ pub fn transfer(
     let scale = match (root_scale, bodies) {
         (Some(s), _) => s,
         (None, Some(b)) => {
-            let s_len = leg_length(&b.source, &s_ref);
-            if s_len > 1e-6 { f64::from(leg_length(&b.target, &t_ref) / s_len) } else { 1.0 }
+            let s_len = b.source.leg_length_m(|j| s_ref[j].translation);
+            if s_len > 1e-6 { f64::from(b.target.leg_length_m(|j| t_ref[j].translation) / s_len) } else { 1.0 }
         }
         (None, None) => leg_ratio_through_map(source, target, map, refs)?,
     };

@@ -88,6 +88,9 @@ pub struct GltfAsset {
     /// Per mesh of `meshes`: for a mesh without a skin whose node hangs under a skeleton
     /// joint's node (a prop or armour plate parented to a bone), that joint; else `None`.
     pub mesh_joints: Vec<Option<usize>>,
+    /// Per mesh of `meshes`: the name of the node carrying it (the object a viewer lists,
+    /// which may differ from the mesh's own name), when the node has one.
+    pub mesh_nodes: Vec<Option<String>>,
     /// Per skeleton joint: the skeleton's skin's own inverse bind matrix for it, in the
     /// skeleton's unscaled metre frame (a scaled ancestor's scale taken out), or `None`
     /// for joints the skin does not list and files without a skin.
@@ -458,7 +461,7 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
     }
 
     let materials = if options.materials { read_materials(&doc, path, &mut warnings)? } else { Vec::new() };
-    let (meshes, mesh_joints) =
+    let (meshes, mesh_joints, mesh_nodes) =
         read_meshes(&doc, &tree, &joints, skeleton.as_ref(), skin_index, &materials, &mut warnings)?;
     let mut skin_inverse_bind_matrices = vec![None; joints.nodes.len()];
     if let Some(s) = skin_index {
@@ -478,6 +481,7 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
             clips,
             meshes,
             mesh_joints,
+            mesh_nodes,
             skin_inverse_bind_matrices,
         },
         warnings,
@@ -929,6 +933,10 @@ fn read_primitive(
     }))
 }
 
+/// The meshes of a file, one per node carrying a mesh, with the joint each unskinned one
+/// hangs under and the name of its node (see [`GltfAsset`]'s fields of the same names).
+type NodeMeshes = (Vec<Mesh>, Vec<Option<usize>>, Vec<Option<String>>);
+
 fn read_meshes(
     doc: &Document,
     tree: &NodeTree,
@@ -937,7 +945,7 @@ fn read_meshes(
     skin_index: Option<usize>,
     materials: &[Material],
     warnings: &mut Vec<String>,
-) -> Result<(Vec<Mesh>, Vec<Option<usize>>), ReadError> {
+) -> Result<NodeMeshes, ReadError> {
     let root = &doc.root;
     // Rest world matrices of all nodes (full scale) and of joints (similarity, unscaled).
     let mut world_mat = vec![Mat4::IDENTITY; tree.parent.len()];
@@ -953,6 +961,7 @@ fn read_meshes(
 
     let mut meshes = Vec::new();
     let mut mesh_joints = Vec::new();
+    let mut mesh_nodes = Vec::new();
     for (node_index, node) in root.nodes.iter().enumerate() {
         let Some(mesh_ref) = node.mesh else { continue };
         let m = mesh_ref.value();
@@ -1104,9 +1113,10 @@ fn read_meshes(
             ));
         }
         mesh_joints.push(attached);
+        mesh_nodes.push(node.name.clone());
         meshes.push(mesh);
     }
-    Ok((meshes, mesh_joints))
+    Ok((meshes, mesh_joints, mesh_nodes))
 }
 
 /// Skin `s`'s first `count` inverse bind matrices as the file stores them (identity when

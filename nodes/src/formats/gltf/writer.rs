@@ -1,14 +1,16 @@
 //! GLB writer: a clip's skeleton as a node hierarchy, one or more named animations of it,
-//! and optionally a skinned mesh bound to it, one primitive per material.
+//! and optionally a skinned mesh bound to it, one glTF mesh per part, one primitive per material.
 //!
 //! Layout: node `j` is skeleton joint `j` (end sites included, harmless), with the joint's
 //! rest offset and rest rotation as its TRS. A skeleton with several roots gets one extra
 //! unanimated parent node so the skin's joints share a root. Each animation has one shared
 //! time input (`frame / fps` seconds, with min/max), one LINEAR rotation channel per joint
 //! and a LINEAR translation channel for every joint whose translation leaves its rest
-//! offset in any animation. The mesh node (when given) is a scene root without a
-//! transform, as the spec asks of skinned meshes. A mesh without materials is one
-//! primitive over all its vertices; with materials, each material's triangles are one
+//! offset in any animation. The mesh (when given) is written as the objects it was merged
+//! from (its parts, e.g. a character's body and joints; itself when it has none), each
+//! its own named glTF mesh on its own node, a scene root without a transform as the spec
+//! asks of skinned meshes, all bound to one skin. An object drawn with one material is one
+//! primitive over all its vertices; with several, each material's triangles are one
 //! primitive over the vertices they use, and images are embedded in the binary chunk.
 
 use std::borrow::Cow;
@@ -27,7 +29,7 @@ use crate::formats::atomic::write_atomic_with;
 use crate::formats::error::{FormatError, FormatErrorKind as Kind, Loaded};
 use crate::math::quat_normalize_or_identity;
 use crate::model::fk::rest_world;
-use crate::model::{Clip, Material, Mesh, Skeleton, Skin};
+use crate::model::{Clip, Material, Mesh, MeshPart, Skeleton, Skin};
 
 use super::builder::{Bounds, GlbBuilder, GlbChunks};
 use super::material::write_materials;
@@ -148,7 +150,7 @@ pub fn build_glb_animations(
     let mut skinned = false;
     if let Some(mesh) = mesh {
         match write_mesh(&mut b, skeleton, mesh, &mut warnings) {
-            Ok(Some(node)) => {
+            Ok(nodes) if !nodes.is_empty() => {
                 skinned = mesh.skin.is_some();
                 if !skinned && animated {
                     warnings.push(format!(
@@ -156,9 +158,9 @@ pub fn build_glb_animations(
                         mesh.name
                     ));
                 }
-                scene_nodes.push(node);
+                scene_nodes.extend(nodes);
             }
-            Ok(None) => {}
+            Ok(_) => {}
             Err((kind, message)) => return Err(err(kind, message)),
         }
     }
@@ -256,76 +258,103 @@ pub fn write_glb_file(path: &Path, clip: &Clip, mesh: Option<&Mesh>) -> Result<V
     Ok(built.warnings)
 }
 
-/// One primitive to write: the vertices it uses (`None`: all, in order), its triangles
-/// over those vertices, and its material index in the mesh.
-struct Part {
+/// One primitive to write: the vertices of its object it uses (`None`: all, in order, else
+/// indices local to the object), its triangles over those vertices, and its material
+/// index in the mesh.
+struct Primitive {
     vertices: Option<Vec<u32>>,
     triangles: Vec<[u32; 3]>,
     material: Option<usize>,
 }
 
-/// Splits `mesh` into one part per material, in the order the materials first appear;
-/// each part keeps the vertices its triangles use, in their original order. A mesh
-/// without material ranges is one part over all its vertices.
-fn parts_by_material(mesh: &Mesh) -> Vec<Part> {
-    if mesh.material_ranges.is_empty() {
-        return vec![Part { vertices: None, triangles: mesh.triangles.clone(), material: None }];
-    }
+/// Splits `object` of `mesh` (checked with [`Mesh::check_parts`]) into one primitive per
+/// material, in the order the materials first appear; each keeps the vertices its
+/// triangles use, in their original order. An object drawn with one material (or none)
+/// is one primitive over all its vertices.
+fn primitives_of(mesh: &Mesh, object: &MeshPart) -> Vec<Primitive> {
+    let triangles = object.first_triangle..object.first_triangle + object.triangle_count;
+    let base = object.first_vertex as u32;
+    let local = |t: &[u32; 3]| t.map(|i| i - base);
+    // The material runs, clipped to the object's triangles.
+    let runs: Vec<(std::ops::Range<usize>, Option<usize>)> = if mesh.material_ranges.is_empty() {
+        vec![(triangles.clone(), None)]
+    } else {
+        mesh.material_ranges
+            .iter()
+            .map(|r| {
+                (
+                    r.first_triangle.max(triangles.start)..(r.first_triangle + r.triangle_count).min(triangles.end),
+                    r.material,
+                )
+            })
+            .filter(|(range, _)| !range.is_empty())
+            .collect()
+    };
     let mut order: Vec<Option<usize>> = Vec::new();
-    for r in &mesh.material_ranges {
-        if !order.contains(&r.material) {
-            order.push(r.material);
+    for (_, material) in &runs {
+        if !order.contains(material) {
+            order.push(*material);
         }
     }
-    if order.len() == 1 {
-        return vec![Part { vertices: None, triangles: mesh.triangles.clone(), material: order[0] }];
+    if order.len() <= 1 {
+        let triangles = mesh.triangles[triangles].iter().map(local).collect();
+        return vec![Primitive { vertices: None, triangles, material: order.first().copied().flatten() }];
     }
-    let n = mesh.positions.len();
+    let n = object.vertex_count;
     order
         .into_iter()
         .map(|material| {
-            let triangles: Vec<[u32; 3]> = mesh
-                .material_ranges
+            let triangles: Vec<[u32; 3]> = runs
                 .iter()
-                .filter(|r| r.material == material)
-                .flat_map(|r| &mesh.triangles[r.first_triangle..r.first_triangle + r.triangle_count])
-                .copied()
+                .filter(|(_, m)| *m == material)
+                .flat_map(|(range, _)| &mesh.triangles[range.clone()])
+                .map(local)
                 .collect();
             let mut used = vec![false; n];
             for &i in triangles.iter().flatten() {
                 used[i as usize] = true;
             }
             let vertices: Vec<u32> = (0..n as u32).filter(|&v| used[v as usize]).collect();
-            let mut local = vec![0u32; n];
+            let mut renumbered = vec![0u32; n];
             for (k, &v) in vertices.iter().enumerate() {
-                local[v as usize] = k as u32;
+                renumbered[v as usize] = k as u32;
             }
-            let triangles = triangles.iter().map(|t| t.map(|i| local[i as usize])).collect();
-            Part { vertices: Some(vertices), triangles, material }
+            let triangles = triangles.iter().map(|t| t.map(|i| renumbered[i as usize])).collect();
+            Primitive { vertices: Some(vertices), triangles, material }
         })
         .collect()
 }
 
-/// `values` (`width` numbers per vertex) of the vertices `part` uses.
-fn gather<T: Copy>(values: &[T], width: usize, vertices: &Option<Vec<u32>>) -> Vec<T> {
-    match vertices {
-        None => values.to_vec(),
-        Some(vs) => vs.iter().flat_map(|&v| &values[v as usize * width..(v as usize + 1) * width]).copied().collect(),
+/// `values` (`width` numbers per vertex of the whole mesh) of the vertices `primitive`
+/// uses in `object`.
+fn gather<T: Copy>(values: &[T], width: usize, object: &MeshPart, primitive: &Primitive) -> Vec<T> {
+    let first = object.first_vertex;
+    match &primitive.vertices {
+        None => values[first * width..(first + object.vertex_count) * width].to_vec(),
+        Some(vs) => vs
+            .iter()
+            .flat_map(|&v| {
+                let v = first + v as usize;
+                &values[v * width..(v + 1) * width]
+            })
+            .copied()
+            .collect(),
     }
 }
 
-/// Adds `mesh` (and its skin) to the document: one primitive per material, each with its
-/// material; returns its node.
+/// Adds `mesh` (and its skin) to the document: each of its parts (see [`Mesh::objects`]) as
+/// its own glTF mesh named like the part on its own node named like the part's object,
+/// all bound to one skin, one primitive per material; returns the nodes.
 fn write_mesh(
     b: &mut GlbBuilder,
     skeleton: &Skeleton,
     mesh: &Mesh,
     warnings: &mut Vec<String>,
-) -> Result<Option<json::Index<json::Node>>, (Kind, String)> {
+) -> Result<Vec<json::Index<json::Node>>, (Kind, String)> {
     let n = mesh.positions.len();
     if n == 0 || mesh.triangles.is_empty() {
         warnings.push(format!("mesh '{}' has no triangles; not written", mesh.name));
-        return Ok(None);
+        return Ok(Vec::new());
     }
     if mesh.positions.iter().any(|p| !p.is_finite()) {
         return Err((Kind::Value, format!("mesh '{}' has a non-finite position", mesh.name)));
@@ -334,6 +363,7 @@ fn write_mesh(
         return Err((Kind::Structure, format!("mesh '{}' triangle {t} indexes past its {n} vertices", mesh.name)));
     }
     mesh.check_material_ranges().map_err(|m| (Kind::Structure, format!("mesh '{}': {m}", mesh.name)))?;
+    mesh.check_parts().map_err(|m| (Kind::Structure, format!("mesh '{}': {m}", mesh.name)))?;
     let positions: Vec<f32> = mesh.positions.iter().flat_map(|p| p.to_array()).collect();
     let normals_source = if mesh.normals.len() == n {
         mesh.normals.clone()
@@ -358,45 +388,52 @@ fn write_mesh(
         None => None,
     };
 
-    let parts = parts_by_material(mesh);
-    let mut attribute_sets = Vec::with_capacity(parts.len());
-    for part in &parts {
-        let mut attributes = BTreeMap::new();
-        attributes.insert(
-            Valid(Semantic::Positions),
-            b.accessor_f32(
-                &gather(&positions, 3, &part.vertices),
-                Type::Vec3,
-                Some(Target::ArrayBuffer),
-                Bounds::Record,
-            ),
-        );
-        attributes.insert(
-            Valid(Semantic::Normals),
-            b.accessor_f32(&gather(&normals, 3, &part.vertices), Type::Vec3, Some(Target::ArrayBuffer), Bounds::Omit),
-        );
-        if let Some(uv) = &uvs {
-            attributes.insert(
-                Valid(Semantic::TexCoords(0)),
-                b.accessor_f32(&gather(uv, 2, &part.vertices), Type::Vec2, Some(Target::ArrayBuffer), Bounds::Omit),
-            );
+    // Attribute accessors of every primitive first, then the skin, the materials and the
+    // index accessors: the layout a single-object mesh has always had.
+    let objects: Vec<MeshPart> = mesh.objects();
+    let mut written = Vec::with_capacity(objects.len());
+    for object in &objects {
+        if object.triangle_count == 0 {
+            warnings.push(format!("mesh '{}': part '{}' has no triangles; not written", mesh.name, object.name));
+            continue;
         }
-        if let Some(rows) = &skin_data {
-            attributes.insert(
-                Valid(Semantic::Joints(0)),
-                b.accessor_u16(&gather(&rows.joints, 4, &part.vertices), Type::Vec4, Some(Target::ArrayBuffer)),
-            );
-            attributes.insert(
-                Valid(Semantic::Weights(0)),
-                b.accessor_f32(
-                    &gather(&rows.weights, 4, &part.vertices),
-                    Type::Vec4,
-                    Some(Target::ArrayBuffer),
-                    Bounds::Omit,
-                ),
-            );
+        let mut primitives = Vec::new();
+        for primitive in primitives_of(mesh, object) {
+            let mut attributes = BTreeMap::new();
+            let vec3 = |b: &mut GlbBuilder, values: &[f32], bounds| {
+                b.accessor_f32(&gather(values, 3, object, &primitive), Type::Vec3, Some(Target::ArrayBuffer), bounds)
+            };
+            attributes.insert(Valid(Semantic::Positions), vec3(b, &positions, Bounds::Record));
+            attributes.insert(Valid(Semantic::Normals), vec3(b, &normals, Bounds::Omit));
+            if let Some(uv) = &uvs {
+                attributes.insert(
+                    Valid(Semantic::TexCoords(0)),
+                    b.accessor_f32(
+                        &gather(uv, 2, object, &primitive),
+                        Type::Vec2,
+                        Some(Target::ArrayBuffer),
+                        Bounds::Omit,
+                    ),
+                );
+            }
+            if let Some(rows) = &skin_data {
+                attributes.insert(
+                    Valid(Semantic::Joints(0)),
+                    b.accessor_u16(&gather(&rows.joints, 4, object, &primitive), Type::Vec4, Some(Target::ArrayBuffer)),
+                );
+                attributes.insert(
+                    Valid(Semantic::Weights(0)),
+                    b.accessor_f32(
+                        &gather(&rows.weights, 4, object, &primitive),
+                        Type::Vec4,
+                        Some(Target::ArrayBuffer),
+                        Bounds::Omit,
+                    ),
+                );
+            }
+            primitives.push((primitive, attributes));
         }
-        attribute_sets.push(attributes);
+        written.push((object, primitives));
     }
 
     let mut skin_index = None;
@@ -421,23 +458,26 @@ fn write_mesh(
             Cow::Borrowed(&mesh.materials)
         };
     let materials = write_materials(b, &materials);
-    let primitives = parts
-        .iter()
-        .zip(attribute_sets)
-        .map(|(part, attributes)| {
-            let vertices = part.vertices.as_ref().map_or(n, Vec::len);
-            let material = part.material.and_then(|m| materials.get(m).copied());
-            b.triangle_primitive(attributes, &part.triangles, vertices, material, None)
-        })
-        .collect();
-    let gmesh = b.mesh(&mesh.name, primitives, None);
-    let node = b.root.push(json::Node {
-        name: Some(mesh.name.clone()),
-        mesh: Some(gmesh),
-        skin: skin_index,
-        ..Default::default()
-    });
-    Ok(Some(node))
+
+    let mut nodes = Vec::with_capacity(written.len());
+    for (object, primitives) in written {
+        let primitives = primitives
+            .into_iter()
+            .map(|(primitive, attributes)| {
+                let vertices = primitive.vertices.as_ref().map_or(object.vertex_count, Vec::len);
+                let material = primitive.material.and_then(|m| materials.get(m).copied());
+                b.triangle_primitive(attributes, &primitive.triangles, vertices, material, None)
+            })
+            .collect();
+        let gmesh = b.mesh(&object.name, primitives, None);
+        nodes.push(b.root.push(json::Node {
+            name: Some(object.object.clone().unwrap_or_else(|| object.name.clone())),
+            mesh: Some(gmesh),
+            skin: skin_index,
+            ..Default::default()
+        }));
+    }
+    Ok(nodes)
 }
 
 /// A skin's attribute and matrix data as written, flattened.

@@ -1,0 +1,199 @@
+//! Stride: how far a walk or run steps and how fast its pelvis travels, the figures an
+//! animator compares between a source motion and the same motion on a character of another
+//! size (a longer-legged character should step further and travel faster in proportion).
+//!
+//! - Leg length: hip to knee to ankle in the skeleton's rest pose, the mean of both legs
+//!   (metres), the legs read by [`roles_of`].
+//! - Plant: one contact of a foot; its position is the ankle's horizontal position at the
+//!   contact's middle frame (a rolling foot's ankle moves a little along a plant; the middle
+//!   is its typical place).
+//! - Step: from one plant to the next one to start, when they are of different feet; its
+//!   length is the horizontal distance between their positions (metres). The step length
+//!   is the mean over the steps, and ÷ leg length it is comparable across characters.
+//! - Pelvis speed: the pelvis joint's horizontal speed over a centred difference of
+//!   [`SPEED_SPAN_SECS`] (m/s), which smooths capture jitter that one-frame differences
+//!   turn into speed noise; its range is the [`SPEED_LOW_PERCENTILE`]th to
+//!   [`SPEED_HIGH_PERCENTILE`]th percentile over the frames, so a single noisy frame at
+//!   either end does not set it.
+//!
+//! A kernel: `motion.quality` reports it for a clip and its source.
+
+use glam::DVec3;
+use serde::Serialize;
+
+use super::roles::roles_of;
+use crate::model::fk::rest_world;
+use crate::model::{FrameRange, Skeleton};
+
+/// Time over which the pelvis speed is taken (seconds): a tenth of a second, well under a
+/// walking step (about half a second), over several frames of any capture.
+pub const SPEED_SPAN_SECS: f64 = 0.1;
+
+/// Lower percentile of the pelvis speed range.
+pub const SPEED_LOW_PERCENTILE: f64 = 5.0;
+
+/// Upper percentile of the pelvis speed range.
+pub const SPEED_HIGH_PERCENTILE: f64 = 95.0;
+
+/// A clip's stride (see the module doc).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Stride {
+    /// Mean rest-pose leg length, hip to knee to ankle, metres.
+    pub leg_length_m: f64,
+    /// Steps measured (successive plants of different feet).
+    pub steps: usize,
+    /// Mean step length, metres (`None` without steps).
+    pub step_length_m: Option<f64>,
+    /// The step length over the leg length (dimensionless).
+    pub step_over_leg: Option<f64>,
+    /// The pelvis's horizontal speed at the low percentile, m/s (`None` when the clip is
+    /// shorter than the speed span).
+    pub pelvis_speed_low_mps: Option<f64>,
+    /// …and at the high percentile, m/s.
+    pub pelvis_speed_high_mps: Option<f64>,
+}
+
+/// One foot's ankle joint and its contacts.
+pub struct FootPlants<'a> {
+    /// The ankle joint.
+    pub ankle: usize,
+    /// Its contacts, frames `[start, end)`.
+    pub contacts: &'a [FrameRange],
+}
+
+/// Measures the stride of a clip of `skeleton` at `fps` whose joint `j` is at `at(f, j)`
+/// (world metres) in frame `f` of `frame_count`, over the frames of `window`, with the
+/// feet's contacts `feet`. Errors: the legs or pelvis cannot be found (the message says
+/// what was).
+pub fn measure_stride(
+    skeleton: &Skeleton,
+    fps: f64,
+    frame_count: usize,
+    window: FrameRange,
+    at: impl Fn(usize, usize) -> DVec3,
+    feet: &[FootPlants<'_>],
+) -> Result<Stride, String> {
+    let rest: Vec<glam::Vec3> = rest_world(skeleton).iter().map(|t| t.translation).collect();
+    let roles = roles_of(skeleton, &rest)?;
+    let leg_length_m = f64::from(roles.leg_length_m(|j| rest[j]));
+    let horizontal = |p: DVec3| glam::DVec2::new(p.x, p.z);
+
+    // Plants in the order they start; a step joins successive plants of different feet.
+    let mut plants: Vec<(usize, usize, glam::DVec2)> = feet
+        .iter()
+        .enumerate()
+        .flat_map(|(k, foot)| {
+            foot.contacts.iter().filter_map(|c| c.intersect(&window)).filter(|c| !c.is_empty()).map(move |c| {
+                let middle = (c.start + c.end - 1) / 2;
+                (c.start, k, foot.ankle, middle)
+            })
+        })
+        .map(|(start, k, ankle, middle)| (start, k, horizontal(at(middle, ankle))))
+        .collect();
+    plants.sort_by_key(|p| (p.0, p.1));
+    let steps: Vec<f64> = plants.windows(2).filter(|w| w[0].1 != w[1].1).map(|w| w[0].2.distance(w[1].2)).collect();
+    let step_length_m = (!steps.is_empty()).then(|| steps.iter().sum::<f64>() / steps.len() as f64);
+
+    // Pelvis speed over a centred span, at the frames whose span lies inside the clip.
+    let half = ((0.5 * SPEED_SPAN_SECS * fps).round() as usize).max(1);
+    let span_secs = 2.0 * half as f64 / fps;
+    let mut speeds: Vec<f64> = (window.start.max(half)..window.end.min(frame_count.saturating_sub(half)))
+        .map(|f| horizontal(at(f + half, roles.pelvis)).distance(horizontal(at(f - half, roles.pelvis))) / span_secs)
+        .collect();
+    speeds.sort_by(f64::total_cmp);
+    Ok(Stride {
+        leg_length_m,
+        steps: steps.len(),
+        step_length_m,
+        step_over_leg: step_length_m.filter(|_| leg_length_m > 0.0).map(|s| s / leg_length_m),
+        pelvis_speed_low_mps: percentile(&speeds, SPEED_LOW_PERCENTILE),
+        pelvis_speed_high_mps: percentile(&speeds, SPEED_HIGH_PERCENTILE),
+    })
+}
+
+/// The `p`th percentile (0–100) of ascending `sorted` values, linearly interpolated between
+/// ranks; `None` when empty.
+fn percentile(sorted: &[f64], p: f64) -> Option<f64> {
+    let last = sorted.len().checked_sub(1)?;
+    let rank = p / 100.0 * last as f64;
+    let (below, above) = (rank.floor() as usize, (rank.ceil() as usize).min(last));
+    Some(sorted[below] + (rank - below as f64) * (sorted[above] - sorted[below]))
+}
+
+/// How a clip's stride compares with its source's, the source's figures scaled by the
+/// leg-length ratio (clip's over source's).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct StrideComparison {
+    /// The clip's leg length over the source's.
+    pub leg_length_ratio: f64,
+    /// |clip's step ÷ leg − source's| over the source's, percent.
+    pub step_over_leg_change_pct: Option<f64>,
+    /// The source's pelvis speed range times the leg-length ratio, m/s.
+    pub scaled_source_pelvis_speed_mps: Option<(f64, f64)>,
+    /// How far the clip's pelvis speed range reaches outside that scaled range (below its
+    /// low end or above its high end, whichever is further), percent of its high end; 0
+    /// when inside.
+    pub pelvis_speed_outside_source_pct: Option<f64>,
+}
+
+/// Compares `clip`'s stride with `source`'s (see [`StrideComparison`]).
+pub fn compare_stride(clip: &Stride, source: &Stride) -> StrideComparison {
+    let leg_length_ratio = if source.leg_length_m > 0.0 { clip.leg_length_m / source.leg_length_m } else { 1.0 };
+    let step_over_leg_change_pct = match (clip.step_over_leg, source.step_over_leg) {
+        (Some(c), Some(s)) if s > 0.0 => Some((c - s).abs() / s * 100.0),
+        _ => None,
+    };
+    let scaled = match (source.pelvis_speed_low_mps, source.pelvis_speed_high_mps) {
+        (Some(lo), Some(hi)) => Some((lo * leg_length_ratio, hi * leg_length_ratio)),
+        _ => None,
+    };
+    let outside = match (scaled, clip.pelvis_speed_low_mps, clip.pelvis_speed_high_mps) {
+        (Some((lo, hi)), Some(c_lo), Some(c_hi)) if hi > 0.0 => Some((lo - c_lo).max(c_hi - hi).max(0.0) / hi * 100.0),
+        _ => None,
+    };
+    StrideComparison {
+        leg_length_ratio,
+        step_over_leg_change_pct,
+        scaled_source_pelvis_speed_mps: scaled,
+        pelvis_speed_outside_source_pct: outside,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Percentiles of 0..=10 fall on the values themselves; between ranks they interpolate.
+    #[test]
+    fn percentiles_interpolate_between_ranks() {
+        let v: Vec<f64> = (0..=10).map(f64::from).collect();
+        assert_eq!(percentile(&v, 0.0), Some(0.0));
+        assert_eq!(percentile(&v, 50.0), Some(5.0));
+        assert_eq!(percentile(&v, 95.0), Some(9.5));
+        assert_eq!(percentile(&[], 50.0), None);
+    }
+
+    /// A clip whose leg is 1.2 times the source's, stepping 0.66 leg lengths against the
+    /// source's 0.6 (10 % more), its pelvis at 1.3–1.9 m/s against the source's 1.0–1.5
+    /// scaled to 1.2–1.8: 0.1 m/s over the scaled top, 5.6 % of it.
+    #[test]
+    fn comparison_scales_the_source_by_leg_length() {
+        let stride = |leg: f64, ratio: f64, lo: f64, hi: f64| Stride {
+            leg_length_m: leg,
+            steps: 4,
+            step_length_m: Some(ratio * leg),
+            step_over_leg: Some(ratio),
+            pelvis_speed_low_mps: Some(lo),
+            pelvis_speed_high_mps: Some(hi),
+        };
+        let c = compare_stride(&stride(1.2, 0.66, 1.3, 1.9), &stride(1.0, 0.6, 1.0, 1.5));
+        assert!((c.leg_length_ratio - 1.2).abs() < 1e-12);
+        assert!((c.step_over_leg_change_pct.unwrap() - 10.0).abs() < 1e-9);
+        let (lo, hi) = c.scaled_source_pelvis_speed_mps.unwrap();
+        assert!((lo - 1.2).abs() < 1e-12 && (hi - 1.8).abs() < 1e-12);
+        assert!((c.pelvis_speed_outside_source_pct.unwrap() - 0.1 / 1.8 * 100.0).abs() < 1e-9);
+        // Inside the scaled range: 0.
+        let inside = compare_stride(&stride(1.2, 0.6, 1.25, 1.75), &stride(1.0, 0.6, 1.0, 1.5));
+        assert_eq!(inside.pelvis_speed_outside_source_pct, Some(0.0));
+    }
+}
