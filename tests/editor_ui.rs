@@ -1197,3 +1197,37 @@ fn a_graph_opens_fitted_whole_and_f_frames_the_selection() {
     assert!((node.center() - canvas.center()).length() < 2.0, "centred: {node:?} in {canvas:?}");
     assert!(canvas.contains_rect(node));
 }
+
+/// The node menu renames a node: its wires, position and selection follow, and undo gives
+/// the file back byte for byte.
+#[test]
+fn a_node_is_renamed_from_its_menu_with_its_wires() {
+    let mut harness = harness(Some(&demo_path()));
+    let before = document::to_string(&harness.state().doc());
+    harness.get_by_label("trim").click_accesskit();
+    harness.run_steps(2);
+    right_click_title(&mut harness, "trim");
+    harness.get_by_role(Role::TextInput).focus();
+    harness.run_steps(1);
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    harness.run_steps(1);
+    harness.get_by_role(Role::TextInput).type_text("first_second");
+    harness.run_steps(1);
+    harness.key_press(egui::Key::Enter);
+    harness.run_steps(3);
+    let doc = harness.state().doc();
+    assert!(
+        doc.nodes.get("first_second").is_some_and(|n| n.kind == "clip.trim") && !doc.nodes.contains_key("trim"),
+        "{:?}",
+        doc.nodes.keys().collect::<Vec<_>>()
+    );
+    let wires: Vec<(String, String)> = doc.edges.iter().map(|e| (e.from.clone(), e.to.clone())).collect();
+    assert!(wires.contains(&("clip.clip".into(), "first_second.clip".into())), "{wires:?}");
+    assert!(wires.contains(&("first_second.clip".into(), "resample.clip".into())), "{wires:?}");
+    assert!(doc.layout.contains_key("first_second"));
+    assert_eq!(harness.state().selection(), ["first_second"]);
+    harness.state_mut().wait_for_evaluation();
+    assert!(matches!(harness.state().node_state("resample"), "ok" | "cached"));
+    harness.state_mut().undo();
+    assert_eq!(document::to_string(&harness.state().doc()), before);
+}

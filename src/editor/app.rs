@@ -281,9 +281,21 @@ impl EditorApp {
     }
 
     fn edit_coalescing(&mut self, cmd: EditorCommand, coalesce: bool) -> Result<bool, EditError> {
+        let renamed = match &cmd {
+            EditorCommand::RenameNode { from, to } => Some((from.to_string(), to.to_string())),
+            _ => None,
+        };
         let result = self
             .check_subgraph_wires(&cmd)
             .and_then(|()| self.history.apply_coalescing(&mut self.graph, &self.registry, cmd, coalesce));
+        // A renamed node stays selected and displayed under its new name.
+        if let (Ok(true), Some((from, to))) = (&result, renamed) {
+            for id in self.selection.iter_mut().chain(self.displayed.as_mut()) {
+                if *id == from {
+                    id.clone_from(&to);
+                }
+            }
+        }
         match &result {
             Ok(true) => self.document_changed(),
             Ok(false) => {}

@@ -118,6 +118,8 @@ pub(crate) struct Canvas {
     auto_placed: BTreeMap<String, Pos2>,
     /// The add-node menu's search.
     pub(crate) search: CatalogueSearch,
+    /// The node being renamed in its menu, and the name typed so far.
+    renaming: Option<(String, String)>,
     /// Where the Tab add-node menu is open (screen).
     add_at: Option<Pos2>,
     /// Canvas (graph) space → screen, as last drawn.
@@ -224,6 +226,7 @@ impl Canvas {
             zoom: self.to_screen.scaling,
             frame: self.frame_next.take().map(|r| (r, ui.max_rect())),
             search: &mut self.search,
+            renaming: &mut self.renaming,
             out: CanvasOutput::default(),
         };
         let mut style = SnarlStyle::new();
@@ -537,6 +540,7 @@ struct Viewer<'a> {
     badges: &'a BTreeMap<String, Badge>,
     marks: Marks<'a>,
     search: &'a mut CatalogueSearch,
+    renaming: &'a mut Option<(String, String)>,
     out: CanvasOutput,
 }
 
@@ -779,6 +783,21 @@ impl SnarlViewer<String> for Viewer<'_> {
 impl Viewer<'_> {
     /// The menu of node `id` (right-click on its title or frame).
     fn node_menu(&mut self, ui: &mut Ui, id: &str) {
+        ui.horizontal(|ui| {
+            ui.label("Rename");
+            if self.renaming.as_ref().is_none_or(|(n, _)| n != id) {
+                *self.renaming = Some((id.to_string(), id.to_string()));
+            }
+            let Some((_, text)) = self.renaming.as_mut() else { return };
+            let field = ui.add(egui::TextEdit::singleline(text).desired_width(140.0)).on_hover_text("Enter renames");
+            if field.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter)) {
+                if text.as_str() != id {
+                    self.out.commands.push(EditorCommand::RenameNode { from: id.into(), to: text.as_str().into() });
+                }
+                *self.renaming = None;
+                ui.close();
+            }
+        });
         let display = if self.marks.displayed == Some(id) { "Stop displaying" } else { "Display in viewport" };
         if ui.button(display).on_hover_text("the viewport plays this node whatever is selected").clicked() {
             self.out.display = Some(id.to_string());

@@ -241,6 +241,36 @@ impl Graph {
         Ok(())
     }
 
+    /// Renames node `from` to `to` (a valid, unused id): its wires, canvas position, the
+    /// graph inputs and ports that name it follow.
+    pub fn rename_node(&mut self, from: &NodeId, to: NodeId) -> Result<(), GraphError> {
+        to.check()?;
+        if self.nodes.contains_key(&to) {
+            return Err(GraphError::DuplicateId(to));
+        }
+        let node = self.nodes.remove(from).ok_or_else(|| rules::unknown_node(from))?;
+        self.nodes.insert(to.clone(), node);
+        if let Some(pos) = self.layout.remove(from) {
+            self.layout.insert(to.clone(), pos);
+        }
+        let moved = |port: &PortRef| {
+            if &port.node == from { PortRef::new(to.clone(), port.port.as_str()) } else { port.clone() }
+        };
+        self.edges = self.edges.iter().map(|e| Edge { from: moved(&e.from), to: moved(&e.to) }).collect();
+        for target in self.inputs.values_mut() {
+            if &target.node == from {
+                target.node = to.clone();
+            }
+        }
+        for targets in self.ports.inputs.values_mut() {
+            targets.iter_mut().for_each(|t| *t = moved(t));
+        }
+        for source in self.ports.outputs.values_mut() {
+            *source = moved(source);
+        }
+        Ok(())
+    }
+
     /// Removes nodes `ids` with their edges, layout entries and the graph inputs that point
     /// at them; all or nothing.
     pub fn remove_nodes(&mut self, ids: &[NodeId]) -> Result<Removal, GraphError> {
