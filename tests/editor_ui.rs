@@ -1231,3 +1231,34 @@ fn a_node_is_renamed_from_its_menu_with_its_wires() {
     harness.state_mut().undo();
     assert_eq!(document::to_string(&harness.state().doc()), before);
 }
+
+/// The viewport marks the synthesised transitions of a sequence under its timeline, where
+/// the sequence's report puts them (output frames at the clip's own frame rate).
+#[test]
+fn transitions_are_marked_under_the_timeline() {
+    let Some(path) = corpus_graph("walk_punch_kick.ron") else { return };
+    let mut harness = harness(Some(&path));
+    harness.state_mut().select(Some("sequence"));
+    harness.run_steps(3);
+    let app = harness.state();
+    let fps = clip_at(app, "sequence", "clip").fps();
+    let report = match app.output("sequence", "report") {
+        Some(kinegraph::nodes::node::Value::Report(r)) => r.clone(),
+        other => panic!("{other:?}"),
+    };
+    let expected: Vec<(f64, f64)> = report
+        .get("transitions")
+        .unwrap()
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| (t["frames"]["start"].as_f64().unwrap() / fps, t["frames"]["end"].as_f64().unwrap() / fps))
+        .collect();
+    assert!(expected.len() >= 2, "walk → punch → kick joins twice: {expected:?}");
+    let marked: Vec<(f64, f64)> =
+        app.viewport_bands().iter().filter(|b| b.name == "transition").map(|b| (b.start_secs, b.end_secs)).collect();
+    assert_eq!(marked.len(), expected.len());
+    for (m, e) in marked.iter().zip(&expected) {
+        assert!((m.0 - e.0).abs() < 1e-9 && (m.1 - e.1).abs() < 1e-9, "{m:?} vs {e:?}");
+    }
+}

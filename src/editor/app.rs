@@ -886,7 +886,13 @@ impl EditorApp {
             Value::VolumeSequence(s) => Some(s.clone()),
             _ => None,
         });
-        Motion { clip, mesh: sequence.map(ShownMesh::Baked).or(skinned.map(ShownMesh::Skinned)), smoke }
+        let bands = results::time_bands(&outputs, &inputs);
+        Motion { clip, mesh: sequence.map(ShownMesh::Baked).or(skinned.map(ShownMesh::Skinned)), smoke, bands }
+    }
+
+    /// The time ranges marked under the viewport's timeline for the node it plays.
+    pub fn viewport_bands(&self) -> Vec<results::Band> {
+        self.selected_motion().bands
     }
 
     /// The node the viewport plays: the one with the display flag, else the active one.

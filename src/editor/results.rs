@@ -55,21 +55,8 @@ pub(crate) fn show(
     outputs: &[(String, Option<Value>)],
     inputs: &[Value],
 ) {
-    // Phases or stages the node gives (else the stages it takes) are shaded on its curve plots.
-    let phases = outputs.iter().filter_map(|(_, v)| v.as_ref()).find_map(|v| match v {
-        Value::Phases(p) => Some(phase_bands(p)),
-        _ => None,
-    });
-    let stages = outputs.iter().filter_map(|(_, v)| v.as_ref()).chain(inputs).find_map(|v| match v {
-        Value::Stages(s) => Some(stage_bands(s)),
-        _ => None,
-    });
-    let controllers = outputs.iter().filter_map(|(_, v)| v.as_ref()).find_map(|v| match v {
-        Value::Report(r) => Some(timeline_of(r)).filter(|t| !t.is_empty()),
-        _ => None,
-    });
-    let controller_bands = controllers.as_ref().map(|t| t.iter().map(|a| a.band.clone()).collect());
-    let bands = phases.or(stages).or(controller_bands).unwrap_or_default();
+    let given: Vec<&Value> = outputs.iter().filter_map(|(_, v)| v.as_ref()).collect();
+    let bands = time_bands(&given, &inputs.iter().collect::<Vec<_>>());
     for (port, value) in outputs {
         let key = format!("{id}.{port}");
         match value {
@@ -117,6 +104,56 @@ pub(crate) fn show(
 }
 
 /// One key of a report: scalars on one line, objects and arrays of objects nested.
+/// The time ranges a node's results mark, shaded on its curve plots and under the viewport's
+/// timeline: the phases it gives, else the stages it gives or takes, else its controller
+/// activations; with the transitions and the blend window its report names.
+pub(crate) fn time_bands(outputs: &[&Value], inputs: &[&Value]) -> Vec<Band> {
+    let phases = outputs.iter().find_map(|v| match v {
+        Value::Phases(p) => Some(phase_bands(p)),
+        _ => None,
+    });
+    let stages = outputs.iter().chain(inputs).find_map(|v| match v {
+        Value::Stages(s) => Some(stage_bands(s)),
+        _ => None,
+    });
+    let reports: Vec<&Report> = outputs
+        .iter()
+        .filter_map(|v| match v {
+            Value::Report(r) => Some(r.as_ref()),
+            _ => None,
+        })
+        .collect();
+    let controllers =
+        reports.iter().map(|r| timeline_of(r)).find(|t| !t.is_empty()).map(|t| t.into_iter().map(|a| a.band).collect());
+    let mut bands: Vec<Band> = phases.or(stages).or(controllers).unwrap_or_default();
+    let fps = outputs.iter().find_map(|v| match v {
+        Value::Clip(c) => Some(c.fps()),
+        _ => None,
+    });
+    bands.extend(reports.iter().flat_map(|r| joins_of(r, fps)));
+    bands
+}
+
+/// The transitions (`motion.sequence`: output frames per transition, of a clip at `fps`) and
+/// the blend window (`motion.concat`: `window_secs`) a report names, as bands.
+fn joins_of(report: &Report, fps: Option<f64>) -> Vec<Band> {
+    let mut bands = Vec::new();
+    if let Some([a, b]) = report.get("window_secs").and_then(Json::as_array).map(Vec::as_slice)
+        && let (Some(start_secs), Some(end_secs)) = (a.as_f64(), b.as_f64())
+    {
+        bands.push(Band { name: "blend window".into(), start_secs, end_secs });
+    }
+    let Some(fps) = fps.filter(|f| *f > 0.0) else { return bands };
+    for t in report.get("transitions").and_then(Json::as_array).into_iter().flatten() {
+        let frames = t.get("frames");
+        let at = |k: &str| frames.and_then(|f| f.get(k)).and_then(Json::as_f64);
+        if let (Some(start), Some(end)) = (at("start"), at("end")) {
+            bands.push(Band { name: "transition".into(), start_secs: start / fps, end_secs: end / fps });
+        }
+    }
+    bands
+}
+
 fn json_row(ui: &mut Ui, salt: &str, name: &str, value: &Json) {
     match value {
         Json::Object(map) => {
@@ -232,8 +269,10 @@ fn stage_name(kind: StageKind) -> &'static str {
 /// The fill of a band at opacity `alpha`: phases blue, red, green; ground stages brown,
 /// flights sky blue; a controller a palette colour picked by its name (so it keeps it
 /// across runs).
-fn band_colour(name: &str, alpha: u8) -> Color32 {
+pub(crate) fn band_colour(name: &str, alpha: u8) -> Color32 {
     let [r, g, b] = match name {
+        "transition" => [255, 200, 60],
+        "blend window" => [230, 120, 255],
         "preparatory" => [90, 140, 255],
         "main" => [255, 110, 90],
         "posterior" => [110, 220, 130],

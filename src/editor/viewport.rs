@@ -41,6 +41,9 @@ pub(crate) struct Motion {
     pub(crate) clip: Option<Arc<Clip>>,
     pub(crate) mesh: Option<ShownMesh>,
     pub(crate) smoke: Option<Arc<VolumeSequence>>,
+    /// Time ranges marked under the timeline (phases, stages, controllers, transitions,
+    /// blend windows).
+    pub(crate) bands: Vec<super::results::Band>,
 }
 
 impl Motion {
@@ -377,7 +380,7 @@ impl Viewport {
     /// Draws the `motion`'s clip and mesh and its smoke (or a hint when there is none), with
     /// the timeline above; `contacts` are the graph's own for this clip, if it computed them.
     pub(crate) fn show(&mut self, ui: &mut Ui, title: &str, motion: Motion, contacts: Option<&Arc<Contacts>>) {
-        let Motion { clip, mesh, smoke } = motion;
+        let Motion { clip, mesh, smoke, bands: motion_bands } = motion;
         match &smoke {
             Some(v) if !self.smoke.as_ref().is_some_and(|s| Arc::ptr_eq(&s.volumes, v)) => {
                 self.reframe |= self.smoke.is_none();
@@ -421,6 +424,7 @@ impl Viewport {
         self.advance(ui, duration);
         self.timeline(ui, duration);
         self.contact_strip(ui);
+        self.band_strip(ui, &motion_bands, duration);
         let (response, painter) =
             ui.allocate_painter(ui.available_size().max(Vec2::splat(50.0)), Sense::click_and_drag());
         let rect = response.rect;
@@ -546,6 +550,37 @@ impl Viewport {
     }
 
     /// Each foot's contacts as bars along the clip's time, with the current time marked.
+    /// The marked time ranges along the timeline, named on hover, with the playhead.
+    fn band_strip(&self, ui: &mut Ui, bands: &[super::results::Band], duration: f64) {
+        if bands.is_empty() || duration <= 0.0 {
+            return;
+        }
+        ui.horizontal(|ui| {
+            ui.add_sized([90.0, 12.0], egui::Label::new(egui::RichText::new("markers").small()));
+            let (rect, response) = ui.allocate_exact_size(Vec2::new(ui.available_width(), 10.0), Sense::hover());
+            let painter = ui.painter();
+            painter.rect_filled(rect, 2.0, Color32::from_gray(40));
+            let x = |secs: f64| rect.left() + rect.width() * (secs / duration).clamp(0.0, 1.0) as f32;
+            let mut hovered = None;
+            for b in bands {
+                let cell =
+                    Rect::from_x_y_ranges(x(b.start_secs)..=x(b.end_secs).max(x(b.start_secs) + 1.0), rect.y_range());
+                painter.rect_filled(cell, 1.0, super::results::band_colour(&b.name, 200));
+                if response.hover_pos().is_some_and(|p| cell.contains(p)) {
+                    hovered = Some(b);
+                }
+            }
+            let t = x(self.time_secs);
+            painter.line_segment(
+                [Pos2::new(t, rect.top()), Pos2::new(t, rect.bottom())],
+                Stroke::new(1.5, Color32::WHITE),
+            );
+            if let Some(b) = hovered {
+                response.on_hover_text(format!("{}: {:.2} – {:.2} s", b.name, b.start_secs, b.end_secs));
+            }
+        });
+    }
+
     fn contact_strip(&self, ui: &mut Ui) {
         let Some(shown) = &self.shown else { return };
         let Some(contacts) = shown.contacts.as_ref().filter(|_| self.overlays.contacts) else { return };
