@@ -840,6 +840,17 @@ fn arrow_keys_pick_in_the_add_menu() {
     assert_eq!(added, [shown[1].clone()], "{shown:?}");
 }
 
+/// A temporary folder holding the shipped walk (30 fps, 2 s) as `walk.bvh` and graph file
+/// `name` with `text`.
+fn in_walk_folder(name: &str, text: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    std::fs::copy(assets.join("mannequin_walk.bvh"), dir.path().join("walk.bvh")).unwrap();
+    let path = dir.path().join(name);
+    std::fs::write(&path, text).unwrap();
+    (dir, path)
+}
+
 /// A stage used as a subgraph: trim to 1 s, resample to 24 fps, `clip` in and out, the
 /// end time promoted as `end`.
 const CLEAN_STAGE: &str = r#"(format: "kinegraph.graph", version: 3,
@@ -856,15 +867,8 @@ const CLEAN_STAGE: &str = r#"(format: "kinegraph.graph", version: 3,
 /// A folder with `staged.ron`: the shipped walk (30 fps, 2 s) → subgraph `clean`
 /// (`stages/clean.ron`) → contacts, and a mesh node to wire wrongly.
 fn staged_graph() -> (tempfile::TempDir, PathBuf) {
-    let dir = tempfile::tempdir().unwrap();
-    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
-    std::fs::copy(assets.join("mannequin_walk.bvh"), dir.path().join("walk.bvh")).unwrap();
-    std::fs::copy(assets.join("mannequin.glb"), dir.path().join("mannequin.glb")).unwrap();
-    std::fs::create_dir_all(dir.path().join("stages")).unwrap();
-    std::fs::write(dir.path().join("stages/clean.ron"), CLEAN_STAGE).unwrap();
-    let graph = dir.path().join("staged.ron");
-    std::fs::write(
-        &graph,
+    let (dir, graph) = in_walk_folder(
+        "staged.ron",
         r#"(format: "kinegraph.graph", version: 3,
  nodes: {
    "load": (kind: "clip.load", params: { "path": "walk.bvh" }),
@@ -874,8 +878,11 @@ fn staged_graph() -> (tempfile::TempDir, PathBuf) {
  },
  edges: [ (from: "load.clip", to: "clean.clip"), (from: "clean.clip", to: "contacts.clip") ],
  layout: { "load": (0.0, 0.0), "clean": (300.0, 0.0), "contacts": (600.0, 0.0), "mesh": (0.0, 200.0) })"#,
-    )
-    .unwrap();
+    );
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    std::fs::copy(assets.join("mannequin.glb"), dir.path().join("mannequin.glb")).unwrap();
+    std::fs::create_dir_all(dir.path().join("stages")).unwrap();
+    std::fs::write(dir.path().join("stages/clean.ron"), CLEAN_STAGE).unwrap();
     (dir, graph)
 }
 
@@ -985,12 +992,8 @@ fn an_opened_subgraph_is_evaluated_in_its_graph_and_saved_on_the_way_back() {
 /// undo gives back the flat graph byte for byte.
 #[test]
 fn collapsing_a_selection_into_a_subgraph_changes_no_result() {
-    let dir = tempfile::tempdir().unwrap();
-    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
-    std::fs::copy(assets.join("mannequin_walk.bvh"), dir.path().join("walk.bvh")).unwrap();
-    let path = dir.path().join("flat.ron");
-    std::fs::write(
-        &path,
+    let (dir, path) = in_walk_folder(
+        "flat.ron",
         r#"(format: "kinegraph.graph", version: 3,
  inputs: { "end": "trim.end_secs" },
  nodes: {
@@ -1000,8 +1003,7 @@ fn collapsing_a_selection_into_a_subgraph_changes_no_result() {
  },
  edges: [ (from: "load.clip", to: "trim.clip"), (from: "trim.clip", to: "resample.clip") ],
  layout: { "load": (0.0, 0.0), "trim": (300.0, 0.0), "resample": (600.0, 0.0) })"#,
-    )
-    .unwrap();
+    );
     let mut harness = harness(Some(&path));
     let flat = document::to_string(&harness.state().doc());
     let before = clip_at(harness.state(), "resample", "clip");
@@ -1059,12 +1061,8 @@ fn click_at(harness: &mut Harness<'static, EditorApp>, pos: egui::Pos2) {
 #[test]
 fn a_click_on_a_curve_plot_moves_the_viewport_there() {
     use egui_kittest::kittest::NodeT as _;
-    let dir = tempfile::tempdir().unwrap();
-    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
-    std::fs::copy(assets.join("mannequin_walk.bvh"), dir.path().join("walk.bvh")).unwrap();
-    let path = dir.path().join("momentum.ron");
-    std::fs::write(
-        &path,
+    let (_dir, path) = in_walk_folder(
+        "momentum.ron",
         r#"(format: "kinegraph.graph", version: 3,
  nodes: {
    "load": (kind: "clip.load", params: { "path": "walk.bvh" }),
@@ -1072,8 +1070,7 @@ fn a_click_on_a_curve_plot_moves_the_viewport_there() {
  },
  edges: [ (from: "load.clip", to: "momentum.clip") ],
  layout: { "load": (0.0, 0.0), "momentum": (300.0, 0.0) })"#,
-    )
-    .unwrap();
+    );
     let mut harness = harness(Some(&path));
     harness.state_mut().select(Some("momentum"));
     harness.run_steps(3);
@@ -1144,9 +1141,7 @@ fn titles_stay_readable_zoomed_far_out() {
 }
 
 /// A row of nodes wider than the canvas at 1:1, with long ids.
-fn wide_graph(dir: &Path) -> PathBuf {
-    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
-    std::fs::copy(assets.join("mannequin_walk.bvh"), dir.join("walk.bvh")).unwrap();
+fn wide_graph() -> (tempfile::TempDir, PathBuf) {
     let ids =
         ["load_the_walk", "trim_the_start", "resample_for_export", "trim_again_longer_name", "final_resample_step"];
     let mut nodes = String::new();
@@ -1164,13 +1159,12 @@ fn wide_graph(dir: &Path) -> PathBuf {
             edges += &format!("(from: \"{}.clip\", to: \"{id}.clip\"),\n", ids[i - 1]);
         }
     }
-    let path = dir.join("wide.ron");
-    std::fs::write(
-        &path,
-        format!("(format: \"kinegraph.graph\", version: 3, nodes: {{ {nodes} }}, edges: [ {edges} ], layout: {{ {layout} }})"),
+    in_walk_folder(
+        "wide.ron",
+        &format!(
+            "(format: \"kinegraph.graph\", version: 3, nodes: {{ {nodes} }}, edges: [ {edges} ], layout: {{ {layout} }})"
+        ),
     )
-    .unwrap();
-    path
 }
 
 /// A graph opens with every node whole in view (the first view fitted node corners, so the
@@ -1178,8 +1172,7 @@ fn wide_graph(dir: &Path) -> PathBuf {
 /// the canvas, centred.
 #[test]
 fn a_graph_opens_fitted_whole_and_f_frames_the_selection() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = wide_graph(dir.path());
+    let (_dir, path) = wide_graph();
     let mut harness = harness(Some(&path));
     harness.run_steps(3);
     let app = harness.state();
