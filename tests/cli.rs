@@ -466,3 +466,32 @@ fn a_closed_standard_error_leaves_the_exit_code_the_commands_own() {
     assert_eq!(child.wait().unwrap().code(), Some(0));
     assert!(out.path().join("mannequin_walk.glb").is_file());
 }
+
+#[test]
+fn the_smoke_examples_keep_their_smoke_through_every_remesh() {
+    // Issue 17: smoke lost (or gained) by the transfer onto each step's new mesh, advection
+    // and remeshing together, under 0.5 % per step (the total is Σ V s over the tets of the
+    // old and the new mesh, before the step's sources add any).
+    let mut graphs = vec!["graphs/ball_in_smoke.ron"];
+    if shared_data().is_some() {
+        graphs.push("graphs/kick_through_smoke.ron");
+    }
+    for graph in graphs {
+        let dir = tempfile::tempdir().unwrap();
+        let out = kg(&["run", graph, "--target", "smoke", "--out", dir.path().to_str().unwrap(), "--json"]);
+        assert_eq!(out.status.code(), Some(0), "{graph}: {}", stderr(&out));
+        let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let steps = report["reports"]["smoke"]["per_step"].as_array().unwrap();
+        let changes: Vec<f64> = steps.iter().map(|s| s["transfer_mass_change"].as_f64().unwrap()).collect();
+        let worst = changes.iter().map(|c| c.abs()).fold(0.0, f64::max);
+        eprintln!(
+            "{graph}: {} steps, worst change {:.3} %, sum {:+.3} %",
+            steps.len(),
+            100.0 * worst,
+            100.0 * changes.iter().sum::<f64>()
+        );
+        // Measured 0.30 % (ball_in_smoke, the heavy ball falling through the column) and
+        // 0.17 % (kick_through_smoke); 0.59 % and 0.45 % before the per-node correction.
+        assert!(steps.len() > 40 && worst < 0.005, "{graph}: {changes:?}");
+    }
+}

@@ -99,8 +99,10 @@ fn smoke_mass_is_kept_across_sizing_field_remeshes() {
         free = nodes.free;
     }
     eprintln!("total change over 4 remeshes {:+.4} %", 100.0 * (previous - start) / start);
-    // Issue 17's bound: < 0.5 % per remesh (measured −0.09 to −0.02 %, −0.24 % over four).
-    assert!(worst < 0.005, "worst mass change per remesh {worst}");
+    // Issue 17's bound is < 0.5 % per remesh; the transfer's per-node correction keeps a
+    // still remesh's total to rounding (measured below 1e-14; −0.09 to −0.02 % per remesh
+    // before it), while the start above is held to the analytic integral.
+    assert!(worst < 1e-9, "worst mass change per remesh {worst}");
 }
 
 #[test]

@@ -24,7 +24,7 @@ use super::mesher::Obstacle;
 use super::projection::{FaceCondition, PressureSolver, ProjectionError, RigidCoupling, face_conditions};
 use super::remesh::{Nodes, ObstacleDistance, mesh_nodes, place_nodes, solids, tet_vorticity};
 use super::rigid::{RigidBody, hydrostatic_wrench};
-use super::smoke::{Buoyancy, add_buoyancy, advect_per_tet, node_values, total};
+use super::smoke::{Buoyancy, Transfer, add_buoyancy, node_values, total};
 use super::velocity::{VelocityField, advect_velocity, momentum};
 use crate::cancel::{Cancel, Cancelled};
 use crate::model::volume::{FluidDomain, VolumeFrame, VolumeSequence, VoxelGrid};
@@ -393,8 +393,9 @@ pub fn simulate_with_bodies(
         let (conditions, wall) = boundary(domain, &mesh, &obstacles, first_body);
         let mut z = advect_velocity(&state.mesh, &field, &mesh, dt, |f| mesh.is_boundary(f));
         let before = total(&state.mesh, &state.density);
-        let mut density = advect_per_tet(&state.mesh, &field, &state.density, &mesh, dt);
-        let mut heat = advect_per_tet(&state.mesh, &field, &state.heat_k, &mesh, dt);
+        let transfer = Transfer::new(&state.mesh, &field, &mesh, dt);
+        let mut density = transfer.apply(&state.mesh, &state.density);
+        let mut heat = transfer.apply(&state.mesh, &state.heat_k);
         let after = total(&mesh, &density);
         let advect_s = clock.elapsed().as_secs_f64();
 
