@@ -547,8 +547,13 @@ struct Viewer<'a> {
 impl<'a> Viewer<'a> {
     /// Adds `rect` (graph space) to node `id`'s extent.
     fn measure(&mut self, id: &str, rect: egui::Rect) {
-        let extent = self.out.extents.entry(id.to_string()).or_insert(egui::Rect::NOTHING);
-        *extent = extent.union(rect);
+        // Called per pin per frame: the id is copied only the first time.
+        match self.out.extents.get_mut(id) {
+            Some(extent) => *extent = extent.union(rect),
+            None => {
+                self.out.extents.insert(id.to_string(), rect);
+            }
+        }
     }
 
     fn face(&self, id: &str) -> Option<Face<'a>> {
