@@ -1255,3 +1255,47 @@ fn transitions_are_marked_under_the_timeline() {
         assert!((m.0 - e.0).abs() < 1e-9 && (m.1 - e.1).abs() < 1e-9, "{m:?} vs {e:?}");
     }
 }
+
+/// A subgraph node's file is a parameter like any input file: pointing it at another stage
+/// gives the node that stage's ports at once, a wire from a port the new file lacks is an
+/// error on the node naming the ports it has, and rewired it runs.
+#[test]
+fn a_subgraph_nodes_file_is_edited_in_its_panel() {
+    let (dir, path) = staged_graph();
+    std::fs::write(
+        dir.path().join("stages/slow.ron"),
+        CLEAN_STAGE.replace(r#"outputs: { "clip": "resample.clip" }"#, r#"outputs: { "slow": "resample.clip" }"#),
+    )
+    .unwrap();
+    let mut harness = harness(Some(&path));
+    harness.get_by_label("clean").click_accesskit();
+    harness.run_steps(3);
+    let field = harness.get_by_role_and_label(Role::TextInput, "file");
+    field.focus();
+    harness.run_steps(1);
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    harness.get_by_role_and_label(Role::TextInput, "file").type_text("stages/slow.ron");
+    harness.key_press(egui::Key::Enter);
+    harness.run_steps(2);
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(2);
+    assert_eq!(
+        harness.state().doc().nodes["clean"].params.get("file"),
+        Some(&ParamValue::Text("stages/slow.ron".into()))
+    );
+    // The old wire from `clean.clip` now names a port the file does not show: the node says so.
+    assert_eq!(harness.state().node_state("clean"), "error");
+    harness.get_by_label_contains("has no output 'clip'; it shows slow");
+    // Rewired from the new pin, it runs.
+    let (old, new) = (PortRef::parse("clean.clip").unwrap(), PortRef::parse("clean.slow").unwrap());
+    let contacts = PortRef::parse("contacts.clip").unwrap();
+    let rewire = EditorCommand::Batch(vec![
+        EditorCommand::Disconnect { from: old, to: contacts.clone() },
+        EditorCommand::Connect { from: new, to: contacts },
+    ]);
+    harness.state_mut().edit(rewire).unwrap();
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(2);
+    assert_eq!(clip_at(harness.state(), "clean", "slow").fps(), 24.0);
+    assert!(matches!(harness.state().node_state("contacts"), "ok" | "cached"));
+}

@@ -65,10 +65,13 @@ pub(crate) fn show(
         Some(face) => {
             ui.label(RichText::new(format!("{} · {}", node.kind, face.path.display())).weak());
             ui.label(&face.description);
-            let params = face
-                .params
-                .iter()
-                .map(|p| (p.name.as_str(), p.spec, node.params.get(&p.name).or(p.value.as_ref())))
+            let file = &crate::engine::FILE_PARAM_SPEC;
+            let params = std::iter::once((file.name, file, node.params.get(file.name)))
+                .chain(
+                    face.params
+                        .iter()
+                        .map(|p| (p.name.as_str(), p.spec, node.params.get(&p.name).or(p.value.as_ref()))),
+                )
                 .collect();
             (params, Face::Subgraph(face))
         }
@@ -109,7 +112,9 @@ pub(crate) fn show(
     }
     egui::Grid::new("params").num_columns(3).striped(true).show(ui, |ui| {
         for (name, spec, value) in params {
-            param_row(ui, state, id, name, spec, value, node.params.contains_key(name), &mut edits);
+            // A subgraph's file has no default to go back to.
+            let resettable = node.params.contains_key(name) && !std::ptr::eq(spec, &crate::engine::FILE_PARAM_SPEC);
+            param_row(ui, state, id, name, spec, value, resettable, &mut edits);
             ui.end_row();
         }
     });

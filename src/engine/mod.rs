@@ -17,6 +17,6 @@ pub use fingerprint::{FileIdentity, Fingerprint};
 pub use memory::{default_memory_limit, parse_memory_size};
 pub use report::{NodeReport, NodeStatus, RunReport};
 pub use subgraph::{
-    FaceParam, FacePort, MAX_DEPTH, SubgraphFace, Unsaved, check_connect, check_face_types, compile_file,
-    compile_file_with, expand_subgraphs, face,
+    FILE_PARAM_SPEC, FaceParam, FacePort, MAX_DEPTH, SubgraphFace, Unsaved, check_connect, check_face_types,
+    compile_file, compile_file_with, expand_subgraphs, face,
 };

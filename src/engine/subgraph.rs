@@ -26,6 +26,14 @@ use crate::graph::{
     located, rules,
 };
 
+/// The spec of a subgraph node's `file` parameter, for forms that edit it as any input file.
+pub static FILE_PARAM_SPEC: ParamSpec = ParamSpec {
+    name: SUBGRAPH_FILE_PARAM,
+    doc: "The graph file used as this node, relative to this graph's folder: its ports become \
+          the node's ports and its graph inputs the node's parameters.",
+    kind: kinegraph_nodes::node::ParamKind::InputPath { extensions: &["ron"], required: true },
+};
+
 /// How deep subgraphs may nest.
 pub const MAX_DEPTH: usize = 16;
 
