@@ -502,17 +502,7 @@ fn dragging_a_number_nudges_it_by_its_size() {
 fn right_click_title(harness: &mut Harness<'static, EditorApp>, id: &str) {
     let (x, y) = harness.state().graph().layout()[id];
     let pos = harness.state().canvas_to_screen((x + 30.0, y + 9.0));
-    harness.event(egui::Event::PointerMoved(pos));
-    harness.run_steps(1);
-    for pressed in [true, false] {
-        harness.event(egui::Event::PointerButton {
-            pos,
-            button: egui::PointerButton::Secondary,
-            pressed,
-            modifiers: egui::Modifiers::NONE,
-        });
-        harness.run_steps(1);
-    }
+    click_at(harness, pos, egui::PointerButton::Secondary);
     harness.run_steps(1);
 }
 
@@ -1041,17 +1031,12 @@ fn collapsing_a_selection_into_a_subgraph_changes_no_result() {
     assert_eq!(document::to_string(&harness.state().doc()), flat);
 }
 
-/// A left click at `pos` (screen), as the pointer gives it.
-fn click_at(harness: &mut Harness<'static, EditorApp>, pos: egui::Pos2) {
+/// A click of `button` at `pos` (screen), as the pointer gives it.
+fn click_at(harness: &mut Harness<'static, EditorApp>, pos: egui::Pos2, button: egui::PointerButton) {
     harness.event(egui::Event::PointerMoved(pos));
     harness.run_steps(1);
     for pressed in [true, false] {
-        harness.event(egui::Event::PointerButton {
-            pos,
-            button: egui::PointerButton::Primary,
-            pressed,
-            modifiers: egui::Modifiers::NONE,
-        });
+        harness.event(egui::Event::PointerButton { pos, button, pressed, modifiers: egui::Modifiers::NONE });
         harness.run_steps(1);
     }
 }
@@ -1084,7 +1069,7 @@ fn a_click_on_a_curve_plot_moves_the_viewport_there() {
     let y = toggles.bottom() + 90.0;
     let mut times = Vec::new();
     for x in [toggles.left() + 120.0, toggles.left() + 240.0] {
-        click_at(&mut harness, egui::pos2(x, y));
+        click_at(&mut harness, egui::pos2(x, y), egui::PointerButton::Primary);
         harness.run_steps(2);
         let (secs, playing) = harness.state().viewport_time();
         assert!(!playing, "a click pauses");

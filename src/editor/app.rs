@@ -43,8 +43,10 @@ pub struct EditorApp {
     clean_text: String,
     dirty: bool,
     history: History,
-    /// The faces of the graph's subgraph nodes, read from their files at every change.
+    /// The faces of the graph's subgraph nodes, read from their files.
     faces: Faces,
+    /// The subgraph nodes and files `faces` was read for; none to read them afresh.
+    face_files: Option<Vec<(NodeId, String)>>,
     /// The graphs the document was opened from as a subgraph, outermost first.
     parents: Vec<Parent>,
     /// Going back from a subgraph with unsaved edits: the question is open.
@@ -119,6 +121,7 @@ impl EditorApp {
             dirty: false,
             history: History::new(),
             faces: Faces::new(),
+            face_files: None,
             parents: Vec::new(),
             leaving: false,
             canvas: Canvas::default(),
@@ -603,6 +606,7 @@ impl EditorApp {
         self.report = None;
         self.canvas = self.canvas.replaced();
         self.snarl_selection.clear();
+        self.face_files = None;
         self.document_changed();
     }
 
@@ -613,7 +617,13 @@ impl EditorApp {
 
     fn document_changed(&mut self) {
         self.dirty = document::to_string(&self.graph.to_doc()) != self.clean_text;
-        self.faces = subgraph_faces(&self.graph, &self.registry, &self.base_dir());
+        // Faces are read from disk only when the subgraph nodes or their files change (not
+        // on every param edit or drag step), and afresh for every document.
+        let files = subgraph_files(&self.graph);
+        if self.face_files.as_ref() != Some(&files) {
+            self.faces = subgraph_faces(&files, &self.registry, &self.base_dir());
+            self.face_files = Some(files);
+        }
         self.canvas.sync(&self.graph, &self.registry, &self.faces);
         self.selection.retain(|id| self.graph.contains(id));
         self.badges.retain(|id, _| self.graph.contains(id));
@@ -1063,7 +1073,7 @@ impl EditorApp {
     }
 
     fn update_title(&mut self, ctx: &egui::Context) {
-        let name = self.path.as_deref().and_then(Path::file_name).map_or("untitled".into(), |n| n.to_string_lossy());
+        let name = file_name(self.path.as_deref());
         let title = format!("{name}{} — kinegraph", if self.dirty { " •" } else { "" });
         if title != self.title {
             ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
@@ -1328,19 +1338,25 @@ struct Parent {
     node: String,
 }
 
-/// The faces of `graph`'s subgraph nodes whose files can be read (relative to `base_dir`);
-/// one that cannot is left out, and the run reports why on its node.
-fn subgraph_faces(graph: &Graph, registry: &kinegraph_nodes::node::Registry, base_dir: &Path) -> Faces {
+/// `graph`'s subgraph nodes and the files they name (relative to the graph's folder).
+fn subgraph_files(graph: &Graph) -> Vec<(NodeId, String)> {
     graph
         .nodes()
         .iter()
         .filter(|(_, n)| n.kind == document::SUBGRAPH_KIND)
         .filter_map(|(id, n)| match n.params.get(document::SUBGRAPH_FILE_PARAM) {
-            Some(kinegraph_nodes::node::ParamValue::Text(file)) => {
-                crate::engine::face(&base_dir.join(file), registry).ok().map(|f| (id.clone(), f))
-            }
+            Some(kinegraph_nodes::node::ParamValue::Text(file)) => Some((id.clone(), file.clone())),
             _ => None,
         })
+        .collect()
+}
+
+/// The faces of the subgraph nodes `files` whose files can be read (relative to `base_dir`);
+/// one that cannot is left out, and the run reports why on its node.
+fn subgraph_faces(files: &[(NodeId, String)], registry: &kinegraph_nodes::node::Registry, base_dir: &Path) -> Faces {
+    files
+        .iter()
+        .filter_map(|(id, file)| crate::engine::face(&base_dir.join(file), registry).ok().map(|f| (id.clone(), f)))
         .collect()
 }
 
