@@ -1284,3 +1284,40 @@ fn a_subgraph_nodes_file_is_edited_in_its_panel() {
     assert_eq!(clip_at(harness.state(), "clean", "slow").fps(), 24.0);
     assert!(matches!(harness.state().node_state("contacts"), "ok" | "cached"));
 }
+
+/// Bypass from the node menu: the node passes its clip on (so what follows gets the whole
+/// clip, not the trimmed second), shows `bypassed`, is saved as such; B on the selection
+/// lets it run again, and undo bypasses it once more.
+#[test]
+fn a_bypassed_node_passes_its_input_through_and_b_toggles_it() {
+    let mut harness = harness(Some(&demo_path()));
+    let whole = clip_at(harness.state(), "clip", "clip").duration_secs();
+    let trimmed = clip_at(harness.state(), "resample", "clip").duration_secs();
+    assert!((trimmed - 1.0).abs() < 0.05 && whole > 1.5, "trimmed {trimmed} s of {whole} s");
+    right_click_title(&mut harness, "trim");
+    harness.get_by_label("Bypass").click();
+    harness.run_steps(1);
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(2);
+    let app = harness.state();
+    assert_eq!(app.node_state("trim"), "bypassed");
+    assert!(app.doc().nodes["trim"].bypass);
+    let passed = clip_at(app, "resample", "clip").duration_secs();
+    assert!((passed - whole).abs() < 0.05, "resample got {passed} s, the whole clip is {whole} s");
+    // B with trim selected lets it run again.
+    harness.get_by_label("trim").click_accesskit();
+    harness.run_steps(2);
+    harness.key_press(egui::Key::B);
+    harness.run_steps(1);
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(2);
+    assert!(!harness.state().doc().nodes["trim"].bypass);
+    assert!((clip_at(harness.state(), "resample", "clip").duration_secs() - trimmed).abs() < 1e-9);
+    // One undo step puts the bypass back.
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.run_steps(1);
+    harness.state_mut().wait_for_evaluation();
+    harness.run_steps(2);
+    assert!(harness.state().doc().nodes["trim"].bypass);
+    assert_eq!(harness.state().node_state("trim"), "bypassed");
+}

@@ -15,7 +15,11 @@ use kinegraph_nodes::node::{
 };
 
 fn node(kind: &str, params: &[(&str, ParamValue)]) -> NodeDoc {
-    NodeDoc { kind: kind.into(), params: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect() }
+    NodeDoc {
+        kind: kind.into(),
+        params: params.iter().map(|(k, v)| (k.to_string(), v.clone())).collect(),
+        bypass: false,
+    }
 }
 
 fn edge(from: &str, to: &str) -> EdgeDoc {
@@ -304,4 +308,86 @@ fn phase_curves_agree_with_the_phases() {
         }
     }
     assert!(along.iter().zip(&magnitude).all(|(a, m)| a.abs() <= m + 1e-9), "a projection never exceeds the length");
+}
+
+/// `chain_doc` with `ids` bypassed, compiled.
+fn bypassed_chain(engine: &Engine, offset_a2: f64, ids: &[&str]) -> Result<Graph, kinegraph::engine::GraphErrors> {
+    let mut doc = chain_doc(offset_a2);
+    for id in ids {
+        doc.nodes.get_mut(*id).unwrap().bypass = true;
+    }
+    let graph = Graph::from_doc(&doc).unwrap();
+    compile(&graph, engine.registry(), Path::new("chain"), &SourceMap::default()).map(|_| graph)
+}
+
+#[test]
+fn a_bypassed_node_passes_its_input_on_and_runs_again_when_let_go() {
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
+    let options = RunOptions::new(PathBuf::from("."));
+    let run = |graph: &Graph| {
+        let g = compile(graph, engine.registry(), Path::new("chain"), &SourceMap::default()).unwrap();
+        engine.run(&g, &options)
+    };
+    // c = 1, a1 = c + 1, a2 = a1 + 5 (bypassed: a2 gives a1's 2), a3 = a2 + 1.
+    let bypassed = run(&bypassed_chain(&engine, 5.0, &["a2"]).unwrap());
+    assert_eq!(bypassed.nodes["a2"].status, NodeStatus::Bypassed);
+    assert_eq!(scalar(&bypassed, "a2"), 2.0);
+    assert_eq!(scalar(&bypassed, "a3"), 3.0);
+    assert!(bypassed.succeeded());
+    // Let go, a2 adds its 5 again and a3 is recomputed, not taken from the bypassed run.
+    let running = run(&bypassed_chain(&engine, 5.0, &[]).unwrap());
+    assert_eq!(running.nodes["a2"].status, NodeStatus::Ok);
+    assert_eq!(running.nodes["a3"].status, NodeStatus::Ok);
+    assert_eq!(scalar(&running, "a3"), 8.0);
+    // And bypassed once more: a3 comes back as the bypassed graph gave it.
+    let again = run(&bypassed_chain(&engine, 5.0, &["a2"]).unwrap());
+    assert_eq!(again.nodes["a3"].status, NodeStatus::Cached);
+    assert_eq!(scalar(&again, "a3"), 3.0);
+}
+
+#[test]
+fn a_bypassed_node_with_nothing_of_the_type_to_pass_is_an_error_at_each_reader() {
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
+    // The constant has no input at all: both nodes reading it get nothing.
+    let errors = bypassed_chain(&engine, 1.0, &["c"]).unwrap_err();
+    let readers: Vec<(Option<&str>, Option<&str>)> =
+        errors.diagnostics.iter().map(|d| (d.node.as_deref(), d.item.as_deref())).collect();
+    assert_eq!(readers, vec![(Some("a1"), Some("a")), (Some("b1"), Some("a"))]);
+    assert_eq!(
+        errors.diagnostics[0].message,
+        "c.value passes nothing while 'c' is bypassed (it has no connected scalar input), so a1.a gets no value"
+    );
+}
+
+#[test]
+fn bypass_is_saved_as_version_3_and_read_back() {
+    let mut doc = chain_doc(1.0);
+    doc.nodes.get_mut("a2").unwrap().bypass = true;
+    let text = document::to_string(&doc);
+    assert!(text.contains("version: 3"), "{text}");
+    assert_eq!(text.matches("bypass: true").count(), 1, "{text}");
+    let back = document::parse(&text, Path::new("x.ron")).unwrap().doc;
+    assert_eq!(Graph::from_doc(&back).unwrap(), Graph::from_doc(&doc).unwrap());
+    // Let go, the file is what it was before bypass existed.
+    doc.nodes.get_mut("a2").unwrap().bypass = false;
+    let text = document::to_string(&doc);
+    assert!(text.contains("version: 2") && !text.contains("bypass"), "{text}");
+}
+
+#[test]
+fn a_bypassed_export_writes_nothing() {
+    let engine = Engine::new(kinegraph_nodes::builtin::registry());
+    let mut doc = GraphDoc::new();
+    doc.nodes.insert("m".into(), node("generate.mannequin", &[]));
+    doc.nodes.insert("out".into(), node("export.bvh", &[]));
+    doc.nodes.get_mut("out").unwrap().bypass = true;
+    doc.edges = vec![edge("m.clip", "out.clip")];
+    let g = compile(&Graph::from_doc(&doc).unwrap(), engine.registry(), Path::new("g"), &SourceMap::default()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let mut options = RunOptions::new(PathBuf::from("."));
+    options.out_dir = Some(dir.path().to_path_buf());
+    let report = engine.run(&g, &options);
+    assert_eq!(report.nodes["out"].status, NodeStatus::Bypassed);
+    assert!(report.files_written.is_empty());
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }

@@ -117,6 +117,7 @@ pub fn print_report(graph: &Path, report: &RunReport) {
             NodeStatus::Error => "ERROR",
             NodeStatus::Blocked => "blocked",
             NodeStatus::Cancelled => "cancelled",
+            NodeStatus::Bypassed => "bypassed",
         };
         errln!("  {status:<9} {id} ({}) {:.3} s", node.kind, node.seconds);
         for w in &node.warnings {

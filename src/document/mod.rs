@@ -91,10 +91,11 @@ impl PortsDoc {
     }
 }
 
-/// The version a document is written at: 3 when it uses subgraphs or shows ports, else 2.
+/// The version a document is written at: 3 when it uses subgraphs, shows ports or bypasses
+/// a node, else 2.
 pub fn written_version(doc: &GraphDoc) -> u32 {
-    let subgraphs = !doc.ports.is_empty() || doc.nodes.values().any(|n| n.kind == SUBGRAPH_KIND);
-    if subgraphs { 3 } else { 2 }
+    let new = !doc.ports.is_empty() || doc.nodes.values().any(|n| n.kind == SUBGRAPH_KIND || n.bypass);
+    if new { 3 } else { 2 }
 }
 
 /// One node of a graph file.
@@ -106,6 +107,10 @@ pub struct NodeDoc {
     /// Parameter values by name; unset ones take the schema default.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty", deserialize_with = "unique_param_names")]
     pub params: BTreeMap<String, ParamValue>,
+    /// Bypassed (version 3): the node does not run and each output passes on an input of
+    /// its type, so a step can be switched off without rewiring the graph.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub bypass: bool,
 }
 
 /// A connection `"node.port" → "node.port"`.

@@ -56,7 +56,7 @@ pub fn migrate(old: GraphDocV1) -> Result<GraphDoc, String> {
             }
             params.insert("metres_per_unit".to_string(), scale);
         }
-        if nodes.insert(n.id.clone(), NodeDoc { kind: n.kind, params }).is_some() {
+        if nodes.insert(n.id.clone(), NodeDoc { kind: n.kind, params, bypass: false }).is_some() {
             return Err(format!("two nodes have the id '{}': rename or delete one of them", n.id.escape_debug()));
         }
     }

@@ -368,6 +368,23 @@ impl EditorApp {
         }
     }
 
+    /// Bypasses the selected nodes, or lets them run again when all of them are bypassed:
+    /// one undo step. Subgraph nodes are left as they are (their file's nodes can be).
+    pub fn toggle_bypass_selection(&mut self) {
+        let ids: Vec<NodeId> = self
+            .selection()
+            .into_iter()
+            .map(NodeId::from)
+            .filter(|id| self.graph.node(id.as_str()).is_some_and(|n| n.kind != document::SUBGRAPH_KIND))
+            .collect();
+        let bypass = !ids.iter().all(|id| self.graph.node(id.as_str()).is_some_and(|n| n.bypass));
+        let commands: Vec<EditorCommand> =
+            ids.into_iter().map(|id| EditorCommand::SetBypass { id, bypass }).collect();
+        if !commands.is_empty() {
+            let _ = self.edit(EditorCommand::Batch(commands));
+        }
+    }
+
     /// Moves the selection into a new subgraph file `file` (never one that exists) and puts
     /// a node using it in its place, wired as the selection was: one undo step (the file
     /// stays when it is undone).
@@ -1029,14 +1046,18 @@ impl EditorApp {
         if typing {
             return;
         }
-        let (delete, duplicate, home, frame) = ui.input_mut(|i| {
+        let (delete, duplicate, home, frame, bypass) = ui.input_mut(|i| {
             (
                 i.key_pressed(Key::Delete) || i.key_pressed(Key::Backspace),
                 i.consume_key(Modifiers::COMMAND, Key::D),
                 i.consume_key(Modifiers::NONE, Key::Home),
                 i.consume_key(Modifiers::NONE, Key::F),
+                i.consume_key(Modifiers::NONE, Key::B),
             )
         });
+        if bypass {
+            self.toggle_bypass_selection();
+        }
         if home {
             self.frame_all();
         }
@@ -1380,7 +1401,7 @@ fn roll_up(inner: &[(&String, &Badge)]) -> Option<Badge> {
     if inner.iter().all(|(_, b)| **b == Badge::Cached) {
         return Some(Badge::Cached);
     }
-    inner.iter().all(|(_, b)| matches!(b, Badge::Ok | Badge::Cached)).then_some(Badge::Ok)
+    inner.iter().all(|(_, b)| matches!(b, Badge::Ok | Badge::Cached | Badge::Bypassed)).then_some(Badge::Ok)
 }
 
 fn badge_of(status: NodeStatus, message: Option<String>) -> Badge {
@@ -1390,6 +1411,7 @@ fn badge_of(status: NodeStatus, message: Option<String>) -> Badge {
         NodeStatus::Error => Badge::Error(message.unwrap_or_else(|| "failed".into())),
         NodeStatus::Blocked => Badge::Blocked(message.unwrap_or_else(|| "blocked upstream".into())),
         NodeStatus::Cancelled => Badge::Cancelled,
+        NodeStatus::Bypassed => Badge::Bypassed,
     }
 }
 

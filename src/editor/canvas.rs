@@ -21,6 +21,8 @@ use crate::graph::{Graph, PortRef, Side};
 pub(crate) const SELECTED: Color32 = Color32::from_rgb(255, 200, 60);
 /// The mark of the node the viewport displays.
 pub(crate) const DISPLAYED: Color32 = Color32::from_rgb(90, 160, 255);
+/// Edge and state colour of a bypassed node.
+const BYPASSED: Color32 = Color32::from_rgb(200, 130, 230);
 
 /// What the canvas marks on nodes besides their state.
 #[derive(Clone, Copy)]
@@ -51,6 +53,8 @@ pub(crate) enum Badge {
     Blocked(String),
     /// The run was cancelled by a newer edit.
     Cancelled,
+    /// Bypassed: it passed its inputs on.
+    Bypassed,
 }
 
 impl Badge {
@@ -64,6 +68,7 @@ impl Badge {
             Badge::Error(_) => ("error", Color32::from_rgb(235, 80, 70)),
             Badge::Blocked(_) => ("blocked", Color32::from_rgb(230, 160, 60)),
             Badge::Cancelled => ("cancelled", Color32::GRAY),
+            Badge::Bypassed => ("bypassed", BYPASSED),
         }
     }
 
@@ -633,10 +638,15 @@ impl SnarlViewer<String> for Viewer<'_> {
         _outputs: &[OutPin],
         snarl: &Snarl<String>,
     ) -> egui::Frame {
-        match snarl.get_node(node) {
-            Some(id) if self.marks.selection.contains(id) => default.stroke(egui::Stroke::new(2.5, SELECTED)),
+        let Some(id) = snarl.get_node(node) else { return default };
+        // A bypassed node is dimmed and edged in the bypass colour, as in Houdini.
+        let frame = match self.graph.node(id) {
+            Some(n) if n.bypass => {
+                default.fill(default.fill.gamma_multiply(0.45)).stroke(egui::Stroke::new(1.5, BYPASSED))
+            }
             _ => default,
-        }
+        };
+        if self.marks.selection.contains(id) { frame.stroke(egui::Stroke::new(2.5, SELECTED)) } else { frame }
     }
 
     fn inputs(&mut self, node: &String) -> usize {
@@ -813,6 +823,18 @@ impl Viewer<'_> {
         {
             self.out.open = Some(id.to_string());
             ui.close();
+        }
+        let bypassed = self.graph.node(id).is_some_and(|n| n.bypass);
+        if !self.faces.contains_key(id) {
+            let (label, tip) = if bypassed {
+                ("Stop bypassing", "run the node again (B)")
+            } else {
+                ("Bypass", "skip the node: each output passes on an input of its type (B)")
+            };
+            if ui.button(label).on_hover_text(tip).clicked() {
+                self.out.commands.push(EditorCommand::SetBypass { id: id.into(), bypass: !bypassed });
+                ui.close();
+            }
         }
         if ui.button("Duplicate").clicked() {
             self.out.duplicate = Some(id.to_string());

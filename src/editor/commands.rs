@@ -36,6 +36,13 @@ pub enum EditorCommand {
         /// Its new id (valid and unused).
         to: NodeId,
     },
+    /// Bypasses a node (it passes its inputs on instead of running) or lets it run again.
+    SetBypass {
+        /// The node's id.
+        id: NodeId,
+        /// Bypassed or not.
+        bypass: bool,
+    },
     /// Removes nodes with their edges, layout entries and the graph inputs that point at them.
     RemoveNodes {
         /// Ids of existing nodes.
@@ -97,6 +104,8 @@ impl EditorCommand {
         match self {
             EditorCommand::AddNode { id, .. } => format!("add {id}"),
             EditorCommand::RenameNode { from, to } => format!("rename {from} to {to}"),
+            EditorCommand::SetBypass { id, bypass: true } => format!("bypass {id}"),
+            EditorCommand::SetBypass { id, bypass: false } => format!("run {id}"),
             EditorCommand::RemoveNodes { ids: removed } => format!("delete {}", ids(&mut removed.iter())),
             EditorCommand::RestoreNodes(removal) => {
                 format!("restore {}", ids(&mut removal.nodes.iter().map(|n| &n.id)))
@@ -154,6 +163,9 @@ pub fn apply(graph: &mut Graph, registry: &Registry, cmd: &EditorCommand) -> Res
         EditorCommand::RenameNode { from, to } => {
             graph.rename_node(from, to.clone())?;
             EditorCommand::RenameNode { from: to.clone(), to: from.clone() }
+        }
+        EditorCommand::SetBypass { id, bypass } => {
+            EditorCommand::SetBypass { id: id.clone(), bypass: graph.set_bypass(id, *bypass)? }
         }
         EditorCommand::RemoveNodes { ids } => EditorCommand::RestoreNodes(graph.remove_nodes(ids)?),
         EditorCommand::RestoreNodes(removal) => {

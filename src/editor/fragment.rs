@@ -154,7 +154,7 @@ mod tests {
             assert!(matches!(paste(&graph, &registry, text), Err(EditError::BadFragment(_))), "{text}");
         }
         let mut unknown = GraphDoc::new();
-        unknown.nodes.insert("x".into(), NodeDoc { kind: "no.such".into(), params: BTreeMap::new() });
+        unknown.nodes.insert("x".into(), NodeDoc { kind: "no.such".into(), params: BTreeMap::new(), bypass: false });
         assert!(matches!(
             paste(&graph, &registry, &document::to_string(&unknown)),
             Err(EditError::Graph(GraphError::UnknownKind { .. }))

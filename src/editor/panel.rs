@@ -99,6 +99,13 @@ pub(crate) fn show(
         {
             ui.label(RichText::new(format!("{:.1} ms", r.seconds * 1e3)).weak());
         }
+        if face.is_none() {
+            let mut bypass = node.bypass;
+            let tip = "skip the node: each output passes on an input of its type (B)";
+            if ui.checkbox(&mut bypass, "Bypass").on_hover_text(tip).changed() {
+                edits.push(PanelEdit { command: EditorCommand::SetBypass { id: id.into(), bypass }, coalesce: false });
+            }
+        }
     });
     if let Some(message) = badge.message() {
         ui.label(RichText::new(message).color(color));

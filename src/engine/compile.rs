@@ -22,6 +22,8 @@ pub struct CompiledNode<'r> {
     pub inputs: Vec<Option<(usize, usize)>>,
     /// Nodes reading this node's outputs, sorted, each once.
     pub dependents: Vec<usize>,
+    /// For a bypassed node: per schema output, the input whose value it passes on.
+    pub pass_through: Option<Vec<Option<usize>>>,
 }
 
 impl CompiledNode<'_> {
@@ -98,6 +100,21 @@ fn output_files<'a>(nodes: &'a [CompiledNode<'_>]) -> Vec<OutputFile<'a>> {
     out
 }
 
+/// What a bypassed node passes on: per output, the first connected (or `fed`) input of the
+/// output's type, one of the same name first (a clip filter passes its `clip` on as `clip`).
+fn pass_through(node: &CompiledNode<'_>, fed: &BTreeSet<PortRef>) -> Vec<Option<usize>> {
+    let schema = node.node.schema();
+    let has_value = |i: usize| node.inputs[i].is_some() || fed.contains(&PortRef::new(node.id.as_str(), schema.inputs[i].name));
+    schema
+        .outputs
+        .iter()
+        .map(|out| {
+            let candidates = || (0..schema.inputs.len()).filter(|&i| schema.inputs[i].ty == out.ty && has_value(i));
+            candidates().find(|&i| schema.inputs[i].name == out.name).or_else(|| candidates().next())
+        })
+        .collect()
+}
+
 /// Validates `graph` against `registry` by the [`rules`], reporting every problem at once.
 /// `path` and `source` only serve the messages.
 pub fn compile<'r>(
@@ -163,6 +180,7 @@ pub(super) fn compile_fed<'r>(
             params,
             inputs: vec![None; schema.inputs.len()],
             dependents: Vec::new(),
+            pass_through: None,
         });
     }
 
@@ -187,6 +205,26 @@ pub(super) fn compile_fed<'r>(
         if let (Some(out_index), Some(in_index)) = (out_index, in_index) {
             nodes[dst].inputs[in_index] = Some((src, out_index));
             nodes[src].dependents.push(dst);
+        }
+    }
+
+    for node in &mut nodes {
+        if graph.node(&node.id).is_some_and(|n| n.bypass) {
+            node.pass_through = Some(pass_through(node, fed));
+        }
+    }
+    for edge in graph.edges() {
+        let Some(src) = known.get(edge.from.node.as_str()).map(|&i| &nodes[i]) else { continue };
+        let Some(pass) = &src.pass_through else { continue };
+        let outputs = src.node.schema().outputs;
+        if let Some(out) = outputs.iter().position(|p| p.name == edge.from.port)
+            && pass[out].is_none()
+        {
+            errors.push(GraphError::NothingToPass {
+                from: edge.from.clone(),
+                to: edge.to.clone(),
+                ty: outputs[out].ty.name(),
+            });
         }
     }
 

@@ -282,7 +282,12 @@ impl Engine {
                 continue;
             }
             let schema = graph.nodes[i].node.schema();
-            match self.lookup(schema, &keys[i], options.out_dir.is_some(), run_number, &mut plan.cache_warnings[i]) {
+            // A bypassed node hands its inputs on: it has no result of its own to look up.
+            let found = match graph.nodes[i].pass_through {
+                Some(_) => None,
+                None => self.lookup(schema, &keys[i], options.out_dir.is_some(), run_number, &mut plan.cache_warnings[i]),
+            };
+            match found {
                 Some(found) => plan.found[i] = Some(found),
                 None => stack.extend(graph.nodes[i].inputs.iter().flatten().map(|(src, _)| *src)),
             }
@@ -397,6 +402,9 @@ impl Job<'_, '_> {
             }
         } else if let Some(upstream) = blocked_by {
             (NodeStatus::Blocked, None, Some(format!("upstream node '{upstream}' did not produce a result")))
+        } else if let Some(pass) = &node.pass_through {
+            let outputs = pass.iter().map(|input| input.and_then(|i| inputs[i].clone())).collect();
+            (NodeStatus::Bypassed, Some(NodeOutcome { outputs, warnings: Vec::new(), files_written: Vec::new() }), None)
         } else {
             self.observe(RunEvent::Started { node: node.id.clone() });
             let id = node.id.clone();

@@ -55,6 +55,10 @@ pub fn fingerprints(graph: &CompiledGraph<'_>, base_dir: &Path, identity: FileId
                 _ => h.file(&path, identity),
             }
         }
+        if let Some(pass) = &node.pass_through {
+            h.text("bypass");
+            pass.iter().for_each(|input| h.number(input.map_or(u64::MAX, |i| i as u64)));
+        }
         for input in &node.inputs {
             match input {
                 Some((src, port)) => {

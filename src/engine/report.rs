@@ -22,6 +22,8 @@ pub enum NodeStatus {
     Blocked,
     /// Not run (or stopped) because the run was cancelled.
     Cancelled,
+    /// Not run: bypassed in the graph, it passed its inputs on.
+    Bypassed,
 }
 
 /// One node's part of a run.
@@ -64,15 +66,17 @@ impl RunReport {
         self.outputs.get(port.node.as_str())?.get(index)?.as_ref()
     }
 
-    /// True when every needed node succeeded (ran or cached).
+    /// True when every needed node succeeded (ran, cached or bypassed).
     pub fn succeeded(&self) -> bool {
-        self.nodes.values().all(|n| matches!(n.status, NodeStatus::Ok | NodeStatus::Cached))
+        self.nodes.values().all(|n| matches!(n.status, NodeStatus::Ok | NodeStatus::Cached | NodeStatus::Bypassed))
     }
 
-    /// Each node's structured report (its first report output), by node id.
+    /// Each node's structured report (its first report output), by node id; a bypassed
+    /// node has none of its own.
     pub fn reports(&self) -> BTreeMap<&str, &Report> {
         self.outputs
             .iter()
+            .filter(|(id, _)| self.nodes.get(id.as_str()).is_none_or(|n| n.status != NodeStatus::Bypassed))
             .filter_map(|(id, outputs)| {
                 outputs.iter().flatten().find_map(|v| match v {
                     Value::Report(r) => Some((id.as_str(), r.as_ref())),

@@ -142,6 +142,9 @@ fn inline(
         return Err(GraphError::MissingParam { param: file_param }.into());
     };
     let fail = |message: String| GraphError::Subgraph { param: file_param.clone(), message };
+    if node.bypass {
+        return Err(fail("a subgraph node cannot be bypassed: open it and bypass the nodes inside".into()).into());
+    }
     let path = file.base_dir().join(rel);
     let key = identity(&path);
     if let Some(at) = stack.iter().position(|p| p == &key) {

@@ -139,6 +139,17 @@ pub enum GraphError {
         /// Its type's name.
         ty: &'static str,
     },
+    /// An input reads an output of a bypassed node that has no connected input of the
+    /// output's type to pass on.
+    #[error("{from} passes nothing while '{}' is bypassed (it has no connected {ty} input), so {to} gets no value", .from.node)]
+    NothingToPass {
+        /// The bypassed node's output.
+        from: PortRef,
+        /// The input reading it.
+        to: PortRef,
+        /// The output's type name.
+        ty: &'static str,
+    },
     /// The node kind has no such parameter.
     #[error("'{kind}' has no parameter '{}'{hint}", .param.param)]
     UnknownParam {
@@ -257,7 +268,8 @@ impl GraphError {
             | E::WouldCycle { to, .. }
             | E::AlreadyConnected { to, .. }
             | E::NotConnected { to, .. }
-            | E::InputConnectedTwice { to, .. } => Subject::Port(to.clone()),
+            | E::InputConnectedTwice { to, .. }
+            | E::NothingToPass { to, .. } => Subject::Port(to.clone()),
             E::InputNotConnected { input, .. } => Subject::Port(input.clone()),
             E::Cycle { nodes } => nodes.first().cloned().map_or(Subject::Graph, Subject::Node),
             E::UnknownParam { param, .. }

@@ -20,6 +20,8 @@ pub struct GraphNode {
     pub kind: String,
     /// Parameter values by name.
     pub params: BTreeMap<String, ParamValue>,
+    /// Bypassed: it does not run and passes inputs on (see [`crate::document::NodeDoc::bypass`]).
+    pub bypass: bool,
 }
 
 /// A connection from an output port to an input port.
@@ -122,7 +124,7 @@ impl Graph {
         let nodes = doc
             .nodes
             .iter()
-            .map(|(id, n)| (NodeId::new(id.as_str()), GraphNode { kind: n.kind.clone(), params: n.params.clone() }))
+            .map(|(id, n)| (NodeId::new(id.as_str()), GraphNode { kind: n.kind.clone(), params: n.params.clone(), bypass: n.bypass }))
             .collect();
         let layout = doc.layout.iter().map(|(id, p)| (NodeId::new(id.as_str()), *p)).collect();
         Ok(Graph { description: doc.description.clone(), inputs, nodes, edges, layout, ports })
@@ -136,7 +138,7 @@ impl Graph {
         doc.nodes = self
             .nodes
             .iter()
-            .map(|(id, n)| (id.as_str().to_string(), NodeDoc { kind: n.kind.clone(), params: n.params.clone() }))
+            .map(|(id, n)| (id.as_str().to_string(), NodeDoc { kind: n.kind.clone(), params: n.params.clone(), bypass: n.bypass }))
             .collect();
         doc.edges = self.edges.iter().map(|e| EdgeDoc { from: e.from.text(), to: e.to.text() }).collect();
         doc.edges.sort();
@@ -237,7 +239,7 @@ impl Graph {
         }
         rules::check_kind(registry, &id, kind)?;
         self.layout.insert(id.clone(), pos);
-        self.nodes.insert(id, GraphNode { kind: kind.to_string(), params: BTreeMap::new() });
+        self.nodes.insert(id, GraphNode { kind: kind.to_string(), params: BTreeMap::new(), bypass: false });
         Ok(())
     }
 
@@ -363,6 +365,12 @@ impl Graph {
         let value = rules::check_param(self, registry, path, value)?;
         let node = self.nodes.get_mut(&path.node).ok_or_else(|| rules::unknown_node(&path.node))?;
         Ok(node.params.insert(path.param.clone(), value))
+    }
+
+    /// Bypasses node `id` (`true`) or lets it run again; returns whether it was bypassed.
+    pub fn set_bypass(&mut self, id: &NodeId, bypass: bool) -> Result<bool, GraphError> {
+        let node = self.nodes.get_mut(id).ok_or_else(|| rules::unknown_node(id))?;
+        Ok(std::mem::replace(&mut node.bypass, bypass))
     }
 
     /// Removes a parameter's value so the schema default applies; returns the old value.
