@@ -28,10 +28,12 @@ fn to_glb(clip: &Path) -> GraphDoc {
     let params = |pairs: &[(&str, ParamValue)]| pairs.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
     doc.nodes.insert(
         "load".into(),
-        NodeDoc { kind: "clip.load".into(), params: params(&[("path", text(&clip.to_string_lossy()))]) },
+        NodeDoc { kind: "clip.load".into(), params: params(&[("path", text(&clip.to_string_lossy()))]), bypass: false },
     );
-    doc.nodes
-        .insert("glb".into(), NodeDoc { kind: "export.glb".into(), params: params(&[("file", text("clip.glb"))]) });
+    doc.nodes.insert(
+        "glb".into(),
+        NodeDoc { kind: "export.glb".into(), params: params(&[("file", text("clip.glb"))]), bypass: false },
+    );
     doc.edges.push(EdgeDoc { from: "load.clip".into(), to: "glb.clip".into() });
     doc
 }

@@ -106,7 +106,7 @@ fn calibrate_spin() {
 fn node(kind: &str, params: &[(&str, f64)]) -> NodeDoc {
     let params: BTreeMap<String, ParamValue> =
         params.iter().map(|(name, v)| (name.to_string(), ParamValue::Float(*v))).collect();
-    NodeDoc { kind: kind.to_string(), params }
+    NodeDoc { kind: kind.to_string(), params, bypass: false }
 }
 
 fn edge(from: &str, to: &str) -> EdgeDoc {

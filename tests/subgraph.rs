@@ -155,7 +155,8 @@ fn subgraph_mistakes_are_refused_at_their_file_and_line() {
     let at = format!("{}:{}:", dir.path().join("stages/broken.ron").display(), line_of(broken_stage, "soon"));
     assert!(stderr(&out).contains(&at), "expected {at} in {}", stderr(&out));
     // A subgraph node cannot be bypassed (its nodes can, inside its file).
-    let text = parent("stages/clean.ron", "", "").replace("(kind: \"graph.subgraph\",", "(kind: \"graph.subgraph\", bypass: true,");
+    let text = parent("stages/clean.ron", "", "")
+        .replace("(kind: \"graph.subgraph\",", "(kind: \"graph.subgraph\", bypass: true,");
     let path = write(&dir.path().join("bypassed.ron"), &text);
     let out = kg(&["check", path.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));

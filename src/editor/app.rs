@@ -378,8 +378,7 @@ impl EditorApp {
             .filter(|id| self.graph.node(id.as_str()).is_some_and(|n| n.kind != document::SUBGRAPH_KIND))
             .collect();
         let bypass = !ids.iter().all(|id| self.graph.node(id.as_str()).is_some_and(|n| n.bypass));
-        let commands: Vec<EditorCommand> =
-            ids.into_iter().map(|id| EditorCommand::SetBypass { id, bypass }).collect();
+        let commands: Vec<EditorCommand> = ids.into_iter().map(|id| EditorCommand::SetBypass { id, bypass }).collect();
         if !commands.is_empty() {
             let _ = self.edit(EditorCommand::Batch(commands));
         }

@@ -104,7 +104,8 @@ fn output_files<'a>(nodes: &'a [CompiledNode<'_>]) -> Vec<OutputFile<'a>> {
 /// output's type, one of the same name first (a clip filter passes its `clip` on as `clip`).
 fn pass_through(node: &CompiledNode<'_>, fed: &BTreeSet<PortRef>) -> Vec<Option<usize>> {
     let schema = node.node.schema();
-    let has_value = |i: usize| node.inputs[i].is_some() || fed.contains(&PortRef::new(node.id.as_str(), schema.inputs[i].name));
+    let has_value =
+        |i: usize| node.inputs[i].is_some() || fed.contains(&PortRef::new(node.id.as_str(), schema.inputs[i].name));
     schema
         .outputs
         .iter()

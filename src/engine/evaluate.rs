@@ -285,7 +285,9 @@ impl Engine {
             // A bypassed node hands its inputs on: it has no result of its own to look up.
             let found = match graph.nodes[i].pass_through {
                 Some(_) => None,
-                None => self.lookup(schema, &keys[i], options.out_dir.is_some(), run_number, &mut plan.cache_warnings[i]),
+                None => {
+                    self.lookup(schema, &keys[i], options.out_dir.is_some(), run_number, &mut plan.cache_warnings[i])
+                }
             };
             match found {
                 Some(found) => plan.found[i] = Some(found),

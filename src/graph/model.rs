@@ -124,7 +124,12 @@ impl Graph {
         let nodes = doc
             .nodes
             .iter()
-            .map(|(id, n)| (NodeId::new(id.as_str()), GraphNode { kind: n.kind.clone(), params: n.params.clone(), bypass: n.bypass }))
+            .map(|(id, n)| {
+                (
+                    NodeId::new(id.as_str()),
+                    GraphNode { kind: n.kind.clone(), params: n.params.clone(), bypass: n.bypass },
+                )
+            })
             .collect();
         let layout = doc.layout.iter().map(|(id, p)| (NodeId::new(id.as_str()), *p)).collect();
         Ok(Graph { description: doc.description.clone(), inputs, nodes, edges, layout, ports })
@@ -138,7 +143,9 @@ impl Graph {
         doc.nodes = self
             .nodes
             .iter()
-            .map(|(id, n)| (id.as_str().to_string(), NodeDoc { kind: n.kind.clone(), params: n.params.clone(), bypass: n.bypass }))
+            .map(|(id, n)| {
+                (id.as_str().to_string(), NodeDoc { kind: n.kind.clone(), params: n.params.clone(), bypass: n.bypass })
+            })
             .collect();
         doc.edges = self.edges.iter().map(|e| EdgeDoc { from: e.from.text(), to: e.to.text() }).collect();
         doc.edges.sort();
