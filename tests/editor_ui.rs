@@ -10,7 +10,7 @@ use egui_kittest::kittest::Queryable;
 use kinegraph::document;
 use kinegraph::editor::EditorApp;
 use kinegraph::editor::commands::{EditError, EditorCommand};
-use kinegraph::graph::{GraphError, ParamPath, PortRef};
+use kinegraph::graph::{GraphError, ParamPath, PortRef, Side};
 use kinegraph::nodes::node::ParamValue;
 
 fn demo_path() -> PathBuf {
@@ -133,14 +133,17 @@ fn a_bad_connection_is_refused_with_the_reason_shown() {
     assert!(!harness.state().is_dirty());
 }
 
+/// Where the pin of `port` was drawn, on screen.
+fn pin(harness: &Harness<'static, EditorApp>, port: &str, side: Side) -> egui::Pos2 {
+    harness.state().pin_on_screen(&PortRef::parse(port).unwrap(), side).unwrap()
+}
+
 #[test]
 fn dragging_a_wire_between_different_types_is_refused_by_the_connect_hook() {
     let mut harness = harness(Some(&demo_path()));
     let before = harness.state().doc().clone();
-    // Pin positions on the demo's canvas (graph coordinates): the `mesh` node's output pin,
-    // then the `trim` node's `clip` input pin.
-    let app = harness.state();
-    let (from, to) = (app.canvas_to_screen((151.6, 197.2)), app.canvas_to_screen((222.2, 34.8)));
+    // From the `mesh` node's output pin to the `trim` node's `clip` input pin.
+    let (from, to) = (pin(&harness, "mesh.mesh", Side::Output), pin(&harness, "trim.clip", Side::Input));
     harness.drag_at(from);
     harness.run_steps(1);
     for t in [0.25, 0.5, 0.75, 1.0] {
@@ -159,9 +162,8 @@ fn dragging_a_wire_between_different_types_is_refused_by_the_connect_hook() {
 fn dragging_a_wire_into_an_occupied_input_replaces_it_in_one_undo_step() {
     let mut harness = harness(Some(&demo_path()));
     let before = document::to_string(&harness.state().doc());
-    // `clip`'s output pin to `resample`'s input pin, which `trim` feeds (graph coordinates).
-    let app = harness.state();
-    let (from, to) = (app.canvas_to_screen((128.9, 34.8)), app.canvas_to_screen((445.9, 34.8)));
+    // `clip`'s output pin to `resample`'s input pin, which `trim` feeds.
+    let (from, to) = (pin(&harness, "clip.clip", Side::Output), pin(&harness, "resample.clip", Side::Input));
     harness.drag_at(from);
     harness.run_steps(1);
     for t in [0.25, 0.5, 0.75, 1.0] {
@@ -1320,4 +1322,24 @@ fn a_bypassed_node_passes_its_input_through_and_b_toggles_it() {
     harness.run_steps(2);
     assert!(harness.state().doc().nodes["trim"].bypass);
     assert_eq!(harness.state().node_state("trim"), "bypassed");
+}
+
+/// Output labels end in one column clear of their pins, however many outputs a node has
+/// (every output row after the first shifted right by a pin's width, so `report`, third
+/// on `skeleton.map`, ran under its pin and read "repo").
+#[test]
+fn output_labels_end_in_one_column_clear_of_their_pins() {
+    let graph = r#"(format: "kinegraph.graph", version: 2,
+ nodes: { "map": (kind: "skeleton.map") }, layout: { "map": (0.0, 0.0) })"#;
+    let (_dir, path) = in_walk_folder("map.ron", graph);
+    let mut harness = harness(Some(&path));
+    harness.run_steps(4);
+    // "map" is also the node's title, further left: the output label is the rightmost.
+    let right = |label: &str| harness.get_all_by_label(label).map(|n| n.rect().right()).fold(f32::MIN, f32::max);
+    let (clip, map, report) = (right("clip"), right("map"), right("report"));
+    assert!((clip - map).abs() < 0.5 && (clip - report).abs() < 0.5, "label ends: {clip}, {map}, {report}");
+    // The pins sit on the node's right edge (the frame, just outside its content): a
+    // label must end at least a pin's radius (5.4 px) before the content's edge.
+    let content_right = harness.state().node_on_screen("map").unwrap().0.right();
+    assert!(report < content_right - 5.4, "report ends at {report}, the node's content at {content_right}");
 }

@@ -212,6 +212,11 @@ impl EditorApp {
         self.canvas.to_screen(egui::Pos2::new(pos.0, pos.1))
     }
 
+    /// Where a node's pin was drawn last, on screen.
+    pub fn pin_on_screen(&self, port: &PortRef, side: Side) -> Option<egui::Pos2> {
+        self.canvas.pin_on_screen(&self.graph, &self.registry, &self.faces, port, side)
+    }
+
     /// Node `id`'s area on screen and the canvas' area, as last drawn.
     pub fn node_on_screen(&self, id: &str) -> Option<(egui::Rect, egui::Rect)> {
         Some((self.canvas.node_rect(id)?, self.canvas.rect()?))

@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 
 use egui::emath::TSTransform;
 use egui::{Color32, Pos2, RichText, Ui};
-use egui_snarl::ui::{AnyPins, PinInfo, SnarlStyle, SnarlViewer, SnarlWidget};
+use egui_snarl::ui::{AnyPins, PinInfo, PinWireInfo, SnarlPin, SnarlStyle, SnarlViewer, SnarlWidget};
 use egui_snarl::{InPin, InPinId, NodeId, OutPin, OutPinId, Snarl};
 use kinegraph_nodes::node::{NodeSchema, PortSpec, PortType, Registry};
 
@@ -144,6 +144,39 @@ pub(crate) struct Canvas {
     fitting_frames: u8,
     /// The extent of all nodes the last fit framed.
     fitted: Option<egui::Rect>,
+    /// Where snarl drew each pin on the last draw (graph space).
+    placed: PlacedPins,
+}
+
+/// A pin: an output or an input of a snarl node.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum PinKey {
+    Out(OutPinId),
+    In(InPinId),
+}
+
+/// Pin centres (graph space) as snarl placed them, in drawing order: snarl decides where
+/// pins go after the viewer has drawn their rows, so they are noted as they are drawn.
+type PlacedPins = std::rc::Rc<std::cell::RefCell<Vec<(PinKey, Pos2)>>>;
+
+/// A pin that notes where snarl draws it.
+struct NotedPin {
+    info: PinInfo,
+    key: PinKey,
+    placed: PlacedPins,
+}
+
+impl SnarlPin for NotedPin {
+    fn draw(
+        self,
+        snarl_style: &SnarlStyle,
+        style: &egui::Style,
+        rect: egui::Rect,
+        painter: &egui::Painter,
+    ) -> PinWireInfo {
+        self.placed.borrow_mut().push((self.key, rect.center()));
+        SnarlPin::draw(self.info, snarl_style, style, rect, painter)
+    }
 }
 
 impl Canvas {
@@ -232,11 +265,17 @@ impl Canvas {
             frame: self.frame_next.take().map(|r| (r, ui.max_rect())),
             search: &mut self.search,
             renaming: &mut self.renaming,
+            placed: self.placed.clone(),
             out: CanvasOutput::default(),
         };
+        self.placed.borrow_mut().clear();
         let mut style = SnarlStyle::new();
         style.collapsible = Some(false);
         style.centering = Some(true);
+        // Pins sit on the frame's edge, as in Blender. (Inside the frame, snarl 0.12
+        // reserves each output pin's room to the right of its row, so every further output
+        // row shifted right by a pin and its label ran under the pin: "repo" for "report".)
+        style.pin_placement = Some(egui_snarl::ui::PinPlacement::Edge);
         // Snarl's own highlight follows only its own selection; the editor's is drawn by
         // `node_frame` from the one selection model.
         style.select_style = Some(egui_snarl::ui::SelectionStyle {
@@ -399,6 +438,23 @@ impl Canvas {
         self.extents.get(id).map(|r| self.to_screen * *r)
     }
 
+    /// Where port `port` (on `side`) was drawn last, on screen.
+    pub(crate) fn pin_on_screen(
+        &self,
+        graph: &Graph,
+        registry: &Registry,
+        faces: &Faces,
+        port: &PortRef,
+        side: Side,
+    ) -> Option<Pos2> {
+        let key = match side {
+            Side::Output => PinKey::Out(self.out_pin(graph, registry, faces, port)?),
+            Side::Input => PinKey::In(self.in_pin(graph, registry, faces, port)?),
+        };
+        let placed = self.placed.borrow();
+        placed.iter().find(|(k, _)| *k == key).map(|(_, pos)| self.to_screen * *pos)
+    }
+
     /// The canvas' screen area, as last drawn.
     pub(crate) fn rect(&self) -> Option<egui::Rect> {
         self.rect
@@ -546,6 +602,7 @@ struct Viewer<'a> {
     marks: Marks<'a>,
     search: &'a mut CatalogueSearch,
     renaming: &'a mut Option<(String, String)>,
+    placed: PlacedPins,
     out: CanvasOutput,
 }
 
@@ -668,7 +725,14 @@ impl SnarlViewer<String> for Viewer<'_> {
         }
         let port =
             snarl.get_node(pin.id.node).and_then(|id| self.face(id)).and_then(|f| f.pin(Side::Input, pin.id.input));
-        port_pin(ui, port, false, |p| if p.required { p.name.to_string() } else { format!("{} (optional)", p.name) })
+        let info =
+            port_pin(
+                ui,
+                port,
+                false,
+                |p| if p.required { p.name.to_string() } else { format!("{} (optional)", p.name) },
+            );
+        NotedPin { info, key: PinKey::In(pin.id), placed: self.placed.clone() }
     }
 
     fn show_output(
@@ -682,7 +746,11 @@ impl SnarlViewer<String> for Viewer<'_> {
         }
         let port =
             snarl.get_node(pin.id.node).and_then(|id| self.face(id)).and_then(|f| f.pin(Side::Output, pin.id.output));
-        port_pin(ui, port, true, |p| p.name.to_string())
+        NotedPin {
+            info: port_pin(ui, port, true, |p| p.name.to_string()),
+            key: PinKey::Out(pin.id),
+            placed: self.placed.clone(),
+        }
     }
 
     fn connect(&mut self, from: &OutPin, to: &InPin, snarl: &mut Snarl<String>) {
