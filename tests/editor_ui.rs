@@ -703,26 +703,43 @@ fn the_smoke_plays_its_particles_with_the_obstacle() {
         println!("{secs} s: frame {frame} of {}, {particles} particles", volumes.frames.len());
         assert!(particles > 0, "the source has seeded particles by frame {frame}");
         let drawn = harness.state().viewport_smoke().unwrap();
-        assert_eq!(drawn, kinegraph::editor::SmokeDrawn { frame, particles });
+        assert_eq!((drawn.frame, drawn.particles, drawn.bodies.len()), (frame, particles, 0));
         harness.get_by_label(&format!("smoke frame {frame} @ {:.0} fps", volumes.fps));
     }
 }
 
 /// Smoke without a clip (balls in a smoke column) still plays: the timeline lasts the
-/// volumes' frames at their rate.
+/// volumes' frames at their rate, and the balls are drawn where the simulation's `bodies`
+/// curves put them: the light one (ball1) rises on screen, the heavy one (ball2) falls.
 #[test]
-fn smoke_without_a_clip_plays_for_its_frames() {
+fn smoke_without_a_clip_plays_for_its_frames_with_its_balls() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("graphs/ball_in_smoke.ron");
     let mut harness = harness(Some(&path));
     harness.state_mut().select(Some("points"));
     harness.run_steps(3);
     let volumes = volumes_output(harness.state(), "smoke");
-    // 0.9 s is frame 10 of 12 at 12 fps; past the end (5 s) the slider holds the last.
-    for (secs, frame) in [(0.9, 10), (5.0, volumes.frames.len() - 1)] {
+    let curves = match harness.state().output("smoke", "bodies") {
+        Some(kinegraph::nodes::node::Value::Curves(c)) => c.clone(),
+        other => panic!("smoke.bodies: {other:?}"),
+    };
+    let height = |ball: &str, frame: usize| curves.channel(&format!("{ball}.y")).unwrap().values[frame];
+    let last = volumes.frames.len() - 1;
+    let mut centres = Vec::new();
+    // 0 s is frame 0; 0.9 s is frame 10 of 12 at 12 fps; past the end (5 s) the slider holds the last.
+    for (secs, frame) in [(0.0, 0), (0.9, 10), (5.0, last)] {
         seek(&mut harness, secs);
         let drawn = harness.state().viewport_smoke().unwrap();
-        assert_eq!(drawn, kinegraph::editor::SmokeDrawn { frame, particles: volumes.frames[frame].particles_m.len() });
+        assert_eq!((drawn.frame, drawn.particles), (frame, volumes.frames[frame].particles_m.len()));
+        let on_screen: Vec<egui::Pos2> = drawn.bodies.iter().map(|b| b.unwrap()).collect();
+        assert_eq!(on_screen.len(), 2);
+        centres.push(on_screen);
     }
+    // The curves say which way each ball went; the screen's y grows downwards.
+    let (rose, fell) = (height("ball1", last) - height("ball1", 0), height("ball2", last) - height("ball2", 0));
+    assert!(rose > 0.2 && fell < -0.5, "ball1 rose {rose} m, ball2 fell {fell} m");
+    let (first, end) = (&centres[0], &centres[2]);
+    assert!(end[0].y < first[0].y - 5.0, "ball1 drawn at {:?} then {:?}", first[0], end[0]);
+    assert!(end[1].y > first[1].y + 5.0, "ball2 drawn at {:?} then {:?}", first[1], end[1]);
 }
 
 /// The ground and flight stages of a jump are shaded on the curves of the node that finds

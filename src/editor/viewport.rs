@@ -17,7 +17,9 @@ use egui::{Color32, Pos2, Rect, Sense, Stroke, Ui, Vec2};
 use glam::Vec3;
 use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
 use kinegraph_nodes::kernels::skinning::{blend_matrices, check_skin, skinning_matrices};
-use kinegraph_nodes::model::{Clip, ClipPoses, Contacts, Mesh, MeshSequence, VolumeSequence, forward_kinematics};
+use kinegraph_nodes::model::{
+    BodyPose, BodyShape, Clip, ClipPoses, Contacts, Mesh, MeshSequence, VolumeSequence, forward_kinematics,
+};
 
 /// Vertical field of view of the camera (radians).
 const FOV_Y: f32 = 0.8;
@@ -33,6 +35,8 @@ const CONTACT: Color32 = Color32::from_rgb(90, 220, 120);
 const SKIN: Color32 = Color32::from_rgb(150, 140, 130);
 /// Half the side of a smoke particle's square, points.
 const PARTICLE_HALF: f32 = 1.2;
+/// Free bodies in the smoke.
+const BODY: Color32 = Color32::from_rgb(230, 200, 90);
 
 /// What a node gives the viewport to play: a clip with the mesh that moves with it, and
 /// smoke; any of them may be missing.
@@ -88,13 +92,17 @@ impl ShownSmoke {
     }
 }
 
-/// The smoke frame the viewport drew last, and how many of its particles were on screen.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// The smoke frame the viewport drew last: how many of its particles were on screen, and
+/// where its free bodies' centres were.
+#[derive(Clone, Debug, PartialEq)]
 pub struct SmokeDrawn {
     /// Frame index in the volume sequence.
     pub frame: usize,
     /// Particles drawn (those in front of the camera).
     pub particles: usize,
+    /// Screen position of each body's centre, in the order of the frame's bodies (`None`
+    /// behind the camera).
+    pub bodies: Vec<Option<Pos2>>,
 }
 
 /// A mesh that moves with the clip on show.
@@ -374,7 +382,7 @@ impl Viewport {
 
     /// The smoke frame drawn last and its particles on screen, if smoke was drawn.
     pub(crate) fn smoke_drawn(&self) -> Option<SmokeDrawn> {
-        self.smoke_drawn
+        self.smoke_drawn.clone()
     }
 
     /// Draws the `motion`'s clip and mesh and its smoke (or a hint when there is none), with
@@ -453,7 +461,9 @@ impl Viewport {
         if let Some(smoke) = self.smoke.as_ref().filter(|_| self.overlays.smoke) {
             let frame = smoke.frame_at(self.time_secs);
             let particles = draw_smoke(&painter, &project, &smoke.volumes, frame);
-            self.smoke_drawn = Some(SmokeDrawn { frame, particles });
+            let bodies = smoke.volumes.frames.get(frame).map_or(&[][..], |f| &f.bodies[..]);
+            let bodies = bodies.iter().map(|b| draw_body(&painter, &project, b)).collect();
+            self.smoke_drawn = Some(SmokeDrawn { frame, particles, bodies });
         }
     }
 
@@ -745,6 +755,54 @@ fn draw_smoke(
     let drawn = out.vertices.len() / 4;
     painter.add(egui::Shape::mesh(out));
     drawn
+}
+
+/// A free body in the smoke as a wireframe: a ball as its three great circles, a cube as
+/// its twelve edges, turned as the body is; returns where its centre is on screen.
+fn draw_body(painter: &egui::Painter, project: &impl Fn(Vec3) -> Option<Pos2>, body: &BodyPose) -> Option<Pos2> {
+    let centre = Vec3::from(body.centre_m);
+    let rotation = glam::Quat::from_array(body.rotation_xyzw);
+    let world = |local: Vec3| centre + rotation * local;
+    let stroke = Stroke::new(1.5, BODY);
+    let line = |points: &[Vec3]| {
+        let points: Option<Vec<Pos2>> = points.iter().map(|p| project(world(*p))).collect();
+        if let Some(points) = points {
+            painter.add(egui::Shape::line(points, stroke));
+        }
+    };
+    match body.shape {
+        BodyShape::Ball { radius_m } => {
+            const SEGMENTS: usize = 32;
+            for (u, v) in [(Vec3::X, Vec3::Y), (Vec3::Y, Vec3::Z), (Vec3::Z, Vec3::X)] {
+                let circle: Vec<Vec3> = (0..=SEGMENTS)
+                    .map(|i| {
+                        let a = i as f32 / SEGMENTS as f32 * std::f32::consts::TAU;
+                        (u * a.cos() + v * a.sin()) * radius_m
+                    })
+                    .collect();
+                line(&circle);
+            }
+        }
+        BodyShape::Cube { edge_m } => {
+            let h = 0.5 * edge_m;
+            let corner = |i: usize| {
+                Vec3::new(
+                    if i & 1 == 0 { -h } else { h },
+                    if i & 2 == 0 { -h } else { h },
+                    if i & 4 == 0 { -h } else { h },
+                )
+            };
+            // Corners differing in one bit share an edge.
+            for i in 0..8 {
+                for bit in [1, 2, 4] {
+                    if i & bit == 0 {
+                        line(&[corner(i), corner(i | bit)]);
+                    }
+                }
+            }
+        }
+    }
+    project(centre)
 }
 
 /// Bones as lines from each joint to its parent, joints as dots; a foot in contact at

@@ -246,7 +246,7 @@ static SIMULATE: NodeSchema = NodeSchema {
     outputs: &[VOLUMES_OUT.spec(), REPORT_OUT.spec(), BODIES_OUT.spec()],
     params: &[FRAMES.0, FPS.0, SUBSTEPS.0, MAX_CELLS.0, SEED.0, BODIES.0, GRAVITY.0],
     writes_files: false,
-    version: 3,
+    version: 4,
 };
 
 /// A body's name in curves and reports: its shape and 1-based place in `bodies`.

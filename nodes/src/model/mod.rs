@@ -43,4 +43,4 @@ pub use report::{Report, into_report};
 pub use skeleton::{Channel, Joint, JointLimits, Skeleton, SkeletonError};
 pub use stages::{Stage, StageKind, Stages};
 pub use units::{ImportScale, LengthUnit};
-pub use volume::{FluidDomain, VolumeSequence};
+pub use volume::{BodyPose, BodyShape, FluidDomain, VolumeSequence};

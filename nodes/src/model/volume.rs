@@ -127,7 +127,7 @@ impl VoxelGrid {
 }
 
 /// One frame of a volume sequence: values per voxel of the sequence's grid (0 outside the
-/// fluid) and the marker particles.
+/// fluid), the marker particles and the free bodies.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct VolumeFrame {
     /// Smoke density per voxel.
@@ -138,6 +138,35 @@ pub struct VolumeFrame {
     pub velocity_m_s: Vec<[f32; 3]>,
     /// Marker particle positions, metres.
     pub particles_m: Vec<[f32; 3]>,
+    /// The free rigid bodies in the smoke at this frame (none without any), for display.
+    #[serde(default)]
+    pub bodies: Vec<BodyPose>,
+}
+
+/// The shape of a free rigid body in the smoke.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub enum BodyShape {
+    /// A sphere of this radius, metres.
+    Ball {
+        /// Radius, metres.
+        radius_m: f32,
+    },
+    /// A cube of this edge length, metres.
+    Cube {
+        /// Edge length, metres.
+        edge_m: f32,
+    },
+}
+
+/// A free rigid body where it is at one frame.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct BodyPose {
+    /// Its shape and size.
+    pub shape: BodyShape,
+    /// Centre, metres.
+    pub centre_m: [f32; 3],
+    /// Rotation from the body's axes to the world's, quaternion x, y, z, w.
+    pub rotation_xyzw: [f32; 4],
 }
 
 /// Smoke volumes per frame at a frame rate, on one voxel grid.

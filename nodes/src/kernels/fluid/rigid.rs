@@ -26,6 +26,7 @@ use nalgebra::{Matrix6, Vector6};
 use super::mesh::TetMesh;
 use super::mesher::Obstacle;
 use super::projection::{FaceCondition, RigidCoupling, rigid_face_row};
+use crate::model::{BodyPose, BodyShape};
 
 /// Gravity of the bodies' world, m/s² (Y up).
 pub const GRAVITY_M_S2: f64 = 9.81;
@@ -60,6 +61,19 @@ pub struct RigidBody {
 }
 
 impl RigidBody {
+    /// Where the body is and what it looks like, for display.
+    pub fn pose(&self) -> BodyPose {
+        let shape = match self.shape {
+            RigidShape::Ball => BodyShape::Ball { radius_m: (0.5 * self.size_m) as f32 },
+            RigidShape::Cube => BodyShape::Cube { edge_m: self.size_m as f32 },
+        };
+        BodyPose {
+            shape,
+            centre_m: self.position_m.as_vec3().to_array(),
+            rotation_xyzw: self.orientation.as_quat().to_array(),
+        }
+    }
+
     /// A body at rest or moving, not rotated, not spinning.
     pub fn new(shape: RigidShape, size_m: f64, density_kg_m3: f64, position_m: DVec3, velocity_m_s: DVec3) -> Self {
         RigidBody {

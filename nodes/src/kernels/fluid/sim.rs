@@ -274,6 +274,7 @@ fn sample_frame(
     obstacles: &[MovingObstacle],
     lo: DVec3,
     hi: DVec3,
+    bodies: &[RigidBody],
 ) -> VolumeFrame {
     use rayon::prelude::*;
     let density_at_nodes = node_values(&state.mesh, &state.density);
@@ -298,6 +299,7 @@ fn sample_frame(
         temperature_k: samples.iter().map(|s| s.1).collect(),
         velocity_m_s: samples.iter().map(|s| s.2).collect(),
         particles_m: state.particles_m.iter().map(|p| p.as_vec3().to_array()).collect(),
+        bodies: bodies.iter().map(RigidBody::pose).collect(),
     }
 }
 
@@ -363,7 +365,7 @@ pub fn simulate_with_bodies(
         nodes,
     };
     let mut field = VelocityField::new(&state.mesh, &state.face_velocity_m_s);
-    let mut frames = vec![sample_frame(&grid, &state, &field, &obstacles, lo, hi)];
+    let mut frames = vec![sample_frame(&grid, &state, &field, &obstacles, lo, hi, &bodies)];
     let mut body_frames = vec![bodies.clone()];
     let mut reports = Vec::with_capacity(total_steps);
     for step in 1..=total_steps {
@@ -491,7 +493,7 @@ pub fn simulate_with_bodies(
         state = State { mesh, nodes, face_velocity_m_s: z, density, heat_k: heat, particles_m: particles };
         field = new_field;
         if step % settings.substeps == 0 {
-            frames.push(sample_frame(&grid, &state, &field, &obstacles, lo, hi));
+            frames.push(sample_frame(&grid, &state, &field, &obstacles, lo, hi, &bodies));
             body_frames.push(bodies.clone());
         }
         progress(step, total_steps, &report);
