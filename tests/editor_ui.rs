@@ -1360,3 +1360,15 @@ fn output_labels_end_in_one_column_clear_of_their_pins() {
     let content_right = harness.state().node_on_screen("map").unwrap().0.right();
     assert!(report < content_right - 5.4, "report ends at {report}, the node's content at {content_right}");
 }
+
+/// Text and path fields are wide enough to read a path or a body list (they were drawn
+/// 60 px wide whatever their content).
+#[test]
+fn text_fields_are_wide_enough_to_read() {
+    let (_dir, path) = staged_graph();
+    let mut harness = harness(Some(&path));
+    harness.state_mut().select(Some("load"));
+    harness.run_steps(3);
+    let width = harness.get_by_role_and_label(Role::TextInput, "path").rect().width();
+    assert!(width >= 200.0, "the path field is {width} px wide");
+}

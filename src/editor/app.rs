@@ -1009,7 +1009,7 @@ impl EditorApp {
 
         egui::Panel::top("kg_menu").show(ui, |ui| self.menu_bar(ui));
         egui::Panel::bottom("kg_status").show(ui, |ui| self.status_bar(ui));
-        egui::Panel::right("kg_panel").resizable(true).default_size(340.0).show(ui, |ui| {
+        egui::Panel::right("kg_panel").resizable(true).default_size(420.0).show(ui, |ui| {
             egui::ScrollArea::vertical().show(ui, |ui| self.panel(ui));
         });
         egui::Panel::bottom("kg_viewport").resizable(true).default_size(380.0).show(ui, |ui| self.viewport(ui));

@@ -28,10 +28,17 @@ pub(crate) struct PanelState {
     pub(crate) browse: Option<(ParamPath, bool)>,
     /// `(node, param, text)` of the field being edited.
     editing: Option<(String, String, String)>,
+    /// Width of text and path fields this frame, points: what the panel leaves beside the
+    /// names and buttons (a grid cell only offers the width its column had before).
+    text_width: f32,
 }
 
-/// Width of text and path fields (points): a relative path to a corpus file fits.
-const TEXT_WIDTH: f32 = 260.0;
+/// Narrowest and widest text and path fields, points: a relative path to a corpus file
+/// fits the widest.
+const TEXT_WIDTH: std::ops::RangeInclusive<f32> = 160.0..=360.0;
+
+/// The panel's width beside a text field: the names' column and the browse and reset buttons.
+const BESIDE_TEXT: f32 = 170.0;
 
 /// How much a number changes per point dragged: 0.5 % of its size, so a drag moves fps 24
 /// by about 0.1 per point and a radius of 0.5 by 0.0025, kept between a millionth and a
@@ -117,6 +124,7 @@ pub(crate) fn show(
     if !params.is_empty() {
         ui.label(RichText::new("Parameters").strong());
     }
+    state.text_width = (ui.available_width() - BESIDE_TEXT).clamp(*TEXT_WIDTH.start(), *TEXT_WIDTH.end());
     egui::Grid::new("params").num_columns(3).striped(true).show(ui, |ui| {
         for (name, spec, value) in params {
             // A subgraph's file has no default to go back to.
@@ -236,7 +244,7 @@ fn param_row(
             let editing = state.editing.as_ref().filter(|(n, p, _)| n == id && p == name);
             let mut text = editing.map(|(_, _, t)| t.clone()).unwrap_or_else(|| stored.clone());
             let r = ui
-                .add(egui::TextEdit::singleline(&mut text).desired_width(TEXT_WIDTH))
+                .add_sized([state.text_width, ui.spacing().interact_size.y], egui::TextEdit::singleline(&mut text))
                 .labelled_by(name_label.id)
                 .on_hover_text(spec.doc);
             if r.changed() || r.has_focus() {
