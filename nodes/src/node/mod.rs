@@ -17,6 +17,7 @@ pub use param::{
 pub use port::{Input, Output, PortSpec};
 pub use value::{PortType, PortValue, Report, Value, into_report, report_of};
 
+pub use crate::model::choice::{Choice, OnOff};
 pub use crate::model::names::{did_you_mean, edit_distance, hint_for, nearest_name};
 
 use crate::formats::FormatError;

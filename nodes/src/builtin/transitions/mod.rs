@@ -27,10 +27,11 @@ use crate::kernels::transition_graph::graph::Direction;
 use crate::kernels::transition_graph::paths::PathLimits;
 use crate::kernels::transition_graph::{Clusters, TransitionGraph};
 use crate::kernels::transition_graph::{cluster, graph};
+use crate::model::choice::choices;
 use crate::model::{Clip, ClipSet, FrameRange};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputFolderParam, InputPathParam, IntParam, Node, NodeContext, NodeError,
-    NodeSchema, Output, Registry, Report, TextParam, report_of,
+    NodeSchema, OnOff, Output, Registry, Report, TextParam, report_of,
 };
 
 /// Registers the transition nodes.
@@ -167,10 +168,10 @@ impl Node for ClusterFrames {
 }
 
 const CLUSTERS_IN: Input<Arc<Clusters>> = Input::required("clusters", "Clustered frames of a clip set.");
-const DIRECTION: ChoiceParam = ChoiceParam::new(
+choices!(Direction { Directed = "directed", Undirected = "undirected" });
+const DIRECTION: ChoiceParam<Direction> = ChoiceParam::new(
     "direction",
     "\"directed\": clips only play forwards; \"undirected\": a transition may also play a clip backwards.",
-    &["directed", "undirected"],
     "directed",
 );
 const K: IntParam = IntParam::new("paths", "K: candidate paths kept per pair of clusters.", 5, 1, 100);
@@ -206,8 +207,7 @@ impl Node for BuildGraph {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clusters = ctx.input(&CLUSTERS_IN)?;
-        let direction =
-            if ctx.choice(&DIRECTION)? == "undirected" { Direction::Undirected } else { Direction::Directed };
+        let direction = ctx.choice(&DIRECTION)?;
         let limits =
             PathLimits { k: ctx.int(&K)? as usize, max_cost: ctx.optional_float(&MAX_COST)?.unwrap_or(f64::INFINITY) };
         let graph = graph::build_graph(clusters, direction, limits);
@@ -313,18 +313,17 @@ impl Node for Transition {
     }
 }
 
-const FOOT_LOCK: ChoiceParam = ChoiceParam::new(
+const FOOT_LOCK: ChoiceParam<OnOff> = ChoiceParam::new(
     "foot_lock",
     "After synthesis, feet planted anywhere in the result (contacts detected on it, and on the held result until the \
      two agree) are held where they were put down by the foot lock's IK, and planted feet that a joined clip put under the floor are lifted onto it: the synthesised \
      transitions otherwise let the stance foot glide ('off' keeps the raw synthesis).",
-    &["on", "off"],
     "on",
 );
 
 /// `clip` with its planted feet held and kept above the floor when `FOOT_LOCK` is on.
 fn lock_feet(ctx: &NodeContext<'_>, clip: Clip) -> Result<Clip, NodeError> {
-    if ctx.choice(&FOOT_LOCK)? != "on" {
+    if ctx.choice(&FOOT_LOCK)? == OnOff::Off {
         return Ok(clip);
     }
     hold_planted_feet(clip).map_err(|e| {
