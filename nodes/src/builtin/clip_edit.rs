@@ -91,7 +91,7 @@ impl Node for Resample {
         let fps = ctx.float(&FPS)?;
         let frames = (clip.duration_secs() * fps).ceil() as usize + 1;
         ctx.reserve_memory(Clip::estimated_bytes(frames, clip.joint_count()), FPS.0.name)?;
-        let out = resample(&clip, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let out = resample(&clip, fps).map_err(NodeError::kernel)?;
         ctx.set_output(&OUT, Arc::new(out));
         Ok(())
     }

@@ -457,10 +457,10 @@ impl Node for Simulate {
                     "step {step}: the mesh needs about {tets} tetrahedra, more than the domain's max_tets = {max_tets}: raise max_tets or min_edge"
                 ),
             ),
-            other => NodeError::Failed(other.to_string()),
+            other => NodeError::kernel(other),
         })?;
         let (volumes, steps) = (out.volumes, out.steps);
-        let curves = body_curves(&out.bodies, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let curves = body_curves(&out.bodies, fps).map_err(NodeError::kernel)?;
         let limit = settings.max_cells_per_step;
         let fast: Vec<usize> = steps.iter().filter(|s| s.fluid_cells_per_step > limit).map(|s| s.step).collect();
         if let (Some(first), Some(worst)) =

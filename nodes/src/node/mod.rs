@@ -8,6 +8,7 @@ mod port;
 mod value;
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 pub use context::{NodeContext, NodeOutcome, RunServices};
 pub use param::{
@@ -84,7 +85,10 @@ pub enum NodeError {
     /// A file could not be read or written.
     #[error(transparent)]
     Format(#[from] FormatError),
-    /// The algorithm could not produce a result.
+    /// A kernel could not produce a result: its typed error, kept whole with its sources.
+    #[error(transparent)]
+    Kernel(KernelError),
+    /// The node could not produce a result for a reason of its own (no kernel error).
     #[error("{0}")]
     Failed(String),
     /// The run was cancelled.
@@ -107,6 +111,42 @@ impl NodeError {
     /// A parameter error.
     pub fn param(param: &'static str, message: impl Into<String>) -> Self {
         NodeError::Param { param, message: message.into() }
+    }
+
+    /// A kernel's failure, e.g. `.map_err(NodeError::kernel)`.
+    pub fn kernel(error: impl std::error::Error + Send + Sync + 'static) -> Self {
+        NodeError::Kernel(KernelError(Arc::new(error)))
+    }
+}
+
+/// A kernel's typed error inside a [`NodeError`]: shared, so node errors stay cheap to
+/// clone, and shown as the kernel words it, its sources following.
+#[derive(Debug, Clone)]
+pub struct KernelError(Arc<dyn std::error::Error + Send + Sync>);
+
+impl KernelError {
+    /// The kernel's error as its own type, when it is an `E`.
+    pub fn downcast_ref<E: std::error::Error + 'static>(&self) -> Option<&E> {
+        self.0.downcast_ref()
+    }
+}
+
+impl std::fmt::Display for KernelError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+impl std::error::Error for KernelError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.0.source()
+    }
+}
+
+/// Two kernel errors are equal when they are the same error or say the same thing.
+impl PartialEq for KernelError {
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0) || self.0.to_string() == other.0.to_string()
     }
 }
 

@@ -30,7 +30,7 @@ use serde_json::json;
 
 use crate::formats::FormatError;
 use crate::formats::bone_map::{bone_map_from_ron, bone_map_to_ron};
-use crate::kernels::roles::{BodyRoles, Limb, body_roles, roles_of};
+use crate::kernels::roles::{BodyRoles, Limb, RolesError, body_roles, roles_of};
 use crate::model::bone_map::BoneMap;
 use crate::model::choice::choices;
 use crate::model::fk::pose_world;
@@ -52,7 +52,8 @@ pub enum MapError {
         /// `source` or `target`.
         which: &'static str,
         /// What was missing.
-        why: String,
+        #[source]
+        why: RolesError,
     },
     /// A bone-map entry names a joint the skeleton lacks.
     #[error("the bone map names {which} joint `{name}`, which the {which} skeleton lacks{hint}")]
@@ -241,7 +242,7 @@ pub fn clip_roles(clip: &Clip, pose: ReferencePose, which: &'static str) -> Resu
 
 /// The body roles of a skeleton posed at `world`, read from its shape only.
 pub fn shape_roles(skeleton: &Skeleton, world: &[Transform], which: &'static str) -> Result<BodyRoles, MapError> {
-    body_roles(skeleton, &positions(world)).map_err(|why| MapError::Roles { which, why })
+    body_roles(skeleton, &positions(world)).map_err(|why| MapError::Roles { which, why: why.into() })
 }
 
 fn positions(world: &[Transform]) -> Vec<Vec3> {

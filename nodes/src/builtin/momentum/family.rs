@@ -232,7 +232,7 @@ fn blend_located(e: BlendError) -> NodeError {
         | BlendError::Dimensions { .. }
         | BlendError::Missing(_)
         | BlendError::Mismatch => NodeError::input("family", text),
-        BlendError::Clip(_) => NodeError::Failed(text),
+        BlendError::Clip(_) => NodeError::kernel(e),
     }
 }
 

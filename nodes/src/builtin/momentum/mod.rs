@@ -120,8 +120,7 @@ fn check_stages_fit(clip: &Clip, stages: &crate::model::Stages) -> Result<(), No
 /// override; a warning when the names were not recognised).
 fn mass_model_of(ctx: &mut NodeContext<'_>, clip: &Clip) -> Result<BodyModel, NodeError> {
     let (total_mass_kg, table, mass_override) = mass_params(ctx)?;
-    let model = body_model(clip.skeleton(), total_mass_kg, table, mass_override.as_ref())
-        .map_err(|e| NodeError::Failed(e.to_string()))?;
+    let model = body_model(clip.skeleton(), total_mass_kg, table, mass_override.as_ref()).map_err(NodeError::kernel)?;
     if model.method.starts_with("bone_length (") {
         ctx.warn(format!("mass model: {}", model.method));
     }
@@ -195,10 +194,10 @@ impl Node for AngularMomentum {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
         let (table, track, smoothed) = momentum_of(ctx, &clip)?;
-        let mut curves = track.curves().map_err(|e| NodeError::Failed(e.to_string()))?;
+        let mut curves = track.curves().map_err(NodeError::kernel)?;
         curves
             .push("|L| smoothed", "kg·m²/s", smoothed.iter().map(|l| l.length()).collect())
-            .map_err(|e| NodeError::Failed(e.to_string()))?;
+            .map_err(NodeError::kernel)?;
         let peak_frame = (0..smoothed.len()).max_by(|&a, &b| smoothed[a].length().total_cmp(&smoothed[b].length()));
         ctx.set_output(&CURVES, Arc::new(curves));
         ctx.set_output(
@@ -277,7 +276,7 @@ impl Node for SegmentPhases {
             curves.push("|L| smoothed", "kg·m²/s", smoothed.iter().map(|l| l.length()).collect()).and_then(|()| {
                 curves.push("L along main", "kg·m²/s", smoothed.iter().map(|l| l.dot(main_direction)).collect())
             });
-        pushed.map_err(|e| NodeError::Failed(e.to_string()))?;
+        pushed.map_err(NodeError::kernel)?;
         ctx.set_output(&PHASE_CURVES, Arc::new(curves));
         let secs =
             |r: Option<crate::model::FrameRange>| r.map(|r| [r.start as f64 / clip.fps(), r.end as f64 / clip.fps()]);
@@ -363,10 +362,10 @@ impl Node for Align {
         let max = ctx.float(&MAX_FACING)?;
         if facing.to_degrees() > max {
             let refusal = crate::kernels::join::ConcatError::Facing { angle_deg: facing.to_degrees(), max_deg: max };
-            return Err(NodeError::Failed(refusal.to_string()));
+            return Err(NodeError::kernel(refusal));
         }
         let offset = feet_centre(&a.poses, f, &a.landmarks) - turn * feet_centre(&b.poses, g, &b.landmarks);
-        let placed = place(&b.clip, yaw, offset).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let placed = place(&b.clip, yaw, offset).map_err(NodeError::kernel)?;
         ctx.set_output(&ALIGNED, Arc::new(placed));
         ctx.set_output(
             &REPORT,
@@ -538,7 +537,7 @@ impl Node for Concat {
             foot_lock: ctx.choice(&FOOT_LOCK)? == OnOff::On,
         };
         ctx.check_cancelled()?;
-        let joined = concatenate(&a, &b, &params, &options).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let joined = concatenate(&a, &b, &params, &options).map_err(NodeError::kernel)?;
         set_joined(ctx, joined);
         Ok(())
     }
@@ -576,7 +575,7 @@ impl Node for ConcatBaseline {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let (a, b, options) = analysed_pair(ctx)?;
         let params = BaselineParams { search_share: ctx.float(&SEARCH_SHARE)?, crossfade_secs: ctx.float(&CROSSFADE)? };
-        let joined = concatenate_baseline(&a, &b, &params, &options).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let joined = concatenate_baseline(&a, &b, &params, &options).map_err(NodeError::kernel)?;
         set_joined(ctx, joined);
         Ok(())
     }

@@ -20,7 +20,7 @@ use crate::kernels::analysis::{AnalysisOptions, analyse};
 use crate::kernels::baseline::{BaselineParams, concatenate_baseline};
 use crate::kernels::clip_set::{conform, load_clip_set};
 use crate::kernels::contacts::ContactThresholds;
-use crate::kernels::ik::foot_lock::hold_detected_plants;
+use crate::kernels::ik::foot_lock::{HoldError, hold_detected_plants};
 use crate::kernels::join::foot_skate_m;
 use crate::kernels::transition_graph::distance::{self, DistanceParams};
 use crate::kernels::transition_graph::graph::Direction;
@@ -301,7 +301,7 @@ impl Node for Transition {
         let params = synthesis_params(ctx, graph.clusters.clip_set.fps())?;
         let mut out = Motion::of_clip(&source);
         let info = append_transition(&graph, &mut out, Frames::of_clip(&target), &params, &mut rng_of(ctx)?);
-        let joined = out.into_clip(&source).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let joined = out.into_clip(&source).map_err(NodeError::kernel)?;
         let joined = lock_feet(ctx, joined)?;
         let transition = joined.slice(info.frames.start, info.frames.end);
         let mut report = serde_json::to_value(&info).unwrap_or_default();
@@ -326,16 +326,19 @@ fn lock_feet(ctx: &NodeContext<'_>, clip: Clip) -> Result<Clip, NodeError> {
     if ctx.choice(&FOOT_LOCK)? == OnOff::Off {
         return Ok(clip);
     }
-    hold_planted_feet(clip).map_err(|e| {
-        NodeError::Failed(format!("the foot lock after synthesis failed: {e} (set foot_lock off to skip it)"))
-    })
+    hold_planted_feet(clip).map_err(|e| NodeError::kernel(SynthesisFootLock(e)))
 }
+
+/// The foot lock after synthesis failed.
+#[derive(Debug, thiserror::Error)]
+#[error("the foot lock after synthesis failed: {0} (set foot_lock off to skip it)")]
+struct SynthesisFootLock(#[source] HoldError);
 
 /// A synthesised motion with every planted foot (contacts detected on it) held where it was
 /// put down and lifted onto the floor where a joined clip put it under: Peng et al.'s
 /// transitions join clips whose stance feet do not line up, so without this the stance foot
 /// glides through them.
-pub fn hold_planted_feet(clip: Clip) -> Result<Clip, String> {
+pub fn hold_planted_feet(clip: Clip) -> Result<Clip, HoldError> {
     Ok(hold_detected_plants(&clip, &ContactThresholds::default(), |all| all)?.map_or(clip, |(held, _)| held))
 }
 
@@ -446,7 +449,7 @@ impl Node for Sequence {
         let params = synthesis_params(ctx, set.fps())?;
         ctx.check_cancelled()?;
         let (out, infos) = play_sequence(&graph, &actions, &params, &mut rng_of(ctx)?);
-        let clip = out.into_clip(&actions[0].clip).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let clip = out.into_clip(&actions[0].clip).map_err(NodeError::kernel)?;
         let clip = Arc::new(lock_feet(ctx, clip)?);
         let mut transitions = Vec::new();
         for (k, info) in infos.iter().enumerate() {
