@@ -93,7 +93,7 @@ impl Node for LoadClipSet {
         let family = (!family.is_empty()).then_some(family.as_str());
         let limit = Some(ctx.memory_limit_bytes());
         let loaded = load_clip_set(&folder, ctx.text_param(&PATTERN)?, ctx.float(&SET_FPS)?, family, limit)
-            .map_err(NodeError::Failed)?;
+            .map_err(NodeError::kernel)?;
         ctx.warn_all(loaded.warnings);
         if !loaded.left_out.is_empty() {
             ctx.warn(format!(
@@ -156,7 +156,7 @@ impl Node for ClusterFrames {
         let set = ctx.input(&CLIP_SET_IN)?;
         let params = DistanceParams::lee_defaults(set.skeleton(), ctx.float(&VELOCITY_WEIGHT)? as f32)
             .with_overrides(set.skeleton(), ctx.text_param(&JOINT_WEIGHTS)?)
-            .map_err(|e| NodeError::param("joint_weights", e))?;
+            .map_err(|e| NodeError::param("joint_weights", e.to_string()))?;
         if params.weights.iter().all(|w| *w == 0.0) {
             return Err(NodeError::param("joint_weights", "every joint has weight 0"));
         }
@@ -267,7 +267,7 @@ fn fit(graph: &TransitionGraph, clip: &Clip, port: &'static str) -> Result<Clip,
     if clip.frame_count() == 0 {
         return Err(NodeError::input(port, "has no frames"));
     }
-    conform(clip, set.skeleton(), set.fps()).map_err(|e| NodeError::input(port, e))
+    conform(clip, set.skeleton(), set.fps()).map_err(|e| NodeError::input(port, e.to_string()))
 }
 
 const SOURCE: Input<Arc<Clip>> = Input::required("source", "The clip the transition starts from (its last frame).");
