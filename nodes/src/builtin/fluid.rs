@@ -67,13 +67,10 @@ const SWIRL_REFINE: FloatParam = FloatParam::new(
 const MAX_EDGE: FloatParam = FloatParam::new("max_edge", "Largest tet edge length.", 0.3, 0.002, 100.0, "m");
 const MAX_TETS: IntParam =
     IntParam::new("max_tets", "Refuse a step whose mesh needs more tetrahedra than this.", 200_000, 100, 50_000_000);
-/// Whether the box's top lets smoke out.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Top {
-    Open,
-    Closed,
+choices! {
+    /// Whether the box's top lets smoke out.
+    enum Top { Open = "open", Closed = "closed" }
 }
-choices!(Top { Open = "open", Closed = "closed" });
 const TOP: ChoiceParam<Top> = ChoiceParam::new("top", "Whether smoke can leave through the top of the box.", "open");
 const SOURCE_X: FloatParam = FloatParam::new("source_x", "Smoke source centre, x.", 0.0, -100.0, 100.0, "m");
 const SOURCE_Y: FloatParam = FloatParam::new("source_y", "Smoke source centre, y.", 0.3, -100.0, 100.0, "m");

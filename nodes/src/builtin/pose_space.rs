@@ -505,26 +505,19 @@ const SAMPLES_IN: Input<Arc<MeshSequence>> = Input::optional(
     "PSD/WPSD only: example shapes of the mesh at sample poses (each frame a pose), e.g. from barnet.deform or sculpts.",
 );
 const SEQ_OUT: Output<Arc<MeshSequence>> = Output::new("sequence", "The deformed mesh at every frame of the clip.");
-/// The `method` choice of `skin.deform`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Method {
-    Lbs,
-    Psd,
-    Wpsd,
+choices! {
+    /// The `method` choice of `skin.deform`.
+    enum Method { Lbs = "lbs", Psd = "psd", Wpsd = "wpsd" }
 }
-choices!(Method { Lbs = "lbs", Psd = "psd", Wpsd = "wpsd" });
 const METHOD: ChoiceParam<Method> = ChoiceParam::new(
     "method",
     "\"lbs\": linear blend skinning (fast; elbows collapse). \"psd\": pose space deformation from the samples. \"wpsd\": weighted PSD, where each vertex compares poses only on the joints that move it (better between samples).",
     "lbs",
 );
-/// The WPSD weightings `skin.deform` offers (uniform is plain PSD's).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum WpsdDistance {
-    JointAndChildren,
-    Joint,
+choices! {
+    /// The WPSD weightings `skin.deform` offers (uniform is plain PSD's).
+    enum WpsdDistance { JointAndChildren = "joint_and_children", Joint = "joint" }
 }
-choices!(WpsdDistance { JointAndChildren = "joint_and_children", Joint = "joint" });
 const DISTANCE: ChoiceParam<WpsdDistance> = ChoiceParam::new(
     "wpsd_distance",
     "WPSD only: \"joint_and_children\" also counts the joint at the far end of a vertex's bone (a biceps sees the elbow); \"joint\" is the paper's weighting.",

@@ -52,10 +52,20 @@ const fn bytes_equal(a: &[u8], b: &[u8]) -> bool {
     true
 }
 
-/// Implements [`Choice`] for an existing fieldless enum from one list of
-/// `Variant = "name"` pairs: `choices!(UpAxis { Y = "y", Z = "z" });`. The generated
-/// [`Choice::name`] is an exhaustive `match`, so a variant left out does not compile.
+/// Implements [`Choice`] from one list of `Variant = "name"` pairs, for an existing
+/// fieldless enum (`choices!(UpAxis { Y = "y", Z = "z" });`) or for one it declares
+/// (`choices! { enum Top { Open = "open", Closed = "closed" } }`, a plain `Copy` enum).
+/// The generated [`Choice::name`] is an exhaustive `match`, so a variant left out does
+/// not compile.
 macro_rules! choices {
+    ($(#[$meta:meta])* $vis:vis enum $ty:ident { $($(#[$vmeta:meta])* $variant:ident = $name:literal),+ $(,)? }) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        $vis enum $ty {
+            $($(#[$vmeta])* $variant),+
+        }
+        $crate::model::choice::choices!($ty { $($variant = $name),+ });
+    };
     ($ty:ident { $($variant:ident = $name:literal),+ $(,)? }) => {
         impl $crate::model::choice::Choice for $ty {
             const NAMES: &'static [&'static str] = &[$($name),+];
@@ -70,26 +80,23 @@ macro_rules! choices {
 }
 pub(crate) use choices;
 
-/// A switch: the value of every `"on"` / `"off"` choice.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum OnOff {
-    /// Enabled.
-    On,
-    /// Disabled.
-    Off,
+choices! {
+    /// A switch: the value of every `"on"` / `"off"` choice.
+    pub enum OnOff {
+        /// Enabled.
+        On = "on",
+        /// Disabled.
+        Off = "off",
+    }
 }
-choices!(OnOff { On = "on", Off = "off" });
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-    enum Axis {
-        Y,
-        Z,
+    choices! {
+        enum Axis { Y = "y", Z = "z" }
     }
-    choices!(Axis { Y = "y", Z = "z" });
 
     #[test]
     fn names_and_values_round_trip_and_unknown_names_are_refused() {

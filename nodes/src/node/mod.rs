@@ -190,3 +190,32 @@ impl Registry {
         nearest_name(kind, self.nodes.keys().copied())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::error::Error;
+
+    use super::NodeError;
+    use crate::kernels::contacts::UnnamedFeet;
+    use crate::kernels::roles::{NamesMiss, RolesError, ShapeError};
+
+    #[test]
+    fn a_kernel_error_reads_as_the_kernel_words_it_and_keeps_its_sources() {
+        let roles = RolesError { by_name: Some(NamesMiss::Disconnected), by_shape: ShapeError::NoFacing };
+        let e = NodeError::kernel(UnnamedFeet(roles.clone()));
+        assert_eq!(
+            e.to_string(),
+            "the named limbs do not hang from one body; by shape, no facing (the toes do not point forward of the \
+             ankles); name them with the feet param (e.g. 'LeftFoot, RightFoot')"
+        );
+        let NodeError::Kernel(kernel) = &e else { panic!("not a kernel error: {e:?}") };
+        assert_eq!(kernel.downcast_ref::<UnnamedFeet>(), Some(&UnnamedFeet(roles.clone())));
+        // The chain below the node error: the roles, then the shape's reason, then nothing.
+        let first = e.source().expect("the roles error");
+        assert_eq!(first.downcast_ref::<RolesError>(), Some(&roles));
+        let second = first.source().expect("the shape error");
+        assert_eq!(second.downcast_ref::<ShapeError>(), Some(&ShapeError::NoFacing));
+        assert!(second.source().is_none());
+        assert_eq!(e.clone(), e);
+    }
+}

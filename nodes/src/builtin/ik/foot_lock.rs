@@ -63,13 +63,10 @@ const TOES: TextParam = TextParam::new(
     "The toe joints held in place, left then right, comma separated (e.g. 'ToeL, ToeR'). Empty: the joint farthest below each ankle.",
     "",
 );
-/// The `ground` choice: [`Ground`] without its mesh.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum GroundChoice {
-    Clip,
-    Soles,
+choices! {
+    /// The `ground` choice: [`Ground`] without its mesh.
+    enum GroundChoice { Clip = "clip", Soles = "soles" }
 }
-choices!(GroundChoice { Clip = "clip", Soles = "soles" });
 const GROUND: ChoiceParam<GroundChoice> = ChoiceParam::new(
     "ground",
     "Where planted feet stand: at the clip's heights ('clip'), or with the lowest vertex of each foot's skinned sole on the floor through every contact ('soles', needs the mesh input; the swing between two plants eases from one plant's height offset to the next's).",

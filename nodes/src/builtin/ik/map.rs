@@ -500,13 +500,10 @@ const MAP_FILE: InputPathParam = InputPathParam::optional(
     "A bone-map RON file (see export.bone_map); its pairs are added to the automatic ones and win over them.",
     &["ron"],
 );
-/// Where `skeleton.map` finds pairs before the bone-map file's.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum AutoPairs {
-    Body,
-    None,
+choices! {
+    /// Where `skeleton.map` finds pairs before the bone-map file's.
+    enum AutoPairs { Body = "body", None = "none" }
 }
-choices!(AutoPairs { Body = "body", None = "none" });
 const AUTO: ChoiceParam<AutoPairs> = ChoiceParam::new(
     "auto",
     "How pairs are found before the file's: from the body's shape (legs, arms, spine — any naming), or none (the file only).",
@@ -520,14 +517,10 @@ const ROOT_SCALE: FloatParam = FloatParam::optional(
     "",
 );
 
-/// A `*_reference` choice: [`ReferencePose`] without its frame, which a param of its own gives.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Reference {
-    FirstFrame,
-    Rest,
-    Frame,
+choices! {
+    /// A `*_reference` choice: [`ReferencePose`] without its frame, which a param of its own gives.
+    enum Reference { FirstFrame = "first_frame", Rest = "rest", Frame = "frame" }
 }
-choices!(Reference { FirstFrame = "first_frame", Rest = "rest", Frame = "frame" });
 const SOURCE_REFERENCE: ChoiceParam<Reference> = ChoiceParam::new(
     "source_reference",
     "The source's pose the skeletons are aligned in: its first frame, its skeleton's rest pose (a BVH's T-pose), or source_frame. Pick the pose that stands like the target's reference.",
