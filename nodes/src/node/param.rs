@@ -251,7 +251,19 @@ impl IntParam {
 
 impl<T: Choice> ChoiceParam<T> {
     /// Declares a choice parameter offering `T`'s names. A `default` that is not one of
-    /// them fails to compile.
+    /// them fails to compile where the declaration is used:
+    ///
+    /// ```
+    /// use kinegraph_nodes::node::{ChoiceParam, OnOff, ParamSpec};
+    /// const FOOT_LOCK: ChoiceParam<OnOff> = ChoiceParam::new("foot_lock", "Hold planted feet.", "on");
+    /// static PARAMS: [ParamSpec; 1] = [FOOT_LOCK.0];
+    /// ```
+    ///
+    /// ```compile_fail,E0080
+    /// use kinegraph_nodes::node::{ChoiceParam, OnOff, ParamSpec};
+    /// const FOOT_LOCK: ChoiceParam<OnOff> = ChoiceParam::new("foot_lock", "Hold planted feet.", "of");
+    /// static PARAMS: [ParamSpec; 1] = [FOOT_LOCK.0];
+    /// ```
     pub const fn new(name: &'static str, doc: &'static str, default: &'static str) -> Self {
         assert!(is_one_of(default, T::NAMES), "a choice parameter's default must be one of its choice's names");
         ChoiceParam(ParamSpec { name, doc, kind: ParamKind::Choice { choices: T::NAMES, default } }, PhantomData)
