@@ -21,6 +21,7 @@ use kinegraph_nodes::kernels::contacts::{ContactThresholds, detect_contacts};
 use kinegraph_nodes::kernels::ik::{IkRig, IkSolver, SolveParams};
 use kinegraph_nodes::kernels::mannequin::mannequin_skeleton;
 use kinegraph_nodes::model::{Joint, Skeleton, forward_kinematics};
+use kinegraph_nodes::node::Choice;
 
 /// Hip (3 DOFs), knee (1), ankle (2): a 6-DOF leg.
 fn leg() -> IkRig {

@@ -42,8 +42,8 @@ impl Node for Arm {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let fps = ctx.float(&FPS)?;
-        let clip = arm_flex_clip(ctx.int(&FRAMES)? as usize, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
-        let poses = arm_clip(&SAMPLE_POSES, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let clip = arm_flex_clip(ctx.int(&FRAMES)? as usize, fps).map_err(NodeError::kernel)?;
+        let poses = arm_clip(&SAMPLE_POSES, fps).map_err(NodeError::kernel)?;
         let (rings, segments) = (ctx.int(&RINGS)? as usize, ctx.int(&SEGMENTS)? as usize);
         ctx.reserve_memory(Mesh::estimated_bytes(rings * segments + 2, 2 * rings * segments), RINGS.0.name)?;
         let mesh = arm_mesh(rings, segments);

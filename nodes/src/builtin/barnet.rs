@@ -509,7 +509,7 @@ impl Node for DeformNet {
         ctx.reserve_memory(MeshSequence::estimated_bytes(clip.frame_count(), vertices), CLIP_IN.name())?;
         let seq = deform_net(&net, &clip, &loads).map_err(|e| match e {
             SolveError::Skin(e) => NodeError::input(NET_IN.name(), e.to_string()),
-            other => NodeError::Failed(other.to_string()),
+            other => NodeError::kernel(other),
         })?;
         ctx.set_output(&SEQ_OUT, Arc::new(seq));
         Ok(())

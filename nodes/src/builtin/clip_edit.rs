@@ -12,18 +12,39 @@ pub fn register(registry: &mut Registry) {
     registry.add(Box::new(Resample));
 }
 
+/// Why a trim range keeps no frame.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TrimError {
+    /// The range ends before it starts (seconds).
+    #[error("end {end_secs} s comes before start {start_secs} s")]
+    EndBeforeStart {
+        /// Start, seconds.
+        start_secs: f64,
+        /// End, seconds.
+        end_secs: f64,
+    },
+    /// The range starts after the clip's last frame (seconds).
+    #[error("the range starts at {start_secs} s, after the clip ends ({duration_secs:.3} s)")]
+    AfterTheEnd {
+        /// Start, seconds.
+        start_secs: f64,
+        /// The clip's duration, seconds.
+        duration_secs: f64,
+    },
+}
+
 /// Frames from `start_secs` to `end_secs` (inclusive, rounded to the nearest frame;
 /// `end_secs = None` keeps the rest). Fails when the range is empty.
-pub fn trim(clip: &Clip, start_secs: f64, end_secs: Option<f64>) -> Result<Clip, String> {
+pub fn trim(clip: &Clip, start_secs: f64, end_secs: Option<f64>) -> Result<Clip, TrimError> {
     let last = clip.frame_count().saturating_sub(1) as f64;
     let first = (start_secs * clip.fps()).round().clamp(0.0, last.max(0.0)) as usize;
     let end = match end_secs {
-        Some(e) if e < start_secs => return Err(format!("end {e} s comes before start {start_secs} s")),
+        Some(end_secs) if end_secs < start_secs => return Err(TrimError::EndBeforeStart { start_secs, end_secs }),
         Some(e) => (e * clip.fps()).round().clamp(0.0, last) as usize + 1,
         None => clip.frame_count(),
     };
     if clip.frame_count() == 0 || first >= end || start_secs > clip.duration_secs() + 0.5 / clip.fps() {
-        return Err(format!("the range starts at {start_secs} s, after the clip ends ({:.3} s)", clip.duration_secs()));
+        return Err(TrimError::AfterTheEnd { start_secs, duration_secs: clip.duration_secs() });
     }
     Ok(clip.slice(first, end))
 }
@@ -60,7 +81,7 @@ impl Node for Trim {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
-        let out = trim(&clip, ctx.float(&START)?, ctx.optional_float(&END)?).map_err(NodeError::Failed)?;
+        let out = trim(&clip, ctx.float(&START)?, ctx.optional_float(&END)?).map_err(NodeError::kernel)?;
         ctx.set_output(&OUT, Arc::new(out));
         Ok(())
     }
@@ -91,7 +112,7 @@ impl Node for Resample {
         let fps = ctx.float(&FPS)?;
         let frames = (clip.duration_secs() * fps).ceil() as usize + 1;
         ctx.reserve_memory(Clip::estimated_bytes(frames, clip.joint_count()), FPS.0.name)?;
-        let out = resample(&clip, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let out = resample(&clip, fps).map_err(NodeError::kernel)?;
         ctx.set_output(&OUT, Arc::new(out));
         Ok(())
     }

@@ -7,6 +7,7 @@ use crate::formats::bvh::{BvhUnit, BvhWriteOptions, write_bvh_to};
 use crate::formats::gltf::{DEFAULT_ANIMATION_NAME, GlbAnimation, build_glb_animations};
 use crate::kernels::load::{ClipLoadOptions, UpAxis, load_clip};
 use crate::kernels::resample::resample;
+use crate::model::choice::choices;
 use crate::model::{Clip, Mesh};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output,
@@ -45,10 +46,10 @@ const SAMPLE_FPS: FloatParam = FloatParam::optional(
     1000.0,
     "fps",
 );
-const UP_AXIS: ChoiceParam = ChoiceParam::new(
+choices!(UpAxis { Y = "y", Z = "z" });
+const UP_AXIS: ChoiceParam<UpAxis> = ChoiceParam::new(
     "up_axis",
     "BVH only: the axis that points up in the file; \"z\" converts a Z-up file to Y up.",
-    &["y", "z"],
     "y",
 );
 const CLIP_OUT: Output<Arc<Clip>> = Output::new("clip", "The loaded clip, in metres and seconds.");
@@ -77,7 +78,7 @@ impl Node for LoadClip {
             metres_per_unit: ctx.optional_float(&SCALE)?,
             animation: ctx.optional_int(&ANIMATION)?.map(|a| a as usize),
             sample_fps: ctx.optional_float(&SAMPLE_FPS)?,
-            up_axis: if ctx.choice(&UP_AXIS)? == "z" { UpAxis::Z } else { UpAxis::Y },
+            up_axis: ctx.choice(&UP_AXIS)?,
             max_clip_bytes: Some(ctx.memory_limit_bytes()),
         };
         let Loaded { value: clip, warnings } = load_clip(&path, options)?;
@@ -92,10 +93,10 @@ const FILE_OUT: Output<Arc<std::path::PathBuf>> =
     Output::new("file", "The written file, relative to the output folder.");
 const BVH_FILE: OutputPathParam =
     OutputPathParam::new("file", "Where to write, relative to the run's output folder.", "bvh", "clip.bvh");
-const BVH_UNIT: ChoiceParam = ChoiceParam::new(
+choices!(BvhUnit { AsRead = "as_read", Centimetre = "cm", Metre = "m" });
+const BVH_UNIT: ChoiceParam<BvhUnit> = ChoiceParam::new(
     "unit",
     "Length unit of the file: \"as_read\" keeps the unit the clip was loaded in (metres for glTF or generated clips), \"cm\" centimetres, \"m\" metres.",
-    &["as_read", "cm", "m"],
     "as_read",
 );
 const BVH_FPS: FloatParam = FloatParam::optional(
@@ -127,11 +128,7 @@ impl Node for ExportBvh {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP_IN)?;
-        let unit = match ctx.choice(&BVH_UNIT)? {
-            "cm" => BvhUnit::Centimetre,
-            "m" => BvhUnit::Metre,
-            _ => BvhUnit::AsRead,
-        };
+        let unit = ctx.choice(&BVH_UNIT)?;
         let clip = match ctx.optional_float(&BVH_FPS)? {
             Some(fps) => Arc::new(resample(&clip, fps).map_err(|e| NodeError::param(BVH_FPS.0.name, e.to_string()))?),
             None => clip,

@@ -13,6 +13,7 @@ use crate::kernels::fluid::mesh::MeshError;
 use crate::kernels::fluid::mesher::{Obstacle, open_edge};
 use crate::kernels::fluid::rigid::{GRAVITY_M_S2, RigidBody, RigidShape};
 use crate::kernels::fluid::sim::{DynamicBodies, MovingObstacle, SimError, SimSettings, simulate_with_bodies};
+use crate::model::choice::choices;
 use crate::model::volume::{FluidDomain, Sizing, SmokeSource, VolumeFrame, VolumeSequence};
 use crate::model::{Curves, Mesh, MeshSequence};
 use crate::node::{
@@ -66,8 +67,11 @@ const SWIRL_REFINE: FloatParam = FloatParam::new(
 const MAX_EDGE: FloatParam = FloatParam::new("max_edge", "Largest tet edge length.", 0.3, 0.002, 100.0, "m");
 const MAX_TETS: IntParam =
     IntParam::new("max_tets", "Refuse a step whose mesh needs more tetrahedra than this.", 200_000, 100, 50_000_000);
-const TOP: ChoiceParam =
-    ChoiceParam::new("top", "Whether smoke can leave through the top of the box.", &["open", "closed"], "open");
+choices! {
+    /// Whether the box's top lets smoke out.
+    enum Top { Open = "open", Closed = "closed" }
+}
+const TOP: ChoiceParam<Top> = ChoiceParam::new("top", "Whether smoke can leave through the top of the box.", "open");
 const SOURCE_X: FloatParam = FloatParam::new("source_x", "Smoke source centre, x.", 0.0, -100.0, 100.0, "m");
 const SOURCE_Y: FloatParam = FloatParam::new("source_y", "Smoke source centre, y.", 0.3, -100.0, 100.0, "m");
 const SOURCE_Z: FloatParam = FloatParam::new("source_z", "Smoke source centre, z.", 0.0, -100.0, 100.0, "m");
@@ -173,7 +177,7 @@ impl Node for Domain {
             },
             max_radius_edge_ratio: 2.0,
             max_tets: ctx.int(&MAX_TETS)? as usize,
-            open_top: ctx.choice(&TOP)? == "open",
+            open_top: ctx.choice(&TOP)? == Top::Open,
             sources,
             buoyancy_alpha: ctx.float(&ALPHA)?,
             buoyancy_beta: ctx.float(&BETA)?,
@@ -450,10 +454,10 @@ impl Node for Simulate {
                     "step {step}: the mesh needs about {tets} tetrahedra, more than the domain's max_tets = {max_tets}: raise max_tets or min_edge"
                 ),
             ),
-            other => NodeError::Failed(other.to_string()),
+            other => NodeError::kernel(other),
         })?;
         let (volumes, steps) = (out.volumes, out.steps);
-        let curves = body_curves(&out.bodies, fps).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let curves = body_curves(&out.bodies, fps).map_err(NodeError::kernel)?;
         let limit = settings.max_cells_per_step;
         let fast: Vec<usize> = steps.iter().filter(|s| s.fluid_cells_per_step > limit).map(|s| s.step).collect();
         if let (Some(first), Some(worst)) =

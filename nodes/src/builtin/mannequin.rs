@@ -43,7 +43,7 @@ impl Node for Mannequin {
             ctx.float(&CYCLES)? as f32,
             ctx.float(&SPEED)? as f32,
         )
-        .map_err(|e| NodeError::Failed(e.to_string()))?;
+        .map_err(NodeError::kernel)?;
         let mesh = mannequin_mesh(clip.skeleton().clone(), 0.04);
         ctx.set_output(&CLIP_OUT, Arc::new(clip));
         ctx.set_output(&MESH_OUT, Arc::new(mesh));

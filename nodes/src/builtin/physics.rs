@@ -84,11 +84,11 @@ fn read_script(path: &std::path::Path) -> Result<Script, NodeError> {
 fn located(e: SimError, script: &std::path::Path) -> NodeError {
     match e {
         SimError::World(PhysicsError::UnstableTimeStep { .. }) => NodeError::param("dt_secs", e.to_string()),
-        SimError::World(PhysicsError::BadParams(_)) => NodeError::Failed(e.to_string()),
+        SimError::World(PhysicsError::BadParams(_)) => NodeError::kernel(e),
         SimError::Figure(_) => NodeError::input("clip", format!("cannot become a figure: {e}")),
         SimError::Script(_) => NodeError::param("script", format!("{}: {e}", script.display())),
         SimError::Pose(_) => NodeError::param("frame", e.to_string()),
-        SimError::BlowUp { .. } => NodeError::Failed(e.to_string()),
+        SimError::BlowUp { .. } => NodeError::kernel(e),
         SimError::Cancelled => NodeError::Cancelled,
     }
 }
@@ -130,7 +130,7 @@ impl Node for Simulate {
             .and_then(|()| curves.push("capture_support_distance", "m", channel(|s| s.capture_support_m)))
             .and_then(|()| curves.push("head_clearance", "m", channel(|s| s.head_clearance_m)))
             .and_then(|()| curves.push("kinetic_energy", "J", channel(|s| s.kinetic_energy_j)));
-        pushed.map_err(|e| NodeError::Failed(e.to_string()))?;
+        pushed.map_err(NodeError::kernel)?;
         let figure = &result.figure;
         ctx.set_output(&CURVES, Arc::new(curves));
         ctx.set_output(

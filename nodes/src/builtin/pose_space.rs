@@ -19,6 +19,7 @@ use crate::kernels::skinning::{
     SkinError, blend_matrices, check_skin, clip_skinning_matrices, deform_lbs, rest_normals, top_four,
 };
 use crate::math::nnls::nnls;
+use crate::model::choice::choices;
 use crate::model::{Clip, Mesh, MeshSequence, Skeleton, Skin};
 use crate::node::{
     ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry,
@@ -504,16 +505,22 @@ const SAMPLES_IN: Input<Arc<MeshSequence>> = Input::optional(
     "PSD/WPSD only: example shapes of the mesh at sample poses (each frame a pose), e.g. from barnet.deform or sculpts.",
 );
 const SEQ_OUT: Output<Arc<MeshSequence>> = Output::new("sequence", "The deformed mesh at every frame of the clip.");
-const METHOD: ChoiceParam = ChoiceParam::new(
+choices! {
+    /// The `method` choice of `skin.deform`.
+    enum Method { Lbs = "lbs", Psd = "psd", Wpsd = "wpsd" }
+}
+const METHOD: ChoiceParam<Method> = ChoiceParam::new(
     "method",
     "\"lbs\": linear blend skinning (fast; elbows collapse). \"psd\": pose space deformation from the samples. \"wpsd\": weighted PSD, where each vertex compares poses only on the joints that move it (better between samples).",
-    &["lbs", "psd", "wpsd"],
     "lbs",
 );
-const DISTANCE: ChoiceParam = ChoiceParam::new(
+choices! {
+    /// The WPSD weightings `skin.deform` offers (uniform is plain PSD's).
+    enum WpsdDistance { JointAndChildren = "joint_and_children", Joint = "joint" }
+}
+const DISTANCE: ChoiceParam<WpsdDistance> = ChoiceParam::new(
     "wpsd_distance",
     "WPSD only: \"joint_and_children\" also counts the joint at the far end of a vertex's bone (a biceps sees the elbow); \"joint\" is the paper's weighting.",
-    &["joint_and_children", "joint"],
     "joint_and_children",
 );
 const WIDTH: FloatParam = FloatParam::new(
@@ -555,18 +562,17 @@ impl Node for Deform {
         let clip = ctx.input(&CLIP_IN)?;
         let samples = ctx.optional_input(&SAMPLES_IN)?;
         let params = PoseSpaceParams {
-            distance: if ctx.choice(&DISTANCE)? == "joint" {
-                PoseDistance::JointWeight
-            } else {
-                PoseDistance::JointAndChildren
+            distance: match ctx.choice(&DISTANCE)? {
+                WpsdDistance::Joint => PoseDistance::JointWeight,
+                WpsdDistance::JointAndChildren => PoseDistance::JointAndChildren,
             },
             width_scale: ctx.float(&WIDTH)?,
             principal_poses: ctx.int(&PRINCIPAL)? as usize,
         };
         let method = match ctx.choice(&METHOD)? {
-            "psd" => DeformMethod::PoseSpace(PoseSpaceParams { distance: PoseDistance::Uniform, ..params }),
-            "wpsd" => DeformMethod::PoseSpace(params),
-            _ => DeformMethod::Lbs,
+            Method::Psd => DeformMethod::PoseSpace(PoseSpaceParams { distance: PoseDistance::Uniform, ..params }),
+            Method::Wpsd => DeformMethod::PoseSpace(params),
+            Method::Lbs => DeformMethod::Lbs,
         };
         if matches!(method, DeformMethod::PoseSpace(_)) && samples.is_none() {
             return Err(NodeError::input(SAMPLES_IN.name(), "must be connected for psd and wpsd"));

@@ -3,6 +3,7 @@
 use std::sync::Arc;
 
 use crate::kernels::skinning::{AutoWeightParams, BindMode, bind};
+use crate::model::choice::choices;
 use crate::model::{Clip, Mesh};
 use crate::node::{
     ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry,
@@ -17,10 +18,10 @@ const MESH_IN: Input<Arc<Mesh>> =
     Input::required("mesh", "The mesh to bind, modelled in the skeleton's rest pose (OBJ or glTF).");
 const CLIP_IN: Input<Arc<Clip>> = Input::required("clip", "A clip whose skeleton the mesh is bound to.");
 const MESH_OUT: Output<Arc<Mesh>> = Output::new("mesh", "The skinned mesh (at most 4 influences per vertex).");
-const MODE: ChoiceParam = ChoiceParam::new(
+choices!(BindMode { Keep = "keep", Automatic = "automatic" });
+const MODE: ChoiceParam<BindMode> = ChoiceParam::new(
     "weights",
     "\"keep\" uses the mesh's own weights when it has them; \"automatic\" always computes distance-to-bone weights.",
-    &["keep", "automatic"],
     "keep",
 );
 const POWER: FloatParam = FloatParam::new(
@@ -55,7 +56,7 @@ impl Node for Bind {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let mesh = ctx.input(&MESH_IN)?;
         let clip = ctx.input(&CLIP_IN)?;
-        let mode = if ctx.choice(&MODE)? == "automatic" { BindMode::Automatic } else { BindMode::Keep };
+        let mode = ctx.choice(&MODE)?;
         let params = AutoWeightParams {
             falloff_power: ctx.float(&POWER)? as f32,
             smoothing_iterations: ctx.int(&SMOOTHING)? as usize,

@@ -7,6 +7,7 @@
 use glam::{DVec3, Quat, Vec3};
 
 use super::body::Landmarks;
+use crate::model::choice::choices;
 use crate::model::{Clip, ClipError, ClipPoses};
 
 /// Which of the paper's two transition rules applies.
@@ -19,27 +20,7 @@ pub enum Rule {
     Reverse,
 }
 
-impl Rule {
-    /// Choice names as persisted.
-    pub const NAMES: &'static [&'static str] = &["forward", "reverse"];
-
-    /// The persisted choice name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Rule::Forward => "forward",
-            Rule::Reverse => "reverse",
-        }
-    }
-
-    /// Parses a persisted choice name.
-    pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "forward" => Some(Rule::Forward),
-            "reverse" => Some(Rule::Reverse),
-            _ => None,
-        }
-    }
-}
+choices!(Rule { Forward = "forward", Reverse = "reverse" });
 
 /// The yaw θ (radians about +Y) that maximises (forward) or minimises (reverse)
 /// `l1 · R_y(θ) l2`. In closed form: with horizontal parts a = l1, b = l2,

@@ -18,6 +18,8 @@ use std::collections::BTreeMap;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
+use crate::model::choice::{Choice, choices};
+
 use crate::model::Skeleton;
 use crate::model::fk::rest_world;
 
@@ -33,20 +35,7 @@ pub enum MassTable {
     BoneLength,
 }
 
-impl MassTable {
-    /// Choice names, as persisted in graph files.
-    pub const NAMES: &'static [&'static str] = &["de_leva_male", "de_leva_female", "bone_length"];
-
-    /// Parses a persisted choice name.
-    pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "de_leva_male" => Some(MassTable::DeLevaMale),
-            "de_leva_female" => Some(MassTable::DeLevaFemale),
-            "bone_length" => Some(MassTable::BoneLength),
-            _ => None,
-        }
-    }
-}
+choices!(MassTable { DeLevaMale = "de_leva_male", DeLevaFemale = "de_leva_female", BoneLength = "bone_length" });
 
 /// One mass-carrying segment.
 #[derive(Clone, Debug, PartialEq, Serialize)]

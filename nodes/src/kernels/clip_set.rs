@@ -3,13 +3,14 @@
 //! candidate-path tests and the transitions benchmarks load their corpus with it.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use super::load::{ClipLoadOptions, load_clip};
 use super::resample::resample;
+use crate::formats::FormatError;
 use crate::model::clip::{sampled_bytes, sampling_refusal};
-use crate::model::{Clip, ClipSet, NamedClip, Skeleton};
+use crate::model::{Clip, ClipError, ClipSet, ClipSetError, NamedClip, Skeleton};
 
 /// Case-insensitive wildcard match (`*` any run, `?` one character).
 fn wildcard(pattern: &[u8], name: &[u8]) -> bool {
@@ -45,14 +46,14 @@ fn starts_with_t_pose(clip: &Clip) -> bool {
 /// so a clip captured on shorter legs does not sink into the floor on longer ones (and a
 /// longer-legged actor's clip does not float), and its strides keep their length relative to
 /// the legs.
-fn onto_skeleton(clip: &Clip, skeleton: &Arc<Skeleton>) -> Result<Clip, String> {
+fn onto_skeleton(clip: &Clip, skeleton: &Arc<Skeleton>) -> Result<Clip, ConformError> {
     if Arc::ptr_eq(clip.skeleton(), skeleton) {
         return Ok(clip.clone());
     }
     let (own, reference) = (clip.skeleton().joints(), skeleton.joints());
     if own.len() != reference.len() || own.iter().zip(reference).any(|(a, b)| a.name != b.name || a.parent != b.parent)
     {
-        return Err("is on a skeleton with other joints than the graph's".into());
+        return Err(ConformError::OtherSkeleton);
     }
     let n = own.len();
     let root_ratio = clip.skeleton().root_height_ratio(skeleton).unwrap_or(1.0);
@@ -65,18 +66,65 @@ fn onto_skeleton(clip: &Clip, skeleton: &Arc<Skeleton>) -> Result<Clip, String> 
             if j == 0 { *t * root_ratio } else { reference[j].rest_offset + (*t - own[j].rest_offset) }
         })
         .collect();
-    Clip::new(skeleton.clone(), clip.fps(), clip.rotations().to_vec(), translations, clip.import_scale)
-        .map_err(|e| e.to_string())
+    Ok(Clip::new(skeleton.clone(), clip.fps(), clip.rotations().to_vec(), translations, clip.import_scale)?)
 }
 
 /// `clip` at `fps` on `skeleton`.
-pub fn conform(clip: &Clip, skeleton: &Arc<Skeleton>, fps: f64) -> Result<Clip, String> {
-    let at_rate = if (clip.fps() - fps).abs() > 1e-6 * fps {
-        resample(clip, fps).map_err(|e| e.to_string())?
-    } else {
-        clip.clone()
-    };
+pub fn conform(clip: &Clip, skeleton: &Arc<Skeleton>, fps: f64) -> Result<Clip, ConformError> {
+    let at_rate = if (clip.fps() - fps).abs() > 1e-6 * fps { resample(clip, fps)? } else { clip.clone() };
     onto_skeleton(&at_rate, skeleton)
+}
+
+/// Why a clip could not be put on a set's skeleton and rate ([`conform`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ConformError {
+    /// The clip's joints (names or hierarchy) differ from the set's.
+    #[error("is on a skeleton with other joints than the graph's")]
+    OtherSkeleton,
+    /// Resampling or rebuilding the clip failed.
+    #[error(transparent)]
+    Clip(#[from] ClipError),
+}
+
+/// Why a clip set could not be loaded ([`load_clip_set`]).
+#[derive(Debug, thiserror::Error)]
+pub enum LoadSetError {
+    /// The folder could not be listed.
+    #[error("{0}")]
+    Folder(String),
+    /// No file matches the patterns.
+    #[error("no file in {} matches '{}'", .folder.display(), .patterns.join(", "))]
+    NoMatch {
+        /// The folder searched.
+        folder: PathBuf,
+        /// The wildcard patterns.
+        patterns: Vec<String>,
+    },
+    /// A file could not be read.
+    #[error(transparent)]
+    Load(#[from] FormatError),
+    /// The clips read so far fill the run's memory limit.
+    #[error("{clip}: the clip set's memory limit is reached: {reason}")]
+    MemoryLimit {
+        /// The clip refused, by its path under the folder.
+        clip: String,
+        /// How much it needs against what is left.
+        reason: String,
+    },
+    /// The clip naming the skeleton family is not in the folder.
+    #[error("no clip called '{0}' to pick the skeleton family from")]
+    NoSuchClip(String),
+    /// A clip could not be put on the set's skeleton and rate.
+    #[error("{clip} {source}")]
+    Conform {
+        /// The clip, by its path under the folder.
+        clip: String,
+        /// Why.
+        source: ConformError,
+    },
+    /// The clips do not make a set.
+    #[error(transparent)]
+    Set(#[from] ClipSetError),
 }
 
 /// Identity of a skeleton family: joint names and parents.
@@ -108,11 +156,11 @@ impl MemoryBudget {
     }
 
     /// Counts a clip of `frames` frames of `joints` joints, or refuses it, naming `clip`.
-    fn take(&mut self, frames: f64, joints: usize, clip: &str) -> Result<(), String> {
+    fn take(&mut self, frames: f64, joints: usize, clip: &str) -> Result<(), LoadSetError> {
         if self.limit.is_some()
             && let Some(reason) = sampling_refusal(frames, joints, self.left(), "fps")
         {
-            return Err(format!("{clip}: the clip set's memory limit is reached: {reason}"));
+            return Err(LoadSetError::MemoryLimit { clip: clip.to_owned(), reason });
         }
         self.used += sampled_bytes(frames, joints);
         Ok(())
@@ -135,9 +183,10 @@ pub fn load_clip_set(
     fps: f64,
     family: Option<&str>,
     max_bytes: Option<u64>,
-) -> Result<LoadedClipSet, String> {
+) -> Result<LoadedClipSet, LoadSetError> {
     let patterns: Vec<&str> = patterns.split(',').map(str::trim).filter(|p| !p.is_empty()).collect();
-    let mut files: Vec<_> = crate::corpus::files_under(folder, &["bvh", "glb", "gltf", "fbx"], MAX_FOLDER_ENTRIES)?
+    let mut files: Vec<_> = crate::corpus::files_under(folder, &["bvh", "glb", "gltf", "fbx"], MAX_FOLDER_ENTRIES)
+        .map_err(LoadSetError::Folder)?
         .into_iter()
         .filter(|p| {
             let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
@@ -146,14 +195,17 @@ pub fn load_clip_set(
         .collect();
     files.sort();
     if files.is_empty() {
-        return Err(format!("no file in {} matches '{}'", folder.display(), patterns.join(", ")));
+        return Err(LoadSetError::NoMatch {
+            folder: folder.to_path_buf(),
+            patterns: patterns.iter().map(|p| p.to_string()).collect(),
+        });
     }
     let mut warnings = Vec::new();
     let mut clips = Vec::new();
     let mut budget = MemoryBudget { limit: max_bytes, used: 0.0 };
     for path in &files {
         let options = ClipLoadOptions { max_clip_bytes: budget.left(), ..Default::default() };
-        let loaded = load_clip(path, options).map_err(|e| e.to_string())?;
+        let loaded = load_clip(path, options)?;
         warnings.extend(loaded.warnings);
         let relative = path.strip_prefix(folder).unwrap_or(path).with_extension("");
         // BVH clips are bounded by their file, not by the option: count them all here.
@@ -170,7 +222,7 @@ pub fn load_clip_set(
             let index = clips
                 .iter()
                 .position(|(r, _)| r == name || stem(r) == name)
-                .ok_or_else(|| format!("no clip called '{name}' to pick the skeleton family from"))?;
+                .ok_or_else(|| LoadSetError::NoSuchClip(name.to_owned()))?;
             families.values().find(|f| f.contains(&index)).cloned().unwrap_or_default()
         }
         None => families.values().max_by_key(|f| (f.len(), std::cmp::Reverse(f[0]))).cloned().unwrap_or_default(),
@@ -191,7 +243,8 @@ pub fn load_clip_set(
             clip.clone()
         };
         budget.take((clip.duration_secs() * fps).ceil() + 1.0, skeleton.len(), relative)?;
-        let clip = conform(&clip, &skeleton, fps).map_err(|e| format!("{relative} {e}"))?;
+        let clip = conform(&clip, &skeleton, fps)
+            .map_err(|source| LoadSetError::Conform { clip: relative.clone(), source })?;
         if clip.frame_count() < 2 {
             warnings.push(format!("{relative}: left out, fewer than 2 frames"));
             continue;
@@ -199,7 +252,7 @@ pub fn load_clip_set(
         let name = if stems[&stem(relative)] > 1 { relative.clone() } else { stem(relative) };
         named.push(NamedClip { name, clip: Arc::new(clip) });
     }
-    let set = ClipSet::new(named).map_err(|e| e.to_string())?;
+    let set = ClipSet::new(named)?;
     Ok(LoadedClipSet { set, left_out, warnings })
 }
 

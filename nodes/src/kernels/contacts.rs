@@ -12,7 +12,7 @@ use glam::DVec3;
 
 use super::angular::central_difference;
 use super::body::{Landmarks, limb_tip};
-use super::roles::roles_of;
+use super::roles::{RolesError, roles_of};
 use crate::model::names::did_you_mean;
 use crate::model::{
     Clip, ClipPoses, Contacts, FootContacts, FrameRange, Skeleton, intervals::intersect_all, intervals::union_all,
@@ -156,12 +156,17 @@ pub fn contacts_of(
     clip: &Clip,
     poses: &ClipPoses,
     thresholds: &ContactThresholds,
-) -> Result<(Contacts, [usize; 2]), String> {
+) -> Result<(Contacts, [usize; 2]), RolesError> {
     let first: Vec<glam::Vec3> =
         if poses.frame_count() > 0 { poses.frame(0).iter().map(|t| t.translation).collect() } else { Vec::new() };
     let feet = roles_of(clip.skeleton(), &first)?.legs.map(|l| l.joints()[2]);
     Ok((feet_contacts(clip, poses, feet, None, thresholds), feet))
 }
+
+/// The body's feet could not be found and the user named none ([`contacts_with`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{0}; name them with the feet param (e.g. 'LeftFoot, RightFoot')")]
+pub struct UnnamedFeet(#[source] pub RolesError);
 
 /// [`contacts_of`] with feet named by the user: named ankles replace the body's, named toes
 /// the joints farthest below the ankles.
@@ -170,7 +175,7 @@ pub fn contacts_with(
     poses: &ClipPoses,
     thresholds: &ContactThresholds,
     named: &NamedFeet,
-) -> Result<(Contacts, [usize; 2]), String> {
+) -> Result<(Contacts, [usize; 2]), UnnamedFeet> {
     let feet = match named.ankles {
         Some(feet) => feet,
         None => {
@@ -179,10 +184,7 @@ pub fn contacts_with(
             } else {
                 Vec::new()
             };
-            roles_of(clip.skeleton(), &first)
-                .map_err(|why| format!("{why}; name them with the feet param (e.g. 'LeftFoot, RightFoot')"))?
-                .legs
-                .map(|l| l.joints()[2])
+            roles_of(clip.skeleton(), &first).map_err(UnnamedFeet)?.legs.map(|l| l.joints()[2])
         }
     };
     Ok((feet_contacts(clip, poses, feet, named.toes, thresholds), feet))

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 use super::angular::momentum_of_poses;
 use super::momentum_edit::{GroundEdit, ground_pivots};
 use super::momentum_solve::{EditSetup, SolveError, SolveOptions, SolveReport, momentum_edit};
+use crate::model::choice::Choice;
 use crate::model::{Family, FamilyKind, FamilySample, SampleOutcome, StageKind, forward_kinematics};
 
 /// Most samples a family may hold (each is a full optimisation).

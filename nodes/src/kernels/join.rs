@@ -6,6 +6,7 @@ use glam::{DVec3, Quat, Vec3};
 
 use super::analysis::Analysis;
 use super::contacts::ground_height;
+use super::ik::foot_lock::HoldError;
 use crate::math::{slerp_short, smootherstep, smoothstep};
 use crate::model::{Clip, ClipError, FrameRange, Report};
 
@@ -56,7 +57,7 @@ pub enum ConcatError {
     Clip(#[from] ClipError),
     /// The feet could not be held after the blend.
     #[error("the foot clean-up after the blend failed: {0} (set foot_lock off to skip it)")]
-    FootLock(String),
+    FootLock(#[source] HoldError),
 }
 
 /// Concatenation result: the clip and the report of every decision.

@@ -52,6 +52,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 use super::contacts::{ContactThresholds, contacts_of};
+use super::roles::RolesError;
 use super::skinning::SkinError;
 use super::soles::{foot_joints, lowest_sole_heights};
 use super::stride::{FootPlants, Stride, StrideComparison, compare_stride, measure_stride};
@@ -285,7 +286,7 @@ fn strides(
     options: &QualityOptions,
     findings: &mut Vec<String>,
 ) -> (Option<Stride>, Option<Stride>) {
-    let mut note = |what: &str, result: Result<Stride, String>| {
+    let mut note = |what: &str, result: Result<Stride, RolesError>| {
         result.map_err(|why| findings.push(format!("the {what}'s stride is not measured: {why}"))).ok()
     };
     let plants: Vec<FootPlants<'_>> =

@@ -71,13 +71,119 @@ impl BodyRoles {
     }
 }
 
+/// Why the body roles could not be read from a skeleton's shape.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ShapeError {
+    /// The positions do not match the skeleton's joints.
+    #[error("no pose to read it from")]
+    NoPose,
+    /// The skeleton has no joints.
+    #[error("no joints")]
+    NoJoints,
+    /// The lowest and highest leaves are at one height.
+    #[error("a flat skeleton (no height between its lowest and highest joints)")]
+    Flat,
+    /// No second foot splits from the first above the knees.
+    #[error("only one leg (no second low leaf splitting from the first above the knees)")]
+    OneLeg,
+    /// No second foot, neither splitting above the knees nor hanging from the root.
+    #[error("only one leg (no second low leaf splitting from the first above the knees, nor hanging from the root)")]
+    NoSecondFoot,
+    /// The feet hang from the root, but no joint stands above them as a knee.
+    #[error("the feet hang from the root but no knee stands above them")]
+    NoKnee,
+    /// A knee found above a foot is not below the pelvis.
+    #[error("a knee is not below the pelvis")]
+    KneeNotBelowPelvis,
+    /// A knee hangs straight from the pelvis.
+    #[error("a knee hangs straight from the pelvis (no thigh)")]
+    NoThigh,
+    /// A foot is not below the root.
+    #[error("a foot is not below the root")]
+    FootNotBelowRoot,
+    /// The top joint is not below the pelvis in the hierarchy.
+    #[error("the head is not above the pelvis in the hierarchy")]
+    HeadNotAbovePelvis,
+    /// The top joint leans too far from straight above the pelvis (degrees).
+    #[error(
+        "the body is not upright (the top joint is {degrees:.0}° from straight above the pelvis): not a standing biped, e.g. a quadruped"
+    )]
+    NotUpright {
+        /// Angle between the pelvis-to-top direction and straight up, degrees.
+        degrees: f32,
+    },
+    /// No leaf leaves the spine.
+    #[error("no arms (no leaf leaving the spine)")]
+    NoArms,
+    /// Only one leaf leaves the spine as an arm.
+    #[error("only one arm")]
+    OneArm,
+    /// A limb's tip does not hang below where it should start.
+    #[error("the {limb} is not below the body")]
+    LimbNotBelowBody {
+        /// `leg` or `arm`.
+        limb: &'static str,
+    },
+    /// A limb has fewer than three joints.
+    #[error("the {limb} has fewer than three joints")]
+    ShortLimb {
+        /// `leg` or `arm`.
+        limb: &'static str,
+    },
+    /// The toes do not point forward of the ankles, so left and right are unknown.
+    #[error("no facing (the toes do not point forward of the ankles)")]
+    NoFacing,
+}
+
+/// What the joint names did not give.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum NamesMiss {
+    /// Some body parts are named by no joint.
+    #[error("by joint name, found {}; missing {}", list_or_nothing(.found), .missing.join(", "))]
+    Missing {
+        /// Body parts found by name.
+        found: Vec<String>,
+        /// Body parts no joint names.
+        missing: Vec<String>,
+    },
+    /// Every part is named, but the named limbs do not hang from one body.
+    #[error("the named limbs do not hang from one body")]
+    Disconnected,
+}
+
+fn names_then(by_name: &Option<NamesMiss>) -> String {
+    by_name.as_ref().map_or_else(String::new, |miss| format!("{miss}; by shape, "))
+}
+
+impl From<ShapeError> for RolesError {
+    fn from(by_shape: ShapeError) -> Self {
+        RolesError { by_name: None, by_shape }
+    }
+}
+
+fn list_or_nothing(names: &[String]) -> String {
+    if names.is_empty() { "nothing".to_owned() } else { names.join(", ") }
+}
+
+/// Why the body roles could not be read: what the joint names lacked, when they were
+/// tried ([`roles_of`]), and why the shape did not give them.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{}{by_shape}", names_then(.by_name))]
+pub struct RolesError {
+    /// What the names lacked; `None` when only the shape was read ([`body_roles`]).
+    pub by_name: Option<NamesMiss>,
+    /// Why the shape failed.
+    #[source]
+    pub by_shape: ShapeError,
+}
+
 /// Reads the body roles of `skeleton` posed at `pos_in_world` (one position per joint),
 /// or says which part of the body it could not find.
-pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRoles, String> {
+pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRoles, ShapeError> {
     let joints = skeleton.joints();
     let n = joints.len();
     if pos_in_world.len() != n {
-        return Err("no pose to read it from".into());
+        return Err(ShapeError::NoPose);
     }
     let mut children = vec![0usize; n];
     for j in joints {
@@ -87,11 +193,11 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
     }
     let leaves: Vec<usize> = (0..n).filter(|&j| children[j] == 0).collect();
     let by_height = |a: &&usize, b: &&usize| pos_in_world[**a].y.total_cmp(&pos_in_world[**b].y);
-    let lowest = *leaves.iter().min_by(by_height).ok_or("no joints")?;
-    let highest = *leaves.iter().max_by(by_height).ok_or("no joints")?;
+    let lowest = *leaves.iter().min_by(by_height).ok_or(ShapeError::NoJoints)?;
+    let highest = *leaves.iter().max_by(by_height).ok_or(ShapeError::NoJoints)?;
     let height = pos_in_world[highest].y - pos_in_world[lowest].y;
     if height <= 0.0 {
-        return Err("a flat skeleton (no height between its lowest and highest joints)".into());
+        return Err(ShapeError::Flat);
     }
     let other_foot = leaves
         .iter()
@@ -108,16 +214,13 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
     let pelvis = match (&detached, other_foot) {
         (Some((pelvis, _)), _) => *pelvis,
         (None, Some(other)) => common_ancestor(skeleton, lowest, other),
-        (None, None) => return Err("only one leg (no second low leaf splitting from the first above the knees)".into()),
+        (None, None) => return Err(ShapeError::OneLeg),
     };
-    let spine = path_below(skeleton, pelvis, highest).ok_or("the head is not above the pelvis in the hierarchy")?;
+    let spine = path_below(skeleton, pelvis, highest).ok_or(ShapeError::HeadNotAbovePelvis)?;
     // A person stands: the head is well above the pelvis, not ahead of it (a quadruped).
     let up = (pos_in_world[highest] - pos_in_world[pelvis]).normalize_or_zero().y;
     if up < 0.7 {
-        return Err(format!(
-            "the body is not upright (the top joint is {:.0}° from straight above the pelvis): not a standing biped, e.g. a quadruped",
-            up.clamp(-1.0, 1.0).acos().to_degrees()
-        ));
+        return Err(ShapeError::NotUpright { degrees: up.clamp(-1.0, 1.0).acos().to_degrees() });
     }
     // Arms: leaves leaving the spine, farthest from where they leave it.
     let leaves_spine_at = |l: usize| spine.iter().rev().copied().find(|&s| skeleton.is_ancestor(s, l));
@@ -132,10 +235,10 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
         })
         .collect();
     let farthest = |from: &[usize]| from.iter().copied().max_by(|&a, &b| reach(a).total_cmp(&reach(b)));
-    let arm_a = farthest(&candidates).ok_or("no arms (no leaf leaving the spine)")?;
+    let arm_a = farthest(&candidates).ok_or(ShapeError::NoArms)?;
     let others: Vec<usize> =
         candidates.iter().copied().filter(|&l| spine.contains(&common_ancestor(skeleton, arm_a, l))).collect();
-    let arm_b = farthest(&others).ok_or("only one arm")?;
+    let arm_b = farthest(&others).ok_or(ShapeError::OneArm)?;
     let splits = [arm_a, arm_b].map(|l| leaves_spine_at(l).unwrap_or(pelvis));
     let chest = if spine.iter().position(|&s| s == splits[0]) < spine.iter().position(|&s| s == splits[1]) {
         splits[0]
@@ -143,8 +246,8 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
         splits[1]
     };
 
-    let limb = |from: usize, leaf: usize, what: &str| -> Result<Limb, String> {
-        let chain = path_below(skeleton, from, leaf).ok_or_else(|| format!("the {what} is not below the body"))?;
+    let limb = |from: usize, leaf: usize, limb: &'static str| -> Result<Limb, ShapeError> {
+        let chain = path_below(skeleton, from, leaf).ok_or(ShapeError::LimbNotBelowBody { limb })?;
         // A hand with fingers (or a foot with toes) is where the chain branches.
         if let Some(end) = chain.iter().position(|&j| children[j] >= 2).filter(|&e| e >= 2) {
             return Ok(Limb { chain, upper: end - 2 });
@@ -154,13 +257,13 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
             .max_by(|&a, &b| {
                 (bone(chain[a + 1]) + bone(chain[a + 2])).total_cmp(&(bone(chain[b + 1]) + bone(chain[b + 2])))
             })
-            .ok_or_else(|| format!("the {what} has fewer than three joints"))?;
+            .ok_or(ShapeError::ShortLimb { limb })?;
         Ok(Limb { chain, upper })
     };
     let legs = match (detached, other_foot) {
         (Some((_, legs)), _) => legs,
         (None, Some(other)) => [limb(pelvis, lowest, "leg")?, limb(pelvis, other, "leg")?],
-        (None, None) => return Err("only one leg".into()),
+        (None, None) => return Err(ShapeError::OneLeg),
     };
     let arms = [limb(splits[0], arm_a, "arm")?, limb(splits[1], arm_b, "arm")?];
 
@@ -181,7 +284,7 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
     let forward = if bent && knees.dot(toes) < 0.0 { -toes } else { toes };
     let left = Vec3::Y.cross(forward).normalize_or_zero();
     if left == Vec3::ZERO {
-        return Err("no facing (the toes do not point forward of the ankles)".into());
+        return Err(ShapeError::NoFacing);
     }
     let leftness = |l: &Limb| pos_in_world[l.joints()[2]].dot(left);
     let sided = |[a, b]: [Limb; 2]| if leftness(&a) >= leftness(&b) { [a, b] } else { [b, a] };
@@ -195,19 +298,15 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
 /// Names may put a foot or hand elsewhere in the hierarchy than below its knee or elbow (an
 /// IK-style game rig hangs the feet off the root): that limb's `chain` then runs from the
 /// pelvis to the knee, on to the foot and its toes, in body order rather than parenthood.
-pub fn roles_of(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRoles, String> {
-    let missing = match find_landmarks_detached(skeleton) {
+pub fn roles_of(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRoles, RolesError> {
+    let by_name = match find_landmarks_detached(skeleton) {
         Ok(landmarks) => match named_roles(skeleton, &landmarks) {
             Some(roles) => return Ok(roles),
-            None => "the named limbs do not hang from one body".to_owned(),
+            None => NamesMiss::Disconnected,
         },
-        Err(missing) => {
-            let found = found_by_name(skeleton);
-            let found = if found.is_empty() { "nothing".to_owned() } else { found.join(", ") };
-            format!("by joint name, found {found}; missing {}", missing.join(", "))
-        }
+        Err(missing) => NamesMiss::Missing { found: found_by_name(skeleton), missing },
     };
-    body_roles(skeleton, pos_in_world).map_err(|why| format!("{missing}; by shape, {why}"))
+    body_roles(skeleton, pos_in_world).map_err(|by_shape| RolesError { by_name: Some(by_name), by_shape })
 }
 
 /// The body roles from joints found by name ([`crate::kernels::body::find_landmarks`]):
@@ -254,9 +353,7 @@ fn detached_legs(
     lowest: usize,
     highest: usize,
     height: f32,
-) -> Result<(usize, [Limb; 2]), String> {
-    const ONE_LEG: &str =
-        "only one leg (no second low leaf splitting from the first above the knees, nor hanging from the root)";
+) -> Result<(usize, [Limb; 2]), ShapeError> {
     let low = |j: usize| pos[j].y - pos[lowest].y;
     let other = leaves
         .iter()
@@ -267,10 +364,10 @@ fn detached_legs(
             split == highest || skeleton.is_ancestor(split, highest)
         })
         .min_by(|&a, &b| pos[a].y.total_cmp(&pos[b].y))
-        .ok_or(ONE_LEG)?;
+        .ok_or(ShapeError::NoSecondFoot)?;
     let split = common_ancestor(skeleton, lowest, other);
     let foot_top = |leaf: usize| path_below(skeleton, split, leaf).and_then(|p| p.first().copied());
-    let feet = [foot_top(lowest).ok_or(ONE_LEG)?, foot_top(other).ok_or(ONE_LEG)?];
+    let feet = [foot_top(lowest).ok_or(ShapeError::NoSecondFoot)?, foot_top(other).ok_or(ShapeError::NoSecondFoot)?];
     let under_a_foot = |j: usize| feet.iter().any(|&f| j == f || skeleton.is_ancestor(f, j));
     let knee = |foot: usize| {
         (0..skeleton.len())
@@ -283,13 +380,13 @@ fn detached_legs(
     };
     let knees = [knee(feet[0]), knee(feet[1])];
     let [Some(ka), Some(kb)] = knees else {
-        return Err("the feet hang from the root but no knee stands above them".into());
+        return Err(ShapeError::NoKnee);
     };
     let pelvis = common_ancestor(skeleton, ka, kb);
-    let leg = |knee: usize, leaf: usize| -> Result<Limb, String> {
-        let mut chain = path_below(skeleton, pelvis, knee).ok_or("a knee is not below the pelvis")?;
-        let upper = chain.len().checked_sub(2).ok_or("a knee hangs straight from the pelvis (no thigh)")?;
-        chain.extend(path_below(skeleton, split, leaf).ok_or("a foot is not below the root")?);
+    let leg = |knee: usize, leaf: usize| -> Result<Limb, ShapeError> {
+        let mut chain = path_below(skeleton, pelvis, knee).ok_or(ShapeError::KneeNotBelowPelvis)?;
+        let upper = chain.len().checked_sub(2).ok_or(ShapeError::NoThigh)?;
+        chain.extend(path_below(skeleton, split, leaf).ok_or(ShapeError::FootNotBelowRoot)?);
         Ok(Limb { chain, upper })
     };
     Ok((pelvis, [leg(ka, lowest)?, leg(kb, other)?]))
@@ -362,8 +459,8 @@ mod tests {
         for p in &mut rest {
             p.y = 0.0;
         }
-        assert!(body_roles(&sk, &rest).unwrap_err().contains("flat"));
+        assert_eq!(body_roles(&sk, &rest).unwrap_err(), ShapeError::Flat);
         let one_leg = Skeleton::new(sk.joints()[..16].to_vec()).unwrap();
-        assert!(body_roles(&one_leg, &one_leg.rest_positions()).unwrap_err().contains("one leg"));
+        assert!(body_roles(&one_leg, &one_leg.rest_positions()).unwrap_err().to_string().contains("one leg"));
     }
 }

@@ -21,6 +21,7 @@ use nalgebra::{DMatrix, DVector};
 use super::angular::{MomentumTrack, momentum_of_poses};
 use super::body::BodyModel;
 use super::contacts::{ContactThresholds, contacts_of};
+use super::roles::RolesError;
 use crate::model::{
     Clip, ClipPoses, Contacts, FrameRange, Stage, StageKind, Stages, forward_kinematics, stages::stages_from_flags,
 };
@@ -53,7 +54,7 @@ pub enum StagesError {
     BordersNotIncreasing(String),
     /// The feet could not be found to detect contacts.
     #[error("the feet could not be found: {0}")]
-    Feet(String),
+    Feet(#[source] RolesError),
     /// The contacts describe another clip.
     #[error("the contacts describe {contacts} frames, the clip has {clip}")]
     ContactsMismatch {

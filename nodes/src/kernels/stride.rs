@@ -21,7 +21,7 @@
 use glam::DVec3;
 use serde::Serialize;
 
-use super::roles::roles_of;
+use super::roles::{RolesError, roles_of};
 use crate::model::fk::rest_world;
 use crate::model::{FrameRange, Skeleton};
 
@@ -72,7 +72,7 @@ pub fn measure_stride(
     window: FrameRange,
     at: impl Fn(usize, usize) -> DVec3,
     feet: &[FootPlants<'_>],
-) -> Result<Stride, String> {
+) -> Result<Stride, RolesError> {
     let rest: Vec<glam::Vec3> = rest_world(skeleton).iter().map(|t| t.translation).collect();
     let roles = roles_of(skeleton, &rest)?;
     let leg_length_m = f64::from(roles.leg_length_m(|j| rest[j]));

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
+use super::choice::{Choice, choices};
 use super::clip::Clip;
 
 /// How the swept ground stage moves with the family's parameters (the paper's three kinds).
@@ -23,29 +24,9 @@ pub enum FamilyKind {
     Semicircle,
 }
 
+choices!(FamilyKind { Line = "line", Grid = "grid", Semicircle = "semicircle" });
+
 impl FamilyKind {
-    /// Stable names for params and reports.
-    pub const NAMES: &'static [&'static str] = &["line", "grid", "semicircle"];
-
-    /// The kind called `name`.
-    pub fn from_name(name: &str) -> Option<FamilyKind> {
-        match name {
-            "line" => Some(FamilyKind::Line),
-            "grid" => Some(FamilyKind::Grid),
-            "semicircle" => Some(FamilyKind::Semicircle),
-            _ => None,
-        }
-    }
-
-    /// Its stable name.
-    pub fn name(self) -> &'static str {
-        match self {
-            FamilyKind::Line => "line",
-            FamilyKind::Grid => "grid",
-            FamilyKind::Semicircle => "semicircle",
-        }
-    }
-
     /// How many parameters a family of this kind has.
     pub fn dimensions(self) -> usize {
         match self {
@@ -167,6 +148,5 @@ mod tests {
         assert_eq!(family.sample_at(&[1, 2]).unwrap().params, vec![1.0, 4.0]);
         assert_eq!(family.sample_at(&[0, 1]).unwrap().params, vec![0.0, 2.0]);
         assert!(family.sample_at(&[2, 0]).is_none());
-        assert!(FamilyKind::NAMES.iter().all(|n| FamilyKind::from_name(n).map(FamilyKind::name) == Some(*n)));
     }
 }

@@ -2,6 +2,7 @@
 
 pub mod barnet;
 pub mod bone_map;
+pub mod choice;
 pub mod clip;
 pub mod clip_set;
 pub mod curves;

@@ -13,6 +13,7 @@ use super::value::{PortValue, Value};
 use super::{NodeError, NodeSchema};
 use crate::cancel::Cancel;
 use crate::formats::atomic::write_within_with;
+use crate::model::choice::{Choice, not_one_of};
 use crate::model::units::memory_size;
 
 /// Per-run services shared by every node of one evaluation.
@@ -143,9 +144,10 @@ impl<'a> NodeContext<'a> {
         }
     }
 
-    /// A choice parameter.
-    pub fn choice(&self, p: &ChoiceParam) -> Result<&str, NodeError> {
-        self.text(p.0.name)
+    /// A choice parameter, as its enum.
+    pub fn choice<T: Choice>(&self, p: &ChoiceParam<T>) -> Result<T, NodeError> {
+        let name = self.text(p.0.name)?;
+        T::from_name(name).ok_or_else(|| NodeError::param(p.0.name, not_one_of(name, T::NAMES)))
     }
 
     /// A free-text parameter.

@@ -8,6 +8,7 @@ mod port;
 mod value;
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 pub use context::{NodeContext, NodeOutcome, RunServices};
 pub use param::{
@@ -17,6 +18,7 @@ pub use param::{
 pub use port::{Input, Output, PortSpec};
 pub use value::{PortType, PortValue, Report, Value, into_report, report_of};
 
+pub use crate::model::choice::{Choice, OnOff};
 pub use crate::model::names::{did_you_mean, edit_distance, hint_for, nearest_name};
 
 use crate::formats::FormatError;
@@ -83,7 +85,10 @@ pub enum NodeError {
     /// A file could not be read or written.
     #[error(transparent)]
     Format(#[from] FormatError),
-    /// The algorithm could not produce a result.
+    /// A kernel could not produce a result: its typed error, kept whole with its sources.
+    #[error(transparent)]
+    Kernel(KernelError),
+    /// The node could not produce a result for a reason of its own (no kernel error).
     #[error("{0}")]
     Failed(String),
     /// The run was cancelled.
@@ -106,6 +111,42 @@ impl NodeError {
     /// A parameter error.
     pub fn param(param: &'static str, message: impl Into<String>) -> Self {
         NodeError::Param { param, message: message.into() }
+    }
+
+    /// A kernel's failure, e.g. `.map_err(NodeError::kernel)`.
+    pub fn kernel(error: impl std::error::Error + Send + Sync + 'static) -> Self {
+        NodeError::Kernel(KernelError(Arc::new(error)))
+    }
+}
+
+/// A kernel's typed error inside a [`NodeError`]: shared, so node errors stay cheap to
+/// clone, and shown as the kernel words it, its sources following.
+#[derive(Debug, Clone)]
+pub struct KernelError(Arc<dyn std::error::Error + Send + Sync>);
+
+impl KernelError {
+    /// The kernel's error as its own type, when it is an `E`.
+    pub fn downcast_ref<E: std::error::Error + 'static>(&self) -> Option<&E> {
+        self.0.downcast_ref()
+    }
+}
+
+impl std::fmt::Display for KernelError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+impl std::error::Error for KernelError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        self.0.source()
+    }
+}
+
+/// Two kernel errors are equal when they are the same error or say the same thing.
+impl PartialEq for KernelError {
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0) || self.0.to_string() == other.0.to_string()
     }
 }
 
@@ -147,5 +188,34 @@ impl Registry {
     /// The registered kind closest to `kind` by edit distance, for "did you mean" hints.
     pub fn nearest_kind(&self, kind: &str) -> Option<&'static str> {
         nearest_name(kind, self.nodes.keys().copied())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::error::Error;
+
+    use super::NodeError;
+    use crate::kernels::contacts::UnnamedFeet;
+    use crate::kernels::roles::{NamesMiss, RolesError, ShapeError};
+
+    #[test]
+    fn a_kernel_error_reads_as_the_kernel_words_it_and_keeps_its_sources() {
+        let roles = RolesError { by_name: Some(NamesMiss::Disconnected), by_shape: ShapeError::NoFacing };
+        let e = NodeError::kernel(UnnamedFeet(roles.clone()));
+        assert_eq!(
+            e.to_string(),
+            "the named limbs do not hang from one body; by shape, no facing (the toes do not point forward of the \
+             ankles); name them with the feet param (e.g. 'LeftFoot, RightFoot')"
+        );
+        let NodeError::Kernel(kernel) = &e else { panic!("not a kernel error: {e:?}") };
+        assert_eq!(kernel.downcast_ref::<UnnamedFeet>(), Some(&UnnamedFeet(roles.clone())));
+        // The chain below the node error: the roles, then the shape's reason, then nothing.
+        let first = e.source().expect("the roles error");
+        assert_eq!(first.downcast_ref::<RolesError>(), Some(&roles));
+        let second = first.source().expect("the shape error");
+        assert_eq!(second.downcast_ref::<ShapeError>(), Some(&ShapeError::NoFacing));
+        assert!(second.source().is_none());
+        assert_eq!(e.clone(), e);
     }
 }

@@ -1,7 +1,11 @@
 //! Node parameters: typed declarations with defaults, ranges, units and docs, and the
 //! untyped values graph files carry.
 
+use std::marker::PhantomData;
+
 use serde::{Deserialize, Serialize};
+
+use crate::model::choice::{Choice, is_one_of, not_one_of};
 
 /// A parameter value as written in a graph file or given with `--set`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -148,7 +152,7 @@ impl ParamSpec {
                 if choices.contains(&s.as_str()) {
                     Ok(value.clone())
                 } else {
-                    Err(format!("'{s}' is not one of {}", choices.join(", ")))
+                    Err(not_one_of(s, choices))
                 }
             }
             (ParamKind::Text { .. } | ParamKind::InputFolder { .. }, ParamValue::Text(_)) => Ok(value.clone()),
@@ -204,8 +208,9 @@ fn check_output_path(s: &str, extension: &str) -> Result<(), String> {
 pub struct FloatParam(pub ParamSpec);
 /// A typed whole-number parameter declaration.
 pub struct IntParam(pub ParamSpec);
-/// A typed choice parameter declaration.
-pub struct ChoiceParam(pub ParamSpec);
+/// A typed choice parameter declaration: the node reads a `T`, and the names the spec
+/// offers are `T`'s own ([`Choice::NAMES`]).
+pub struct ChoiceParam<T: Choice>(pub ParamSpec, PhantomData<fn() -> T>);
 /// A typed free-text parameter declaration.
 pub struct TextParam(pub ParamSpec);
 /// A typed input-file parameter declaration.
@@ -244,15 +249,24 @@ impl IntParam {
     }
 }
 
-impl ChoiceParam {
-    /// Declares a choice parameter.
-    pub const fn new(
-        name: &'static str,
-        doc: &'static str,
-        choices: &'static [&'static str],
-        default: &'static str,
-    ) -> Self {
-        ChoiceParam(ParamSpec { name, doc, kind: ParamKind::Choice { choices, default } })
+impl<T: Choice> ChoiceParam<T> {
+    /// Declares a choice parameter offering `T`'s names. A `default` that is not one of
+    /// them fails to compile where the declaration is used:
+    ///
+    /// ```
+    /// use kinegraph_nodes::node::{ChoiceParam, OnOff, ParamSpec};
+    /// const FOOT_LOCK: ChoiceParam<OnOff> = ChoiceParam::new("foot_lock", "Hold planted feet.", "on");
+    /// static PARAMS: [ParamSpec; 1] = [FOOT_LOCK.0];
+    /// ```
+    ///
+    /// ```compile_fail,E0080
+    /// use kinegraph_nodes::node::{ChoiceParam, OnOff, ParamSpec};
+    /// const FOOT_LOCK: ChoiceParam<OnOff> = ChoiceParam::new("foot_lock", "Hold planted feet.", "of");
+    /// static PARAMS: [ParamSpec; 1] = [FOOT_LOCK.0];
+    /// ```
+    pub const fn new(name: &'static str, doc: &'static str, default: &'static str) -> Self {
+        assert!(is_one_of(default, T::NAMES), "a choice parameter's default must be one of its choice's names");
+        ChoiceParam(ParamSpec { name, doc, kind: ParamKind::Choice { choices: T::NAMES, default } }, PhantomData)
     }
 }
 
@@ -312,6 +326,15 @@ mod tests {
         let inp = InputPathParam::new("path", "", &["bvh", "glb"]).0;
         assert!(inp.check(&ParamValue::Text("x/Walk.BVH".into())).is_ok());
         assert!(inp.check(&ParamValue::Text("x/walk.fbx".into())).is_err());
+    }
+
+    #[test]
+    fn a_choice_spec_offers_its_enums_names_and_refuses_others() {
+        use crate::model::choice::OnOff;
+        const SWITCH: ChoiceParam<OnOff> = ChoiceParam::new("foot_lock", "", "off");
+        assert_eq!(SWITCH.0.kind, ParamKind::Choice { choices: &["on", "off"], default: "off" });
+        assert_eq!(SWITCH.0.check(&ParamValue::Text("on".into())), Ok(ParamValue::Text("on".into())));
+        assert_eq!(SWITCH.0.check(&ParamValue::Text("maybe".into())), Err("'maybe' is not one of on, off".into()));
     }
 
     #[test]

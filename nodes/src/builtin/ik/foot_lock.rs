@@ -7,6 +7,7 @@ use serde_json::json;
 use super::solve::parse_weights;
 use crate::kernels::ik::foot_lock::{FootLockError, FootLockParams, Ground, foot_lock};
 use crate::kernels::ik::{RigError, SolveParams};
+use crate::model::choice::choices;
 use crate::model::{Clip, Contacts, Mesh};
 use crate::node::into_report;
 use crate::node::{
@@ -62,10 +63,13 @@ const TOES: TextParam = TextParam::new(
     "The toe joints held in place, left then right, comma separated (e.g. 'ToeL, ToeR'). Empty: the joint farthest below each ankle.",
     "",
 );
-const GROUND: ChoiceParam = ChoiceParam::new(
+choices! {
+    /// The `ground` choice: [`Ground`] without its mesh.
+    enum GroundChoice { Clip = "clip", Soles = "soles" }
+}
+const GROUND: ChoiceParam<GroundChoice> = ChoiceParam::new(
     "ground",
     "Where planted feet stand: at the clip's heights ('clip'), or with the lowest vertex of each foot's skinned sole on the floor through every contact ('soles', needs the mesh input; the swing between two plants eases from one plant's height offset to the next's).",
-    &["clip", "soles"],
     "clip",
 );
 const FLOOR: FloatParam = FloatParam::new(
@@ -100,11 +104,11 @@ impl Node for FootLock {
         let clip = ctx.input(&CLIP)?;
         let contacts = ctx.input(&CONTACTS)?;
         let ground = match (ctx.choice(&GROUND)?, ctx.optional_input(&MESH)?) {
-            ("soles", Some(mesh)) => Ground::Soles { mesh, floor_height_m: ctx.float(&FLOOR)? },
-            ("soles", None) => {
+            (GroundChoice::Soles, Some(mesh)) => Ground::Soles { mesh, floor_height_m: ctx.float(&FLOOR)? },
+            (GroundChoice::Soles, None) => {
                 return Err(NodeError::input("mesh", "ground 'soles' needs the character's skinned mesh connected"));
             }
-            _ => Ground::Clip,
+            (GroundChoice::Clip, _) => Ground::Clip,
         };
         let params = FootLockParams {
             blend_secs: ctx.float(&BLEND)?,

@@ -66,6 +66,7 @@ use crate::kernels::body::{find_legs, limb_tip};
 use crate::kernels::ik::{DofKind, IkRig, IkSolver, RigError, SolveParams};
 use crate::kernels::mannequin::mannequin_skeleton;
 use crate::math::smoothstep;
+use crate::model::choice::{Choice, choices};
 use crate::model::fk::{forward_kinematics, rest_world};
 use crate::model::intervals::intersect_all;
 use crate::model::{
@@ -134,31 +135,14 @@ pub enum GaitPreset {
     HipInjury,
 }
 
+choices!(GaitPreset {
+    Normal = "normal",
+    Individual = "individual",
+    InjuredLeftLeg = "injured_left_leg",
+    HipInjury = "hip_injury",
+});
+
 impl GaitPreset {
-    /// Persisted names, in the order of the variants.
-    pub const NAMES: &'static [&'static str] = &["normal", "individual", "injured_left_leg", "hip_injury"];
-
-    /// The preset with persisted name `name`.
-    pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "normal" => Some(GaitPreset::Normal),
-            "individual" => Some(GaitPreset::Individual),
-            "injured_left_leg" => Some(GaitPreset::InjuredLeftLeg),
-            "hip_injury" => Some(GaitPreset::HipInjury),
-            _ => None,
-        }
-    }
-
-    /// Its persisted name.
-    pub fn name(self) -> &'static str {
-        match self {
-            GaitPreset::Normal => "normal",
-            GaitPreset::Individual => "individual",
-            GaitPreset::InjuredLeftLeg => "injured_left_leg",
-            GaitPreset::HipInjury => "hip_injury",
-        }
-    }
-
     /// The left and right leg settings the preset stands for.
     pub fn legs(self) -> [LegParams; 2] {
         let normal = LegParams::default();
@@ -1112,10 +1096,9 @@ const REPORT_OUT: Output<Arc<Report>> = Output::new(
     "report",
     "Stride and step length per leg measured on the walk, cadence, speed, knee bend, IK residual and the preset.",
 );
-const PRESET: ChoiceParam = ChoiceParam::new(
+const PRESET: ChoiceParam<GaitPreset> = ChoiceParam::new(
     "preset",
     "Starting settings: `normal`; `individual` (both hips' IK weight 0.8); `injured_left_leg` (left step height and length ×0.5, left swing 30 % faster, left knee weight 0.1); `hip_injury` (the same left-leg changes with a stiff left hip, weight 0.1, instead of the knee).",
-    GaitPreset::NAMES,
     "normal",
 );
 const LEGS: TextParam = TextParam::new(
@@ -1238,9 +1221,7 @@ impl Node for ProceduralGait {
             Some(clip) => clip.skeleton().clone(),
             None => Arc::new(mannequin_skeleton().map_err(|e| NodeError::input("clip", e.to_string()))?),
         };
-        let preset_name = ctx.choice(&PRESET)?.to_owned();
-        let preset = GaitPreset::from_name(&preset_name)
-            .ok_or_else(|| NodeError::param("preset", format!("unknown preset `{preset_name}`")))?;
+        let preset = ctx.choice(&PRESET)?;
         let mut legs = preset.legs();
         parse_leg_overrides(ctx.text_param(&LEGS)?, &mut legs).map_err(|e| NodeError::param("legs", e))?;
         let params = GaitParams {

@@ -30,8 +30,9 @@ use serde_json::json;
 
 use crate::formats::FormatError;
 use crate::formats::bone_map::{bone_map_from_ron, bone_map_to_ron};
-use crate::kernels::roles::{BodyRoles, Limb, body_roles, roles_of};
+use crate::kernels::roles::{BodyRoles, Limb, RolesError, body_roles, roles_of};
 use crate::model::bone_map::BoneMap;
+use crate::model::choice::choices;
 use crate::model::fk::pose_world;
 use crate::model::{Clip, ClipError, Skeleton, Transform};
 use crate::node::into_report;
@@ -51,7 +52,8 @@ pub enum MapError {
         /// `source` or `target`.
         which: &'static str,
         /// What was missing.
-        why: String,
+        #[source]
+        why: RolesError,
     },
     /// A bone-map entry names a joint the skeleton lacks.
     #[error("the bone map names {which} joint `{name}`, which the {which} skeleton lacks{hint}")]
@@ -240,7 +242,7 @@ pub fn clip_roles(clip: &Clip, pose: ReferencePose, which: &'static str) -> Resu
 
 /// The body roles of a skeleton posed at `world`, read from its shape only.
 pub fn shape_roles(skeleton: &Skeleton, world: &[Transform], which: &'static str) -> Result<BodyRoles, MapError> {
-    body_roles(skeleton, &positions(world)).map_err(|why| MapError::Roles { which, why })
+    body_roles(skeleton, &positions(world)).map_err(|why| MapError::Roles { which, why: why.into() })
 }
 
 fn positions(world: &[Transform]) -> Vec<Vec3> {
@@ -498,10 +500,13 @@ const MAP_FILE: InputPathParam = InputPathParam::optional(
     "A bone-map RON file (see export.bone_map); its pairs are added to the automatic ones and win over them.",
     &["ron"],
 );
-const AUTO: ChoiceParam = ChoiceParam::new(
+choices! {
+    /// Where `skeleton.map` finds pairs before the bone-map file's.
+    enum AutoPairs { Body = "body", None = "none" }
+}
+const AUTO: ChoiceParam<AutoPairs> = ChoiceParam::new(
     "auto",
     "How pairs are found before the file's: from the body's shape (legs, arms, spine — any naming), or none (the file only).",
-    &["body", "none"],
     "body",
 );
 const ROOT_SCALE: FloatParam = FloatParam::optional(
@@ -512,11 +517,13 @@ const ROOT_SCALE: FloatParam = FloatParam::optional(
     "",
 );
 
-const REFERENCE_CHOICES: &[&str] = &["first_frame", "rest", "frame"];
-const SOURCE_REFERENCE: ChoiceParam = ChoiceParam::new(
+choices! {
+    /// A `*_reference` choice: [`ReferencePose`] without its frame, which a param of its own gives.
+    enum Reference { FirstFrame = "first_frame", Rest = "rest", Frame = "frame" }
+}
+const SOURCE_REFERENCE: ChoiceParam<Reference> = ChoiceParam::new(
     "source_reference",
     "The source's pose the skeletons are aligned in: its first frame, its skeleton's rest pose (a BVH's T-pose), or source_frame. Pick the pose that stands like the target's reference.",
-    REFERENCE_CHOICES,
     "first_frame",
 );
 const SOURCE_FRAME: IntParam = IntParam::new(
@@ -526,10 +533,9 @@ const SOURCE_FRAME: IntParam = IntParam::new(
     0,
     1_000_000_000,
 );
-const TARGET_REFERENCE: ChoiceParam = ChoiceParam::new(
+const TARGET_REFERENCE: ChoiceParam<Reference> = ChoiceParam::new(
     "target_reference",
     "The target's pose the skeletons are aligned in: its first frame, its skeleton's rest pose (a Mixamo character's bind T-pose), or target_frame.",
-    REFERENCE_CHOICES,
     "first_frame",
 );
 const TARGET_FRAME: IntParam = IntParam::new(
@@ -541,11 +547,15 @@ const TARGET_FRAME: IntParam = IntParam::new(
 );
 
 /// The reference pose a choice param and its frame param name.
-fn reference_param(ctx: &NodeContext<'_>, choice: &ChoiceParam, frame: &IntParam) -> Result<ReferencePose, NodeError> {
+fn reference_param(
+    ctx: &NodeContext<'_>,
+    choice: &ChoiceParam<Reference>,
+    frame: &IntParam,
+) -> Result<ReferencePose, NodeError> {
     Ok(match ctx.choice(choice)? {
-        "rest" => ReferencePose::Rest,
-        "frame" => ReferencePose::Frame(usize::try_from(ctx.int(frame)?).unwrap_or(usize::MAX)),
-        _ => ReferencePose::FirstFrame,
+        Reference::Rest => ReferencePose::Rest,
+        Reference::Frame => ReferencePose::Frame(usize::try_from(ctx.int(frame)?).unwrap_or(usize::MAX)),
+        Reference::FirstFrame => ReferencePose::FirstFrame,
     })
 }
 
@@ -581,7 +591,7 @@ impl Node for MapSkeleton {
             e => NodeError::input("target", e.to_string()),
         };
         let root_scale = ctx.optional_float(&ROOT_SCALE)?;
-        let auto = ctx.choice(&AUTO)? == "body";
+        let auto = ctx.choice(&AUTO)? == AutoPairs::Body;
         let references = References {
             source: reference_param(ctx, &SOURCE_REFERENCE, &SOURCE_FRAME)?,
             target: reference_param(ctx, &TARGET_REFERENCE, &TARGET_FRAME)?,

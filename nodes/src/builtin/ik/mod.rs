@@ -25,7 +25,7 @@ fn residual_curves(fps: f64, channels: Vec<(&str, &str, Vec<f64>)>) -> Result<Ar
     let frames = channels.first().map_or(0, |c| c.2.len());
     let mut curves = Curves::new(fps, frames);
     for (name, unit, values) in channels {
-        curves.push(name, unit, values).map_err(|e| NodeError::Failed(e.to_string()))?;
+        curves.push(name, unit, values).map_err(NodeError::kernel)?;
     }
     Ok(Arc::new(curves))
 }

@@ -27,6 +27,7 @@ use std::f64::consts::PI;
 use crate::kernels::body::{find_landmarks, limb_tip};
 use crate::kernels::ik::foot_lock::Plants;
 use crate::kernels::ik::{DofKind, IkPose, IkRig, IkSolver};
+use crate::model::choice::choices;
 use crate::model::fk::pose_world;
 use crate::model::{Clip, Contacts, FootContacts, Skeleton, Transform};
 use crate::node::into_report;
@@ -376,10 +377,10 @@ const CONTACTS: Input<Arc<Contacts>> = Input::optional(
 const RETARGETED: Output<Arc<Clip>> = Output::new("clip", "The motion on the target character.");
 const REPORT: Output<Arc<Report>> =
     Output::new("report", "Effector tracking error per frame and the smallest dexterity met.");
-const TRACK: ChoiceParam = ChoiceParam::new(
+choices!(Effectors { Feet = "feet", FeetAndHands = "feet_and_hands" });
+const TRACK: ChoiceParam<Effectors> = ChoiceParam::new(
     "effectors",
     "Which tips follow the source exactly: the toe tips, or the toe tips and the hands.",
-    &["feet", "feet_and_hands"],
     "feet",
 );
 const GAIN: FloatParam = FloatParam::new(
@@ -398,10 +399,10 @@ const DEXTERITY: FloatParam = FloatParam::new(
     1.0,
     "",
 );
-const PELVIS: ChoiceParam = ChoiceParam::new(
+choices!(PelvisTask { Imitate = "imitate", Track = "track" });
+const PELVIS: ChoiceParam<PelvisTask> = ChoiceParam::new(
     "pelvis",
     "How the pelvis follows the source's: imitated where the tips leave freedom (its path scaled to the character), or kept on the source pelvis's ground track as a task of its own beside the tips (its height free).",
-    &["imitate", "track"],
     "imitate",
 );
 const MAX_ANGLE_STEP: FloatParam = FloatParam::new(
@@ -440,12 +441,12 @@ impl Node for RetargetOnline {
         {
             return Err(NodeError::input("contacts", "the contacts were found on another clip (frame counts differ)"));
         }
-        let effectors = if ctx.choice(&TRACK)? == "feet_and_hands" { Effectors::FeetAndHands } else { Effectors::Feet };
+        let effectors = ctx.choice(&TRACK)?;
         let params = RetargetParams {
             secondary_gain: ctx.float(&GAIN)?,
             dexterity: ctx.float(&DEXTERITY)?,
             max_angle_step_rad: ctx.float(&MAX_ANGLE_STEP)?,
-            pelvis: if ctx.choice(&PELVIS)? == "track" { PelvisTask::Track } else { PelvisTask::Imitate },
+            pelvis: ctx.choice(&PELVIS)?,
             ..RetargetParams::default()
         };
         let out = retarget_clip(&source, &target, contacts.as_deref(), effectors, params).map_err(|e| match e {

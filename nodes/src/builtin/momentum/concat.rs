@@ -37,6 +37,7 @@ use crate::kernels::analysis::{Analysis, AnalysisOptions, analyse};
 use crate::kernels::ik::foot_lock::hold_detected_plants;
 use crate::kernels::join::{ConcatError, Concatenated, foot_skate_m, same_skeleton, splice};
 use crate::kernels::resample::push_sample;
+use crate::model::choice::{Choice, choices};
 use crate::model::{Clip, ClipError, Contacts, FootContacts, FrameRange, into_report};
 
 /// Which frames of the blendable periods may be blended.
@@ -52,20 +53,7 @@ pub enum Support {
     Any,
 }
 
-impl Support {
-    /// Choice names as persisted.
-    pub const NAMES: &'static [&'static str] = &["auto", "double", "any"];
-
-    /// Parses a persisted choice name.
-    pub fn from_name(name: &str) -> Option<Self> {
-        match name {
-            "auto" => Some(Support::Auto),
-            "double" => Some(Support::Double),
-            "any" => Some(Support::Any),
-            _ => None,
-        }
-    }
-}
+choices!(Support { Auto = "auto", Double = "double", Any = "any" });
 
 /// Settings of the concatenation.
 #[derive(Clone, Debug, PartialEq)]

@@ -148,7 +148,7 @@ pub(super) fn located(e: SolveError) -> NodeError {
             NodeError::input("stages", e.to_string())
         }
         SolveError::NotConverged { .. } | SolveError::Factor(_) | SolveError::Clip(_) | SolveError::Edit(_) => {
-            NodeError::Failed(e.to_string())
+            NodeError::kernel(e)
         }
     }
 }

@@ -13,6 +13,7 @@ use crate::kernels::family::{AxisSweep, FamilyError, FamilySpec, MAX_SAMPLES, po
 use crate::kernels::family_blend::{BlendError, ReachTarget, blend_family, blend_shares, reach};
 use crate::kernels::momentum_edit::GroundEdit;
 use crate::kernels::momentum_solve::EditSetup;
+use crate::model::choice::Choice;
 use crate::model::{Clip, Family, FamilyKind, SampleOutcome, StageKind, Stages};
 use crate::node::{
     ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry, Report,
@@ -38,12 +39,11 @@ const FAMILY_REPORT: Output<Arc<Report>> = Output::new(
     "The jump's direction, then per sample: parameters, offset (m) and turn (rad) of the swept stage, solver steps \
      and the worst constraint left (or the failure).",
 );
-const KIND: ChoiceParam = ChoiceParam::new(
+const KIND: ChoiceParam<FamilyKind> = ChoiceParam::new(
     "kind",
     "line: the stage moves u metres along the jump; grid: u metres along it and v metres to its left; semicircle: \
      the stage turns u radians about the other stage of the jump (same length, new direction, body facing along \
      the radius).",
-    FamilyKind::NAMES,
     "grid",
 );
 const STAGE: IntParam = IntParam::optional(
@@ -124,8 +124,7 @@ impl Node for MotionFamily {
         let clip = ctx.input(&CLIP)?;
         let stages = ctx.input(&STAGES)?;
         check_stages_fit(&clip, &stages)?;
-        let kind = FamilyKind::from_name(ctx.choice(&KIND)?)
-            .ok_or_else(|| NodeError::param("kind", "is not line, grid or semicircle"))?;
+        let kind = ctx.choice(&KIND)?;
         let grounds = stages.stages.iter().filter(|s| s.kind == StageKind::Ground).count();
         let stage = match ctx.optional_int(&STAGE)? {
             Some(s) => usize::try_from(s).unwrap_or(0),
@@ -233,7 +232,7 @@ fn blend_located(e: BlendError) -> NodeError {
         | BlendError::Dimensions { .. }
         | BlendError::Missing(_)
         | BlendError::Mismatch => NodeError::input("family", text),
-        BlendError::Clip(_) => NodeError::Failed(text),
+        BlendError::Clip(_) => NodeError::kernel(e),
     }
 }
 

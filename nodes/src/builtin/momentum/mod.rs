@@ -22,6 +22,7 @@ use crate::kernels::body::{BodyModel, MassOverride, MassTable, body_model};
 use crate::kernels::join::Concatenated;
 use crate::kernels::phases::{PhaseOptions, segment_phases};
 use crate::kernels::resample::resample;
+use crate::model::choice::{Choice, OnOff};
 use crate::model::{Clip, Contacts, Curves, Phases};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputPathParam, Node, NodeContext, NodeError, NodeSchema, Output, ParamSpec,
@@ -42,11 +43,10 @@ pub fn register(registry: &mut Registry) {
 }
 
 const TOTAL_MASS: FloatParam = FloatParam::new("total_mass_kg", "Body mass of the performer.", 70.0, 1.0, 500.0, "kg");
-const MASS_TABLE: ChoiceParam = ChoiceParam::new(
+const MASS_TABLE: ChoiceParam<MassTable> = ChoiceParam::new(
     "mass_table",
     "How segment masses are set: de Leva's (1996) male or female table mapped from joint names \
      (unknown rigs fall back to bone length), or bone length for every rig.",
-    MassTable::NAMES,
     "de_leva_male",
 );
 const MASS_OVERRIDE: InputPathParam = InputPathParam::optional(
@@ -78,8 +78,7 @@ fn analysis_options(ctx: &NodeContext<'_>) -> Result<AnalysisOptions, NodeError>
 
 /// The mass params: total mass (kg), table and override file.
 fn mass_params(ctx: &NodeContext<'_>) -> Result<(f64, MassTable, Option<MassOverride>), NodeError> {
-    let table = MassTable::from_name(ctx.choice(&MASS_TABLE)?)
-        .ok_or_else(|| NodeError::param("mass_table", "is not a known table"))?;
+    let table = ctx.choice(&MASS_TABLE)?;
     let mass_override = match ctx.optional_input_path(&MASS_OVERRIDE)? {
         None => None,
         Some(path) => {
@@ -121,8 +120,7 @@ fn check_stages_fit(clip: &Clip, stages: &crate::model::Stages) -> Result<(), No
 /// override; a warning when the names were not recognised).
 fn mass_model_of(ctx: &mut NodeContext<'_>, clip: &Clip) -> Result<BodyModel, NodeError> {
     let (total_mass_kg, table, mass_override) = mass_params(ctx)?;
-    let model = body_model(clip.skeleton(), total_mass_kg, table, mass_override.as_ref())
-        .map_err(|e| NodeError::Failed(e.to_string()))?;
+    let model = body_model(clip.skeleton(), total_mass_kg, table, mass_override.as_ref()).map_err(NodeError::kernel)?;
     if model.method.starts_with("bone_length (") {
         ctx.warn(format!("mass model: {}", model.method));
     }
@@ -196,10 +194,10 @@ impl Node for AngularMomentum {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP)?;
         let (table, track, smoothed) = momentum_of(ctx, &clip)?;
-        let mut curves = track.curves().map_err(|e| NodeError::Failed(e.to_string()))?;
+        let mut curves = track.curves().map_err(NodeError::kernel)?;
         curves
             .push("|L| smoothed", "kg·m²/s", smoothed.iter().map(|l| l.length()).collect())
-            .map_err(|e| NodeError::Failed(e.to_string()))?;
+            .map_err(NodeError::kernel)?;
         let peak_frame = (0..smoothed.len()).max_by(|&a, &b| smoothed[a].length().total_cmp(&smoothed[b].length()));
         ctx.set_output(&CURVES, Arc::new(curves));
         ctx.set_output(
@@ -278,7 +276,7 @@ impl Node for SegmentPhases {
             curves.push("|L| smoothed", "kg·m²/s", smoothed.iter().map(|l| l.length()).collect()).and_then(|()| {
                 curves.push("L along main", "kg·m²/s", smoothed.iter().map(|l| l.dot(main_direction)).collect())
             });
-        pushed.map_err(|e| NodeError::Failed(e.to_string()))?;
+        pushed.map_err(NodeError::kernel)?;
         ctx.set_output(&PHASE_CURVES, Arc::new(curves));
         let secs =
             |r: Option<crate::model::FrameRange>| r.map(|r| [r.start as f64 / clip.fps(), r.end as f64 / clip.fps()]);
@@ -299,11 +297,10 @@ impl Node for SegmentPhases {
 const FIRST: Input<Arc<Clip>> = Input::required("first", "The motion that plays first.");
 const SECOND: Input<Arc<Clip>> =
     Input::required("second", "The motion that follows (same skeleton; resampled to the first's frame rate).");
-const RULE: ChoiceParam = ChoiceParam::new(
+const RULE: ChoiceParam<Rule> = ChoiceParam::new(
     "rule",
     "forward: the second motion turns the same way and keeps the first one's momentum going (double flip); \
      reverse: it turns the other way and the end of the first winds it up (one-two punch).",
-    Rule::NAMES,
     "forward",
 );
 const MAX_FACING: FloatParam = FloatParam::new(
@@ -326,7 +323,7 @@ fn at_rate_of(ctx: &mut NodeContext<'_>, first: &Clip, second: Arc<Clip>) -> Res
 }
 
 fn rule_of(ctx: &NodeContext<'_>) -> Result<Rule, NodeError> {
-    Rule::from_name(ctx.choice(&RULE)?).ok_or_else(|| NodeError::param("rule", "is not forward or reverse"))
+    ctx.choice(&RULE)
 }
 
 /// `motion.align`.
@@ -365,10 +362,10 @@ impl Node for Align {
         let max = ctx.float(&MAX_FACING)?;
         if facing.to_degrees() > max {
             let refusal = crate::kernels::join::ConcatError::Facing { angle_deg: facing.to_degrees(), max_deg: max };
-            return Err(NodeError::Failed(refusal.to_string()));
+            return Err(NodeError::kernel(refusal));
         }
         let offset = feet_centre(&a.poses, f, &a.landmarks) - turn * feet_centre(&b.poses, g, &b.landmarks);
-        let placed = place(&b.clip, yaw, offset).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let placed = place(&b.clip, yaw, offset).map_err(NodeError::kernel)?;
         ctx.set_output(&ALIGNED, Arc::new(placed));
         ctx.set_output(
             &REPORT,
@@ -394,11 +391,10 @@ const CONTACTS_FIRST: Input<Arc<Contacts>> =
     Input::optional("contacts_first", "Foot contacts of the first motion; detected when unconnected.");
 const CONTACTS_SECOND: Input<Arc<Contacts>> = Input::optional("contacts_second", "Foot contacts of the second motion.");
 const JOINED: Output<Arc<Clip>> = Output::new("clip", "The two motions as one.");
-const SUPPORT: ChoiceParam = ChoiceParam::new(
+const SUPPORT: ChoiceParam<Support> = ChoiceParam::new(
     "support",
     "Which frames may blend: double (both feet down, the paper's rule), any, or auto (double support where \
      the blendable periods have at least min_blend_secs of it, any frame otherwise, e.g. airborne flips).",
-    Support::NAMES,
     "auto",
 );
 const MAX_COST: FloatParam = FloatParam::new(
@@ -445,11 +441,10 @@ const MIN_GAP: FloatParam = FloatParam::new(
     60.0,
     "s",
 );
-const FOOT_LOCK: ChoiceParam = ChoiceParam::new(
+const FOOT_LOCK: ChoiceParam<OnOff> = ChoiceParam::new(
     "foot_lock",
     "The paper's clean-up after the blend: feet planted during the blend (whole plants touching the window) are \
      held where they were put down by the foot lock's IK, so the blended legs do not slide them ('off' keeps the raw blend).",
-    &["on", "off"],
     "on",
 );
 const W_DM: FloatParam = FloatParam::new("weight_momentum", "Weight of F_dm (eq. 4).", 1.0, 0.0, 1e6, "");
@@ -528,8 +523,7 @@ impl Node for Concat {
             ctx.optional_input(&CONTACTS_FIRST)?,
         )?;
         let b = analysed(second, "second", &options, phases_second, contacts_second)?;
-        let support = Support::from_name(ctx.choice(&SUPPORT)?)
-            .ok_or_else(|| NodeError::param("support", "is not auto, double or any"))?;
+        let support = ctx.choice(&SUPPORT)?;
         let params = ConcatParams {
             rule: rule_of(ctx)?,
             support,
@@ -540,10 +534,10 @@ impl Node for Concat {
             max_facing_rad: ctx.float(&MAX_FACING)?.to_radians(),
             time_scale_range: (ctx.float(&MIN_SCALE)?, ctx.float(&MAX_SCALE)?),
             min_peak_gap_secs: ctx.float(&MIN_GAP)?,
-            foot_lock: ctx.choice(&FOOT_LOCK)? == "on",
+            foot_lock: ctx.choice(&FOOT_LOCK)? == OnOff::On,
         };
         ctx.check_cancelled()?;
-        let joined = concatenate(&a, &b, &params, &options).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let joined = concatenate(&a, &b, &params, &options).map_err(NodeError::kernel)?;
         set_joined(ctx, joined);
         Ok(())
     }
@@ -581,7 +575,7 @@ impl Node for ConcatBaseline {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let (a, b, options) = analysed_pair(ctx)?;
         let params = BaselineParams { search_share: ctx.float(&SEARCH_SHARE)?, crossfade_secs: ctx.float(&CROSSFADE)? };
-        let joined = concatenate_baseline(&a, &b, &params, &options).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let joined = concatenate_baseline(&a, &b, &params, &options).map_err(NodeError::kernel)?;
         set_joined(ctx, joined);
         Ok(())
     }

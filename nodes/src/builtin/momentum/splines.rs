@@ -117,7 +117,7 @@ impl Node for MomentumSplines {
             .collect();
         let residuals: serde_json::Map<String, serde_json::Value> =
             fit.channels.iter().map(|c| (c.name.to_string(), json!(c.rms_residual))).collect();
-        let curves = curves_of(&fit, clip.fps(), clip.frame_count()).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let curves = curves_of(&fit, clip.fps(), clip.frame_count()).map_err(NodeError::kernel)?;
         ctx.set_output(&CURVES, Arc::new(curves));
         ctx.set_output(
             &REPORT,

@@ -182,7 +182,7 @@ impl Node for FindStages {
                 })
             })
             .collect();
-        let curves = stage_curves(&staged).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let curves = stage_curves(&staged).map_err(NodeError::kernel)?;
         ctx.set_output(&CURVES, Arc::new(curves));
         ctx.set_output(
             &REPORT,

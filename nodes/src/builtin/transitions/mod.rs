@@ -20,17 +20,18 @@ use crate::kernels::analysis::{AnalysisOptions, analyse};
 use crate::kernels::baseline::{BaselineParams, concatenate_baseline};
 use crate::kernels::clip_set::{conform, load_clip_set};
 use crate::kernels::contacts::ContactThresholds;
-use crate::kernels::ik::foot_lock::hold_detected_plants;
+use crate::kernels::ik::foot_lock::{HoldError, hold_detected_plants};
 use crate::kernels::join::foot_skate_m;
 use crate::kernels::transition_graph::distance::{self, DistanceParams};
 use crate::kernels::transition_graph::graph::Direction;
 use crate::kernels::transition_graph::paths::PathLimits;
 use crate::kernels::transition_graph::{Clusters, TransitionGraph};
 use crate::kernels::transition_graph::{cluster, graph};
+use crate::model::choice::choices;
 use crate::model::{Clip, ClipSet, FrameRange};
 use crate::node::{
     ChoiceParam, FloatParam, Input, InputFolderParam, InputPathParam, IntParam, Node, NodeContext, NodeError,
-    NodeSchema, Output, Registry, Report, TextParam, report_of,
+    NodeSchema, OnOff, Output, Registry, Report, TextParam, report_of,
 };
 
 /// Registers the transition nodes.
@@ -92,7 +93,7 @@ impl Node for LoadClipSet {
         let family = (!family.is_empty()).then_some(family.as_str());
         let limit = Some(ctx.memory_limit_bytes());
         let loaded = load_clip_set(&folder, ctx.text_param(&PATTERN)?, ctx.float(&SET_FPS)?, family, limit)
-            .map_err(NodeError::Failed)?;
+            .map_err(NodeError::kernel)?;
         ctx.warn_all(loaded.warnings);
         if !loaded.left_out.is_empty() {
             ctx.warn(format!(
@@ -155,7 +156,7 @@ impl Node for ClusterFrames {
         let set = ctx.input(&CLIP_SET_IN)?;
         let params = DistanceParams::lee_defaults(set.skeleton(), ctx.float(&VELOCITY_WEIGHT)? as f32)
             .with_overrides(set.skeleton(), ctx.text_param(&JOINT_WEIGHTS)?)
-            .map_err(|e| NodeError::param("joint_weights", e))?;
+            .map_err(|e| NodeError::param("joint_weights", e.to_string()))?;
         if params.weights.iter().all(|w| *w == 0.0) {
             return Err(NodeError::param("joint_weights", "every joint has weight 0"));
         }
@@ -167,10 +168,10 @@ impl Node for ClusterFrames {
 }
 
 const CLUSTERS_IN: Input<Arc<Clusters>> = Input::required("clusters", "Clustered frames of a clip set.");
-const DIRECTION: ChoiceParam = ChoiceParam::new(
+choices!(Direction { Directed = "directed", Undirected = "undirected" });
+const DIRECTION: ChoiceParam<Direction> = ChoiceParam::new(
     "direction",
     "\"directed\": clips only play forwards; \"undirected\": a transition may also play a clip backwards.",
-    &["directed", "undirected"],
     "directed",
 );
 const K: IntParam = IntParam::new("paths", "K: candidate paths kept per pair of clusters.", 5, 1, 100);
@@ -206,8 +207,7 @@ impl Node for BuildGraph {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clusters = ctx.input(&CLUSTERS_IN)?;
-        let direction =
-            if ctx.choice(&DIRECTION)? == "undirected" { Direction::Undirected } else { Direction::Directed };
+        let direction = ctx.choice(&DIRECTION)?;
         let limits =
             PathLimits { k: ctx.int(&K)? as usize, max_cost: ctx.optional_float(&MAX_COST)?.unwrap_or(f64::INFINITY) };
         let graph = graph::build_graph(clusters, direction, limits);
@@ -267,7 +267,7 @@ fn fit(graph: &TransitionGraph, clip: &Clip, port: &'static str) -> Result<Clip,
     if clip.frame_count() == 0 {
         return Err(NodeError::input(port, "has no frames"));
     }
-    conform(clip, set.skeleton(), set.fps()).map_err(|e| NodeError::input(port, e))
+    conform(clip, set.skeleton(), set.fps()).map_err(|e| NodeError::input(port, e.to_string()))
 }
 
 const SOURCE: Input<Arc<Clip>> = Input::required("source", "The clip the transition starts from (its last frame).");
@@ -301,7 +301,7 @@ impl Node for Transition {
         let params = synthesis_params(ctx, graph.clusters.clip_set.fps())?;
         let mut out = Motion::of_clip(&source);
         let info = append_transition(&graph, &mut out, Frames::of_clip(&target), &params, &mut rng_of(ctx)?);
-        let joined = out.into_clip(&source).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let joined = out.into_clip(&source).map_err(NodeError::kernel)?;
         let joined = lock_feet(ctx, joined)?;
         let transition = joined.slice(info.frames.start, info.frames.end);
         let mut report = serde_json::to_value(&info).unwrap_or_default();
@@ -313,30 +313,32 @@ impl Node for Transition {
     }
 }
 
-const FOOT_LOCK: ChoiceParam = ChoiceParam::new(
+const FOOT_LOCK: ChoiceParam<OnOff> = ChoiceParam::new(
     "foot_lock",
     "After synthesis, feet planted anywhere in the result (contacts detected on it, and on the held result until the \
      two agree) are held where they were put down by the foot lock's IK, and planted feet that a joined clip put under the floor are lifted onto it: the synthesised \
      transitions otherwise let the stance foot glide ('off' keeps the raw synthesis).",
-    &["on", "off"],
     "on",
 );
 
 /// `clip` with its planted feet held and kept above the floor when `FOOT_LOCK` is on.
 fn lock_feet(ctx: &NodeContext<'_>, clip: Clip) -> Result<Clip, NodeError> {
-    if ctx.choice(&FOOT_LOCK)? != "on" {
+    if ctx.choice(&FOOT_LOCK)? == OnOff::Off {
         return Ok(clip);
     }
-    hold_planted_feet(clip).map_err(|e| {
-        NodeError::Failed(format!("the foot lock after synthesis failed: {e} (set foot_lock off to skip it)"))
-    })
+    hold_planted_feet(clip).map_err(|e| NodeError::kernel(SynthesisFootLock(e)))
 }
+
+/// The foot lock after synthesis failed.
+#[derive(Debug, thiserror::Error)]
+#[error("the foot lock after synthesis failed: {0} (set foot_lock off to skip it)")]
+struct SynthesisFootLock(#[source] HoldError);
 
 /// A synthesised motion with every planted foot (contacts detected on it) held where it was
 /// put down and lifted onto the floor where a joined clip put it under: Peng et al.'s
 /// transitions join clips whose stance feet do not line up, so without this the stance foot
 /// glides through them.
-pub fn hold_planted_feet(clip: Clip) -> Result<Clip, String> {
+pub fn hold_planted_feet(clip: Clip) -> Result<Clip, HoldError> {
     Ok(hold_detected_plants(&clip, &ContactThresholds::default(), |all| all)?.map_or(clip, |(held, _)| held))
 }
 
@@ -447,7 +449,7 @@ impl Node for Sequence {
         let params = synthesis_params(ctx, set.fps())?;
         ctx.check_cancelled()?;
         let (out, infos) = play_sequence(&graph, &actions, &params, &mut rng_of(ctx)?);
-        let clip = out.into_clip(&actions[0].clip).map_err(|e| NodeError::Failed(e.to_string()))?;
+        let clip = out.into_clip(&actions[0].clip).map_err(NodeError::kernel)?;
         let clip = Arc::new(lock_feet(ctx, clip)?);
         let mut transitions = Vec::new();
         for (k, info) in infos.iter().enumerate() {

@@ -43,6 +43,7 @@ use super::rig::{IkRig, RigError};
 use super::solve::{IkSolver, SolveParams, SolveReport};
 use crate::kernels::body::limb_tip;
 use crate::kernels::contacts::{ContactThresholds, contacts_of};
+use crate::kernels::roles::RolesError;
 use crate::kernels::skinning::SkinError;
 use crate::kernels::soles::{foot_joints, lowest_sole_heights};
 use crate::math::smoothstep;
@@ -126,6 +127,17 @@ pub struct FootLocked {
     pub feet: Vec<FootReport>,
     /// Each frame's solve.
     pub frames: Vec<SolveReport>,
+}
+
+/// Why detected plants could not be held ([`hold_detected_plants`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum HoldError {
+    /// The feet could not be found to detect the plants.
+    #[error(transparent)]
+    Feet(#[from] RolesError),
+    /// The plants could not be held.
+    #[error(transparent)]
+    Lock(#[from] FootLockError),
 }
 
 /// Why feet cannot be locked.
@@ -363,7 +375,7 @@ pub fn hold_detected_plants(
     clip: &Clip,
     thresholds: &ContactThresholds,
     select: impl FnOnce(Contacts) -> Contacts,
-) -> Result<Option<(Clip, usize)>, String> {
+) -> Result<Option<(Clip, usize)>, HoldError> {
     let (detected, _) = contacts_of(clip, &forward_kinematics(clip), thresholds)?;
     let mut plants = select(detected);
     let held: usize = plants.feet.iter().map(|c| c.intervals.len()).sum();
@@ -372,7 +384,7 @@ pub fn hold_detected_plants(
     }
     let params =
         FootLockParams { ground: Ground::AboveFloor { floor_height_m: CLEAN_UP_FLOOR_M }, ..FootLockParams::default() };
-    let mut locked = foot_lock(clip, &plants, &params).map_err(|e| e.to_string())?;
+    let mut locked = foot_lock(clip, &plants, &params)?;
     for _ in 1..CLEAN_UP_PASSES {
         let (on_result, _) = contacts_of(&locked.clip, &forward_kinematics(&locked.clip), thresholds)?;
         let widened = widen_plants(&plants, &on_result);
@@ -380,7 +392,7 @@ pub fn hold_detected_plants(
             break;
         }
         plants = widened;
-        locked = foot_lock(clip, &plants, &params).map_err(|e| e.to_string())?;
+        locked = foot_lock(clip, &plants, &params)?;
     }
     let held: usize = plants.feet.iter().map(|c| c.intervals.len()).sum();
     Ok(Some((locked.clip, held)))

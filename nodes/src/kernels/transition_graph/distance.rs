@@ -22,6 +22,23 @@ pub struct DistanceParams {
     pub velocity_weight: f32,
 }
 
+/// Why a joint-weight override (`"Name=w, Name=w"`) was refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum WeightError {
+    /// An item is not `Name=weight`.
+    #[error("'{0}' is not of the form JointName=weight")]
+    Form(String),
+    /// The skeleton has no joint of that name.
+    #[error("no joint called '{0}'")]
+    UnknownJoint(String),
+    /// The weight does not parse.
+    #[error("'{0}' is not a number")]
+    NotANumber(String),
+    /// The weight of the named joint is negative or not finite.
+    #[error("weight of '{0}' must be a finite number ≥ 0")]
+    Negative(String),
+}
+
 impl DistanceParams {
     /// Lee et al.'s choice: weight 1 for the pelvis, spine, hips, knees, shoulders and
     /// elbows, 0 elsewhere (head, neck, wrists, hands, ankles, toes, end sites), found by
@@ -47,14 +64,14 @@ impl DistanceParams {
     }
 
     /// Overrides weights from `"Name=w, Name=w"`; an unknown joint name is an error naming it.
-    pub fn with_overrides(mut self, skeleton: &Skeleton, text: &str) -> Result<DistanceParams, String> {
+    pub fn with_overrides(mut self, skeleton: &Skeleton, text: &str) -> Result<DistanceParams, WeightError> {
         for item in text.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-            let (name, value) =
-                item.split_once('=').ok_or_else(|| format!("'{item}' is not of the form JointName=weight"))?;
-            let index = skeleton.index_of(name.trim()).ok_or_else(|| format!("no joint called '{}'", name.trim()))?;
-            let w: f32 = value.trim().parse().map_err(|_| format!("'{}' is not a number", value.trim()))?;
+            let (name, value) = item.split_once('=').ok_or_else(|| WeightError::Form(item.to_owned()))?;
+            let (name, value) = (name.trim(), value.trim());
+            let index = skeleton.index_of(name).ok_or_else(|| WeightError::UnknownJoint(name.to_owned()))?;
+            let w: f32 = value.parse().map_err(|_| WeightError::NotANumber(value.to_owned()))?;
             if !(w.is_finite() && w >= 0.0) {
-                return Err(format!("weight of '{}' must be a finite number ≥ 0", name.trim()));
+                return Err(WeightError::Negative(name.to_owned()));
             }
             self.weights[index] = w;
         }
@@ -275,7 +292,19 @@ mod tests {
         assert_eq!(p.weights, vec![1.0, 1.0, 1.0, 0.0]);
         let p = p.with_overrides(&skeleton(), "LeftFoot=0.5, LeftLeg = 2").unwrap();
         assert_eq!(p.weights, vec![1.0, 1.0, 2.0, 0.5]);
-        assert!(DistanceParams::lee_defaults(&skeleton(), 0.1).with_overrides(&skeleton(), "Nose=1").is_err());
+        let defaults = || DistanceParams::lee_defaults(&skeleton(), 0.1);
+        assert_eq!(
+            defaults().with_overrides(&skeleton(), "Nose=1").unwrap_err(),
+            WeightError::UnknownJoint("Nose".into())
+        );
+        assert_eq!(
+            defaults().with_overrides(&skeleton(), "LeftFoot").unwrap_err(),
+            WeightError::Form("LeftFoot".into())
+        );
+        assert_eq!(
+            defaults().with_overrides(&skeleton(), "LeftFoot=-1").unwrap_err().to_string(),
+            "weight of 'LeftFoot' must be a finite number ≥ 0"
+        );
     }
 
     #[test]
