@@ -419,7 +419,7 @@ impl Job<'_, '_> {
                     (NodeStatus::Ok, Some(outcome), None)
                 }
                 Err(NodeError::Cancelled) => (NodeStatus::Cancelled, None, Some("run cancelled".to_string())),
-                Err(e) => (NodeStatus::Error, None, Some(e.to_string())),
+                Err(e) => (NodeStatus::Error, None, Some(e.with_causes())),
             }
         };
         let seconds =

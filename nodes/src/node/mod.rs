@@ -113,6 +113,22 @@ impl NodeError {
         NodeError::Param { param, message: message.into() }
     }
 
+    /// The message followed by each underlying cause it does not already quote, so a run's
+    /// report shows the whole chain, each part once.
+    pub fn with_causes(&self) -> String {
+        let mut text = self.to_string();
+        let mut cause = std::error::Error::source(self);
+        while let Some(c) = cause {
+            let said = c.to_string();
+            if !text.contains(&said) {
+                text.push_str(": ");
+                text.push_str(&said);
+            }
+            cause = c.source();
+        }
+        text
+    }
+
     /// A kernel's failure, e.g. `.map_err(NodeError::kernel)`.
     pub fn kernel(error: impl std::error::Error + Send + Sync + 'static) -> Self {
         NodeError::Kernel(KernelError(Arc::new(error)))
@@ -217,5 +233,21 @@ mod tests {
         assert_eq!(second.downcast_ref::<ShapeError>(), Some(&ShapeError::NoFacing));
         assert!(second.source().is_none());
         assert_eq!(e.clone(), e);
+        // Each cause is quoted in its parent's words already: the chain adds nothing.
+        assert_eq!(e.with_causes(), e.to_string());
+    }
+
+    /// A cause its error does not quote is added after it; one it quotes is not repeated.
+    #[test]
+    fn causes_not_quoted_are_appended_once() {
+        #[derive(Debug, thiserror::Error)]
+        #[error("the feet could not be placed")]
+        struct Outer(#[source] std::io::Error);
+        let io = || std::io::Error::new(std::io::ErrorKind::NotFound, "no such file");
+        assert_eq!(NodeError::kernel(Outer(io())).with_causes(), "the feet could not be placed: no such file");
+        #[derive(Debug, thiserror::Error)]
+        #[error("the feet could not be placed: {0}")]
+        struct Quoting(#[source] std::io::Error);
+        assert_eq!(NodeError::kernel(Quoting(io())).with_causes(), "the feet could not be placed: no such file");
     }
 }
