@@ -1372,3 +1372,32 @@ fn text_fields_are_wide_enough_to_read() {
     let width = harness.get_by_role_and_label(Role::TextInput, "path").rect().width();
     assert!(width >= 200.0, "the path field is {width} px wide");
 }
+
+/// The centre of mass's path is drawn with the clip a stages node plays, its dot where the
+/// node's own curves put it: at the flight's apex it is drawn higher than at the start of
+/// the jump and than at the landing.
+#[test]
+fn the_centre_of_mass_is_drawn_where_the_stages_curves_put_it() {
+    let Some(path) = corpus_graph("jump_stages.ron") else { return };
+    let mut harness = harness(Some(&path));
+    harness.state_mut().select(Some("stages"));
+    harness.run_steps(3);
+    let curves = match harness.state().output("stages", "curves") {
+        Some(kinegraph::nodes::node::Value::Curves(c)) => c.clone(),
+        other => panic!("stages.curves: {other:?}"),
+    };
+    let values = |name: &str| curves.channel(name).unwrap().values.clone();
+    let (height, flight) = (values("com.y"), values("flight"));
+    let in_flight: Vec<usize> = (0..flight.len()).filter(|&f| flight[f] > 0.5).collect();
+    let apex = *in_flight.iter().max_by(|a, b| height[**a].total_cmp(&height[**b])).unwrap();
+    let landed = in_flight.last().unwrap() + 1;
+    let drawn_at = |harness: &mut Harness<'static, EditorApp>, frame: usize| {
+        // The middle of the frame, so the slider's rounding cannot pick its neighbour.
+        seek(harness, (frame as f64 + 0.5) / curves.fps());
+        harness.state().viewport_com().unwrap()
+    };
+    let (start, top, end) = (drawn_at(&mut harness, 0), drawn_at(&mut harness, apex), drawn_at(&mut harness, landed));
+    println!("com.y {:.3} / {:.3} / {:.3} m drawn at y {} / {} / {}", height[0], height[apex], height[landed], start.y, top.y, end.y);
+    assert!(height[apex] > height[0] + 0.1 && height[apex] > height[landed] + 0.1);
+    assert!(top.y < start.y - 5.0 && top.y < end.y - 5.0, "apex drawn at {top:?}, start {start:?}, landing {end:?}");
+}

@@ -254,6 +254,11 @@ impl EditorApp {
         self.viewport.smoke_drawn()
     }
 
+    /// Where the viewport last drew the centre of mass at its time (screen), if it did.
+    pub fn viewport_com(&self) -> Option<egui::Pos2> {
+        self.viewport.com_drawn()
+    }
+
     /// Over the canvas the plain mouse wheel zooms at the pointer, as in other node editors
     /// (egui's canvas zooms on Ctrl+wheel and pans on the wheel): wheel events over the
     /// canvas get that modifier before egui reads them. Elsewhere the wheel scrolls.
@@ -918,7 +923,12 @@ impl EditorApp {
             _ => None,
         });
         let bands = results::time_bands(&outputs, &inputs);
-        Motion { clip, mesh: sequence.map(ShownMesh::Baked).or(skinned.map(ShownMesh::Skinned)), smoke, bands }
+        let com = outputs.iter().chain(&inputs).find_map(|v| match v {
+            Value::Curves(c) if c.channel("com.x").is_some() => Some(c.clone()),
+            _ => None,
+        });
+        let mesh = sequence.map(ShownMesh::Baked).or(skinned.map(ShownMesh::Skinned));
+        Motion { clip, mesh, smoke, bands, com }
     }
 
     /// The time ranges marked under the viewport's timeline for the node it plays.

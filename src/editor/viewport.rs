@@ -18,7 +18,7 @@ use glam::Vec3;
 use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
 use kinegraph_nodes::kernels::skinning::{blend_matrices, check_skin, skinning_matrices};
 use kinegraph_nodes::model::{
-    BodyPose, BodyShape, Clip, ClipPoses, Contacts, Mesh, MeshSequence, VolumeSequence, forward_kinematics,
+    BodyPose, BodyShape, Clip, ClipPoses, Contacts, Curves, Mesh, MeshSequence, VolumeSequence, forward_kinematics,
 };
 
 /// Vertical field of view of the camera (radians).
@@ -35,6 +35,9 @@ const CONTACT: Color32 = Color32::from_rgb(90, 220, 120);
 const SKIN: Color32 = Color32::from_rgb(150, 140, 130);
 /// Half the side of a smoke particle's square, points.
 const PARTICLE_HALF: f32 = 1.2;
+/// The centre of mass's path on the ground and in flight.
+const COM_GROUND: Color32 = Color32::from_rgb(120, 170, 120);
+const COM_FLIGHT: Color32 = Color32::from_rgb(90, 230, 230);
 /// Free bodies in the smoke.
 const BODY: Color32 = Color32::from_rgb(230, 200, 90);
 
@@ -48,6 +51,8 @@ pub(crate) struct Motion {
     /// Time ranges marked under the timeline (phases, stages, controllers, transitions,
     /// blend windows).
     pub(crate) bands: Vec<super::results::Band>,
+    /// Curves with the centre of mass's path (`com.x/y/z`, metres), drawn over the clip.
+    pub(crate) com: Option<Arc<Curves>>,
 }
 
 impl Motion {
@@ -338,6 +343,8 @@ pub(crate) struct Viewport {
     smoke: Option<ShownSmoke>,
     /// What the last draw showed of the smoke.
     smoke_drawn: Option<SmokeDrawn>,
+    /// Where the last draw put the centre of mass at the time shown (screen), if it drew one.
+    com_drawn: Option<Pos2>,
 }
 
 impl Default for Viewport {
@@ -354,6 +361,7 @@ impl Default for Viewport {
             compared: None,
             smoke: None,
             smoke_drawn: None,
+            com_drawn: None,
         }
     }
 }
@@ -385,10 +393,16 @@ impl Viewport {
         self.smoke_drawn.clone()
     }
 
+    /// Where the centre of mass was drawn last at the time shown (screen), if it was.
+    pub(crate) fn com_drawn(&self) -> Option<Pos2> {
+        self.com_drawn
+    }
+
     /// Draws the `motion`'s clip and mesh and its smoke (or a hint when there is none), with
     /// the timeline above; `contacts` are the graph's own for this clip, if it computed them.
     pub(crate) fn show(&mut self, ui: &mut Ui, title: &str, motion: Motion, contacts: Option<&Arc<Contacts>>) {
-        let Motion { clip, mesh, smoke, bands: motion_bands } = motion;
+        let Motion { clip, mesh, smoke, bands: motion_bands, com } = motion;
+        self.com_drawn = None;
         match &smoke {
             Some(v) if !self.smoke.as_ref().is_some_and(|s| Arc::ptr_eq(&s.volumes, v)) => {
                 self.reframe |= self.smoke.is_none();
@@ -457,6 +471,9 @@ impl Viewport {
                 draw_trajectories(&painter, &project, shown, floor, colour);
             }
             draw_skeleton(&painter, &project, shown, shown.frame_at(self.time_secs), colour, self.overlays.contacts);
+        }
+        if let Some(com) = com.as_ref().filter(|_| self.overlays.trajectories) {
+            self.com_drawn = draw_com_path(&painter, &project, com, self.time_secs);
         }
         if let Some(smoke) = self.smoke.as_ref().filter(|_| self.overlays.smoke) {
             let frame = smoke.frame_at(self.time_secs);
@@ -691,6 +708,39 @@ fn draw_trajectories(
             .collect();
         painter.add(egui::Shape::line(points, Stroke::new(1.0, colour.gamma_multiply(0.35))));
     }
+}
+
+/// The centre of mass's path from `curves` (`com.x/y/z`, metres): ground frames dim, flight
+/// frames bright with their fitted parabola (`com.y ballistic`) dotted beside them, and a
+/// dot where it is at `time_secs`; returns that dot's place on screen.
+fn draw_com_path(
+    painter: &egui::Painter,
+    project: &impl Fn(Vec3) -> Option<Pos2>,
+    curves: &Curves,
+    time_secs: f64,
+) -> Option<Pos2> {
+    let channel = |name: &str| curves.channel(name).map(|c| c.values.as_slice());
+    let (Some(x), Some(y), Some(z)) = (channel("com.x"), channel("com.y"), channel("com.z")) else { return None };
+    let flight = |f: usize| channel("flight").is_some_and(|v| v.get(f).is_some_and(|&v| v > 0.5));
+    let at = |f: usize, y: &[f64]| Vec3::new(x[f] as f32, y[f] as f32, z[f] as f32);
+    let frames = x.len().min(y.len()).min(z.len());
+    for f in 1..frames {
+        let colour = if flight(f) { COM_FLIGHT } else { COM_GROUND };
+        if let (Some(a), Some(b)) = (project(at(f - 1, y)), project(at(f, y))) {
+            painter.line_segment([a, b], Stroke::new(2.0, colour));
+        }
+    }
+    if let Some(fitted) = channel("com.y ballistic").filter(|v| v.len() >= frames) {
+        let dots: Vec<egui::Shape> = (0..frames)
+            .filter(|&f| flight(f))
+            .filter_map(|f| project(at(f, fitted)))
+            .map(|p| egui::Shape::circle_filled(p, 1.5, Color32::WHITE))
+            .collect();
+        painter.extend(dots);
+    }
+    let now = project(at(frame_at(time_secs, curves.fps(), frames), y))?;
+    painter.circle(now, 4.0, COM_FLIGHT, Stroke::new(1.0, Color32::BLACK));
+    Some(now)
 }
 
 /// The shown clip's mesh at `frame`: triangles drawn far to near (painter's order), each
