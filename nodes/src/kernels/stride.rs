@@ -21,7 +21,7 @@
 use glam::DVec3;
 use serde::Serialize;
 
-use super::roles::{RolesError, roles_of};
+use super::roles::{BodyRoles, RolesError, roles_of};
 use crate::model::fk::rest_world;
 use crate::model::{FrameRange, Skeleton};
 
@@ -73,9 +73,7 @@ pub fn measure_stride(
     at: impl Fn(usize, usize) -> DVec3,
     feet: &[FootPlants<'_>],
 ) -> Result<Stride, RolesError> {
-    let rest: Vec<glam::Vec3> = rest_world(skeleton).iter().map(|t| t.translation).collect();
-    let roles = roles_of(skeleton, &rest)?;
-    let leg_length_m = f64::from(roles.leg_length_m(|j| rest[j]));
+    let (leg_length_m, roles) = rest_legs(skeleton)?;
     let horizontal = |p: DVec3| glam::DVec2::new(p.x, p.z);
 
     // Plants in the order they start; a step joins successive plants of different feet.
@@ -109,6 +107,19 @@ pub fn measure_stride(
         pelvis_speed_low_mps: percentile(&speeds, SPEED_LOW_PERCENTILE),
         pelvis_speed_high_mps: percentile(&speeds, SPEED_HIGH_PERCENTILE),
     })
+}
+
+/// The rest-pose leg length of `skeleton` (metres; see the module doc), or why its legs
+/// cannot be found.
+pub fn rest_leg_length_m(skeleton: &Skeleton) -> Result<f64, RolesError> {
+    rest_legs(skeleton).map(|(leg, _)| leg)
+}
+
+/// The rest-pose leg length (metres) and the body roles it was read from.
+fn rest_legs(skeleton: &Skeleton) -> Result<(f64, BodyRoles), RolesError> {
+    let rest: Vec<glam::Vec3> = rest_world(skeleton).iter().map(|t| t.translation).collect();
+    let roles = roles_of(skeleton, &rest)?;
+    Ok((f64::from(roles.leg_length_m(|j| rest[j])), roles))
 }
 
 /// The `p`th percentile (0–100) of ascending `sorted` values, linearly interpolated between

@@ -14,6 +14,11 @@
 //!    style is kept wherever the goals leave freedom.
 //! 4. `Δθ` is clamped to `max_angle_step_rad` per DOF, then to the joint limits.
 //!
+//! The goals `x₁ᵈ(n)` are the source's tips laid out for the character's size ([`GoalMap`]):
+//! the paper's walk fed the source's toe paths unmodified, so a 60 % character took the
+//! source's steps and its pelvis surged and stalled; scaled by the leg-length ratio, the
+//! steps keep the source's length in leg lengths and the pelvis its speed in proportion.
+//!
 //! The kernel holds one pose and fixed buffers: it consumes a stream one frame at a time in
 //! constant memory.
 
@@ -27,6 +32,7 @@ use std::f64::consts::PI;
 use crate::kernels::body::{find_landmarks, limb_tip};
 use crate::kernels::ik::foot_lock::Plants;
 use crate::kernels::ik::{DofKind, IkPose, IkRig, IkSolver};
+use crate::kernels::stride::rest_leg_length_m;
 use crate::model::choice::choices;
 use crate::model::fk::pose_world;
 use crate::model::{Clip, Contacts, FootContacts, Skeleton, Transform};
@@ -57,17 +63,33 @@ pub struct RetargetParams {
     pub settle_iterations: usize,
     /// Whether the pelvis's horizontal path is a primary task or only imitated.
     pub pelvis: PelvisTask,
+    /// Whose size the effector goals are laid out for.
+    pub goals: GoalFrame,
+}
+
+/// Whose size the goals (toe tips, hands, pelvis track) are laid out for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GoalFrame {
+    /// The character's: the source's goals and root path mapped by [`GoalMap::character`]
+    /// (horizontally scaled by the leg-length ratio about the start, heights by the ratio
+    /// of root heights), so the character takes steps of its own size, in the source's
+    /// number of leg lengths, and plants its feet where its own steps land.
+    Character,
+    /// The source's, unmodified (Choi & Ko's walking experiment): a smaller character takes
+    /// the source's steps, big for its body, and its pelvis is dragged along by them.
+    Source,
 }
 
 /// How the pelvis follows the source's pelvis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PelvisTask {
-    /// In the null space of the tips, like the joint angles (its path scaled by the ratio
-    /// of root heights): the tips win.
+    /// In the null space of the tips, like the joint angles (its path mapped as the tips'
+    /// are, [`GoalFrame`]): the tips win, and on a character of other proportions the
+    /// pelvis speeds up and slows down within a stride where the source's does not.
     Imitate,
     /// Its horizontal position is an extra end-effector task beside the tips (Choi & Ko's
-    /// pelvis task): on the source pelvis's ground track, as the tips are on the source
-    /// tips'; its height stays free for the legs.
+    /// pelvis task, which they found necessary; the default): on the source pelvis's
+    /// ground track mapped as the tips' are; its height stays free for the legs.
     Track,
 }
 
@@ -82,8 +104,9 @@ impl Default for RetargetParams {
             max_angle_step_rad: 0.2,
             extra_iterations: 0,
             settle_iterations: 100,
-            pelvis: PelvisTask::Imitate,
+            pelvis: PelvisTask::Track,
             plant_blend_secs: 0.15,
+            goals: GoalFrame::Character,
         }
     }
 }
@@ -210,6 +233,55 @@ impl OnlineRetargeter {
     }
 }
 
+/// Where a point of the source is wanted on the target (metres to metres): on the ground
+/// plane `to + horizontal · (p − from)`, a similarity that maps the source's start onto
+/// the target's and keeps the shape of every path; in height `vertical · y`, scaled about
+/// the floor (height 0) so planted feet stay on it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GoalMap {
+    /// The source's ground-plane point that maps onto `to` (its height is ignored).
+    pub from: DVec3,
+    /// Where `from` lands on the target's ground plane (its height is ignored).
+    pub to: DVec3,
+    /// Scale of ground-plane offsets from `from`.
+    pub horizontal: f64,
+    /// Scale of heights.
+    pub vertical: f64,
+}
+
+impl GoalMap {
+    /// Every point where it is.
+    pub const IDENTITY: GoalMap = GoalMap::scale(1.0);
+
+    /// Scaling about the world origin by `factor` on every axis.
+    pub const fn scale(factor: f64) -> Self {
+        GoalMap { from: DVec3::ZERO, to: DVec3::ZERO, horizontal: factor, vertical: factor }
+    }
+
+    /// Goals laid out for the target's size: ground-plane offsets from the source root's
+    /// first-frame place scaled by the ratio of rest-pose leg lengths, hip to knee to ankle
+    /// (the measure step lengths are compared in, [`rest_leg_length_m`]; the ratio of root
+    /// heights when a skeleton's legs cannot be read), starting from the target root's
+    /// first-frame place; heights by the ratio of root heights (hip over the lowest joint,
+    /// as the root path of `skeleton.scale`'s copy).
+    pub fn character(source: &Clip, target: &Clip) -> Self {
+        let vertical = f64::from(source.skeleton().root_height_ratio(target.skeleton()).unwrap_or(1.0));
+        let legs = rest_leg_length_m(source.skeleton()).and_then(|s| Ok((s, rest_leg_length_m(target.skeleton())?)));
+        let horizontal = match legs {
+            Ok((s, t)) if s > 1e-6 && t > 1e-6 => t / s,
+            _ => vertical,
+        };
+        let root = |c: &Clip| c.frame_translations(0).first().map_or(DVec3::ZERO, |t| t.as_dvec3());
+        GoalMap { from: root(source), to: root(target), horizontal, vertical }
+    }
+
+    /// Where source point `p` is wanted on the target.
+    pub fn apply(&self, p: DVec3) -> DVec3 {
+        let ground = self.to + self.horizontal * (p - self.from);
+        DVec3::new(ground.x, self.vertical * p.y, ground.z)
+    }
+}
+
 /// Which effectors a clip retarget tracks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Effectors {
@@ -228,6 +300,8 @@ pub struct Retargeted {
     pub frames: Vec<FrameReport>,
     /// The effector joints of the target, in task order.
     pub effectors: Vec<usize>,
+    /// How the source's tips were mapped to their goals.
+    pub goal_map: GoalMap,
 }
 
 /// Why a clip cannot be retargeted.
@@ -280,11 +354,13 @@ pub fn retarget_rig(
 
 /// Retargets `source` onto the skeleton of `target` (a clip whose joints have the source's
 /// names, e.g. from `skeleton.scale`; its first frame is the start pose, settled on the
-/// first goals). The effectors follow the source's tips unmodified; while a foot is in
-/// contact (`contacts`, from the source) its goal is held at one horizontal place (see
-/// [`Plants`]), so the stance foot is the fixed base the body moves about, and base and
-/// swing foot switch at contact boundaries. The root's secondary task is the
-/// source root path scaled by the ratio of root heights.
+/// first goals). The effectors follow the source's tips mapped by `params.goals`
+/// ([`GoalFrame`]); while a foot is in contact (`contacts`, from the source) its goal is
+/// held at one horizontal place (see [`Plants`]; the source's place, mapped), so the stance
+/// foot is the fixed base the body moves about, and base and swing foot switch at contact
+/// boundaries. The root's secondary task (and the pelvis track's goal) is the source root
+/// path mapped the same way: with [`GoalFrame::Source`], scaled by the ratio of root
+/// heights about the origin.
 pub fn retarget_clip(
     source: &Clip,
     target: &Clip,
@@ -302,7 +378,15 @@ pub fn retarget_clip(
     let rig = retarget_rig(skeleton, effectors, params.pelvis)?;
     let tips: Vec<usize> = rig.effectors().iter().map(|&e| map[e]).collect();
     let effector_joints = rig.effectors().to_vec();
-    let ratio = source.skeleton().root_height_ratio(skeleton).unwrap_or(1.0);
+    let (tip_map, root_map) = match params.goals {
+        GoalFrame::Character => {
+            let map = GoalMap::character(source, target);
+            (map, map)
+        }
+        GoalFrame::Source => {
+            (GoalMap::IDENTITY, GoalMap::scale(f64::from(source.skeleton().root_height_ratio(skeleton).unwrap_or(1.0))))
+        }
+    };
     let rest: Vec<Vec3> = skeleton.joints().iter().map(|j| j.rest_offset).collect();
     let frames = source.frame_count();
     // Per-frame scratch, allocated once.
@@ -340,12 +424,17 @@ pub fn retarget_clip(
         for (t, &s) in map.iter().enumerate() {
             rotations[t] = source.frame_rotations(f)[s];
         }
-        translations[0] = source.frame_translations(f)[map[0]] * ratio;
+        translations[0] = root_map.apply(source.frame_translations(f)[map[0]].as_dvec3()).as_vec3();
         filter.rig().fill_pose(&rotations, &translations, &mut source_pose);
         for (k, &tip) in tips.iter().enumerate() {
             let here = source_world[tip].translation.as_dvec3();
-            // Planted: the toe is drawn to its planted place, its height follows the source.
-            goals[k] = here + plants.get(k).map_or(DVec3::ZERO, |p| p.shift(f, here));
+            goals[k] = if effector_joints[k] == 0 {
+                root_map.apply(here)
+            } else {
+                // Planted: the toe is drawn to its planted place, its height follows the
+                // source's; then the whole goal is laid out for the character.
+                tip_map.apply(here + plants.get(k).map_or(DVec3::ZERO, |p| p.shift(f, here)))
+            };
         }
 
         if f == 0 {
@@ -362,7 +451,7 @@ pub fn retarget_clip(
         out_tr.extend(rest.iter().enumerate().map(|(j, r)| if j == 0 { pose.translations[0].as_vec3() } else { *r }));
     }
     let clip = Clip::new(skeleton.clone(), source.fps(), out_rot, out_tr, target.import_scale)?;
-    Ok(Retargeted { clip, frames: reports, effectors: effector_joints })
+    Ok(Retargeted { clip, frames: reports, effectors: effector_joints, goal_map: tip_map })
 }
 
 const SOURCE: Input<Arc<Clip>> = Input::required("source", "The captured motion to carry over.");
@@ -375,12 +464,14 @@ const CONTACTS: Input<Arc<Contacts>> = Input::optional(
     "Foot contacts of the source (motion.contacts): planted feet stay put and serve as the base the body moves about.",
 );
 const RETARGETED: Output<Arc<Clip>> = Output::new("clip", "The motion on the target character.");
-const REPORT: Output<Arc<Report>> =
-    Output::new("report", "Effector tracking error per frame and the smallest dexterity met.");
+const REPORT: Output<Arc<Report>> = Output::new(
+    "report",
+    "Effector tracking error per frame (m), the smallest dexterity met, and the scales the goals were laid out with (ground plane, height).",
+);
 choices!(Effectors { Feet = "feet", FeetAndHands = "feet_and_hands" });
 const TRACK: ChoiceParam<Effectors> = ChoiceParam::new(
     "effectors",
-    "Which tips follow the source exactly: the toe tips, or the toe tips and the hands.",
+    "Which tips follow the source's paths as tasks: the toe tips, or the toe tips and the hands.",
     "feet",
 );
 const GAIN: FloatParam = FloatParam::new(
@@ -402,8 +493,14 @@ const DEXTERITY: FloatParam = FloatParam::new(
 choices!(PelvisTask { Imitate = "imitate", Track = "track" });
 const PELVIS: ChoiceParam<PelvisTask> = ChoiceParam::new(
     "pelvis",
-    "How the pelvis follows the source's: imitated where the tips leave freedom (its path scaled to the character), or kept on the source pelvis's ground track as a task of its own beside the tips (its height free).",
-    "imitate",
+    "How the pelvis follows the source's: kept on the source pelvis's ground track (laid out as the tips' goals are) as a task of its own beside the tips, its height free; or only imitated where the tips leave freedom (it then surges and stalls within a stride on a character of other proportions).",
+    "track",
+);
+choices!(GoalFrame { Character = "character", Source = "source" });
+const GOALS: ChoiceParam<GoalFrame> = ChoiceParam::new(
+    "goals",
+    "Whose size the tips' goals and the pelvis path are laid out for: the character's (the source's paths scaled by the leg-length ratio from the start, so it takes steps of its own size and plants its feet where its own steps land), or the source's unmodified (Choi & Ko's walking experiment: a smaller character takes the source's steps).",
+    "character",
 );
 const MAX_ANGLE_STEP: FloatParam = FloatParam::new(
     "max_angle_step_rad",
@@ -420,12 +517,12 @@ pub struct RetargetOnline;
 static RETARGET_ONLINE: NodeSchema = NodeSchema {
     kind: "retarget.online",
     category: "retarget",
-    doc: "Carries a captured motion onto a character of other proportions frame by frame (Choi & Ko's online retargeting): the toe tips follow the source, the joints imitate its angles, planted feet do not slide.",
+    doc: "Carries a captured motion onto a character of other proportions frame by frame (Choi & Ko's online retargeting): the toe tips follow the source's paths scaled to the character (steps of its own size), the joints imitate its angles, planted feet do not slide.",
     inputs: &[SOURCE.spec(), TARGET.spec(), CONTACTS.spec()],
     outputs: &[RETARGETED.spec(), REPORT.spec(), super::RESIDUAL_CURVES.spec()],
-    params: &[TRACK.0, PELVIS.0, GAIN.0, DEXTERITY.0, MAX_ANGLE_STEP.0],
+    params: &[TRACK.0, GOALS.0, PELVIS.0, GAIN.0, DEXTERITY.0, MAX_ANGLE_STEP.0],
     writes_files: false,
-    version: 2,
+    version: 3,
 };
 
 impl Node for RetargetOnline {
@@ -447,6 +544,7 @@ impl Node for RetargetOnline {
             dexterity: ctx.float(&DEXTERITY)?,
             max_angle_step_rad: ctx.float(&MAX_ANGLE_STEP)?,
             pelvis: ctx.choice(&PELVIS)?,
+            goals: ctx.choice(&GOALS)?,
             ..RetargetParams::default()
         };
         let out = retarget_clip(&source, &target, contacts.as_deref(), effectors, params).map_err(|e| match e {
@@ -473,6 +571,8 @@ impl Node for RetargetOnline {
                 "max_error_m": max,
                 "mean_error_m": mean,
                 "min_dexterity": if dexterity.is_finite() { dexterity } else { 0.0 },
+                "goal_scale_horizontal": out.goal_map.horizontal,
+                "goal_scale_vertical": out.goal_map.vertical,
                 "error_m_per_frame": errors,
             }))),
         );

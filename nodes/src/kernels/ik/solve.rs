@@ -297,7 +297,9 @@ impl IkSolver {
     /// inverse `1 / (σ² + λ²)` with the damping `λ` applied only to singular directions of
     /// `J √W` whose singular value is under the threshold (selective damping). The threshold
     /// is `singular` in metres per radian, or, when `relative`, a fraction of the largest
-    /// singular value. Returns the dexterity `σ_min / σ_max` of `J √W`.
+    /// singular value. Returns the dexterity `σ_min / σ_max` of `J √W` over the directions
+    /// the tasks constrain (an effector's unconstrained axis is a zero row, whose zero
+    /// singular value says nothing of the limbs).
     pub(crate) fn decompose(&mut self, singular: f64, max_damping: f64, relative: bool) -> f64 {
         self.wjt.copy_from(&self.jt);
         for (mut row, w) in self.wjt.row_iter_mut().zip(&self.weights) {
@@ -306,7 +308,20 @@ impl IkSolver {
         self.jwjt.gemm_tr(1.0, &self.jt, &self.wjt, 0.0);
         self.eigen.decompose(&self.jwjt, &mut self.basis, &mut self.sigma_sq);
         let s_max = self.sigma_sq.max().max(0.0).sqrt();
-        let s_min = self.sigma_sq.min().max(0.0).sqrt();
+        let masks = self.rig.effector_masks();
+        // A direction lying mostly along zero rows is an unconstrained axis.
+        let unconstrained = |i: usize| {
+            (0..self.basis.nrows())
+                .filter(|&r| masks[r / 3][r % 3] == 0.0)
+                .map(|r| self.basis[(r, i)].powi(2))
+                .sum::<f64>()
+        };
+        let s_min = (0..self.sigma_sq.len())
+            .filter(|&i| unconstrained(i) < 0.5)
+            .map(|i| self.sigma_sq[i])
+            .fold(f64::INFINITY, f64::min)
+            .max(0.0)
+            .sqrt();
         for i in 0..self.sigma_sq.len() {
             let s = self.sigma_sq[i].max(0.0).sqrt();
             let measure = if relative { if s_max > 0.0 { s / s_max } else { 0.0 } } else { s };
@@ -319,7 +334,7 @@ impl IkSolver {
             let denom = s * s + lambda_sq;
             self.inverse[i] = if denom > 1e-300 { denom.recip() } else { 0.0 };
         }
-        if s_max > 0.0 { s_min / s_max } else { 0.0 }
+        if s_max > 0.0 && s_min.is_finite() { s_min / s_max } else { 0.0 }
     }
 
     /// `out = J⁺ rhs` with the last [`IkSolver::decompose`] (`rhs` has one row per task row).
