@@ -55,9 +55,10 @@ const DE_LEVA_MALE_PERCENT: [(&str, f32); 16] = [
 /// Every body carries its de Leva share of the 75 kg body mass (the CMU chest carried 0.38 kg
 /// and the pelvis 20.6 kg when segments went to the nearest bone: the upper trunk's centre
 /// lies below CMU's chest joint), and the figure's stature is the skeleton's toe-to-head-top
-/// height: for CMU 02_01 summed by hand from the file's offsets (head chain 2.05450 + 2.06436
-/// + 0 + 1.56711 + 1.56041 + 1.62560, right toe chain 1.80282 + 7.12977 + 6.78024 + 0.63258,
-/// together 25.21739 units of 1/0.45 inch), for Xbot from its HeadTop_End and toe ends.
+/// height: for CMU 02_01 summed by hand from the file's Y offsets (head chain 2.05450,
+/// 2.06436, 0, 1.56711, 1.56041, 1.62560; right toe chain 1.80282, 7.12977, 6.78024,
+/// 0.63258; together 25.21739 units of 1/0.45 inch), for Xbot from its HeadTop_End and toe
+/// ends.
 #[test]
 fn cmu_and_xbot_figures_have_de_leva_limb_masses_and_bone_lengths() {
     let Some(data) = shared_data() else { return };
