@@ -328,40 +328,74 @@ const STEP_PUSH_NS: f32 = 45.0;
 const FALL_PUSH_NS: f32 = 120.0;
 
 /// A push that balance cannot absorb makes the supervisor switch to the step, which
-/// should lift the swing foot and put it down with the capture point inside the new support
-/// polygon (its post-condition). Not true since the figure stands with its feet under its
-/// hips (it stood in CMU's rest pose, soles 0.77 m apart, where a forward push made a
-/// mostly sideways step that did land within the margin): forward chest pushes of 25 to
-/// 45 N·s on the CMU figure all make the first step land with the capture point 1.8 to 14 cm
-/// outside the new support, or not land within 0.8 s. Kept to measure the next attempt.
+/// lifts the swing foot and puts it down ahead, on the capture point predicted for its
+/// landing, with the capture point inside the new support polygon (its post-condition).
+/// Measured on the simulated clip, not on the controller's own bookkeeping: the swing
+/// ankle (forward kinematics of the output clip) lands at least 20 cm ahead of where it
+/// started (a step, not a shuffle), the capture point at the step's end is within balance's
+/// entry margin of the support, and the head stays above 85 % of its standing height.
 #[test]
-#[ignore = "the protective step from a hip-width stance does not reach its post-condition yet"]
 fn larger_push_makes_a_protective_step_that_reaches_its_post_condition() {
+    use kinegraph_nodes::kernels::physics::controllers::step::LAND_MARGIN_M;
+    use kinegraph_nodes::kernels::physics::figure::BodyRole;
+    use kinegraph_nodes::model::forward_kinematics;
     let Some(data) = shared_data() else { return };
     let (label, skeleton) = ("cmu", cmu(&data));
-    {
-        let r = run(&skeleton, &push_script(3.0, "chest", forward(&skeleton), STEP_PUSH_NS, None));
-        let used = controllers_used(&r);
-        println!("{label} step push: {used:?}");
-        assert!(matches!(r.timeline[0].outcome, Outcome::Failed(_)), "{label}: balance should give up: {used:?}");
-        let step = r
-            .timeline
-            .iter()
-            .find(|a| a.controller == "step")
-            .unwrap_or_else(|| panic!("{label}: no step in {used:?}"));
-        assert_eq!(step.outcome, Outcome::Succeeded, "{label}: {used:?}");
-        // The post-condition, read back from the curves: at the step's end the capture
-        // point is within balance's entry margin of the support polygon.
-        let at_end = r
-            .samples
-            .iter()
-            .min_by(|a, b| (a.time_secs - step.end_secs).abs().total_cmp(&(b.time_secs - step.end_secs).abs()))
-            .unwrap();
-        println!(
-            "{label}: step {:.3}–{:.3} s, capture point {:.3} m from the support at its end",
-            step.start_secs, step.end_secs, at_end.capture_support_m
-        );
-    }
+    let r = run(&skeleton, &push_script(3.0, "chest", forward(&skeleton), STEP_PUSH_NS, None));
+    let used = controllers_used(&r);
+    println!("{label} step push: {used:?}");
+    assert!(matches!(r.timeline[0].outcome, Outcome::Failed(_)), "{label}: balance should give up: {used:?}");
+    let step =
+        r.timeline.iter().find(|a| a.controller == "step").unwrap_or_else(|| panic!("{label}: no step in {used:?}"));
+    assert_eq!(step.outcome, Outcome::Succeeded, "{label}: {used:?}");
+    let at =
+        |t: f32| r.samples.iter().min_by(|a, b| (a.time_secs - t).abs().total_cmp(&(b.time_secs - t).abs())).unwrap();
+    let at_end = at(step.end_secs);
+    // The swing foot: the ankle that moved most forward over the step, read from the clip.
+    let fk = forward_kinematics(&r.clip);
+    let frame = |t: f32| ((t * r.clip.fps() as f32).round() as usize).min(r.clip.frame_count() - 1);
+    let fwd = r.figure.forward;
+    let advance = |side| {
+        let b = r.figure.bodies.iter().find(|b| b.role == BodyRole::Foot && b.side == Some(side)).unwrap();
+        (fk.position(frame(step.end_secs), b.joint) - fk.position(frame(step.start_secs), b.joint)).dot(fwd)
+    };
+    let stepped = advance(0).max(advance(1));
+    let head_before = r.samples.first().unwrap().head_clearance_m;
+    let head_low = r
+        .samples
+        .iter()
+        .filter(|s| s.time_secs <= step.end_secs)
+        .map(|s| s.head_clearance_m)
+        .fold(f32::INFINITY, f32::min);
+    println!(
+        "{label}: step {:.3}–{:.3} s, swing ankle {stepped:.3} m forward, capture point {:.3} m from the support \
+         at its end, head {head_low:.3} m at lowest ({head_before:.3} m standing)",
+        step.start_secs, step.end_secs, at_end.capture_support_m
+    );
+    assert!(stepped > 0.2, "{label}: the swing ankle moved {stepped} m forward");
+    assert!(at_end.capture_support_m < LAND_MARGIN_M, "{label}: capture point {} m outside", at_end.capture_support_m);
+    assert!(head_low > 0.85 * head_before, "{label}: head down to {head_low} m from {head_before} m");
+}
+
+/// After the step, balance takes over again and the figure stands for 2 s with its COM
+/// over the new support. Not true yet: on the CMU figure balance re-activates when the
+/// foot lands (capture point 0.7 cm outside the support, inside its 1 cm entry margin)
+/// but fails 14 ms later with the capture point 2.4 cm out (the COM still moves forward at
+/// 0.68 m/s, and the swing foot lands 9 cm wider than aimed); a second step lands 18 cm
+/// short and the figure falls. Kept to measure the next attempt.
+#[test]
+#[ignore = "the figure does not yet stand again after the protective step"]
+fn larger_push_is_recovered_by_a_step_and_the_figure_stands_again() {
+    let Some(data) = shared_data() else { return };
+    let skeleton = cmu(&data);
+    let r = run(&skeleton, &push_script(4.0, "chest", forward(&skeleton), STEP_PUSH_NS, None));
+    let used = controllers_used(&r);
+    println!("cmu step push, 4 s: {used:?}");
+    let last = r.timeline.last().unwrap();
+    assert_eq!(last.controller, "balance", "{used:?}");
+    assert!(last.start_secs < 2.0, "balance re-activated only at {} s: {used:?}", last.start_secs);
+    assert!(r.timeline.iter().all(|a| a.controller != "fall"), "{used:?}");
+    assert!(r.samples.last().unwrap().com_support_m < 0.0, "COM not over the support at the end");
 }
 
 /// Not yet true on the CMU figure: the fall controller activates, but the head reaches the

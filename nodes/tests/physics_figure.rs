@@ -29,11 +29,48 @@ fn body<'a>(figure: &'a Figure, name: &str) -> &'a kinegraph_nodes::kernels::phy
 }
 
 /// de Leva (1996) Table 4, male, mass shares in per cent (typed from the paper, not read
-/// from the kernel): each limb segment lands on its own body.
+/// from the kernel), per figure body: the limbs and the head on their own bodies, the upper,
+/// middle and lower trunk on the chest, abdomen and pelvis. The shares add up to 100.0 by
+/// hand: limbs 2 × (14.16 + 4.33 + 1.37 + 2.71 + 1.62 + 0.61) = 49.60, head 6.94, trunk
+/// 15.96 + 16.33 + 11.17 = 43.46.
+const DE_LEVA_MALE_PERCENT: [(&str, f32); 16] = [
+    ("pelvis", 11.17),
+    ("abdomen", 16.33),
+    ("chest", 15.96),
+    ("head", 6.94),
+    ("left_thigh", 14.16),
+    ("right_thigh", 14.16),
+    ("left_shank", 4.33),
+    ("right_shank", 4.33),
+    ("left_foot", 1.37),
+    ("right_foot", 1.37),
+    ("left_upper_arm", 2.71),
+    ("right_upper_arm", 2.71),
+    ("left_forearm", 1.62),
+    ("right_forearm", 1.62),
+    ("left_hand", 0.61),
+    ("right_hand", 0.61),
+];
+
+/// Every body carries its de Leva share of the 75 kg body mass (the CMU chest carried 0.38 kg
+/// and the pelvis 20.6 kg when segments went to the nearest bone: the upper trunk's centre
+/// lies below CMU's chest joint), and the figure's stature is the skeleton's toe-to-head-top
+/// height: for CMU 02_01 summed by hand from the file's Y offsets (head chain 2.05450,
+/// 2.06436, 0, 1.56711, 1.56041, 1.62560; right toe chain 1.80282, 7.12977, 6.78024,
+/// 0.63258; together 25.21739 units of 1/0.45 inch), for Xbot from its HeadTop_End and toe
+/// ends.
 #[test]
 fn cmu_and_xbot_figures_have_de_leva_limb_masses_and_bone_lengths() {
     let Some(data) = shared_data() else { return };
-    for (label, skeleton) in [("cmu 02_01", cmu(&data, "cmu/02_01.bvh")), ("xbot", xbot(&data))] {
+    let xbot = xbot(&data);
+    let xbot_rest = xbot.rest_positions();
+    let xbot_height = xbot_rest[xbot.index_of("mixamorig:HeadTop_End").unwrap()].y
+        - xbot_rest[xbot.index_of("mixamorig:LeftToe_End").unwrap()].y;
+    let cmu_height = 25.21739 * 0.0254 / 0.45;
+    println!("independent heights: cmu 02_01 {cmu_height:.4} m, xbot {xbot_height:.4} m");
+    for (label, skeleton, height) in
+        [("cmu 02_01", cmu(&data, "cmu/02_01.bvh"), cmu_height), ("xbot", xbot, xbot_height)]
+    {
         let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
         println!(
             "{label}: {} bodies, stature {:.3} m, mass {:.2} kg ({}), forward {:?}",
@@ -44,12 +81,17 @@ fn cmu_and_xbot_figures_have_de_leva_limb_masses_and_bone_lengths() {
             figure.forward
         );
         assert_eq!(figure.bodies.len(), 16, "{label}: {:?}", figure.bodies.iter().map(|b| &b.name).collect::<Vec<_>>());
-        for (name, share) in
-            [("left_thigh", 14.16), ("right_shank", 4.33), ("left_upper_arm", 2.71), ("right_forearm", 1.62)]
-        {
+        for (name, share) in DE_LEVA_MALE_PERCENT {
             let m = body(&figure, name).mass_kg;
+            println!("  {name:16} {m:7.3} kg (de Leva {:7.3} kg)", 0.75 * share);
             assert!((m - 0.75 * share).abs() < 0.01, "{label} {name}: {m} kg, de Leva {} kg", 0.75 * share);
         }
+        assert!((figure.total_mass_kg - 75.0).abs() < 0.01, "{label}: total {} kg", figure.total_mass_kg);
+        assert!(
+            (figure.stature_m - height).abs() < 2e-3,
+            "{label}: stature {} m, skeleton {height} m",
+            figure.stature_m
+        );
         // Thigh capsule length = hip → knee distance measured on the rest pose.
         let rest = skeleton.rest_positions();
         let thigh = body(&figure, "left_thigh");
@@ -61,8 +103,6 @@ fn cmu_and_xbot_figures_have_de_leva_limb_masses_and_bone_lengths() {
             "{label}: thigh {} vs {measured}",
             (b - a).length()
         );
-        // A human's stature, joint to joint (no skull top, no sole): 1.3–2.0 m.
-        assert!((1.3..2.0).contains(&figure.stature_m), "{label}: stature {}", figure.stature_m);
         // Gains scale with the supported mass: a hip holds up more than an ankle's foot, a
         // shoulder more than a wrist.
         assert!(body(&figure, "left_thigh").kp > body(&figure, "left_hand").kp);

@@ -69,7 +69,7 @@ static SIMULATE: NodeSchema = NodeSchema {
     outputs: &[OUT.spec(), CURVES.spec(), REPORT.spec()],
     params: &[SCRIPT.0, FRAME.0, FPS.0, DT.0, MASS.0],
     writes_files: false,
-    version: 1,
+    version: 2,
 };
 
 /// Reads and parses the script file, errors located at the `script` param with file, line

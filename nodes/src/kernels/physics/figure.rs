@@ -12,9 +12,11 @@
 //!    bone's length by role, trunk radii from the hip and shoulder widths), a box per foot
 //!    from the ankle to the toe tip with its sole at the lowest point of the foot.
 //! 4. Masses from [`body_model`] (de Leva 1996, the table the momentum nodes use): each
-//!    segment's mass goes to the body whose bone passes nearest its centre of mass; the
-//!    body's centre of mass is the mass-weighted mean of its segments'. Inertia: the solid
-//!    shape's inertia tensor scaled to that mass, about that centre.
+//!    limb segment and the head to the body of that name, the upper, middle and lower trunk
+//!    to the chest, abdomen and pelvis (other models: to the body whose bone passes nearest
+//!    the segment's centre of mass); the body's centre of mass is the mass-weighted mean of
+//!    its segments'. Inertia: the solid shape's inertia tensor scaled to that mass, about
+//!    that centre.
 //! 5. Joints: the pelvis is the articulation's free root; knees and elbows are hinges, all
 //!    other joints ball joints, with human ranges per body role about anatomical axes
 //!    (X = the figure's left, Y = up, Z = forward in the rest pose).
@@ -475,17 +477,23 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams) -> Result<Figure
         }
     }
 
-    // Masses from the body model: each segment to the body whose bone passes nearest.
+    // Masses from the body model: each table segment to its body by name, anything else
+    // to the body whose bone passes nearest.
     let model = body_model(skeleton, params.total_mass_kg, params.table, None)?;
+    let named = MassTable::NAMES[..2].contains(&model.method.as_str());
     let mut mass = vec![0.0f64; bodies.len()];
     let mut moment = vec![Vec3::ZERO; bodies.len()];
     for segment in &model.segments {
         let com = model.segment_com(segment, &rest);
-        let nearest = (0..bodies.len())
-            .min_by(|&a, &b| bone_distance(&bodies[a], &rest, com).total_cmp(&bone_distance(&bodies[b], &rest, com)))
-            .unwrap_or(0);
-        mass[nearest] += segment.mass_kg;
-        moment[nearest] += com * segment.mass_kg as f32;
+        let body = named.then(|| segment_body(&segment.name, &bodies)).flatten().unwrap_or_else(|| {
+            (0..bodies.len())
+                .min_by(|&a, &b| {
+                    bone_distance(&bodies[a], &rest, com).total_cmp(&bone_distance(&bodies[b], &rest, com))
+                })
+                .unwrap_or(0)
+        });
+        mass[body] += segment.mass_kg;
+        moment[body] += com * segment.mass_kg as f32;
     }
     for (i, body) in bodies.iter_mut().enumerate() {
         // A body no segment landed on (rare rigs) keeps a token 0.5 % of the mass at its
@@ -559,6 +567,22 @@ fn shape_centre(shape: &BodyShape) -> Vec3 {
         BodyShape::Capsule { a, b, .. } => (a + b) * 0.5,
         BodyShape::Box { centre, .. } => centre,
     }
+}
+
+/// The body that carries de Leva segment `segment`: limbs and head by name (bodies are
+/// named like the table's segments), the trunk's thirds to the chest, abdomen and pelvis.
+/// `None` when the skeleton has no such body (no abdomen joint: the middle trunk goes to
+/// the nearest bone). The upper trunk moves with the shoulders, so it belongs on the chest
+/// even where the rig's chest joint sits above the segment's centre (CMU's cgspeed rigs put
+/// the shoulders and the neck on one joint, with no thorax bone).
+fn segment_body(segment: &str, bodies: &[FigureBody]) -> Option<usize> {
+    let body = match segment {
+        "upper_trunk" => "chest",
+        "middle_trunk" => "abdomen",
+        "lower_trunk" => "pelvis",
+        limb_or_head => limb_or_head,
+    };
+    bodies.iter().position(|b| b.name == body)
 }
 
 /// Distance from `p` (world, rest) to the body's bone (its shape's axis).
@@ -675,15 +699,30 @@ impl Figure {
                 }
                 JointKind::Free => vec![],
             };
+            let max_torque = self.ankle_torque_limit_nm(body, -w.gravity.y);
             for &(axis, limits) in axes {
                 data.set_limits(axis, limits);
                 data.set_motor_model(axis, MotorModel::ForceBased);
                 data.set_motor_position(axis, 0.0, body.kp, body.kd);
+                if let Some(max) = max_torque {
+                    data.set_motor_max_force(axis, max);
+                }
             }
             joints[i] = w.multibody_joints.insert(handles[p], handles[i], data, true);
         }
         world.clear_articulation_damping(handles[0]);
         Spawned { handles, joints }
+    }
+
+    /// The most torque an ankle may exert, N·m: the weight it holds up times the
+    /// horizontal lever from the ankle to the toe tip. More than that tips the foot onto
+    /// its toes instead of leaning the body, and stiff PD ankles then pole-vault the figure
+    /// off the ground (a 45 N·s push lifted the CMU figure's COM at 0.4 m/s). `None` for
+    /// other joints.
+    pub fn ankle_torque_limit_nm(&self, body: &FigureBody, gravity_m_s2: f32) -> Option<f32> {
+        let BodyShape::Box { centre, half_extents, rotation } = body.shape else { return None };
+        let toe = centre + rotation * Vec3::X * half_extents.x;
+        (body.role == BodyRole::Foot).then(|| body.supported_mass_kg * gravity_m_s2 * toe.with_y(0.0).length())
     }
 
     fn mass_properties(&self, body: &FigureBody) -> MassProperties {

@@ -1,8 +1,8 @@
 //! Balance: the inverted-pendulum ankle strategy with a hip strategy on top (the paper's
 //! balance controller, after Pai & Patton's region of balance without stepping).
 //!
-//! The hips and ankles hold the posture they had when balance took over (so it also
-//! balances after a protective step, feet apart) and the knees straighten; the ankles lean the body away from the capture point's
+//! The hips, knees and ankles hold the posture they had when balance took over (so it
+//! also balances after a protective step, feet apart); the ankles lean the body away from the capture point's
 //! offset `u = ξ − c` (ξ the LIPM capture point, c the support centroid), proportionally:
 //! `θ_ankle = k_ankle·u` (clamped), and the hips add `k_hip·u` once `|u|` exceeds what the
 //! ankles can hold. Leaning the shanks by θ moves the COM by about `h·θ` and makes the
@@ -78,11 +78,12 @@ impl Controller for Balance {
         if feet && balanced(state, ctx, ENTER_OUTSIDE_M, 30f32.to_radians().cos(), 0.7) { BID_CAN_REACH } else { 0 }
     }
     fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
-        // Hips and ankles keep their current posture (feet where a step put them), knees
-        // straighten to standing; trunk, arms and head go back to standing.
+        // Hips, knees and ankles keep their current posture (feet where a step put them:
+        // straightening a knee bent by the landing at full stiffness bounced the figure up at
+        // 1 m/s); trunk, arms and head go back to standing.
         let mut hold = ctx.stand.clone();
         for (i, b) in ctx.figure.bodies.iter().enumerate() {
-            if matches!(b.role, BodyRole::Thigh | BodyRole::Foot) {
+            if matches!(b.role, BodyRole::Thigh | BodyRole::Shank | BodyRole::Foot) {
                 hold.angles[i] = state.joint_coords[i];
             }
         }

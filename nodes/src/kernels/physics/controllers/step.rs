@@ -3,11 +3,12 @@
 //! capture point the COM comes to rest above it).
 //!
 //! The swing foot is the one on the capture point's side (no crossover steps). Its sole
-//! follows a smoothstep from where it was to the capture point (plus a small overshoot;
-//! the target follows the moving capture point for most of the swing)
-//! over [`SWING_SECS`], lifted by `LIFT_M·sin(π·s)`; the leg's hip and knee angles come
-//! from the two-link inverse kinematics of the thigh and shank lengths, the knee pointing
-//! forward. The stance hip keeps the pelvis upright; the swing foot is kept level.
+//! follows a smoothstep from where it was to the capture point predicted for its landing
+//! ([`step_target`]; re-aimed for most of the swing) over [`SWING_SECS`], lifted by
+//! `LIFT_M·sin(π·s)`; the leg's hip and knee angles come from the two-link inverse
+//! kinematics of the thigh and shank lengths, the knee pointing forward. The stance hip
+//! keeps the pelvis upright over the stance thigh as it was at the start; both feet are
+//! kept level.
 //!
 //! Pre-condition: a foot down, trunk within 35° of vertical, COM at least 75 % of its
 //! standing height, capture point outside the support and within [`REACH`] leg lengths of
@@ -16,7 +17,7 @@
 //! capture point within [`LAND_MARGIN_M`] of the new support. Expected performance: the
 //! foot lands within [`TIMEOUT_SECS`] and the trunk stays within 50° of vertical.
 
-use glam::{Vec2, Vec3};
+use glam::{Quat, Vec2, Vec3};
 
 use super::{facing, leg, xz};
 use crate::kernels::physics::controller::{BID_CAN_REACH, ControlContext, Controller, Status, Targets};
@@ -34,9 +35,9 @@ pub const REACH: f32 = 0.9;
 pub const LAND_MARGIN_M: f32 = crate::kernels::physics::controllers::balance::ENTER_OUTSIDE_M;
 /// The step fails when the foot is not down after this long, seconds.
 pub const TIMEOUT_SECS: f32 = 0.8;
-/// The swing foot moves by this multiple of the capture point's offset from the support
-/// centre.
-pub const STEP_GAIN: f32 = 2.0;
+/// When the swing foot lands after the step starts, seconds: its path ends at
+/// `SWING_SECS`, read [`LEAD_SECS`] ahead.
+pub const LAND_SECS: f32 = SWING_SECS - LEAD_SECS;
 /// Closest the swing sole may land to the stance sole, sideways, metres.
 pub const MIN_WIDTH_M: f32 = 0.12;
 /// Gain multiplier on the swing leg's joints, so the foot tracks its path in time.
@@ -61,10 +62,10 @@ struct Plan {
     swing: usize,
     from: Vec3,
     to: Vec3,
-    /// Support centroid at activation.
-    centre: Vec2,
     /// The swing foot has left the ground.
     lifted: bool,
+    /// The stance thigh's world rotation (relative to rest) when the step started.
+    stance_thigh: Quat,
 }
 
 /// The stance foot a step would pivot on, given the capture point: the foot away from ξ's
@@ -79,30 +80,33 @@ pub fn choose_feet(state: &FigureState, ctx: &ControlContext<'_>) -> (usize, usi
     (swing, 1 - swing)
 }
 
-/// Where the swing sole is put: moved from where it was by [`STEP_GAIN`] times the
-/// capture point's offset from `centre` (the double-support centroid before the step), so
-/// the stance keeps its width and the new support polygon reaches past ξ (moving one of two
-/// feet by D moves the polygon's edge between them by about D/2 at the middle); never
-/// closer than [`MIN_WIDTH_M`] sideways to the stance sole.
-/// `from` is where the swing sole was at the step's start.
+/// Where the swing sole is put: on the capture point the figure will have when the foot
+/// lands. While it swings the figure is a linear inverted pendulum pivoting on the stance
+/// sole's centre `p`, whose capture point runs away from it as
+/// `ξ(t) = p + (ξ₀ − p)·e^{ω t}`, with `ω = √(g/h)` at the COM height `h`; a sole centred
+/// on `ξ(remaining_secs)` holds the capture point under the foot when it lands, so the COM
+/// comes to rest over the new support (the capture point's defining property). Never
+/// closer than [`MIN_WIDTH_M`] sideways to the stance sole (no crossover), and within
+/// [`REACH`] leg lengths of it.
 pub fn step_target(
     state: &FigureState,
     ctx: &ControlContext<'_>,
     (swing, stance): (usize, usize),
-    from: Vec3,
-    centre: Vec2,
+    remaining_secs: f32,
 ) -> Vec2 {
     let (_, left) = facing(state, ctx);
-    let from = Vec2::new(from.x, from.z);
-    let mut t = from + (state.capture_point - centre) * STEP_GAIN;
     let stance_xz = Vec2::new(state.sole_centre[stance].x, state.sole_centre[stance].z);
+    let omega = (ctx.gravity_m_s2 / state.com.y.max(0.1)).sqrt();
+    let mut t = stance_xz + (state.capture_point - stance_xz) * (omega * remaining_secs.max(0.0)).exp();
     let l = Vec2::new(left.x, left.z);
     let sign = if (state.sole_centre[swing] - state.sole_centre[stance]).dot(left) >= 0.0 { 1.0 } else { -1.0 };
     let width = (t - stance_xz).dot(l) * sign;
     if width < MIN_WIDTH_M {
         t += l * sign * (MIN_WIDTH_M - width);
     }
-    t
+    let reach = REACH * ctx.leg_length_m;
+    let d = t - stance_xz;
+    if d.length() > reach { stance_xz + d * (reach / d.length()) } else { t }
 }
 
 impl Controller for Step {
@@ -127,16 +131,16 @@ impl Controller for Step {
     }
     fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
         let (swing, stance) = choose_feet(state, ctx);
-        let centre = state.support_centre();
         let from = state.sole_centre[swing];
-        let to = step_target(state, ctx, (swing, stance), from, centre);
+        let to = step_target(state, ctx, (swing, stance), LAND_SECS);
+        let stance_thigh = leg(ctx, stance).map_or(Quat::IDENTITY, |(t, _, _)| state.body_rot[t]);
         self.plan = Some(Plan {
             start_secs: state.time_secs,
             swing,
             from,
             to: Vec3::new(to.x, from.y, to.y),
-            centre,
             lifted: false,
+            stance_thigh,
         });
     }
     fn control(&mut self, state: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
@@ -144,12 +148,12 @@ impl Controller for Step {
         plan.lifted |= !state.foot_down[plan.swing] || state.sole_centre[plan.swing].y > LIFTED_M;
         // The capture point keeps moving while the figure pivots on one foot: follow it
         // until the last part of the swing.
-        if state.time_secs - plan.start_secs < RETARGET_UNTIL * SWING_SECS {
-            let to = step_target(state, ctx, (plan.swing, 1 - plan.swing), plan.from, plan.centre);
+        let tau = state.time_secs - plan.start_secs;
+        if tau < RETARGET_UNTIL * SWING_SECS {
+            let to = step_target(state, ctx, (plan.swing, 1 - plan.swing), LAND_SECS - tau);
             plan.to = Vec3::new(to.x, plan.from.y, to.y);
         }
         let plan = *plan;
-        let tau = state.time_secs - plan.start_secs;
         if state.trunk_upright < 50f32.to_radians().cos() {
             return Status::Failed("the trunk tilted past 50°".into());
         }
@@ -168,7 +172,8 @@ impl Controller for Step {
             return Status::Failed("the swing foot did not land".into());
         }
         targets.clone_from(ctx.stand);
-        let (Some((thigh, shank, foot)), Some((s_thigh, _, _))) = (leg(ctx, plan.swing), leg(ctx, 1 - plan.swing))
+        let (Some((thigh, shank, foot)), Some((s_thigh, s_shank, s_foot))) =
+            (leg(ctx, plan.swing), leg(ctx, 1 - plan.swing))
         else {
             return Status::Failed("the figure has no legs".into());
         };
@@ -196,9 +201,12 @@ impl Controller for Step {
         targets.angles[shank] = [std::f32::consts::PI - cos_knee.acos(), 0.0, 0.0];
         // Level foot: relative to the shank, the inverse of the shank's rotation.
         targets.set_relative(fig, foot, state.body_rot[shank].inverse());
-        // Stance hip: the pelvis upright means the thigh relative to it is the thigh's own
-        // current world rotation.
-        targets.set_relative(fig, s_thigh, state.body_rot[s_thigh]);
+        // Stance leg: the thigh stays where it was when the step started with the pelvis
+        // upright above it (the thigh relative to the pelvis is then its world rotation), and
+        // the foot stays flat (following the thigh's current rotation let the stance leg
+        // splay and roll its foot onto the edge: the CMU stance sole slid 21 cm sideways).
+        targets.set_relative(fig, s_thigh, plan.stance_thigh);
+        targets.set_relative(fig, s_foot, state.body_rot[s_shank].inverse());
         for b in [thigh, shank, foot] {
             targets.gain[b] = SWING_GAIN;
         }
