@@ -34,6 +34,7 @@ use super::{World, pose_to_rapier, rot_from_rapier, rot_to_rapier, to_rapier};
 use crate::kernels::body::{BodyError, MassTable, body_model, find_landmarks, limb_tip};
 use crate::math::quat_normalize_or_identity;
 use crate::model::Skeleton;
+use crate::model::choice::Choice;
 use crate::model::fk::{Transform, pose_world, rest_world};
 
 /// The shortest bone that can carry a body, metres.
@@ -480,7 +481,8 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams) -> Result<Figure
     // Masses from the body model: each table segment to its body by name, anything else
     // to the body whose bone passes nearest.
     let model = body_model(skeleton, params.total_mass_kg, params.table, None)?;
-    let named = MassTable::NAMES[..2].contains(&model.method.as_str());
+    // The method used, not the one asked for: a skeleton without named limbs falls back.
+    let named = matches!(MassTable::from_name(&model.method), Some(MassTable::DeLevaMale | MassTable::DeLevaFemale));
     let mut mass = vec![0.0f64; bodies.len()];
     let mut moment = vec![Vec3::ZERO; bodies.len()];
     for segment in &model.segments {
