@@ -1397,7 +1397,10 @@ fn the_centre_of_mass_is_drawn_where_the_stages_curves_put_it() {
         harness.state().viewport_com().unwrap()
     };
     let (start, top, end) = (drawn_at(&mut harness, 0), drawn_at(&mut harness, apex), drawn_at(&mut harness, landed));
-    println!("com.y {:.3} / {:.3} / {:.3} m drawn at y {} / {} / {}", height[0], height[apex], height[landed], start.y, top.y, end.y);
+    println!(
+        "com.y {:.3} / {:.3} / {:.3} m drawn at y {} / {} / {}",
+        height[0], height[apex], height[landed], start.y, top.y, end.y
+    );
     assert!(height[apex] > height[0] + 0.1 && height[apex] > height[landed] + 0.1);
     assert!(top.y < start.y - 5.0 && top.y < end.y - 5.0, "apex drawn at {top:?}, start {start:?}, landing {end:?}");
 }
