@@ -1362,7 +1362,7 @@ fn output_labels_end_in_one_column_clear_of_their_pins() {
 }
 
 /// Text and path fields are wide enough to read a path or a body list (they were drawn
-/// 60 px wide whatever their content).
+/// 100 px wide, the width their grid column had, whatever their content).
 #[test]
 fn text_fields_are_wide_enough_to_read() {
     let (_dir, path) = staged_graph();
