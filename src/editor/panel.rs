@@ -241,27 +241,34 @@ fn param_row(
                 Some(ParamValue::Text(s)) => s.clone(),
                 _ => spec.default_value().map(|v| v.to_string().trim_matches('"').to_string()).unwrap_or_default(),
             };
-            let editing = state.editing.as_ref().filter(|(n, p, _)| n == id && p == name);
-            let mut text = editing.map(|(_, _, t)| t.clone()).unwrap_or_else(|| stored.clone());
-            let r = ui
-                .add_sized([state.text_width, ui.spacing().interact_size.y], egui::TextEdit::singleline(&mut text))
-                .labelled_by(name_label.id)
-                .on_hover_text(spec.doc);
-            if r.changed() || r.has_focus() {
-                state.editing = Some((id.to_string(), name.to_string(), text.clone()));
-            }
-            if r.lost_focus() {
-                state.editing = None;
-                if text != stored {
-                    edits.push(PanelEdit { command: set_cmd(ParamValue::Text(text)), coalesce: false });
+            // One grid cell for the field and its browse button: in a grid each widget
+            // takes a column of its own.
+            ui.horizontal(|ui| {
+                let editing = state.editing.as_ref().filter(|(n, p, _)| n == id && p == name);
+                let mut text = editing.map(|(_, _, t)| t.clone()).unwrap_or_else(|| stored.clone());
+                let r = ui
+                    .add_sized([state.text_width, ui.spacing().interact_size.y], egui::TextEdit::singleline(&mut text))
+                    .labelled_by(name_label.id)
+                    .on_hover_text(spec.doc);
+                if r.changed() || r.has_focus() {
+                    state.editing = Some((id.to_string(), name.to_string(), text.clone()));
                 }
-            }
-            let folder = matches!(spec.kind, ParamKind::InputFolder { .. });
-            if matches!(spec.kind, ParamKind::InputPath { .. } | ParamKind::InputFolder { .. })
-                && ui.small_button("…").on_hover_text(if folder { "pick a folder" } else { "pick a file" }).clicked()
-            {
-                state.browse = Some((ParamPath::new(id, name), folder));
-            }
+                if r.lost_focus() {
+                    state.editing = None;
+                    if text != stored {
+                        edits.push(PanelEdit { command: set_cmd(ParamValue::Text(text)), coalesce: false });
+                    }
+                }
+                let folder = matches!(spec.kind, ParamKind::InputFolder { .. });
+                if matches!(spec.kind, ParamKind::InputPath { .. } | ParamKind::InputFolder { .. })
+                    && ui
+                        .small_button("…")
+                        .on_hover_text(if folder { "pick a folder" } else { "pick a file" })
+                        .clicked()
+                {
+                    state.browse = Some((ParamPath::new(id, name), folder));
+                }
+            });
         }
     }
     if is_set {
