@@ -80,6 +80,14 @@ const FLOOR: FloatParam = FloatParam::new(
     100.0,
     "m",
 );
+const SOFT_REACH: FloatParam = FloatParam::new(
+    "soft_reach",
+    "The last part of each leg's reach, as a fraction of its length, over which the ankle's goal eases towards full stretch (soft IK): a plant coming into or going out of reach bends the knee smoothly instead of snapping it straight, and is held that much short. 0: a hard reach.",
+    0.02,
+    0.0,
+    0.2,
+    "",
+);
 const ITERATIONS: IntParam = IntParam::new("max_iterations", "IK iterations allowed per frame.", 50, 1, 10_000);
 
 /// `motion.foot_lock`.
@@ -91,9 +99,10 @@ static FOOT_LOCK: NodeSchema = NodeSchema {
     doc: "Removes foot sliding: while a foot is in contact it stays where it was put down. The knee and hip turn (weighted IK), the foot keeps its angle, the body keeps its path.",
     inputs: &[CLIP.spec(), CONTACTS.spec(), MESH.spec()],
     outputs: &[LOCKED.spec(), REPORT.spec(), super::RESIDUAL_CURVES.spec()],
-    params: &[BLEND.0, WEIGHTS.0, TOLERANCE.0, ITERATIONS.0, TOES.0, GROUND.0, FLOOR.0],
+    params: &[BLEND.0, WEIGHTS.0, TOLERANCE.0, ITERATIONS.0, TOES.0, GROUND.0, FLOOR.0, SOFT_REACH.0],
     writes_files: false,
-    version: 3,
+    // 4: goals near full stretch eased (soft_reach), the shortfall reported per foot.
+    version: 4,
 };
 
 impl Node for FootLock {
@@ -120,6 +129,7 @@ impl Node for FootLock {
             },
             toes: parse_toes(ctx.text_param(&TOES)?).map_err(|e| NodeError::param("toes", e))?,
             ground,
+            soft_reach: ctx.float(&SOFT_REACH)?,
         };
         let locked = foot_lock(&clip, &contacts, &params).map_err(|e| match e {
             FootLockError::Rig(RigError::UnknownJoint(_)) => NodeError::param("weights", e.to_string()),
@@ -144,6 +154,8 @@ impl Node for FootLock {
                     "plants": f.plants,
                     "skate_before_m": f.skate_before_m,
                     "skate_after_m": f.skate_after_m,
+                    "short_frames": f.short_frames,
+                    "shortfall_max_m": f.shortfall_max_m,
                 });
                 if let Some((lo, hi)) = f.lift_range_m {
                     foot["lift_range_m"] = json!([lo, hi]);

@@ -10,6 +10,11 @@
 //! 3. The ankle's goal is the clip's ankle plus `c`; the two joints above it (knee and hip)
 //!    turn to reach it (one rig with both ankles as effectors; unplanted ankles keep their
 //!    own position as goal, so that leg does not move).
+//!    A goal near the edge of the leg's reach is eased towards full stretch ([`super::reach`],
+//!    over the last `soft_reach` of the leg's length) by raising it, so a plant coming into or
+//!    going out of reach (a heel strike the correction stretches) bends the knee smoothly
+//!    instead of snapping it, and the foot lands a little high rather than sliding; the
+//!    shortfall is reported.
 //! 4. The ankle's local rotation is then reset so the foot keeps its world orientation from
 //!    the clip: the whole foot, toes included, moves by exactly `c`.
 //!
@@ -39,6 +44,7 @@ use std::sync::Arc;
 
 use glam::{DVec3, Quat};
 
+use super::reach::soft_goal;
 use super::rig::{IkRig, RigError};
 use super::solve::{IkSolver, SolveParams, SolveReport};
 use crate::kernels::body::limb_tip;
@@ -67,6 +73,10 @@ pub struct FootLockParams {
     pub toes: Option<[String; 2]>,
     /// Where planted feet stand vertically.
     pub ground: Ground,
+    /// The last part of each leg's reach, as a fraction of its length (hip to knee to
+    /// ankle), over which an ankle goal is eased towards full stretch ([`super::reach`]).
+    /// 0: a hard reach, the knee snaps straight.
+    pub soft_reach: f64,
 }
 
 impl Default for FootLockParams {
@@ -77,6 +87,7 @@ impl Default for FootLockParams {
             solve: SolveParams::default(),
             toes: None,
             ground: Ground::Clip,
+            soft_reach: 0.02,
         }
     }
 }
@@ -116,6 +127,11 @@ pub struct FootReport {
     /// On soles ([`Ground::Soles`]): the least and greatest vertical move given to the foot
     /// (metres), how far its sole sat above (negative) or below (positive) the floor.
     pub lift_range_m: Option<(f64, f64)>,
+    /// Frames whose ankle goal was eased short of where the plant wanted it (the leg near
+    /// full stretch), by more than the solve's tolerance.
+    pub short_frames: usize,
+    /// The most a goal was eased short (metres).
+    pub shortfall_max_m: f64,
 }
 
 /// A locked clip and what the lock did.
@@ -206,6 +222,19 @@ fn ground_offsets(sole_m: &[f64], floor_m: f64, intervals: &[FrameRange], lift_o
     d
 }
 
+/// Where a leg of length `leg` (metres) starts easing its goal ([`super::reach`]): over its
+/// last `soft_reach` fraction, or from the clip's own hip-to-ankle distance `clip_reach` if
+/// the clip stretches the leg further, so that only the extension the lock adds is eased and
+/// the clip's own straight leg at a heel strike is kept; the zone never narrows below a
+/// quarter of the fraction, which bounds the knee's speed.
+fn eased_from(leg: f64, soft_reach: f64, clip_reach: f32) -> f64 {
+    let softness = soft_reach * leg;
+    if softness <= 0.0 {
+        return leg;
+    }
+    (leg - softness).max(f64::from(clip_reach)).min(leg - softness / 4.0)
+}
+
 /// Holds the feet of `clip` planted during `contacts` (see the module doc).
 pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> Result<FootLocked, FootLockError> {
     if contacts.frame_count != clip.frame_count() {
@@ -215,6 +244,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     let joints = skeleton.joints();
     let mut rig = IkRig::new(skeleton.clone());
     let mut ankles = Vec::new();
+    let mut hips = Vec::new();
     let mut turned = Vec::new();
     for foot in &contacts.feet {
         let ankle = skeleton.index_of(&foot.foot).ok_or_else(|| FootLockError::UnknownFoot(foot.foot.clone()))?;
@@ -227,6 +257,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
         }
         rig.add_effector(ankle);
         ankles.push(ankle);
+        hips.push(hip);
     }
     for (name, _) in &params.weights {
         rig.joint(name)?;
@@ -295,19 +326,28 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     let mut world = vec![Transform::IDENTITY; n];
     let mut goals = vec![DVec3::ZERO; ankles.len()];
     let mut foot_in_world = vec![Quat::IDENTITY; ankles.len()];
+    let mut shortfalls = vec![Vec::with_capacity(clip.frame_count()); ankles.len()];
     let mut rotations = clip.rotations().to_vec();
     let mut frames = Vec::with_capacity(clip.frame_count());
     let mut pose = solver.rig().pose_from(clip.frame_rotations(0), clip.frame_translations(0));
     for f in 0..clip.frame_count() {
         let original = before.frame(f);
+        let frame_translations = &translations[f * n..(f + 1) * n];
+        // The hips where this frame's solve finds them (the root moved on soles).
+        pose_world(skeleton, clip.frame_rotations(f), frame_translations, &mut world);
         for (k, &ankle) in ankles.iter().enumerate() {
             let toe = original[tips[k]].translation.as_dvec3();
             let correction = plants[k].shift(f, toe);
             let lift = lifts[k].get(f).copied().unwrap_or(0.0);
-            goals[k] = original[ankle].translation.as_dvec3() + correction + DVec3::Y * lift;
+            let wanted = original[ankle].translation.as_dvec3() + correction + DVec3::Y * lift;
+            let knee = joints[ankle].parent.unwrap_or(ankle);
+            let leg = f64::from(frame_translations[knee].length() + frame_translations[ankle].length());
+            let eased_from =
+                eased_from(leg, params.soft_reach, original[hips[k]].translation.distance(original[ankle].translation));
+            goals[k] = soft_goal(world[hips[k]].translation.as_dvec3(), wanted, eased_from, leg, DVec3::Y);
+            shortfalls[k].push(wanted.distance(goals[k]));
             foot_in_world[k] = original[ankle].rotation;
         }
-        let frame_translations = &translations[f * n..(f + 1) * n];
         solver.rig().fill_pose(clip.frame_rotations(f), frame_translations, &mut pose);
         if on_soles && f > 0 {
             // Each solve starts from the last frame's correction carried onto this frame's
@@ -338,7 +378,8 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
         .zip(&plants)
         .zip(&tips)
         .zip(&lifts)
-        .map(|(((foot, plant), &tip), lift)| FootReport {
+        .zip(&shortfalls)
+        .map(|((((foot, plant), &tip), lift), short)| FootReport {
             foot: foot.foot.clone(),
             plants: foot.intervals.iter().filter(|r| !r.is_empty()).count(),
             skate_before_m: planted_travel_m(&before, tip, plant),
@@ -346,6 +387,8 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
             lift_range_m: lift.iter().fold(None, |range: Option<(f64, f64)>, &d| {
                 Some(range.map_or((d, d), |(lo, hi)| (lo.min(d), hi.max(d))))
             }),
+            short_frames: short.iter().filter(|&&s| s > params.solve.tolerance_m).count(),
+            shortfall_max_m: short.iter().copied().fold(0.0, f64::max),
         })
         .collect();
     Ok(FootLocked { clip: locked, feet, frames })
@@ -628,7 +671,9 @@ mod tests {
         // 0.3 m/s for 20 frames at 30 fps: the frozen feet slide 0.19 m.
         let clip = gliding(20, 0.3);
         let contacts = contacts_over(&clip, FrameRange::new(0, 20), FrameRange::new(5, 15));
-        let params = FootLockParams { blend_secs: 2.0 / 30.0, ..FootLockParams::default() };
+        // A hard reach: the frozen legs are straight, so a soft one would raise the planted
+        // foot by design (tested in `reach` and on Xbot's walk).
+        let params = FootLockParams { blend_secs: 2.0 / 30.0, soft_reach: 0.0, ..FootLockParams::default() };
         let locked = foot_lock(&clip, &contacts, &params).unwrap();
         let sk = clip.skeleton();
         let (before, after) = (forward_kinematics(&clip), forward_kinematics(&locked.clip));

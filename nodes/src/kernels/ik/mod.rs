@@ -3,6 +3,7 @@
 //! built on it (the IK clean-up after a blend or a retarget).
 
 pub mod foot_lock;
+pub mod reach;
 pub mod rig;
 pub mod solve;
 
