@@ -8,7 +8,8 @@
 //!    distance grid between the motion's last 10 frames and the passage's first 25 is
 //!    smallest; the target is joined the same way at the end. Each join turns and moves
 //!    the incoming frames so heading and floor position match at the join, and blends over
-//!    the frames of the motion after the join point.
+//!    the frames of the motion after the join point (the root's position by a smoothstep
+//!    weight, so its velocity does not jump where the blend ends).
 //! 4. No candidate path: a greedy walk over the cluster medoids (centre frames) from the
 //!    source's cluster to the target's, each step to the nearest medoid that is closer to
 //!    the target than the current one; its two halves are averaged into control poses C1,
@@ -23,7 +24,7 @@ use rand::Rng;
 use crate::kernels::transition_graph::cluster::nearest_centre;
 use crate::kernels::transition_graph::distance::{PoseFeatures, heading_yaw, rotation_vector};
 use crate::kernels::transition_graph::graph::{EdgeClip, TransitionGraph};
-use crate::math::{quat_normalize_or_identity, slerp_short};
+use crate::math::{quat_normalize_or_identity, slerp_short, smoothstep};
 use crate::model::{Clip, ClipError, FrameRange};
 
 /// Settings of transition synthesis.
@@ -191,6 +192,13 @@ fn join(out: &mut Motion, incoming: Frames<'_>, layout: &PoseFeatures, p: &Synth
     let joints = out.joints;
     for k in 0..overlap {
         let beta = (k + 1) as f32 / (overlap + 1) as f32;
+        // The root's position takes a C1 weight: a straight ramp switched it from the blend's
+        // velocity to the incoming's in one frame, a 1.04 m/s jump on walk_punch_kick where
+        // a walk's root, still moving, was blended with a punch standing at the join. The
+        // joints keep the straight ramp: planted feet then move evenly through the window,
+        // slowly enough to stay one plant for the foot clean-up after it (with smoothstep
+        // weights they sped up mid-window, the plant split, and a foot jumped 7.7 cm).
+        let beta_root = smoothstep(f64::from(beta)) as f32;
         let g = (j + k).min(last);
         let (root_rotation, root_position) = placement.root(incoming, g);
         let at = (i + k) * joints;
@@ -201,7 +209,8 @@ fn join(out: &mut Motion, incoming: Frames<'_>, layout: &PoseFeatures, p: &Synth
                 (incoming.rotations[g * joints + joint], incoming.translations[g * joints + joint])
             };
             out.rotations[at + joint] = slerp_short(out.rotations[at + joint], rb, beta);
-            out.translations[at + joint] = out.translations[at + joint].lerp(tb, beta);
+            let weight = if joint == 0 { beta_root } else { beta };
+            out.translations[at + joint] = out.translations[at + joint].lerp(tb, weight);
         }
     }
     append_placed(out, incoming, (j + overlap).min(incoming.frame_count()), &placement);
