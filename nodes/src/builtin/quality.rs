@@ -23,9 +23,10 @@ const SOURCE_SET: Input<Arc<ClipSet>> =
     Input::optional("source_set", "Clips the motion was made from (e.g. a transition graph's clip set).");
 const CONTACTS: Input<Arc<Contacts>> = Input::optional(
     "contacts",
-    "When each foot is down (motion.contacts on this clip); detected with its default thresholds when unconnected. \
-     Those end a plant when the foot moves faster than 0.9 m/s, so a planted foot gliding faster counts as lifted: \
-     connect motion.contacts with a higher leave_speed_mps to catch fast glides.",
+    "When each foot is down (motion.contacts on this clip); when unconnected, detected with motion.contacts' default \
+     thresholds scaled to the clip's legs (heights in proportion, speeds by the square root; the defaults are for a \
+     0.84 m leg). Those end a plant when the foot moves faster than 0.9 m/s (scaled), so a planted foot gliding \
+     faster counts as lifted: connect motion.contacts with a higher leave_speed_mps to catch fast glides.",
 );
 const MESH: Input<Arc<Mesh>> = Input::optional(
     "mesh",
@@ -84,7 +85,8 @@ static MEASURE_QUALITY: NodeSchema = NodeSchema {
     params: &[FLOOR.0, NEIGHBOURHOOD.0, WINDOW_START.0, WINDOW_END.0],
     writes_files: false,
     // 2: stride (step length ÷ leg length, pelvis speed range) and its comparison with the source.
-    version: 2,
+    // 3: contacts detected for the clip's legs.
+    version: 3,
 };
 
 impl Node for MeasureQuality {

@@ -74,6 +74,30 @@ impl Default for ContactThresholds {
     }
 }
 
+/// Leg length (hip to knee to ankle, metres) of the body the default thresholds were set
+/// on: the subject of CMU 02_01, the corpus's reference walk.
+pub const REFERENCE_LEG_M: f64 = 0.8377;
+
+impl ContactThresholds {
+    /// These thresholds for legs `leg_m` long rather than [`REFERENCE_LEG_M`]: heights in
+    /// proportion to the leg, speeds in proportion to its square root (dynamic similarity:
+    /// bodies moving alike, at one Froude number v²/(g·leg), have speeds that scale as
+    /// √leg), the shortest contact unchanged. A leg of no length keeps them as they are.
+    pub fn for_leg(self, leg_m: f64) -> ContactThresholds {
+        if !(leg_m > 0.0 && leg_m.is_finite()) {
+            return self;
+        }
+        let (height, speed) = (leg_m / REFERENCE_LEG_M, (leg_m / REFERENCE_LEG_M).sqrt());
+        ContactThresholds {
+            enter_height_m: self.enter_height_m * height,
+            enter_speed_mps: self.enter_speed_mps * speed,
+            leave_height_m: self.leave_height_m * height,
+            leave_speed_mps: self.leave_speed_mps * speed,
+            min_duration_secs: self.min_duration_secs,
+        }
+    }
+}
+
 /// The height a point rests at: the 10th percentile of its heights over the clip, so that
 /// a few frames of capture noise or a foot poking through the floor do not set it.
 pub fn ground_height(track: &[DVec3]) -> f64 {
@@ -193,6 +217,19 @@ pub fn contacts_with(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn thresholds_scale_heights_with_the_leg_and_speeds_with_its_square_root() {
+        let adult = ContactThresholds::default();
+        // A leg a quarter of the reference: heights × 1/4, speeds × 1/2.
+        let small = adult.for_leg(REFERENCE_LEG_M / 4.0);
+        assert!((small.enter_height_m - 0.0125).abs() < 1e-12 && (small.leave_height_m - 0.02).abs() < 1e-12);
+        assert!((small.enter_speed_mps - 0.25).abs() < 1e-12 && (small.leave_speed_mps - 0.45).abs() < 1e-12);
+        assert_eq!(small.min_duration_secs, adult.min_duration_secs);
+        assert_eq!(adult.for_leg(REFERENCE_LEG_M), adult);
+        assert_eq!(adult.for_leg(0.0), adult);
+        assert_eq!(adult.for_leg(f64::NAN), adult);
+    }
 
     #[test]
     fn hysteresis_keeps_a_noisy_rest_in_one_contact() {

@@ -51,11 +51,11 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-use super::contacts::{ContactThresholds, contacts_of};
+use super::contacts::{ContactThresholds, REFERENCE_LEG_M, contacts_of};
 use super::roles::RolesError;
 use super::skinning::SkinError;
 use super::soles::{foot_joints, lowest_sole_heights};
-use super::stride::{FootPlants, Stride, StrideComparison, compare_stride, measure_stride};
+use super::stride::{FootPlants, Stride, StrideComparison, compare_stride, measure_stride, rest_leg_length_m};
 use crate::model::{Clip, Contacts, FrameRange, Mesh, forward_kinematics};
 
 /// A foot more than this far under the floor (metres) counts as below it: capture noise
@@ -89,6 +89,10 @@ pub struct QualityOptions {
     pub neighbourhood_secs: f64,
     /// Thresholds used when contacts must be detected. Default: the detector's defaults.
     pub contacts: ContactThresholds,
+    /// Whether those thresholds are scaled to the clip's legs
+    /// ([`ContactThresholds::for_leg`]): a small character's foot 5 cm up is as high as an
+    /// adult's 8 cm. Default: on.
+    pub contacts_for_leg: bool,
     /// The seconds looked at, first and last included (rounded to frames); `None` (the
     /// default) looks at the whole clip.
     pub window_secs: Option<(f64, f64)>,
@@ -100,6 +104,7 @@ impl Default for QualityOptions {
             floor_height_m: 0.0,
             neighbourhood_secs: 0.25,
             contacts: ContactThresholds::default(),
+            contacts_for_leg: true,
             window_secs: None,
         }
     }
@@ -275,7 +280,7 @@ impl Tracks {
 }
 
 /// The stride of `clip` (with its `feet`, over `window`) and of `source` (with its tracks,
-/// contacts detected with `options.contacts`, whole), each `None` with a finding saying
+/// contacts detected with `options.contacts` for its legs, whole), each `None` with a finding saying
 /// why when it cannot be measured.
 fn strides(
     clip: &Clip,
@@ -297,7 +302,8 @@ fn strides(
         note("clip", measured)
     });
     let source_stride = source.map(|(source, t)| {
-        let measured = contacts_of(source, &forward_kinematics(source), &options.contacts).and_then(|(contacts, _)| {
+        let thresholds = detection_thresholds(source, options).0;
+        let measured = contacts_of(source, &forward_kinematics(source), &thresholds).and_then(|(contacts, _)| {
             let ankles: Vec<(usize, &[FrameRange])> = contacts
                 .feet
                 .iter()
@@ -541,6 +547,15 @@ fn longest_run(flags: impl Iterator<Item = bool>) -> usize {
     flags.fold((0, 0), |(run, best), x| if x { (run + 1, best.max(run + 1)) } else { (0, best) }).1
 }
 
+/// The thresholds contacts are detected with on `clip`: `options.contacts`, scaled to its
+/// legs when asked and they can be measured; with the leg's ratio to the reference leg.
+fn detection_thresholds(clip: &Clip, options: &QualityOptions) -> (ContactThresholds, f64) {
+    match rest_leg_length_m(clip.skeleton()) {
+        Ok(leg_m) if options.contacts_for_leg => (options.contacts.for_leg(leg_m), leg_m / REFERENCE_LEG_M),
+        _ => (options.contacts, 1.0),
+    }
+}
+
 /// Measures `clip` (see the module doc). `contacts` are used when they describe this clip,
 /// else contacts are detected with `options.contacts`; `sources` are the clips it was made
 /// from (any skeleton, any rate); `mesh`, skinned to the clip's skeleton, adds its soles.
@@ -581,9 +596,17 @@ pub fn measure_quality(
         }
         fits
     });
+    let (thresholds, leg_ratio) = detection_thresholds(clip, options);
+    if given.is_none() && (leg_ratio - 1.0).abs() > 0.05 {
+        findings.push(format!(
+            "contacts detected for legs {leg_ratio:.2} × the reference's: heights × {leg_ratio:.2}, speeds × {:.2} of the \
+             defaults",
+            leg_ratio.sqrt()
+        ));
+    }
     let (contacts_from, feet) = match given {
         Some(c) => ("connected", feet_of(clip, c, window, &mut findings)),
-        None => match contacts_of(clip, &forward_kinematics(clip), &options.contacts) {
+        None => match contacts_of(clip, &forward_kinematics(clip), &thresholds) {
             Ok((c, _)) => ("detected", feet_of(clip, &c, window, &mut findings)),
             Err(why) => {
                 findings.push(format!("the feet could not be found, so they are not measured: {why}"));
