@@ -42,7 +42,7 @@
 
 use std::sync::Arc;
 
-use glam::{DVec3, Quat};
+use glam::{DVec3, Quat, Vec3};
 
 use super::reach::soft_goal;
 use super::rig::{IkRig, RigError};
@@ -244,7 +244,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     let joints = skeleton.joints();
     let mut rig = IkRig::new(skeleton.clone());
     let mut ankles = Vec::new();
-    let mut hips = Vec::new();
+    let mut legs = Vec::new();
     let mut turned = Vec::new();
     for foot in &contacts.feet {
         let ankle = skeleton.index_of(&foot.foot).ok_or_else(|| FootLockError::UnknownFoot(foot.foot.clone()))?;
@@ -257,7 +257,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
         }
         rig.add_effector(ankle);
         ankles.push(ankle);
-        hips.push(hip);
+        legs.push((hip, knee));
     }
     for (name, _) in &params.weights {
         rig.joint(name)?;
@@ -312,12 +312,14 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     // would be out of reach.
     let mut translations = clip.translations().to_vec();
     let on_soles = !matches!(params.ground, Ground::Clip);
+    let mut root_lift = vec![0.0f32; clip.frame_count()];
     if on_soles {
         let root = (0..n).find(|&j| joints[j].parent.is_none()).unwrap_or(0);
         for (f, frame) in translations.chunks_exact_mut(n).enumerate() {
             let shared = lifts.iter().map(|l| l[f]).fold(f64::INFINITY, f64::min);
             if shared.is_finite() {
-                frame[root].y += shared as f32;
+                root_lift[f] = shared as f32;
+                frame[root].y += root_lift[f];
             }
         }
     }
@@ -333,18 +335,17 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     for f in 0..clip.frame_count() {
         let original = before.frame(f);
         let frame_translations = &translations[f * n..(f + 1) * n];
-        // The hips where this frame's solve finds them (the root moved on soles).
-        pose_world(skeleton, clip.frame_rotations(f), frame_translations, &mut world);
-        for (k, &ankle) in ankles.iter().enumerate() {
+        for (k, (&ankle, &(hip, knee))) in ankles.iter().zip(&legs).enumerate() {
             let toe = original[tips[k]].translation.as_dvec3();
             let correction = plants[k].shift(f, toe);
             let lift = lifts[k].get(f).copied().unwrap_or(0.0);
             let wanted = original[ankle].translation.as_dvec3() + correction + DVec3::Y * lift;
-            let knee = joints[ankle].parent.unwrap_or(ankle);
             let leg = f64::from(frame_translations[knee].length() + frame_translations[ankle].length());
-            let eased_from =
-                eased_from(leg, params.soft_reach, original[hips[k]].translation.distance(original[ankle].translation));
-            goals[k] = soft_goal(world[hips[k]].translation.as_dvec3(), wanted, eased_from, leg, DVec3::Y);
+            let (hip_before, ankle_before) = (original[hip].translation, original[ankle].translation);
+            let eased_from = eased_from(leg, params.soft_reach, hip_before.distance(ankle_before));
+            // The hip where this frame's solve finds it: the clip's, moved with the root.
+            let hip_now = (hip_before + Vec3::Y * root_lift[f]).as_dvec3();
+            goals[k] = soft_goal(hip_now, wanted, eased_from, leg, DVec3::Y);
             shortfalls[k].push(wanted.distance(goals[k]));
             foot_in_world[k] = original[ankle].rotation;
         }
