@@ -308,7 +308,9 @@ fn anonymous(clip: &Clip) -> Clip {
 
 /// Issue 18, `motion.contacts` with named feet: on an anonymous IK-style rig (feet under a
 /// ground-level root, names no reader knows) the feet cannot be found, and named ankles and
-/// toes give exactly the contacts found automatically on the original Xbot walking the same walk.
+/// toes give exactly the contacts found automatically on the original Xbot walking the same
+/// walk, with the same thresholds (the rig's legs cannot be read, so they are not scaled to
+/// them: the test sets them as metres for both).
 #[test]
 fn named_feet_find_the_contacts_detection_cannot() {
     use kinegraph_nodes::kernels::contacts::{ContactThresholds, NamedFeet, contacts_of, contacts_with, joint_pair};
@@ -318,7 +320,7 @@ fn named_feet_find_the_contacts_detection_cannot() {
     let rig = game_rig(&rename(&xbot, |n| renamed(game, n)), ["FootL", "FootR"], &["UpperLegL", "UpperLegR"]);
     let (_, _, on_rig) = carry(&walk, rig);
     let lost = anonymous(&on_rig.clip);
-    let t = ContactThresholds::default();
+    let t = ContactThresholds { leg_m: None, ..ContactThresholds::default() };
     let poses = forward_kinematics(&lost);
     let e = contacts_of(&lost, &poses, &t).unwrap_err();
     println!("anonymous IK rig: {e}");
@@ -328,7 +330,9 @@ fn named_feet_find_the_contacts_detection_cannot() {
         ankles: joint_pair(sk, &format!("{}, {}", name("FootL"), name("FootR"))).unwrap(),
         toes: joint_pair(sk, &format!("{} ,{}", name("LeftToe_End"), name("RightToe_End"))).unwrap(),
     };
-    let (got, _) = contacts_with(&lost, &poses, &t, &named).unwrap();
+    let found = contacts_with(&lost, &poses, &ContactThresholds::default(), &named).unwrap();
+    assert_eq!(found.scaled_to_leg_m, None, "no legs to scale to");
+    let got = found.contacts;
     let (want, _) = contacts_of(&original.clip, &forward_kinematics(&original.clip), &t).unwrap();
     assert_eq!(got.double_support, want.double_support);
     for (g, w) in got.feet.iter().zip(&want.feet) {
@@ -357,7 +361,7 @@ fn named_toes_lock_like_the_original() {
     let sk = clip.skeleton();
     let toes = ["mixamorig:LeftToe_End", "mixamorig:RightToe_End"].map(|n| sk.index_of(n).unwrap());
     let named = NamedFeet { ankles: Some(feet), toes: Some(toes) };
-    let (lost_contacts, _) = contacts_with(&lost, &forward_kinematics(&lost), &t, &named).unwrap();
+    let lost_contacts = contacts_with(&lost, &forward_kinematics(&lost), &t, &named).unwrap().contacts;
     let params = FootLockParams { toes: Some(toes.map(|j| format!("b{j:03}"))), ..FootLockParams::default() };
     let got = foot_lock(&lost, &lost_contacts, &params).unwrap();
     let (a, b) = (forward_kinematics(&want.clip), forward_kinematics(&got.clip));

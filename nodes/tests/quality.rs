@@ -539,3 +539,26 @@ fn on_a_cmu_walk_the_stride_matches_one_measured_another_way() {
     assert!(r.summary.step_over_leg_change_pct.unwrap() < 2.0, "{against:?}");
     assert!(r.summary.pelvis_speed_outside_source_pct.unwrap() < 1.0, "{against:?}");
 }
+
+#[test]
+fn a_rigs_fingers_are_left_out_when_it_is_compared_with_its_sources() {
+    use kinegraph_nodes::formats::gltf::{GltfReadOptions, read_gltf_file};
+    use kinegraph_nodes::kernels::quality::body_joints;
+    let Some(data) = shared_data() else { return };
+    // The body is read from the shape; checked here by the joints' names instead: Mixamo's
+    // fingers are `mixamorig:{Left,Right}Hand{Thumb,Index,Middle,Ring,Pinky}{1..4}`, CMU's
+    // `*FingerBase`, `*HandIndex1`, `LThumb`/`RThumb` and the end sites below them.
+    let xbot = read_gltf_file(&data.join("gltf/Xbot.glb"), &GltfReadOptions::default()).unwrap().value;
+    let cmu = load_clip(&data.join("bvh/cmu/02_01.bvh"), ClipLoadOptions::default()).unwrap().value;
+    let finger_words = ["Thumb", "Index", "Middle", "Ring", "Pinky", "Finger"];
+    for skeleton in [xbot.clips[0].clip.skeleton(), cmu.skeleton()] {
+        let (body, unread) = body_joints(skeleton);
+        assert!(unread.is_none(), "{unread:?}");
+        let fingers = skeleton.joints().iter().filter(|j| finger_words.iter().any(|w| j.name.contains(w))).count();
+        assert!(fingers >= 4, "{fingers}");
+        for (joint, &in_body) in skeleton.joints().iter().zip(&body) {
+            let finger = finger_words.iter().any(|w| joint.name.contains(w));
+            assert_eq!(in_body, !finger, "{}", joint.name);
+        }
+    }
+}

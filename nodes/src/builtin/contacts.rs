@@ -2,9 +2,11 @@
 
 use std::sync::Arc;
 
-use crate::kernels::contacts::{ContactThresholds, NamedFeet, contacts_with, joint_pair};
+use crate::kernels::contacts::{ContactThresholds, NamedFeet, REFERENCE_LEG_M, contacts_with, joint_pair};
 use crate::model::{Clip, Contacts, forward_kinematics};
-use crate::node::{FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, Output, Registry, TextParam};
+use crate::node::{
+    ChoiceParam, FloatParam, Input, Node, NodeContext, NodeError, NodeSchema, OnOff, Output, Registry, TextParam,
+};
 
 /// Registers the contact node.
 pub fn register(registry: &mut Registry) {
@@ -31,6 +33,15 @@ const LEAVE_SPEED: FloatParam =
 const MIN_DURATION: FloatParam =
     FloatParam::new("min_duration_secs", "Shorter contacts are ignored.", 0.05, 0.0, 10.0, "s");
 
+const SCALE_TO_LEGS: ChoiceParam<OnOff> = ChoiceParam::new(
+    "scale_to_legs",
+    "The heights and speeds above are for a 0.84 m leg (hip to knee to ankle, an adult's) and are scaled to the clip's \
+     legs, heights and speeds in proportion (a motion carried onto a smaller body keeps its timing, so its feet move \
+     less far as fast). 'off' uses them as metres and m/s on any body. A rig whose legs cannot be read keeps them as \
+     they are (with a warning).",
+    "on",
+);
+
 const FEET: TextParam = TextParam::new(
     "feet",
     "The ankle joints, left then right, comma separated (e.g. 'FootL, FootR'), when the feet are not found by name or shape. Empty: found from the body.",
@@ -50,6 +61,7 @@ fn thresholds_from(ctx: &NodeContext<'_>) -> Result<ContactThresholds, NodeError
         leave_height_m: ctx.float(&LEAVE_HEIGHT)?,
         leave_speed_mps: ctx.float(&LEAVE_SPEED)?,
         min_duration_secs: ctx.float(&MIN_DURATION)?,
+        leg_m: (ctx.choice(&SCALE_TO_LEGS)? == OnOff::On).then_some(REFERENCE_LEG_M),
     };
     if t.leave_height_m < t.enter_height_m {
         return Err(NodeError::param("leave_height_m", "must not be below enter_height_m"));
@@ -69,9 +81,18 @@ static DETECT_CONTACTS: NodeSchema = NodeSchema {
     doc: "Finds when each foot is planted (low and slow, with hysteresis) and the double-support frames.",
     inputs: &[CLIP.spec()],
     outputs: &[CONTACTS.spec()],
-    params: &[ENTER_HEIGHT.0, LEAVE_HEIGHT.0, ENTER_SPEED.0, LEAVE_SPEED.0, MIN_DURATION.0, FEET.0, TOES.0],
+    params: &[
+        ENTER_HEIGHT.0,
+        LEAVE_HEIGHT.0,
+        ENTER_SPEED.0,
+        LEAVE_SPEED.0,
+        MIN_DURATION.0,
+        SCALE_TO_LEGS.0,
+        FEET.0,
+        TOES.0,
+    ],
     writes_files: false,
-    version: 1,
+    version: 2,
 };
 
 impl Node for DetectContacts {
@@ -86,9 +107,15 @@ impl Node for DetectContacts {
             ankles: joint_pair(skeleton, ctx.text_param(&FEET)?).map_err(|e| NodeError::param("feet", e))?,
             toes: joint_pair(skeleton, ctx.text_param(&TOES)?).map_err(|e| NodeError::param("toes", e))?,
         };
-        let (contacts, _) = contacts_with(&clip, &forward_kinematics(&clip), &thresholds, &named)
+        let found = contacts_with(&clip, &forward_kinematics(&clip), &thresholds, &named)
             .map_err(|why| NodeError::input("clip", format!("the feet could not be found: {why}")))?;
-        ctx.set_output(&CONTACTS, Arc::new(contacts));
+        if thresholds.leg_m.is_some() && found.scaled_to_leg_m.is_none() {
+            ctx.warn(
+                "the legs could not be read from the body, so the thresholds are not scaled to them: they are used as \
+                 metres and m/s (set for a 0.84 m leg)",
+            );
+        }
+        ctx.set_output(&CONTACTS, Arc::new(found.contacts));
         Ok(())
     }
 }

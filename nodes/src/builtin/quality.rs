@@ -24,8 +24,8 @@ const SOURCE_SET: Input<Arc<ClipSet>> =
 const CONTACTS: Input<Arc<Contacts>> = Input::optional(
     "contacts",
     "When each foot is down (motion.contacts on this clip); when unconnected, detected with motion.contacts' default \
-     thresholds scaled to the clip's legs (heights in proportion, speeds by the square root; the defaults are for a \
-     0.84 m leg). Those end a plant when the foot moves faster than 0.9 m/s (scaled), so a planted foot gliding \
+     thresholds scaled to the clip's legs (heights and speeds in proportion; the defaults are for a 0.84 m \
+     leg). Those end a plant when the foot moves faster than 0.9 m/s (scaled), so a planted foot gliding \
      faster counts as lifted: connect motion.contacts with a higher leave_speed_mps to catch fast glides.",
 );
 const MESH: Input<Arc<Mesh>> = Input::optional(

@@ -3,7 +3,10 @@
 //! A foot is in contact while its ankle or its toe tip is near the height that point rests
 //! at in the clip and moves slowly. Thresholds have hysteresis (stricter to enter than
 //! to stay), so a foot that rests does not flicker in and out of contact on capture noise.
-//! The rest height is taken per point from the clip itself: flat ground, any rig.
+//! The rest height is taken per point from the clip itself: flat ground, any rig. The
+//! thresholds are set for a leg of [`REFERENCE_LEG_M`] and scaled to the legs of the clip
+//! watched ([`ContactThresholds::for_leg`]), so a child-sized character's lift-off is not
+//! taken for a plant nor a giant's plant for a lift-off.
 //!
 //! A kernel: the `motion.contacts` node, the clip analysis, foot locking and the editor's
 //! viewport all detect contacts with it.
@@ -12,7 +15,7 @@ use glam::DVec3;
 
 use super::angular::central_difference;
 use super::body::{Landmarks, limb_tip};
-use super::roles::{RolesError, roles_of};
+use super::roles::{RolesError, mean_limb_length_m, roles_of};
 use crate::model::names::did_you_mean;
 use crate::model::{
     Clip, ClipPoses, Contacts, FootContacts, FrameRange, Skeleton, intervals::intersect_all, intervals::union_all,
@@ -47,7 +50,8 @@ pub fn joint_pair(skeleton: &Skeleton, text: &str) -> Result<Option<[usize; 2]>,
     Ok(Some([find(left)?, find(right)?]))
 }
 
-/// Thresholds of contact detection (metres above the point's rest height, m/s).
+/// Thresholds of contact detection (metres above the point's rest height, m/s), for legs
+/// [`leg_m`](Self::leg_m) long.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ContactThresholds {
     /// A point enters contact below this height…
@@ -60,6 +64,10 @@ pub struct ContactThresholds {
     pub leave_speed_mps: f64,
     /// Contacts shorter than this are dropped (seconds).
     pub min_duration_secs: f64,
+    /// The leg length (hip to knee to ankle, metres) the heights and speeds are set for:
+    /// detection scales them to the legs of the clip it watches. `None`: they are used as
+    /// they are on any body.
+    pub leg_m: Option<f64>,
 }
 
 impl Default for ContactThresholds {
@@ -70,6 +78,7 @@ impl Default for ContactThresholds {
             leave_height_m: 0.08,
             leave_speed_mps: 0.9,
             min_duration_secs: 0.05,
+            leg_m: Some(REFERENCE_LEG_M),
         }
     }
 }
@@ -79,21 +88,26 @@ impl Default for ContactThresholds {
 pub const REFERENCE_LEG_M: f64 = 0.8377;
 
 impl ContactThresholds {
-    /// These thresholds for legs `leg_m` long rather than [`REFERENCE_LEG_M`]: heights in
-    /// proportion to the leg, speeds in proportion to its square root (dynamic similarity:
-    /// bodies moving alike, at one Froude number v²/(g·leg), have speeds that scale as
-    /// √leg), the shortest contact unchanged. A leg of no length keeps them as they are.
+    /// These thresholds for legs `leg_m` long rather than [`Self::leg_m`]: heights and
+    /// speeds in proportion to the leg, the shortest contact unchanged; the result is for
+    /// that leg. A motion carried onto another body keeps its timing, so its feet move in
+    /// proportion to the body's size: scaled so, the thresholds find the plants the source
+    /// had (speeds by the square root, as dynamic similarity would have for bodies moving
+    /// alike at their own pace, missed a half-size copy's by 24 of 686 foot-frames on CMU
+    /// 02_01). Thresholds for any body (`leg_m: None`) and a leg of no length keep them.
     pub fn for_leg(self, leg_m: f64) -> ContactThresholds {
-        if !(leg_m > 0.0 && leg_m.is_finite()) {
+        let Some(set_for) = self.leg_m else { return self };
+        if !(leg_m > 0.0 && leg_m.is_finite() && set_for > 0.0) {
             return self;
         }
-        let (height, speed) = (leg_m / REFERENCE_LEG_M, (leg_m / REFERENCE_LEG_M).sqrt());
+        let ratio = leg_m / set_for;
         ContactThresholds {
-            enter_height_m: self.enter_height_m * height,
-            enter_speed_mps: self.enter_speed_mps * speed,
-            leave_height_m: self.leave_height_m * height,
-            leave_speed_mps: self.leave_speed_mps * speed,
+            enter_height_m: self.enter_height_m * ratio,
+            enter_speed_mps: self.enter_speed_mps * ratio,
+            leave_height_m: self.leave_height_m * ratio,
+            leave_speed_mps: self.leave_speed_mps * ratio,
             min_duration_secs: self.min_duration_secs,
+            leg_m: Some(leg_m),
         }
     }
 }
@@ -137,7 +151,17 @@ pub fn detect_contacts(
     landmarks: &Landmarks,
     thresholds: &ContactThresholds,
 ) -> Contacts {
-    feet_contacts(clip, poses, landmarks.feet(), None, thresholds)
+    let legs = landmarks.limbs.map(|l| [l[0], l[1], l[2]]);
+    feet_contacts(clip, poses, landmarks.feet(), None, &thresholds.for_leg(first_frame_leg_m(poses, legs)))
+}
+
+/// Mean leg length (m) of the body in the first of `poses`, hip, knee and ankle joints
+/// given per leg; legs are rigid, so any frame gives it. 0 without frames.
+fn first_frame_leg_m(poses: &ClipPoses, legs: [[usize; 3]; 2]) -> f64 {
+    if poses.frame_count() == 0 {
+        return 0.0;
+    }
+    f64::from(mean_limb_length_m(legs, |j| poses.position(0, j)))
 }
 
 /// Contacts of the two ankle joints `feet` (left, right) of `clip`, each watched with its
@@ -175,22 +199,33 @@ fn feet_contacts(
 /// Contacts of both feet of `clip` with the feet's joint indices (left, right). The feet
 /// are the body roles' ankles ([`roles_of`]: by joint name, or else from the body's shape
 /// in the first frame, e.g. a glTF character with generic joint names); otherwise why they
-/// could not be found.
+/// could not be found. Thresholds set for a leg are scaled to the body's legs.
 pub fn contacts_of(
     clip: &Clip,
     poses: &ClipPoses,
     thresholds: &ContactThresholds,
 ) -> Result<(Contacts, [usize; 2]), RolesError> {
-    let first: Vec<glam::Vec3> =
-        if poses.frame_count() > 0 { poses.frame(0).iter().map(|t| t.translation).collect() } else { Vec::new() };
-    let feet = roles_of(clip.skeleton(), &first)?.legs.map(|l| l.joints()[2]);
-    Ok((feet_contacts(clip, poses, feet, None, thresholds), feet))
+    contacts_with(clip, poses, thresholds, &NamedFeet::default())
+        .map(|found| (found.contacts, found.feet))
+        .map_err(|UnnamedFeet(why)| why)
 }
 
 /// The body's feet could not be found and the user named none ([`contacts_with`]).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("{0}; name them with the feet param (e.g. 'LeftFoot, RightFoot')")]
 pub struct UnnamedFeet(#[source] pub RolesError);
+
+/// Contacts found by [`contacts_with`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct FoundContacts {
+    /// The contacts of both feet.
+    pub contacts: Contacts,
+    /// The ankle joints watched, left then right.
+    pub feet: [usize; 2],
+    /// The legs' length the thresholds were scaled to (metres); `None` when the body's legs
+    /// could not be read (named feet on an unusual rig) and the thresholds were used as set.
+    pub scaled_to_leg_m: Option<f64>,
+}
 
 /// [`contacts_of`] with feet named by the user: named ankles replace the body's, named toes
 /// the joints farthest below the ankles.
@@ -199,19 +234,23 @@ pub fn contacts_with(
     poses: &ClipPoses,
     thresholds: &ContactThresholds,
     named: &NamedFeet,
-) -> Result<(Contacts, [usize; 2]), UnnamedFeet> {
-    let feet = match named.ankles {
-        Some(feet) => feet,
-        None => {
-            let first: Vec<glam::Vec3> = if poses.frame_count() > 0 {
-                poses.frame(0).iter().map(|t| t.translation).collect()
-            } else {
-                Vec::new()
-            };
-            roles_of(clip.skeleton(), &first).map_err(UnnamedFeet)?.legs.map(|l| l.joints()[2])
-        }
+) -> Result<FoundContacts, UnnamedFeet> {
+    let first: Vec<glam::Vec3> =
+        if poses.frame_count() > 0 { poses.frame(0).iter().map(|t| t.translation).collect() } else { Vec::new() };
+    let legs = roles_of(clip.skeleton(), &first).map(|roles| roles.legs.map(|l| l.joints()));
+    let feet = match (named.ankles, &legs) {
+        (Some(feet), _) => feet,
+        (None, Ok(legs)) => legs.map(|l| l[2]),
+        (None, Err(why)) => return Err(UnnamedFeet(why.clone())),
     };
-    Ok((feet_contacts(clip, poses, feet, named.toes, thresholds), feet))
+    // Legs read from the body scale the thresholds; a rig whose body cannot be read keeps them.
+    let leg_m = legs.ok().map(|legs| first_frame_leg_m(poses, legs));
+    let scaled = leg_m.map_or(*thresholds, |leg_m| thresholds.for_leg(leg_m));
+    Ok(FoundContacts {
+        contacts: feet_contacts(clip, poses, feet, named.toes, &scaled),
+        feet,
+        scaled_to_leg_m: leg_m.filter(|_| thresholds.leg_m.is_some()),
+    })
 }
 
 #[cfg(test)]
@@ -219,16 +258,23 @@ mod tests {
     use super::*;
 
     #[test]
-    fn thresholds_scale_heights_with_the_leg_and_speeds_with_its_square_root() {
+    fn thresholds_scale_heights_and_speeds_with_the_leg() {
         let adult = ContactThresholds::default();
-        // A leg a quarter of the reference: heights × 1/4, speeds × 1/2.
+        // A leg a quarter of the reference: heights and speeds × 1/4.
         let small = adult.for_leg(REFERENCE_LEG_M / 4.0);
         assert!((small.enter_height_m - 0.0125).abs() < 1e-12 && (small.leave_height_m - 0.02).abs() < 1e-12);
-        assert!((small.enter_speed_mps - 0.25).abs() < 1e-12 && (small.leave_speed_mps - 0.45).abs() < 1e-12);
+        assert!((small.enter_speed_mps - 0.125).abs() < 1e-12 && (small.leave_speed_mps - 0.225).abs() < 1e-12);
         assert_eq!(small.min_duration_secs, adult.min_duration_secs);
         assert_eq!(adult.for_leg(REFERENCE_LEG_M), adult);
         assert_eq!(adult.for_leg(0.0), adult);
         assert_eq!(adult.for_leg(f64::NAN), adult);
+        // The result is for the new leg: scaling on from it is scaling from the reference.
+        assert_eq!(small.leg_m, Some(REFERENCE_LEG_M / 4.0));
+        let twice = small.for_leg(REFERENCE_LEG_M);
+        assert!((twice.enter_height_m - 0.05).abs() < 1e-12 && (twice.leave_speed_mps - 0.9).abs() < 1e-12);
+        // Thresholds for any body are not scaled.
+        let absolute = ContactThresholds { leg_m: None, ..adult };
+        assert_eq!(absolute.for_leg(REFERENCE_LEG_M / 4.0), absolute);
     }
 
     #[test]

@@ -25,7 +25,9 @@
 //!    A in the frames 3 to w away (w = `neighbourhood_secs` · fps, at least 6), the median
 //!    taken as at least [`QUIET_ACCELERATION_MPS2`] so a still clip has no spikes of
 //!    noise; the report gives the largest ratio. With source clips, the clip's peak A over
-//!    the largest peak of the sources.
+//!    the largest peak of the sources, both over the body's joints ([`body_joints`]: all
+//!    but the fingers, which a game rig has and a capture mostly lacks, and whose tips
+//!    swing fastest), so a rig is compared with its source joint for joint.
 //! 5. Root velocity change: |p(f+1) − 2 p(f) + p(f−1)| · fps of the root joint's world
 //!    position (m/s): the one-frame change of the root's velocity; with source clips, over
 //!    the sources' largest.
@@ -51,12 +53,12 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-use super::contacts::{ContactThresholds, REFERENCE_LEG_M, contacts_of};
-use super::roles::RolesError;
+use super::contacts::{ContactThresholds, contacts_of};
+use super::roles::{RolesError, rest_roles};
 use super::skinning::SkinError;
 use super::soles::{foot_joints, lowest_sole_heights};
 use super::stride::{FootPlants, Stride, StrideComparison, compare_stride, measure_stride, rest_leg_length_m};
-use crate::model::{Clip, Contacts, FrameRange, Mesh, forward_kinematics};
+use crate::model::{Clip, Contacts, FrameRange, Mesh, Skeleton, forward_kinematics};
 
 /// A foot more than this far under the floor (metres) counts as below it: capture noise
 /// of a millimetre is not a fault.
@@ -87,12 +89,9 @@ pub struct QualityOptions {
     pub floor_height_m: f64,
     /// Half-width of the neighbourhood a spike is compared with, seconds. Default 0.25.
     pub neighbourhood_secs: f64,
-    /// Thresholds used when contacts must be detected. Default: the detector's defaults.
+    /// Thresholds used when contacts must be detected (scaled to the clip's legs when set
+    /// for a leg). Default: the detector's defaults.
     pub contacts: ContactThresholds,
-    /// Whether those thresholds are scaled to the clip's legs
-    /// ([`ContactThresholds::for_leg`]): a small character's foot 5 cm up is as high as an
-    /// adult's 8 cm. Default: on.
-    pub contacts_for_leg: bool,
     /// The seconds looked at, first and last included (rounded to frames); `None` (the
     /// default) looks at the whole clip.
     pub window_secs: Option<(f64, f64)>,
@@ -104,7 +103,6 @@ impl Default for QualityOptions {
             floor_height_m: 0.0,
             neighbourhood_secs: 0.25,
             contacts: ContactThresholds::default(),
-            contacts_for_leg: true,
             window_secs: None,
         }
     }
@@ -130,7 +128,8 @@ pub struct QualitySummary {
     pub acceleration_peak_mps2: Option<f64>,
     /// Largest acceleration spike over its neighbourhood (dimensionless).
     pub acceleration_spike_ratio: Option<f64>,
-    /// Peak acceleration over the sources' peak (dimensionless).
+    /// Peak acceleration of the body's joints (fingers excluded) over the sources' peak of
+    /// theirs (dimensionless).
     pub acceleration_over_sources: Option<f64>,
     /// Largest one-frame change of the root's velocity, m/s.
     pub root_velocity_change_max_mps: Option<f64>,
@@ -209,7 +208,10 @@ pub struct QualityReport {
     pub acceleration_peak_at: Option<(usize, String)>,
     /// Frame of the largest spike ratio.
     pub acceleration_spike_frame: Option<usize>,
-    /// The sources' largest acceleration, m/s².
+    /// Frame and joint of the peak acceleration of the body's joints, the one compared
+    /// with the sources.
+    pub body_acceleration_peak_at: Option<(usize, String)>,
+    /// The sources' largest acceleration of their body's joints, m/s².
     pub sources_acceleration_peak_mps2: Option<f64>,
     /// Frame of the largest root velocity change.
     pub root_velocity_change_frame: Option<usize>,
@@ -258,12 +260,14 @@ impl Tracks {
         1..self.frames.saturating_sub(1)
     }
 
-    /// Per interior frame, the largest joint acceleration (m/s²) and its joint.
-    fn peak_accelerations(&self) -> Vec<(f64, usize)> {
+    /// Per interior frame, the largest acceleration (m/s²) of the joints `among` lets in,
+    /// and its joint.
+    fn peak_accelerations(&self, among: &[bool]) -> Vec<(f64, usize)> {
         let fps2 = self.fps * self.fps;
         self.interior()
             .map(|f| {
                 (0..self.joints)
+                    .filter(|&j| among.get(j).copied().unwrap_or(true))
                     .map(|j| (self.second_difference(f, j).length() * fps2, j))
                     .fold((0.0, 0), |best, x| if x.0 > best.0 { x } else { best })
             })
@@ -302,8 +306,7 @@ fn strides(
         note("clip", measured)
     });
     let source_stride = source.map(|(source, t)| {
-        let thresholds = detection_thresholds(source, options).0;
-        let measured = contacts_of(source, &forward_kinematics(source), &thresholds).and_then(|(contacts, _)| {
+        let measured = contacts_of(source, &forward_kinematics(source), &options.contacts).and_then(|(contacts, _)| {
             let ankles: Vec<(usize, &[FrameRange])> = contacts
                 .feet
                 .iter()
@@ -547,12 +550,23 @@ fn longest_run(flags: impl Iterator<Item = bool>) -> usize {
     flags.fold((0, 0), |(run, best), x| if x { (run + 1, best.max(run + 1)) } else { (0, best) }).1
 }
 
-/// The thresholds contacts are detected with on `clip`: `options.contacts`, scaled to its
-/// legs when asked and they can be measured; with the leg's ratio to the reference leg.
-fn detection_thresholds(clip: &Clip, options: &QualityOptions) -> (ContactThresholds, f64) {
-    match rest_leg_length_m(clip.skeleton()) {
-        Ok(leg_m) if options.contacts_for_leg => (options.contacts.for_leg(leg_m), leg_m / REFERENCE_LEG_M),
-        _ => (options.contacts, 1.0),
+/// The clip's rest leg over the leg `options.contacts` are set for, when both are known:
+/// the factor detection scales their heights by.
+fn detection_leg_ratio(clip: &Clip, options: &QualityOptions) -> Option<f64> {
+    let set_for = options.contacts.leg_m?;
+    rest_leg_length_m(clip.skeleton()).ok().map(|leg_m| leg_m / set_for)
+}
+
+/// Per joint of `skeleton`, whether it belongs to the body every humanoid rig shares: all
+/// joints but those below the wrists (the body roles' arm end joints). Every joint when the
+/// roles cannot be read, with the reason.
+pub fn body_joints(skeleton: &Skeleton) -> (Vec<bool>, Option<RolesError>) {
+    match rest_roles(skeleton) {
+        Ok(roles) => {
+            let wrists = roles.arms.each_ref().map(|arm| arm.joints()[2]);
+            ((0..skeleton.len()).map(|j| !wrists.iter().any(|&w| skeleton.is_ancestor(w, j))).collect(), None)
+        }
+        Err(why) => (vec![true; skeleton.len()], Some(why)),
     }
 }
 
@@ -596,17 +610,16 @@ pub fn measure_quality(
         }
         fits
     });
-    let (thresholds, leg_ratio) = detection_thresholds(clip, options);
+    let leg_ratio = detection_leg_ratio(clip, options).unwrap_or(1.0);
     if given.is_none() && (leg_ratio - 1.0).abs() > 0.05 {
         findings.push(format!(
-            "contacts detected for legs {leg_ratio:.2} × the reference's: heights × {leg_ratio:.2}, speeds × {:.2} of the \
-             defaults",
-            leg_ratio.sqrt()
+            "contacts detected for legs {leg_ratio:.2} × the reference's: heights and speeds × {leg_ratio:.2} of the \
+             defaults"
         ));
     }
     let (contacts_from, feet) = match given {
         Some(c) => ("connected", feet_of(clip, c, window, &mut findings)),
-        None => match contacts_of(clip, &forward_kinematics(clip), &thresholds) {
+        None => match contacts_of(clip, &forward_kinematics(clip), &options.contacts) {
             Ok((c, _)) => ("detected", feet_of(clip, &c, window, &mut findings)),
             Err(why) => {
                 findings.push(format!("the feet could not be found, so they are not measured: {why}"));
@@ -640,15 +653,28 @@ pub fn measure_quality(
     }
 
     // Accelerations and the root, against the sources' own.
-    let peaks = tracks.peak_accelerations();
+    let peaks = tracks.peak_accelerations(&[]);
     let peak_values: Vec<f64> = peaks.iter().map(|p| p.0).collect();
     let peak = max_in_window(&peak_values, window);
     let half_width = ((options.neighbourhood_secs * clip.fps()).round() as usize).max(2 * SPIKE_EXCLUSION_FRAMES);
     let spike = max_in_window(&spike_ratios(&peak_values, half_width), window);
     let root = max_in_window(&tracks.root_velocity_changes(), window);
     let source_tracks: Vec<Tracks> = sources.iter().map(|s| Tracks::of(s)).collect();
-    let sources_peak =
-        source_tracks.iter().flat_map(|t| t.peak_accelerations().into_iter().map(|p| p.0)).reduce(f64::max);
+    let mut body = |clip: &Clip| {
+        let (joints, unread) = body_joints(clip.skeleton());
+        if let (Some(why), false) = (unread, sources.is_empty()) {
+            findings.push(format!("the fingers could not be told from the body, so all joints are compared: {why}"));
+        }
+        joints
+    };
+    let body_peaks = if sources.is_empty() { Vec::new() } else { tracks.peak_accelerations(&body(clip)) };
+    let body_values: Vec<f64> = body_peaks.iter().map(|p| p.0).collect();
+    let body_peak = max_in_window(&body_values, window);
+    let sources_peak = sources
+        .iter()
+        .zip(&source_tracks)
+        .flat_map(|(s, t)| t.peak_accelerations(&body(s)).into_iter().map(|p| p.0))
+        .reduce(f64::max);
     let sources_root = source_tracks.iter().flat_map(|t| t.root_velocity_changes()).reduce(f64::max);
     if !sources.is_empty() && sources_peak.is_none() {
         findings.push("the source clips have fewer than three frames: nothing to compare with".into());
@@ -686,7 +712,7 @@ pub fn measure_quality(
         float_in_contact_max_cm: worst_foot(|f| f.float_in_contact_max_cm),
         acceleration_peak_mps2: peak.map(|p| p.0),
         acceleration_spike_ratio: spike.map(|s| s.0),
-        acceleration_over_sources: ratio(peak.map(|p| p.0), sources_peak),
+        acceleration_over_sources: ratio(body_peak.map(|p| p.0), sources_peak),
         root_velocity_change_max_mps: root.map(|r| r.0),
         root_velocity_change_over_sources: ratio(root.map(|r| r.0), sources_root),
         bone_length_drift_max_cm: drift.map(|d| d.0 * 100.0),
@@ -706,6 +732,7 @@ pub fn measure_quality(
         feet: feet_quality,
         longest_below_floor_secs: longest_below_secs,
         acceleration_peak_at: peak.map(|(_, f)| (f, joint_name(peaks[f - 1].1))),
+        body_acceleration_peak_at: body_peak.map(|(_, f)| (f, joint_name(body_peaks[f - 1].1))),
         acceleration_spike_frame: spike.map(|s| s.1),
         sources_acceleration_peak_mps2: sources_peak,
         root_velocity_change_frame: root.map(|r| r.1),

@@ -27,6 +27,7 @@ use glam::Vec3;
 
 use crate::kernels::body::{Landmarks, find_landmarks_detached, found_by_name, limb_tip};
 use crate::model::Skeleton;
+use crate::model::fk::rest_world;
 
 /// One leg or arm: its joints from the spine (or pelvis) out to its tip.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -63,12 +64,24 @@ pub struct BodyRoles {
 impl BodyRoles {
     /// Mean leg length, hip to knee to ankle (metres), with joint `j` at `position(j)`.
     pub fn leg_length_m(&self, position: impl Fn(usize) -> Vec3) -> f32 {
-        let leg = |l: &Limb| {
-            let [a, b, c] = l.joints().map(&position);
-            a.distance(b) + b.distance(c)
-        };
-        0.5 * (leg(&self.legs[0]) + leg(&self.legs[1]))
+        mean_limb_length_m(self.legs.each_ref().map(Limb::joints), position)
     }
+}
+
+/// The body roles read from `skeleton`'s rest pose.
+pub fn rest_roles(skeleton: &Skeleton) -> Result<BodyRoles, RolesError> {
+    let rest: Vec<Vec3> = rest_world(skeleton).iter().map(|t| t.translation).collect();
+    roles_of(skeleton, &rest)
+}
+
+/// Mean length of two limbs given as their upper, lower and end joints (e.g. hip, knee
+/// and ankle), joint `j` at `position(j)`.
+pub fn mean_limb_length_m(limbs: [[usize; 3]; 2], position: impl Fn(usize) -> Vec3) -> f32 {
+    let length = |[a, b, c]: [usize; 3]| {
+        let [a, b, c] = [a, b, c].map(&position);
+        a.distance(b) + b.distance(c)
+    };
+    0.5 * (length(limbs[0]) + length(limbs[1]))
 }
 
 /// Why the body roles could not be read from a skeleton's shape.

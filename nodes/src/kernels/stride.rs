@@ -3,7 +3,7 @@
 //! size (a longer-legged character should step further and travel faster in proportion).
 //!
 //! - Leg length: hip to knee to ankle in the skeleton's rest pose, the mean of both legs
-//!   (metres), the legs read by [`roles_of`].
+//!   (metres), the legs read by [`rest_roles`].
 //! - Plant: one contact of a foot; its position is the ankle's horizontal position at the
 //!   contact's middle frame (a rolling foot's ankle moves a little along a plant; the middle
 //!   is its typical place).
@@ -21,7 +21,7 @@
 use glam::DVec3;
 use serde::Serialize;
 
-use super::roles::{BodyRoles, RolesError, roles_of};
+use super::roles::{BodyRoles, RolesError, rest_roles};
 use crate::model::fk::rest_world;
 use crate::model::{FrameRange, Skeleton};
 
@@ -117,9 +117,9 @@ pub fn rest_leg_length_m(skeleton: &Skeleton) -> Result<f64, RolesError> {
 
 /// The rest-pose leg length (metres) and the body roles it was read from.
 fn rest_legs(skeleton: &Skeleton) -> Result<(f64, BodyRoles), RolesError> {
-    let rest: Vec<glam::Vec3> = rest_world(skeleton).iter().map(|t| t.translation).collect();
-    let roles = roles_of(skeleton, &rest)?;
-    Ok((f64::from(roles.leg_length_m(|j| rest[j])), roles))
+    let roles = rest_roles(skeleton)?;
+    let rest = rest_world(skeleton);
+    Ok((f64::from(roles.leg_length_m(|j| rest[j].translation)), roles))
 }
 
 /// The `p`th percentile (0–100) of ascending `sorted` values, linearly interpolated between
