@@ -19,7 +19,8 @@
 //!    the clip: the whole foot, toes included, moves by exactly `c`.
 //!
 //! The root and every joint outside the legs are left untouched (but for the root's height
-//! on soles, below), so the body's path is the clip's; a plant out of the leg's reach is met as closely as the leg allows and counted.
+//! on soles, below), so the body's path is the clip's; a plant out of the leg's reach is met as
+//! closely as the leg allows (eased short with a soft reach, counted in the report).
 //!
 //! Ground ([`Ground`]): by default heights are the clip's. On the soles of a skinned mesh
 //! ([`Ground::Soles`]) each foot also moves up or down by `d(f)` so that each plant stands
@@ -87,7 +88,9 @@ impl Default for FootLockParams {
             solve: SolveParams::default(),
             toes: None,
             ground: Ground::Clip,
-            soft_reach: 0.02,
+            // 3 % of the leg: at 2 % CesiumMan's straight knee at a run's toe-off still
+            // jumped (449 m/s² where the clip has 213); at 3 % it follows the clip.
+            soft_reach: 0.03,
         }
     }
 }
