@@ -144,3 +144,47 @@ fn z_up_files_are_flagged_and_converted_on_request() {
     let cmu = load_clip(&data.join("bvh/cmu/02_02.bvh"), ClipLoadOptions::default()).unwrap();
     assert!(!cmu.warnings.iter().any(|w| w.contains("Z-up")));
 }
+
+/// Every frame value of every corpus file, parsed independently (rows split on whitespace,
+/// each token by std's correctly rounded `str::parse::<f32>`, rotations composed by
+/// `math::euler::compose` in written order), gives the reader's clip bit for bit: a faster
+/// reader must not move a single value.
+#[test]
+fn every_frame_value_matches_an_independent_parse_bit_for_bit() {
+    use kinegraph_nodes::math::euler::compose;
+    use kinegraph_nodes::model::{Channel, Clip};
+    let Some(data) = shared_data() else { return };
+    for path in files_with_extension(&data.join("bvh"), "bvh") {
+        let clip = load(&path);
+        let text = String::from_utf8_lossy(&std::fs::read(&path).unwrap()).into_owned();
+        let rows = text.lines().skip_while(|l| !l.trim_start().starts_with("Frame Time:")).skip(1);
+        let skeleton = clip.skeleton().clone();
+        let scale = clip.import_scale.metres_per_unit as f32;
+        let (mut rotations, mut translations) = (Vec::new(), Vec::new());
+        for row in rows.filter(|r| !r.trim().is_empty()).take(clip.frame_count()) {
+            let values: Vec<f32> = row.split_whitespace().map(|t| t.parse().unwrap()).collect();
+            let mut next = values.iter();
+            for joint in skeleton.joints() {
+                let (mut axes, mut angles, mut translation) = (Vec::new(), Vec::new(), joint.rest_offset);
+                for (channel, &v) in joint.channels.iter().zip(next.by_ref()) {
+                    match channel {
+                        Channel::Position(axis) => translation[axis.index()] = v * scale,
+                        Channel::Rotation(axis) => {
+                            axes.push(*axis);
+                            angles.push(v.to_radians());
+                        }
+                    }
+                }
+                rotations.push(compose(&axes, &angles));
+                translations.push(translation);
+            }
+            assert!(next.next().is_none(), "{}: a row longer than the channels", path.display());
+        }
+        let expected = Clip::new(skeleton, clip.fps(), rotations, translations, clip.import_scale).unwrap();
+        let bits = |c: &Clip| -> Vec<u32> {
+            let r = c.rotations().iter().flat_map(|q| q.to_array());
+            r.chain(c.translations().iter().flat_map(|t| t.to_array())).map(f32::to_bits).collect()
+        };
+        assert!(bits(&clip) == bits(&expected), "{}: a value differs from the independent parse", path.display());
+    }
+}
