@@ -11,6 +11,7 @@
 //! root OFFSET, so adding the two would double it (hips at 2 m); the independent reference
 //! positions in the corpus agree.
 
+mod frames;
 mod numbers;
 mod reader;
 mod writer;

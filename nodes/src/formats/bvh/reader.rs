@@ -11,6 +11,7 @@ use std::sync::Arc;
 
 use glam::{Quat, Vec3};
 
+use super::frames::FrameLayout;
 use super::numbers::parse_row;
 use crate::formats::error::{FormatError, FormatErrorKind as Kind, Loaded, Location};
 use crate::math::euler::Axis;
@@ -409,16 +410,16 @@ impl Parser<'_> {
         frames_line: usize,
         scale: f32,
     ) -> Result<(Vec<Quat>, Vec<Vec3>), FormatError> {
-        let layout = FrameLayout::new(joints);
+        let mut layout = FrameLayout::new(joints.iter().map(|j| j.channels.as_slice()));
         let joint_count = joints.len();
         // Reserve from the data present, not from the claim: a row takes at least two
         // bytes per channel.
         let remaining = lines.bytes.len().saturating_sub(lines.pos);
-        let plausible = remaining / (2 * layout.channel_count.max(1)) + 1;
+        let plausible = remaining / (2 * layout.channel_count().max(1)) + 1;
         let reserve = claimed.min(plausible) * joint_count;
         let mut rotations = Vec::with_capacity(reserve);
         let mut translations = Vec::with_capacity(reserve);
-        let mut values = vec![0.0f32; layout.channel_count];
+        let mut values = vec![0.0f32; layout.channel_count()];
         let mut frames = 0usize;
         let mut extra_lines = 0usize;
         while let Some((line, text)) = lines.next_line() {
@@ -435,17 +436,18 @@ impl Parser<'_> {
                 extra_lines += 1;
                 continue;
             }
-            if count != layout.channel_count {
+            if count != layout.channel_count() {
                 return Err(self.err(
                     line,
                     Kind::Structure,
                     format!(
                         "frame {} has {count} values, the hierarchy declares {} channels",
-                        frames, layout.channel_count
+                        frames,
+                        layout.channel_count()
                     ),
                 ));
             }
-            layout.push_frame(skeleton, &values, scale, &mut rotations, &mut translations);
+            layout.push_frame(skeleton.joints(), &values, scale, &mut rotations, &mut translations);
             frames += 1;
         }
         if frames < claimed {
@@ -459,52 +461,6 @@ impl Parser<'_> {
             self.warnings.push(format!("ignored {extra_lines} rows after the {claimed} frames the header declares"));
         }
         Ok((rotations, translations))
-    }
-}
-
-/// Where each joint's channels sit in a frame row.
-struct FrameLayout {
-    /// Per joint: (first value index, channels).
-    joints: Vec<(usize, Vec<Channel>)>,
-    channel_count: usize,
-}
-
-impl FrameLayout {
-    fn new(joints: &[RawJoint]) -> Self {
-        let mut start = 0;
-        let joints = joints
-            .iter()
-            .map(|j| {
-                let s = start;
-                start += j.channels.len();
-                (s, j.channels.clone())
-            })
-            .collect();
-        FrameLayout { joints, channel_count: start }
-    }
-
-    /// Converts one row (file units, degrees) into local transforms (metres, radians).
-    #[inline]
-    fn push_frame(
-        &self,
-        skeleton: &Skeleton,
-        values: &[f32],
-        scale: f32,
-        rotations: &mut Vec<Quat>,
-        translations: &mut Vec<Vec3>,
-    ) {
-        for ((start, channels), joint) in self.joints.iter().zip(skeleton.joints()) {
-            let mut translation = joint.rest_offset;
-            let mut rotation = Quat::IDENTITY;
-            for (channel, &v) in channels.iter().zip(&values[*start..]) {
-                match channel {
-                    Channel::Position(axis) => translation[axis.index()] = v * scale,
-                    Channel::Rotation(axis) => rotation *= axis.rotation(v.to_radians()),
-                }
-            }
-            rotations.push(rotation);
-            translations.push(translation);
-        }
     }
 }
 
