@@ -16,6 +16,20 @@ pub struct Image {
     pub bytes: Vec<u8>,
 }
 
+impl Image {
+    /// The MIME type of encoded image `bytes` by their signature; `None` for anything but
+    /// PNG and JPEG (the two formats core glTF allows).
+    pub fn sniff_mime(bytes: &[u8]) -> Option<&'static str> {
+        if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+            Some("image/png")
+        } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+            Some("image/jpeg")
+        } else {
+            None
+        }
+    }
+}
+
 /// How a texture is filtered and wrapped, as glTF's (OpenGL) constants: filters 9728
 /// NEAREST, 9729 LINEAR, 9984–9987 mipmapped; wraps 33071 CLAMP_TO_EDGE, 33648
 /// MIRRORED_REPEAT, 10497 REPEAT. Unset filters leave the choice to the viewer.

@@ -25,18 +25,6 @@ use super::document::{Document, decode_data_uri, load_external};
 const KHR_SPECULAR: &str = "KHR_materials_specular";
 const KHR_EMISSIVE_STRENGTH: &str = "KHR_materials_emissive_strength";
 
-/// The MIME type of encoded image `bytes` by their signature; `None` for anything but PNG
-/// and JPEG (the two formats core glTF allows).
-fn sniff_mime(bytes: &[u8]) -> Option<&'static str> {
-    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
-        Some("image/png")
-    } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
-        Some("image/jpeg")
-    } else {
-        None
-    }
-}
-
 /// Reads every material of the file, by material index. `file` locates external images.
 pub(crate) fn read_materials(
     doc: &Document,
@@ -223,7 +211,7 @@ impl TextureReader<'_> {
                 return Err(ReadError::new(at, Kind::Structure, "image has neither bufferView nor uri"));
             }
         };
-        let Some(mime) = sniff_mime(&bytes) else {
+        let Some(mime) = Image::sniff_mime(&bytes) else {
             warnings.push(format!("image {k} is neither PNG nor JPEG; textures using it are dropped"));
             return Ok(None);
         };
