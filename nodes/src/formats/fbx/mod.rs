@@ -11,6 +11,11 @@
 //! (position − parent position). The rest pose is the file's static node transforms; each
 //! take is sampled at a fixed rate (the file's frame rate unless one is given) from its
 //! start to its end time.
+//!
+//! With meshes, each keeps the materials its faces use; `materials.rs` says how FBX
+//! materials and their textures become metallic-roughness ones.
+
+mod materials;
 
 use std::path::Path;
 use std::sync::Arc;
@@ -20,6 +25,7 @@ use glam::{DMat4, DQuat, DVec3, Mat4, Quat, Vec2, Vec3};
 use crate::formats::error::{FormatError, FormatErrorKind as Kind, Loaded};
 use crate::model::clip::sampling_refusal;
 use crate::model::{Clip, ImportScale, Joint, LengthUnit, Mesh, Skeleton, Skin};
+use materials::MaterialReader;
 
 /// Frame rate used when the file states none.
 pub const FALLBACK_FPS: f64 = 30.0;
@@ -77,7 +83,8 @@ pub struct FbxAsset {
     pub source: FbxSource,
     /// With [`FbxReadOptions::meshes`]: one mesh per mesh node, in the skeleton's rest pose
     /// (metres, Y up), skinned meshes bound to [`FbxAsset::skeleton`] with exactly affine
-    /// inverse bind matrices (the inverse rest world transforms).
+    /// inverse bind matrices (the inverse rest world transforms); triangles grouped by
+    /// material, each mesh with the materials it uses and their textures.
     pub meshes: Vec<Mesh>,
 }
 
@@ -201,7 +208,8 @@ pub fn read_fbx(bytes: &[u8], path: &Path, options: &FbxReadOptions) -> Result<L
         space_conversion: ufbx::SpaceConversion::AdjustTransforms,
         handedness_conversion_axis: ufbx::MirrorAxis::Z,
         ignore_geometry: !options.meshes,
-        ignore_embedded: true,
+        // Embedded textures are only wanted with the meshes' materials.
+        ignore_embedded: !options.meshes,
         load_external_files: false,
         ..Default::default()
     };
@@ -356,7 +364,9 @@ const MAX_MESH_INDICES: usize = 50_000_000;
 /// Every mesh node's mesh, triangulated, with one vertex per distinct (source vertex,
 /// normal, UV) corner, put in the skeleton's rest pose: skinned vertices by linear blend skinning
 /// with the rest bone matrices (`Σ w · bone world · geometry-to-bone`), unskinned ones by
-/// their node's world matrix. Four strongest weights per vertex, renormalised.
+/// their node's world matrix. Four strongest weights per vertex, renormalised. Triangles are
+/// grouped by material (in the node's material order, file order within each), and only the
+/// materials used are kept.
 fn read_meshes(
     scene: &ufbx::Scene,
     path: &Path,
@@ -377,6 +387,7 @@ fn read_meshes(
             Mat4::from_cols_array(&cols)
         })
         .collect();
+    let mut material_reader = MaterialReader::new(path);
     let mut out = Vec::new();
     for node in scene.nodes.iter() {
         let Some(mesh) = node.mesh.as_ref() else { continue };
@@ -436,10 +447,15 @@ fn read_meshes(
         let (mut positions, mut normals, mut uvs, mut joints, mut weights) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let mut triangles = Vec::new();
+        // Per triangle: its index into the node's materials (per instance, as ufbx advises).
+        let face_materials = if node.materials.is_empty() { &mesh.materials } else { &node.materials };
+        let mut triangle_materials = Vec::new();
         let mut corner_indices = vec![0u32; mesh.max_face_triangles.saturating_mul(3).max(3)];
         let has_normals = mesh.vertex_normal.exists;
         let has_uvs = mesh.vertex_uv.exists;
-        for face in mesh.faces.iter() {
+        for (face_index, face) in mesh.faces.iter().enumerate() {
+            let material =
+                mesh.face_material.get(face_index).map(|&m| m as usize).filter(|&m| m < face_materials.len());
             if face.num_indices < 3 || (face.num_indices as usize - 2) * 3 > corner_indices.len() {
                 continue;
             }
@@ -498,6 +514,7 @@ fn read_meshes(
                     *slot = index;
                 }
                 triangles.push(t);
+                triangle_materials.push(material);
             }
         }
         if positions.is_empty() {
@@ -513,7 +530,27 @@ fn read_meshes(
             weights,
             inverse_bind_matrices: inverse_bind_matrices.clone(),
         });
-        out.push(Mesh { name, positions, normals, uvs: has_uvs.then_some(uvs), triangles, skin, ..Mesh::default() });
+        let mut mesh_out =
+            Mesh { name, positions, normals, uvs: has_uvs.then_some(uvs), triangles, skin, ..Mesh::default() };
+        if !face_materials.is_empty() {
+            // Stable: file order is kept within each material; faces without one come last.
+            let mut order: Vec<usize> = (0..mesh_out.triangles.len()).collect();
+            order.sort_by_key(|&t| triangle_materials[t].unwrap_or(usize::MAX));
+            mesh_out.triangles = order.iter().map(|&t| mesh_out.triangles[t]).collect();
+            // The node's materials the faces use, in order: each one's triangles are one run.
+            let mut used: Vec<usize> = Vec::new();
+            for &t in &order {
+                let index = triangle_materials[t].map(|m| {
+                    if used.last() != Some(&m) {
+                        used.push(m);
+                    }
+                    used.len() - 1
+                });
+                mesh_out.push_material_range(index, 1);
+            }
+            mesh_out.materials = used.iter().map(|&m| material_reader.material(&face_materials[m], warnings)).collect();
+        }
+        out.push(mesh_out);
     }
     Ok(out)
 }
