@@ -352,3 +352,130 @@ fn a_folder_of_fbx_takes_loads_as_one_clip_set() {
         assert_eq!(clip.clip.skeleton().len(), 65, "{}", clip.name);
     }
 }
+
+/// The texture image embedded in a binary FBX, found by reading the file's own record for
+/// it (independently of ufbx): the `Content` property of its `Video` object, a raw-data
+/// value (`R`, a little-endian u32 length, the bytes). Returns (offset, bytes).
+fn embedded_content(fbx: &[u8]) -> (usize, &[u8]) {
+    let tag = b"\x07ContentR"; // name length 7, name, property type R
+    let at = fbx.windows(tag.len()).position(|w| w == tag).expect("no embedded Content record") + tag.len();
+    let len = u32::from_le_bytes(fbx[at..at + 4].try_into().unwrap()) as usize;
+    (at + 4, &fbx[at + 4..at + 4 + len])
+}
+
+/// Issue 18, the Mixamo FBX's look: its one mesh keeps its material with the base-colour
+/// texture embedded in the file, byte for byte (the JPEG the file's `Content` record holds:
+/// SOI FF D8 FF at the start, EOI FF D9 at the end), and every triangle is drawn with it.
+#[test]
+fn mixamo_material_and_embedded_texture() {
+    let Some(dir) = fbx_dir() else { return };
+    let path = dir.join("standard_walk.fbx");
+    let raw = std::fs::read(&path).unwrap();
+    let (offset, jpeg) = embedded_content(&raw);
+    assert!(jpeg.starts_with(&[0xFF, 0xD8, 0xFF]) && jpeg.ends_with(&[0xFF, 0xD9]), "not a whole JPEG");
+    let loaded = read_fbx_file(&path, &FbxReadOptions { meshes: true, ..Default::default() }).unwrap();
+    println!("warnings: {:?}", loaded.warnings);
+    assert!(!loaded.warnings.iter().any(|w| w.contains("material")), "{:?}", loaded.warnings);
+    let mesh = &loaded.value.meshes[0];
+    assert_eq!(mesh.check_material_ranges(), Ok(()));
+    assert!(!mesh.material_ranges.is_empty());
+    for (k, m) in mesh.materials.iter().enumerate() {
+        let triangles: usize =
+            mesh.material_ranges.iter().filter(|r| r.material == Some(k)).map(|r| r.triangle_count).sum();
+        let texture = m.base_color_texture.as_ref().map(|t| (t.image.name.clone(), t.image.bytes.len(), t.sampler));
+        println!(
+            "material '{}': {triangles} triangles, base colour {:?}, metallic {}, roughness {}, emissive {:?}, {:?}, base colour texture {texture:?}",
+            m.name.as_deref().unwrap_or(""),
+            m.base_color_factor,
+            m.metallic_factor,
+            m.roughness_factor,
+            m.emissive_factor,
+            m.alpha_mode
+        );
+    }
+    assert_eq!(mesh.materials.len(), 1);
+    let body = &mesh.materials[0];
+    // The file's Phong material 'Body': a texture on DiffuseColor (so white × DiffuseFactor 1),
+    // Opacity 1, ShininessExponent 0 (fully rough), no metalness (dielectric).
+    assert_eq!(body.name.as_deref(), Some("Body"));
+    assert_eq!(body.base_color_factor, [1.0; 4]);
+    assert_eq!((body.metallic_factor, body.roughness_factor), (0.0, 1.0));
+    assert_eq!(body.alpha_mode, kinegraph_nodes::model::AlphaMode::Opaque);
+    let texture = body.base_color_texture.as_ref().expect("base colour texture");
+    assert_eq!(texture.image.mime_type, "image/jpeg");
+    assert!(texture.image.bytes == jpeg, "image differs from the file's embedded JPEG");
+    println!("texture: {} bytes, embedded at byte {offset} of {} ", jpeg.len(), raw.len());
+    assert_eq!(mesh.material_ranges.len(), 1);
+    assert_eq!(mesh.material_ranges[0].triangle_count, mesh.triangles.len());
+}
+
+/// Issue 18, the whole path: `character.load` on the Mixamo FBX, `export.glb`, and the
+/// Khronos validator accepts the file; the `gltf` crate finds the material 'Body' with a
+/// base-colour texture read through TEXCOORD_0 whose image is the FBX's embedded JPEG, and
+/// every primitive carries TEXCOORD_0 (the FBX's UVs, V flipped to glTF's convention).
+#[test]
+fn a_mixamo_fbx_character_exports_its_material_and_texture() {
+    let Some(dir) = fbx_dir() else { return };
+    let path = dir.join("standard_walk.fbx");
+    let raw = std::fs::read(&path).unwrap();
+    let (_, jpeg) = embedded_content(&raw);
+    let character = kinegraph_nodes::kernels::load::load_character(&path, 0).unwrap().value;
+    let tmp = tempfile::tempdir().unwrap();
+    let glb = tmp.path().join("mixamo_textured.glb");
+    write_glb_file(&glb, &character.clip, Some(&character.mesh)).unwrap();
+    gltf_validator::validate_gltf(std::slice::from_ref(&glb));
+
+    let (doc, buffers, _) = gltf::import(&glb).unwrap();
+    let materials: Vec<_> = doc.materials().collect();
+    assert_eq!(materials.len(), 1);
+    assert_eq!(materials[0].name(), Some("Body"));
+    let info = materials[0].pbr_metallic_roughness().base_color_texture().expect("base colour texture");
+    assert_eq!(info.tex_coord(), 0);
+    let gltf::image::Source::View { view, mime_type } = info.texture().source().source() else {
+        panic!("image not embedded in the GLB");
+    };
+    assert_eq!(mime_type, "image/jpeg");
+    let bytes = &buffers[view.buffer().index()][view.offset()..view.offset() + view.length()];
+    assert!(bytes == jpeg, "exported image differs from the FBX's embedded JPEG");
+    let mut texcoords = 0;
+    for mesh in doc.meshes() {
+        for primitive in mesh.primitives() {
+            assert_eq!(primitive.material().index(), Some(0));
+            let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+            let uvs: Vec<[f32; 2]> = reader.read_tex_coords(0).expect("TEXCOORD_0").into_f32().collect();
+            assert_eq!(uvs.len(), reader.read_positions().unwrap().len());
+            assert!(uvs.iter().flatten().all(|c| c.is_finite()));
+            texcoords += uvs.len();
+        }
+    }
+    println!("GLB: material 'Body', image {} bytes (image/jpeg), {texcoords} TEXCOORD_0 values", bytes.len());
+    assert_eq!(texcoords, character.mesh.positions.len());
+}
+
+/// A texture that cannot be used is left out with a warning naming the material, the file
+/// and why, and the character still loads and exports: the Mixamo FBX with its embedded
+/// JPEG's signature overwritten (same length, so the file stays well formed) and no
+/// `model_T.jpg` beside it.
+#[test]
+fn an_unusable_fbx_texture_is_left_out_with_a_warning() {
+    let Some(dir) = fbx_dir() else { return };
+    let mut raw = std::fs::read(dir.join("standard_walk.fbx")).unwrap();
+    let (offset, _) = embedded_content(&raw);
+    raw[offset..offset + 3].copy_from_slice(b"BAD");
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("corrupt_texture.fbx");
+    std::fs::write(&path, &raw).unwrap();
+    let loaded = kinegraph_nodes::kernels::load::load_character(&path, 0).unwrap();
+    let warning = loaded.warnings.iter().find(|w| w.contains("left out")).expect("a warning");
+    println!("{warning}");
+    assert!(warning.contains("material 'Body'") && warning.contains("model_T.jpg"), "{warning}");
+    assert!(warning.contains("neither PNG nor JPEG"), "{warning}");
+    let mesh = &loaded.value.mesh;
+    assert_eq!(mesh.materials.len(), 1);
+    assert!(mesh.materials[0].base_color_texture.is_none());
+    // Without its texture the material draws the colour it states (DiffuseColor 0.8).
+    assert_eq!(mesh.materials[0].base_color_factor, [0.8, 0.8, 0.8, 1.0]);
+    let glb = tmp.path().join("untextured.glb");
+    write_glb_file(&glb, &loaded.value.clip, Some(mesh)).unwrap();
+    gltf_validator::validate_gltf(std::slice::from_ref(&glb));
+}
