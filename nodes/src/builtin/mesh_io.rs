@@ -101,14 +101,15 @@ pub struct LoadCharacter;
 static LOAD_CHARACTER: NodeSchema = NodeSchema {
     kind: "character.load",
     category: "io",
-    doc: "Loads a rigged character from a glTF/GLB or FBX scene: its skeleton and animation, and every mesh merged into one skinned mesh (meshes attached to bones follow them rigidly) with each part's material, UVs and textures (glTF; FBX materials are not read), ready for export.glb. A texture image file missing beside the glTF is an error naming it.",
+    doc: "Loads a rigged character from a glTF/GLB or FBX scene: its skeleton and animation, and every mesh merged into one skinned mesh (meshes attached to bones follow them rigidly) with each part's material, UVs and textures (FBX: converted to metallic-roughness, embedded textures kept), ready for export.glb. A texture image file missing beside the glTF is an error naming it; an FBX texture neither embedded nor beside the file is left out with a warning.",
     inputs: &[],
     outputs: &[CHARACTER_CLIP.spec(), CHARACTER_MESH.spec(), CHARACTER_REPORT.spec()],
     params: &[CHARACTER_PATH.0, ANIMATION.0],
     writes_files: false,
     // 2: materials, textures and UVs kept; the file's inverse bind matrices when they fit.
     // 3: the mesh remembers its source meshes as parts (export.glb writes them apart).
-    version: 3,
+    // 4: FBX materials and textures read.
+    version: 4,
 };
 
 impl Node for LoadCharacter {

@@ -284,7 +284,7 @@ fn gltf_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSourc
 }
 
 /// An FBX scene as a [`CharacterSource`]: its meshes come skinned to the skeleton in the
-/// rest pose (see [`read_fbx_file`]); the clip is take `animation`.
+/// rest pose with their materials (see [`read_fbx_file`]); the clip is take `animation`.
 fn fbx_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSource>, FormatError> {
     let options = FbxReadOptions { meshes: true, ..FbxReadOptions::default() };
     let Loaded { value: asset, mut warnings } = read_fbx_file(path, &options)?;
@@ -307,8 +307,10 @@ fn fbx_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSource
 /// their weights and are put in the skeleton's rest pose; meshes without a skin hang rigidly
 /// from the joint their node is parented under (weight 1), or from the root joint with a
 /// warning when they are not under the skeleton. Each primitive keeps its material (shared
-/// ones merged; FBX materials are not read); UVs are kept when any mesh has them (zero on
-/// the others). A texture whose image file is missing is an error naming the file.
+/// ones merged); UVs are kept when any mesh has them (zero on the others). A glTF texture
+/// whose image file is missing is an error naming the file; an FBX texture neither embedded
+/// nor beside the file is left out with a warning (FBX files often name textures on the
+/// machine that wrote them; see [`crate::formats::fbx`]).
 pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>, FormatError> {
     let fbx = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("fbx"));
     let Loaded { value: source, mut warnings } =
