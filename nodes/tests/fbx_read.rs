@@ -479,3 +479,153 @@ fn an_unusable_fbx_texture_is_left_out_with_a_warning() {
     write_glb_file(&glb, &loaded.value.clip, Some(mesh)).unwrap();
     gltf_validator::validate_gltf(std::slice::from_ref(&glb));
 }
+
+/// A hand-written ASCII FBX: three triangles of one mesh whose faces use materials
+/// [glass, red, glass] (node order: red, glass), beside a one-bone skeleton. `red` is a
+/// Lambert material of DiffuseColor (1, 0, 0); `glass` a Phong one of DiffuseColor
+/// (0.2, 0.4, 0.6), Opacity 0.5 and ShininessExponent 25, with a diffuse texture that is
+/// neither embedded nor on disk.
+const TWO_MATERIALS_FBX: &str = r#"; FBX 7.4.0 project file
+FBXHeaderExtension:  {
+	FBXHeaderVersion: 1003
+	FBXVersion: 7400
+}
+GlobalSettings:  {
+	Version: 1000
+	Properties70:  {
+		P: "UpAxis", "int", "Integer", "",1
+		P: "UpAxisSign", "int", "Integer", "",1
+		P: "FrontAxis", "int", "Integer", "",2
+		P: "FrontAxisSign", "int", "Integer", "",1
+		P: "CoordAxis", "int", "Integer", "",0
+		P: "CoordAxisSign", "int", "Integer", "",1
+		P: "UnitScaleFactor", "double", "Number", "",100
+	}
+}
+Objects:  {
+	Geometry: 100, "Geometry::strip", "Mesh" {
+		Vertices: *12 {
+			a: 0,0,0,1,0,0,1,1,0,0,1,0
+		}
+		PolygonVertexIndex: *9 {
+			a: 0,1,-3,0,2,-4,1,2,-4
+		}
+		LayerElementMaterial: 0 {
+			Version: 101
+			Name: ""
+			MappingInformationType: "ByPolygon"
+			ReferenceInformationType: "IndexToDirect"
+			Materials: *3 {
+				a: 1,0,1
+			}
+		}
+		Layer: 0 {
+			Version: 100
+			LayerElement:  {
+				Type: "LayerElementMaterial"
+				TypedIndex: 0
+			}
+		}
+	}
+	Model: 200, "Model::strip", "Mesh" {
+		Version: 232
+	}
+	NodeAttribute: 301, "NodeAttribute::root", "LimbNode" {
+		TypeFlags: "Skeleton"
+	}
+	Model: 300, "Model::root", "LimbNode" {
+		Version: 232
+	}
+	Material: 400, "Material::red", "" {
+		ShadingModel: "lambert"
+		Properties70:  {
+			P: "DiffuseColor", "Color", "", "A",1,0,0
+		}
+	}
+	Material: 500, "Material::glass", "" {
+		ShadingModel: "phong"
+		Properties70:  {
+			P: "DiffuseColor", "Color", "", "A",0.2,0.4,0.6
+			P: "Opacity", "double", "Number", "",0.5
+			P: "ShininessExponent", "double", "Number", "",25
+		}
+	}
+	Texture: 600, "Texture::glass_diffuse", "" {
+		Type: "TextureVideoClip"
+		FileName: "C:\textures\missing_glass.png"
+		RelativeFilename: "textures\missing_glass.png"
+	}
+}
+Connections:  {
+	C: "OO",200,0
+	C: "OO",300,0
+	C: "OO",301,300
+	C: "OO",100,200
+	C: "OO",400,200
+	C: "OO",500,200
+	C: "OP",600,500, "DiffuseColor"
+}
+"#;
+
+/// Triangles are grouped by material, stably (file order within each), materials in the
+/// node's order; Lambert and Phong values convert as the reader documents (dielectric,
+/// Lambert matte, Phong roughness 1 − √25 / 10 = 0.5, Opacity 0.5 blends); the missing
+/// texture is a warning naming the material and the file, and the colour the material
+/// states is kept.
+#[test]
+fn faces_group_by_material_and_a_missing_texture_is_named() {
+    use kinegraph_nodes::model::AlphaMode;
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("two_materials.fbx");
+    let loaded =
+        read_fbx(TWO_MATERIALS_FBX.as_bytes(), &path, &FbxReadOptions { meshes: true, ..Default::default() }).unwrap();
+    for w in &loaded.warnings {
+        println!("warning: {w}");
+    }
+    let mesh = &loaded.value.meshes[0];
+    assert_eq!(mesh.check_material_ranges(), Ok(()));
+    let names: Vec<_> = mesh.materials.iter().map(|m| m.name.as_deref().unwrap()).collect();
+    assert_eq!(names, ["red", "glass"]);
+    let runs: Vec<_> = mesh.material_ranges.iter().map(|r| (r.first_triangle, r.triangle_count, r.material)).collect();
+    assert_eq!(runs, [(0, 1, Some(0)), (1, 2, Some(1))]);
+    // Face 1 (red) first, then faces 0 and 2 (glass) in file order, by their source corners.
+    let corners = |t: &[u32; 3]| {
+        let mut c: Vec<[i32; 3]> =
+            t.iter().map(|&i| mesh.positions[i as usize].round().as_ivec3().to_array()).collect();
+        c.sort_unstable();
+        c
+    };
+    let expected = [[0, 2, 3], [0, 1, 2], [1, 2, 3]].map(|face: [usize; 3]| {
+        let square = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]];
+        let mut c: Vec<[i32; 3]> = face.iter().map(|&v| square[v]).collect();
+        c.sort_unstable();
+        c
+    });
+    for (t, want) in mesh.triangles.iter().zip(&expected) {
+        assert_eq!(&corners(t), want);
+    }
+    let (red, glass) = (&mesh.materials[0], &mesh.materials[1]);
+    assert_eq!(red.base_color_factor, [1.0, 0.0, 0.0, 1.0]);
+    assert_eq!((red.metallic_factor, red.roughness_factor, red.alpha_mode), (0.0, 1.0, AlphaMode::Opaque));
+    assert_eq!(glass.base_color_factor, [0.2, 0.4, 0.6, 0.5]);
+    assert_eq!(glass.alpha_mode, AlphaMode::Blend);
+    assert!((glass.roughness_factor - 0.5).abs() < 1e-6, "{}", glass.roughness_factor);
+    assert!(glass.base_color_texture.is_none());
+    let warning = loaded.warnings.iter().find(|w| w.contains("left out")).expect("a warning for the texture");
+    assert!(warning.contains("material 'glass'") && warning.contains("missing_glass.png"), "{warning}");
+    assert!(warning.contains("not embedded, and no file beside the FBX"), "{warning}");
+
+    // With the file where its (Windows-style) relative name says, the texture is read from it.
+    let png = b"\x89PNG\r\n\x1a\n-not-decoded-".to_vec();
+    std::fs::create_dir(tmp.path().join("textures")).unwrap();
+    std::fs::write(tmp.path().join("textures/missing_glass.png"), &png).unwrap();
+    let again =
+        read_fbx(TWO_MATERIALS_FBX.as_bytes(), &path, &FbxReadOptions { meshes: true, ..Default::default() }).unwrap();
+    assert!(again.warnings.is_empty(), "{:?}", again.warnings);
+    let glass = &again.value.meshes[0].materials[1];
+    let image = &glass.base_color_texture.as_ref().expect("texture read from the file").image;
+    assert_eq!((image.name.as_deref(), image.mime_type.as_str()), (Some("missing_glass.png"), "image/png"));
+    assert_eq!(image.bytes, png);
+    // The texture now replaces the stated colour (white × DiffuseFactor); alpha stays 0.5.
+    assert_eq!(glass.base_color_factor, [1.0, 1.0, 1.0, 0.5]);
+}

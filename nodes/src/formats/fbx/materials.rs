@@ -219,11 +219,13 @@ impl<'a> TextureSource<'a> {
 }
 
 /// The image of `source`: its embedded bytes, else the first file found in `folder` (the
-/// FBX's) under the relative name or the bare file name of either name; `Err` says why there
-/// is none.
+/// FBX's) under the relative name (`\` read as `/`) or the bare file name of either name;
+/// `Err` says why there is none.
 fn texture_image(source: &TextureSource<'_>, folder: &Path) -> Result<Image, String> {
     let (bytes, from) = if source.embedded.is_empty() {
-        let mut candidates = vec![source.relative, bare_name(source.relative), bare_name(source.absolute)];
+        // Files written on Windows name folders with `\`.
+        let relative = source.relative.replace('\\', "/");
+        let mut candidates = vec![relative.as_str(), bare_name(source.relative), bare_name(source.absolute)];
         candidates.retain(|c| !c.is_empty());
         candidates.dedup();
         if candidates.is_empty() {
