@@ -420,3 +420,35 @@ fn the_sequence_root_never_changes_speed_more_than_twice_as_fast_as_the_sources(
     eprintln!("root velocity jump: sequence {jump:.3} m/s, sources' largest {sources:.3} m/s");
     assert!(jump <= 2.0 * sources, "the root's velocity changes by {jump} m/s in one frame (sources {sources})");
 }
+
+/// The largest distance `joint` moves in one frame of `clip`, metres, with its frame.
+fn largest_step_m(clip: &Clip, joint: &str) -> (f32, usize) {
+    let j = clip.skeleton().index_of(joint).unwrap();
+    let poses = forward_kinematics(clip);
+    (1..clip.frame_count())
+        .map(|f| (poses.position(f, j).distance(poses.position(f - 1, j)), f))
+        .fold((0.0, 0), |best, x| if x.0 > best.0 { x } else { best })
+}
+
+/// walk_punch_kick's sequence: through the kick-to-punch transition the standing left foot
+/// glides from the kick's place to the punch's, and detection split that stance in two a
+/// frame apart; held as two plants, the foot jumped 15.4 cm between their places in one
+/// frame (f227, at 30 fps; the sources' left foot never moves more than a swing's 12.7 cm).
+/// A lift shorter than the shortest contact is no lift: each foot of the held sequence
+/// moves no further in one frame than it does in any of the three sources.
+#[test]
+fn no_foot_of_the_held_sequence_jumps_further_in_a_frame_than_in_the_sources() {
+    let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };
+    let (set, raw) = walk_punch_kick(&data);
+    let held = hold_planted_feet(raw).unwrap();
+    for foot in ["LeftFoot", "RightFoot"] {
+        let sources = set.clips().iter().map(|c| largest_step_m(&c.clip, foot).0).fold(0.0, f32::max);
+        let (step, frame) = largest_step_m(&held, foot);
+        eprintln!(
+            "{foot}: largest one-frame step {:.1} cm (f{frame}), sources' {:.1} cm",
+            step * 100.0,
+            sources * 100.0
+        );
+        assert!(step <= sources * 1.05, "{foot} jumps {step} m into frame {frame} (sources at most {sources} m)");
+    }
+}

@@ -120,10 +120,30 @@ pub fn ground_height(track: &[DVec3]) -> f64 {
     heights.get(heights.len() / 10).copied().unwrap_or(0.0)
 }
 
+/// The fewest frames a contact lasts at `fps`.
+fn min_frames(t: &ContactThresholds, fps: f64) -> usize {
+    (t.min_duration_secs * fps).ceil() as usize
+}
+
+/// `intervals` (sorted, disjoint) with every gap no longer than `max_gap` frames filled: a
+/// foot off the ground for less than the shortest contact did not lift (a flicker at a
+/// threshold, e.g. a stance foot sliding through a blended transition), and held as two
+/// plants it would jump from one's place to the other's in that gap.
+fn close_short_gaps(intervals: Vec<FrameRange>, max_gap: usize) -> Vec<FrameRange> {
+    let mut out: Vec<FrameRange> = Vec::with_capacity(intervals.len());
+    for r in intervals {
+        match out.last_mut() {
+            Some(last) if r.start.saturating_sub(last.end) <= max_gap => last.end = last.end.max(r.end),
+            _ => out.push(r),
+        }
+    }
+    out
+}
+
 /// Contact intervals of one point's track (world positions per frame).
 fn point_contacts(track: &[DVec3], fps: f64, t: &ContactThresholds) -> Vec<FrameRange> {
     let ground = ground_height(track);
-    let min_frames = (t.min_duration_secs * fps).ceil() as usize;
+    let min_frames = min_frames(t, fps);
     let (mut out, mut start) = (Vec::new(), None);
     for f in 0..track.len() {
         let speed = central_difference(track, f, fps).length();
@@ -186,6 +206,7 @@ fn feet_contacts(
             } else {
                 union_all(&ankle_contacts, &point_contacts(&track(toe), clip.fps(), thresholds))
             };
+            let intervals = close_short_gaps(intervals, min_frames(thresholds, clip.fps()));
             FootContacts { foot: skeleton.joints()[ankle].name.clone(), intervals }
         })
         .collect();
@@ -275,6 +296,14 @@ mod tests {
         // Thresholds for any body are not scaled.
         let absolute = ContactThresholds { leg_m: None, ..adult };
         assert_eq!(absolute.for_leg(REFERENCE_LEG_M / 4.0), absolute);
+    }
+
+    #[test]
+    fn gaps_shorter_than_a_contact_are_filled() {
+        let r = |a, b| FrameRange::new(a, b);
+        let got = close_short_gaps(vec![r(0, 10), r(12, 20), r(23, 30), r(40, 50)], 2);
+        assert_eq!(got, vec![r(0, 20), r(23, 30), r(40, 50)]);
+        assert_eq!(close_short_gaps(Vec::new(), 2), Vec::new());
     }
 
     #[test]
