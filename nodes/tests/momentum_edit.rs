@@ -96,10 +96,14 @@ fn optimised_landing_shift_is_ballistic_with_feet_planted_where_asked() {
         "16_01 optimised : joint range excess {excess:.4} rad (naive {:.4})",
         joint_range_excess_rad(&clip, &naive)
     );
-    // Soft in the solver and NOT met on this edit (the take-off needs more than the capture's
-    // range + margin): the report must say so, and say how much.
+    // Soft in the solver: the report says how far past the range + margin the edit goes (on
+    // this edit 0 since the planted feet roll as captured; with the ankles held still the
+    // take-off needed 0.025 rad more than the margin).
     let reported = report.violations.iter().find(|v| v.constraint == "joint limits").unwrap().max;
-    assert!((excess - LIMIT_MARGIN_RAD - reported).abs() < 1e-3, "measured {excess} rad, reported {reported} + margin");
+    assert!(
+        ((excess - LIMIT_MARGIN_RAD).max(0.0) - reported).abs() < 1e-3,
+        "measured {excess} rad, reported {reported} + margin"
+    );
     // The impulse the naive edit needs at the take-off is almost gone (the landing is an
     // impact: its vertical momentum may jump, so it is only printed above).
     let (ours_takeoff, naive_takeoff) = (ours.border_momentum_jump[0], base.border_momentum_jump[0]);

@@ -70,7 +70,8 @@ fn a_line_family_blends_exactly_at_its_samples_and_plausibly_between_them() {
     assert!(moved < 1e-5 && turned < 1e-5, "{moved} m, {turned}");
 
     // Between the samples, the feet-on-ground and flight-parabola measures stay within twice
-    // the samples' own (below the floor: twice the solver's tolerance, the samples being exact).
+    // the samples' own (drift and below the floor: at least twice the solver's tolerance, the
+    // samples being exact there).
     let sample_measures: Vec<EditMeasures> = family
         .samples
         .iter()
@@ -87,7 +88,7 @@ fn a_line_family_blends_exactly_at_its_samples_and_plausibly_between_them() {
         let blended = blend_family(family, &[u]).unwrap();
         let m = measures(&jump, &blended, u * family.forward);
         eprintln!("u = {u}: {m:?} (samples: drift {drift:e}, below {below:e}, parabola {parabola:e})");
-        assert!(m.planted_drift_m < 2.0 * drift, "drift {} m", m.planted_drift_m);
+        assert!(m.planted_drift_m < 2.0 * drift.max(FEET_TOL_M), "drift {} m", m.planted_drift_m);
         assert!(m.below_floor_m < 2.0 * below.max(FEET_TOL_M), "below floor {} m", m.below_floor_m);
         assert!(m.parabola_rms_m.iter().all(|r| *r < 2.0 * parabola), "parabola {:?}", m.parabola_rms_m);
         // The landing is where the blend's parameter puts it (within the feet tolerance).

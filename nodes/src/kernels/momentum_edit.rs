@@ -12,7 +12,7 @@
 use glam::{DQuat, DVec3, Quat};
 
 use super::angular::momentum_of_poses;
-use super::body::BodyModel;
+use super::body::{BodyModel, limb_tip};
 use crate::model::{Clip, ClipError, ClipPoses, FrameRange, StageKind, Stages, forward_kinematics};
 
 /// The user's edit of one ground stage.
@@ -150,10 +150,12 @@ pub struct EditMeasures {
     /// where the edit asked it to be (the original foot moved by the stage's edit, raised
     /// onto the floor where the capture has it below), metres.
     pub placement_error_m: Vec<f64>,
-    /// Largest drift of a planted foot during any of its contact intervals, metres (from
-    /// its position at the interval's first frame).
+    /// Largest horizontal drift of a planted foot's toe tip during any of its contact
+    /// intervals, metres (from its place at the interval's first frame): the point a
+    /// planted foot rolls about, which stays put while the heel rises at a take-off.
     pub planted_drift_m: f64,
-    /// Lowest foot height below the original floor, metres (0 when never below).
+    /// Deepest a foot goes below the original floor, metres (0 when never below): its
+    /// ankle and its toe tip, each against the height it rests at in the original.
     pub below_floor_m: f64,
     /// Per flight stage, RMS distance of the centre of mass from the best parabola under
     /// `gravity_mps2`, metres.
@@ -196,15 +198,23 @@ pub fn measure_edit(
                 .fold(0.0, f64::max)
         })
         .collect();
+    let skeleton = edited.skeleton();
     let mut planted_drift_m = 0.0f64;
     for &(j, r) in planted {
+        let toe = limb_tip(skeleton, j);
         for f in r.start..r.end.min(pe.frame_count()) {
-            planted_drift_m = planted_drift_m.max((foot(&pe, f, j) - foot(&pe, r.start, j)).length());
+            let drift = (foot(&pe, f, toe) - foot(&pe, r.start, toe)).with_y(0.0).length();
+            planted_drift_m = planted_drift_m.max(drift);
         }
     }
+    // Ankles and toe tips each against the height they rest at in the original.
+    let toes: Vec<usize> = feet.iter().map(|&j| limb_tip(skeleton, j)).collect();
+    let toe_floor = floor_height(&po, &toes);
+    let points: Vec<(usize, f64)> =
+        feet.iter().map(|&j| (j, floor)).chain(toes.iter().map(|&t| (t, toe_floor))).collect();
     let below_floor_m = (0..pe.frame_count())
-        .flat_map(|f| feet.iter().map(move |&j| (f, j)))
-        .map(|(f, j)| floor - foot(&pe, f, j).y)
+        .flat_map(|f| points.iter().map(move |&(j, rest)| (f, j, rest)))
+        .map(|(f, j, rest)| rest - foot(&pe, f, j).y)
         .fold(0.0, f64::max);
     let fps = edited.fps();
     let parabola_rms_m = stages

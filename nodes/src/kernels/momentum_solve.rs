@@ -45,7 +45,8 @@ use faer::{Par, Side};
 use glam::{DMat3, DQuat, DVec3, Quat};
 
 use super::angular::{MomentumTrack, momentum_of_poses};
-use super::body::BodyModel;
+use super::body::{BodyModel, limb_tip};
+use super::ik::foot_lock::Plants;
 use super::momentum_edit::{EditError, GroundEdit, floor_height, naive_edit};
 use super::momentum_splines::{MomentumFit, Piece, SplineError, basis, fit_momentum};
 use crate::model::{Clip, ClipError, ClipPoses, FrameRange, StageKind, Stages, forward_kinematics};
@@ -72,6 +73,11 @@ const MAX_PENALTY_GROWTH: f64 = 100.0;
 /// push than the capture made, and a zero-width range (a joint the capture never moves)
 /// would make the limit's gradient undefined.
 pub const LIMIT_MARGIN_RAD: f64 = 0.1;
+
+/// Time over which a planted foot's hold fades out after its contact, seconds (the foot
+/// lock's default blend): released at once, the foot would jump by the drift the hold took
+/// out of the capture.
+const RELEASE_SECS: f64 = 0.15;
 
 /// Ankles are kept this far above the floor, metres (a margin for the one-sided penalty).
 const FLOOR_MARGIN_M: f64 = 2e-4;
@@ -480,7 +486,8 @@ impl<'a> Problem<'a> {
         let hi = root_path.iter().fold(DVec3::NEG_INFINITY, |a, b| a.max(*b));
         let range_root = (hi - lo).max(DVec3::splat(0.1));
         let poses = forward_kinematics(&guess);
-        let floor = floor_height(&forward_kinematics(clip), &feet);
+        let original_poses = forward_kinematics(clip);
+        let floor = floor_height(&original_poses, &feet);
         let at = |f: usize, j: usize| poses.position(f, j).as_dvec3();
         // Where the edit asks a foot to be, lifted onto the floor where the capture has it
         // poking through (the floor is a percentile of the ankle heights).
@@ -491,10 +498,29 @@ impl<'a> Problem<'a> {
         let mut pins = Vec::new();
         let ground_of = |f: usize| grounds.iter().any(|r| r.contains(f));
         for &(j, r) in planted {
-            let frames: Vec<usize> = (r.start..r.end.min(n)).filter(|&f| ground_of(f)).collect();
-            if let Some(&first) = frames.first() {
-                let target = asked(first, j);
-                pins.extend(frames.iter().map(|&f| (j, f, target)));
+            // Frames of the contact in a ground stage, and after it, within that stage, the
+            // frames over which the foot is handed back to the clip's (the foot lock's blend).
+            let room =
+                grounds.iter().find(|g| g.contains(r.end.saturating_sub(1))).map_or(0, |g| g.end.saturating_sub(r.end));
+            let release = ((RELEASE_SECS * fps).round() as usize).min(room).max(1);
+            let frames: Vec<usize> = (r.start..(r.end + release - 1).min(n)).filter(|&f| ground_of(f)).collect();
+            if !frames.is_empty() {
+                // The foot is held as the foot lock holds it: its toe tip where it is at the
+                // contact's lowest frame, the whole foot (ankle and toe tip) moved by the
+                // toe's horizontal drift, so the heel still rises and the foot still rolls
+                // onto its toes at a take-off. (The ankle held still instead kept the heel
+                // down through the roll and put the toes 5–6 cm under the floor on CMU 16_01.)
+                let toe = limb_tip(skeleton, j);
+                let plant = Plants::new(&guess, toe, &[r], release);
+                let toe_floor = floor_height(&original_poses, &[toe]);
+                for &f in &frames {
+                    let shift = plant.shift(f, at(f, toe));
+                    pins.push((j, f, asked(f, j) + shift));
+                    if toe != j {
+                        let held = at(f, toe) + shift;
+                        pins.push((toe, f, held.with_y(held.y.max(toe_floor + FLOOR_MARGIN_M))));
+                    }
+                }
             }
         }
         for r in &grounds {
