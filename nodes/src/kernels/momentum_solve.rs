@@ -15,9 +15,11 @@
 //! ((c(f) − c_init(f)) / [`BALANCE_SCALE_M`])² at the first frame of the first ground stage,
 //! the last frame of the last and mid-frame of interior ones.
 //!
-//! Constraints: planted ankles on their edited places (the initial guess's position at the
-//! first frame of the contact, which is where the edit asked); both ankles at their edited
-//! places at each ground stage's first frame (the landing); ankles never below the floor;
+//! Constraints: planted feet on their edited places, held as the foot lock holds them (the
+//! initial guess's toe tip at the contact's lowest frame, which is where the edit asked, the
+//! ankle and toe tip moved by the toe's drift, so the capture's heel rise and roll stay; the
+//! hold fading out after the contact); both ankles at their edited places at each ground
+//! stage's first frame (the landing); ankles never below the floor;
 //! linear and angular momentum of Q (central differences, as [`momentum_of_poses`] measures
 //! them) equal to the splines of G at every interior frame; C1 between ground splines and
 //! flight lines (not the vertical momentum at a landing).
