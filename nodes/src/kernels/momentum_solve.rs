@@ -499,6 +499,12 @@ impl<'a> Problem<'a> {
         };
         let mut pins = Vec::new();
         let ground_of = |f: usize| grounds.iter().any(|r| r.contains(f));
+        // A foot's toe tip and the height it rests at in the original, once per foot.
+        let toe_of = |j: usize| {
+            let toe = limb_tip(skeleton, j);
+            (toe, floor_height(&original_poses, &[toe]))
+        };
+        let toes: Vec<(usize, (usize, f64))> = feet.iter().map(|&j| (j, toe_of(j))).collect();
         for &(j, r) in planted {
             // Frames of the contact in a ground stage, and after it, within that stage, the
             // frames over which the foot is handed back to the clip's (the foot lock's blend).
@@ -512,9 +518,8 @@ impl<'a> Problem<'a> {
                 // toe's horizontal drift, so the heel still rises and the foot still rolls
                 // onto its toes at a take-off. (The ankle held still instead kept the heel
                 // down through the roll and put the toes 5–6 cm under the floor on CMU 16_01.)
-                let toe = limb_tip(skeleton, j);
-                let plant = Plants::new(&guess, toe, &[r], release);
-                let toe_floor = floor_height(&original_poses, &[toe]);
+                let (toe, toe_floor) = toes.iter().find(|t| t.0 == j).map_or_else(|| toe_of(j), |t| t.1);
+                let plant = Plants::along(|f| at(f, toe), n, &[r], release);
                 for &f in &frames {
                     let shift = plant.shift(f, at(f, toe));
                     pins.push((j, f, asked(f, j) + shift));

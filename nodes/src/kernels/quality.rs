@@ -54,10 +54,10 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 use super::contacts::{ContactThresholds, contacts_of};
-use super::roles::{RolesError, rest_roles};
+use super::roles::{BodyRoles, RolesError};
 use super::skinning::SkinError;
 use super::soles::{foot_joints, lowest_sole_heights};
-use super::stride::{FootPlants, Stride, StrideComparison, compare_stride, measure_stride, rest_leg_length_m};
+use super::stride::{FootPlants, Stride, StrideComparison, compare_stride, measure_stride, rest_legs};
 use crate::model::{Clip, Contacts, FrameRange, Mesh, Skeleton, forward_kinematics};
 
 /// A foot more than this far under the floor (metres) counts as below it: capture noise
@@ -260,16 +260,17 @@ impl Tracks {
         1..self.frames.saturating_sub(1)
     }
 
-    /// Per interior frame, the largest acceleration (m/s²) of the joints `among` lets in,
-    /// and its joint.
-    fn peak_accelerations(&self, among: &[bool]) -> Vec<(f64, usize)> {
+    /// Per interior frame, the largest joint acceleration (m/s²) and its joint, over every
+    /// joint and over those `body` lets in (all when it is shorter), in one pass.
+    fn peak_accelerations(&self, body: &[bool]) -> Vec<[(f64, usize); 2]> {
         let fps2 = self.fps * self.fps;
+        let larger = |best: (f64, usize), x: (f64, usize)| if x.0 > best.0 { x } else { best };
         self.interior()
             .map(|f| {
-                (0..self.joints)
-                    .filter(|&j| among.get(j).copied().unwrap_or(true))
-                    .map(|j| (self.second_difference(f, j).length() * fps2, j))
-                    .fold((0.0, 0), |best, x| if x.0 > best.0 { x } else { best })
+                (0..self.joints).fold([(0.0, 0); 2], |[all, in_body], j| {
+                    let x = (self.second_difference(f, j).length() * fps2, j);
+                    [larger(all, x), if body.get(j).copied().unwrap_or(true) { larger(in_body, x) } else { in_body }]
+                })
             })
             .collect()
     }
@@ -550,24 +551,11 @@ fn longest_run(flags: impl Iterator<Item = bool>) -> usize {
     flags.fold((0, 0), |(run, best), x| if x { (run + 1, best.max(run + 1)) } else { (0, best) }).1
 }
 
-/// The clip's rest leg over the leg `options.contacts` are set for, when both are known:
-/// the factor detection scales their heights by.
-fn detection_leg_ratio(clip: &Clip, options: &QualityOptions) -> Option<f64> {
-    let set_for = options.contacts.leg_m?;
-    rest_leg_length_m(clip.skeleton()).ok().map(|leg_m| leg_m / set_for)
-}
-
-/// Per joint of `skeleton`, whether it belongs to the body every humanoid rig shares: all
-/// joints but those below the wrists (the body roles' arm end joints). Every joint when the
-/// roles cannot be read, with the reason.
-pub fn body_joints(skeleton: &Skeleton) -> (Vec<bool>, Option<RolesError>) {
-    match rest_roles(skeleton) {
-        Ok(roles) => {
-            let wrists = roles.arms.each_ref().map(|arm| arm.joints()[2]);
-            ((0..skeleton.len()).map(|j| !wrists.iter().any(|&w| skeleton.is_ancestor(w, j))).collect(), None)
-        }
-        Err(why) => (vec![true; skeleton.len()], Some(why)),
-    }
+/// Per joint of `skeleton` (whose body `roles` are), whether it belongs to the body every
+/// humanoid rig shares: all joints but those below the wrists (the arms' end joints).
+pub fn body_joints(skeleton: &Skeleton, roles: &BodyRoles) -> Vec<bool> {
+    let wrists = roles.arms.each_ref().map(|arm| arm.joints()[2]);
+    (0..skeleton.len()).map(|j| !wrists.iter().any(|&w| skeleton.is_ancestor(w, j))).collect()
 }
 
 /// Measures `clip` (see the module doc). `contacts` are used when they describe this clip,
@@ -610,7 +598,13 @@ pub fn measure_quality(
         }
         fits
     });
-    let leg_ratio = detection_leg_ratio(clip, options).unwrap_or(1.0);
+    // The rest legs and body roles, read once: for the contact thresholds and the joints
+    // compared with the sources.
+    let rest = rest_legs(clip.skeleton());
+    let leg_ratio = match (options.contacts.leg_m, &rest) {
+        (Some(set_for), Ok((leg_m, _))) => leg_m / set_for,
+        _ => 1.0,
+    };
     if given.is_none() && (leg_ratio - 1.0).abs() > 0.05 {
         findings.push(format!(
             "contacts detected for legs {leg_ratio:.2} × the reference's: heights and speeds × {leg_ratio:.2} of the \
@@ -653,27 +647,32 @@ pub fn measure_quality(
     }
 
     // Accelerations and the root, against the sources' own.
-    let peaks = tracks.peak_accelerations(&[]);
-    let peak_values: Vec<f64> = peaks.iter().map(|p| p.0).collect();
+    let mut body = |skeleton: &Skeleton, rest: Result<(f64, BodyRoles), RolesError>| match rest {
+        Ok((_, roles)) => body_joints(skeleton, &roles),
+        Err(why) => {
+            if !sources.is_empty() {
+                findings
+                    .push(format!("the fingers could not be told from the body, so all joints are compared: {why}"));
+            }
+            Vec::new()
+        }
+    };
+    let peaks = tracks.peak_accelerations(&body(clip.skeleton(), rest));
+    let peak_values: Vec<f64> = peaks.iter().map(|p| p[0].0).collect();
     let peak = max_in_window(&peak_values, window);
     let half_width = ((options.neighbourhood_secs * clip.fps()).round() as usize).max(2 * SPIKE_EXCLUSION_FRAMES);
     let spike = max_in_window(&spike_ratios(&peak_values, half_width), window);
     let root = max_in_window(&tracks.root_velocity_changes(), window);
     let source_tracks: Vec<Tracks> = sources.iter().map(|s| Tracks::of(s)).collect();
-    let mut body = |clip: &Clip| {
-        let (joints, unread) = body_joints(clip.skeleton());
-        if let (Some(why), false) = (unread, sources.is_empty()) {
-            findings.push(format!("the fingers could not be told from the body, so all joints are compared: {why}"));
-        }
-        joints
-    };
-    let body_peaks = if sources.is_empty() { Vec::new() } else { tracks.peak_accelerations(&body(clip)) };
-    let body_values: Vec<f64> = body_peaks.iter().map(|p| p.0).collect();
-    let body_peak = max_in_window(&body_values, window);
+    let body_values: Vec<f64> = peaks.iter().map(|p| p[1].0).collect();
+    let body_peak = max_in_window(&body_values, window).filter(|_| !sources.is_empty());
     let sources_peak = sources
         .iter()
         .zip(&source_tracks)
-        .flat_map(|(s, t)| t.peak_accelerations(&body(s)).into_iter().map(|p| p.0))
+        .flat_map(|(s, t)| {
+            let in_body = body(s.skeleton(), rest_legs(s.skeleton()));
+            t.peak_accelerations(&in_body).into_iter().map(|p| p[1].0)
+        })
         .reduce(f64::max);
     let sources_root = source_tracks.iter().flat_map(|t| t.root_velocity_changes()).reduce(f64::max);
     if !sources.is_empty() && sources_peak.is_none() {
@@ -731,8 +730,8 @@ pub fn measure_quality(
         summary,
         feet: feet_quality,
         longest_below_floor_secs: longest_below_secs,
-        acceleration_peak_at: peak.map(|(_, f)| (f, joint_name(peaks[f - 1].1))),
-        body_acceleration_peak_at: body_peak.map(|(_, f)| (f, joint_name(body_peaks[f - 1].1))),
+        acceleration_peak_at: peak.map(|(_, f)| (f, joint_name(peaks[f - 1][0].1))),
+        body_acceleration_peak_at: body_peak.map(|(_, f)| (f, joint_name(peaks[f - 1][1].1))),
         acceleration_spike_frame: spike.map(|s| s.1),
         sources_acceleration_peak_mps2: sources_peak,
         root_velocity_change_frame: root.map(|r| r.1),

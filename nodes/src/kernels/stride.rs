@@ -116,7 +116,7 @@ pub fn rest_leg_length_m(skeleton: &Skeleton) -> Result<f64, RolesError> {
 }
 
 /// The rest-pose leg length (metres) and the body roles it was read from.
-fn rest_legs(skeleton: &Skeleton) -> Result<(f64, BodyRoles), RolesError> {
+pub fn rest_legs(skeleton: &Skeleton) -> Result<(f64, BodyRoles), RolesError> {
     let roles = rest_roles(skeleton)?;
     let rest = rest_world(skeleton);
     Ok((f64::from(roles.leg_length_m(|j| rest[j].translation)), roles))

@@ -508,12 +508,18 @@ impl Plants {
     /// The planted places of joint `point` of `clip` over `intervals`.
     pub fn new(clip: &Clip, point: usize, intervals: &[FrameRange], blend: usize) -> Self {
         let mut world = vec![Transform::IDENTITY; clip.joint_count()];
-        let mut at = |f: usize| {
+        let at = |f: usize| {
             pose_world(clip.skeleton(), clip.frame_rotations(f), clip.frame_translations(f), &mut world);
             world[point].translation.as_dvec3()
         };
+        Plants::along(at, clip.frame_count(), intervals, blend)
+    }
+
+    /// The planted places of a point at `at(frame)` (world position) in a clip of `frames`
+    /// frames, over `intervals`: for callers that have the track already.
+    pub fn along(mut at: impl FnMut(usize) -> DVec3, frames: usize, intervals: &[FrameRange], blend: usize) -> Self {
         let mut ranges: Vec<FrameRange> =
-            intervals.iter().filter(|r| r.end > r.start && r.end <= clip.frame_count()).copied().collect();
+            intervals.iter().filter(|r| r.end > r.start && r.end <= frames).copied().collect();
         ranges.sort_by_key(|r| r.start);
         let blend = blend.max(1);
         // Half the gap to a neighbour, rounded up: two ramps sharing a gap then never
