@@ -18,6 +18,9 @@ use kinegraph_nodes::model::{Clip, FamilyKind, SampleOutcome, forward_kinematics
 /// counts as exact, so a blend is held to twice this rather than to twice round-off.
 const FEET_TOL_M: f64 = 5e-4;
 
+/// The solver's tolerance on the centre of mass's velocity (linear momentum per mass), m/s.
+const LINEAR_TOL_MPS: f64 = 5e-3;
+
 /// The measures of `edited` (16_01 with its landing moved `offset`) that the family blend is
 /// judged by, from the momentum-edit tests' measure.
 fn measures(jump: &Jump, edited: &Clip, offset: DVec3) -> EditMeasures {
@@ -70,8 +73,8 @@ fn a_line_family_blends_exactly_at_its_samples_and_plausibly_between_them() {
     assert!(moved < 1e-5 && turned < 1e-5, "{moved} m, {turned}");
 
     // Between the samples, the feet-on-ground and flight-parabola measures stay within twice
-    // the samples' own (drift and below the floor: at least twice the solver's tolerance, the
-    // samples being exact there).
+    // the samples' own (at least twice what the solver's tolerances allow, the samples being
+    // exact there: the feet's, and for the parabola the velocity tolerance over the flight).
     let sample_measures: Vec<EditMeasures> = family
         .samples
         .iter()
@@ -90,7 +93,9 @@ fn a_line_family_blends_exactly_at_its_samples_and_plausibly_between_them() {
         eprintln!("u = {u}: {m:?} (samples: drift {drift:e}, below {below:e}, parabola {parabola:e})");
         assert!(m.planted_drift_m < 2.0 * drift.max(FEET_TOL_M), "drift {} m", m.planted_drift_m);
         assert!(m.below_floor_m < 2.0 * below.max(FEET_TOL_M), "below floor {} m", m.below_floor_m);
-        assert!(m.parabola_rms_m.iter().all(|r| *r < 2.0 * parabola), "parabola {:?}", m.parabola_rms_m);
+        let flight_secs = stages.stages[1].frames.len() as f64 / jump.clip.fps();
+        let parabola_bar = 2.0 * parabola.max(LINEAR_TOL_MPS * flight_secs);
+        assert!(m.parabola_rms_m.iter().all(|r| *r < parabola_bar), "parabola {:?}", m.parabola_rms_m);
         // The landing is where the blend's parameter puts it (within the feet tolerance).
         assert!(m.placement_error_m.iter().all(|e| *e < 2.0 * FEET_TOL_M), "landing {:?}", m.placement_error_m);
     }

@@ -146,9 +146,12 @@ pub fn naive_edit(clip: &Clip, stages: &Stages, model: &BodyModel, edits: &[Grou
 /// How an edited clip measures up (the acceptance measures).
 #[derive(Clone, Debug, PartialEq)]
 pub struct EditMeasures {
-    /// Per ground stage, the largest distance of a foot at the stage's first frame from
-    /// where the edit asked it to be (the original foot moved by the stage's edit, raised
-    /// onto the floor where the capture has it below), metres.
+    /// Per ground stage, the largest distance of a foot where it comes to rest from where
+    /// the edit asked it to be (the original foot moved by the stage's edit, raised onto
+    /// the floor where the capture has it below), metres: the ankle and the toe tip at the
+    /// frame of each contact starting in the stage where the original's toe tip is lowest
+    /// (a landing foot still slides and turns onto its heel for some frames after its toe
+    /// touches); a stage where no contact starts, the ankles at its first frame.
     pub placement_error_m: Vec<f64>,
     /// Largest horizontal drift of a planted foot's toe tip during any of its contact
     /// intervals, metres (from its place at the interval's first frame): the point a
@@ -186,19 +189,40 @@ pub fn measure_edit(
     let floor = floor_height(&po, feet);
     let grounds: Vec<FrameRange> =
         stages.stages.iter().filter(|s| s.kind == StageKind::Ground).map(|s| s.frames).collect();
+    let skeleton = edited.skeleton();
+    let toes: Vec<usize> = feet.iter().map(|&j| limb_tip(skeleton, j)).collect();
+    let toe_floor = floor_height(&po, &toes);
+    // The distance of joint `j` at frame `f` from where the edit asked it, raised onto `rest`.
+    let missed = |f: usize, j: usize, rest: f64| {
+        let mut asked = place[f].apply(foot(&po, f, j));
+        asked.y = asked.y.max(rest);
+        (foot(&pe, f, j) - asked).length()
+    };
     let placement_error_m = grounds
         .iter()
-        .map(|r| {
-            feet.iter()
-                .map(|&j| {
-                    let mut asked = place[r.start].apply(foot(&po, r.start, j));
-                    asked.y = asked.y.max(floor);
-                    (foot(&pe, r.start, j) - asked).length()
+        .map(|g| {
+            let resting: Vec<(usize, usize)> = planted
+                .iter()
+                .filter(|(_, r)| g.contains(r.start) && r.end <= po.frame_count())
+                .filter_map(|&(j, r)| {
+                    let toe = limb_tip(skeleton, j);
+                    let lowest =
+                        (r.start..r.end).min_by(|a, b| foot(&po, *a, toe).y.total_cmp(&foot(&po, *b, toe).y))?;
+                    Some((j, lowest))
+                })
+                .collect();
+            if resting.is_empty() {
+                return feet.iter().map(|&j| missed(g.start, j, floor)).fold(0.0, f64::max);
+            }
+            resting
+                .iter()
+                .map(|&(j, f)| {
+                    let toe = limb_tip(skeleton, j);
+                    missed(f, j, floor).max(missed(f, toe, floor_height(&po, &[toe])))
                 })
                 .fold(0.0, f64::max)
         })
         .collect();
-    let skeleton = edited.skeleton();
     let mut planted_drift_m = 0.0f64;
     for &(j, r) in planted {
         let toe = limb_tip(skeleton, j);
@@ -208,8 +232,6 @@ pub fn measure_edit(
         }
     }
     // Ankles and toe tips each against the height they rest at in the original.
-    let toes: Vec<usize> = feet.iter().map(|&j| limb_tip(skeleton, j)).collect();
-    let toe_floor = floor_height(&po, &toes);
     let points: Vec<(usize, f64)> =
         feet.iter().map(|&j| (j, floor)).chain(toes.iter().map(|&t| (t, toe_floor))).collect();
     let below_floor_m = (0..pe.frame_count())

@@ -13,16 +13,21 @@
 //! from the initial guess's local rotation, range_a the joint's natural range in the
 //! original clip; the root translation likewise per axis) + the pseudo-balance term,
 //! ((c(f) − c_init(f)) / [`BALANCE_SCALE_M`])² at the first frame of the first ground stage,
-//! the last frame of the last and mid-frame of interior ones.
+//! the last frame of the last and mid-frame of interior ones + smoothness, the paper's "as
+//! smooth as possible": Σ (Δ²δ (fps · [`SMOOTH_SECS`])² / range)², δ's second difference
+//! over frames.
 //!
 //! Constraints: planted feet on their edited places, held as the foot lock holds them (the
 //! initial guess's toe tip at the contact's lowest frame, which is where the edit asked, the
 //! ankle and toe tip moved by the toe's drift, so the capture's heel rise and roll stay; the
 //! hold fading out after the contact); both ankles at their edited places at each ground
 //! stage's first frame (the landing); ankles never below the floor;
-//! linear and angular momentum of Q (central differences, as [`momentum_of_poses`] measures
-//! them) equal to the splines of G at every interior frame; C1 between ground splines and
-//! flight lines (not the vertical momentum at a landing).
+//! linear and angular momentum of Q equal to the splines of G between every two frames
+//! (at t = (f + ½)/fps, from the difference of the two frames); C1 between ground splines and
+//! flight lines (the vertical momentum at a landing only C0). Central differences, as
+//! [`momentum_of_poses`] measures momentum, would leave the constraints blind to a zigzag
+//! (every other frame moved one way): the solver used it to meet the landing pins, and the
+//! root's velocity jumped 2–4 m/s in one frame at the take-off and the landing (CMU 16_01).
 //!
 //! Solver: an augmented Lagrangian whose subproblems are damped Gauss–Newton
 //! (Levenberg–Marquardt) steps on the sparse normal equations JᵀJ + λ diag(JᵀJ), factored by faer's
@@ -40,10 +45,16 @@
 
 use std::time::Instant;
 
-use faer::sparse::linalg::matmul::sparse_sparse_matmul;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::perm::PermRef;
+use faer::sparse::linalg::cholesky::{
+    CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
+};
+use faer::sparse::linalg::matmul::{
+    SparseMatMulInfo, sparse_sparse_matmul_numeric, sparse_sparse_matmul_numeric_scratch, sparse_sparse_matmul_symbolic,
+};
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-use faer::{Par, Side};
+use faer::{Accum, Par, Side};
 use glam::{DMat3, DQuat, DVec3, Quat};
 
 use super::angular::{MomentumTrack, momentum_of_poses};
@@ -57,6 +68,13 @@ use crate::model::{Clip, ClipError, ClipPoses, FrameRange, StageKind, Stages, fo
 /// head's end) are left as the initial guess has them: they barely change the momentum.
 pub const MIN_SUBTREE_MASS: f64 = 0.005;
 
+/// Time scale of the smoothness term, seconds: the edit's displacement of a DOF may bend
+/// over this time at the cost of its distance; a sharper bend costs more (as (SMOOTH_SECS / T)⁴
+/// for a bend over T). Without it the frames at the clip's ends and beside the pins took up
+/// whatever the momentum splines asked in one frame (an arm swung 69 cm into CMU 16_01's
+/// second frame).
+pub const SMOOTH_SECS: f64 = 0.1;
+
 /// Distance that makes one unit of the pseudo-balance term, metres.
 pub const BALANCE_SCALE_M: f64 = 0.02;
 
@@ -66,6 +84,11 @@ pub const MIN_FRAMES: usize = 12;
 /// The largest change of horizontal take-off speed an edit may ask for, m/s: beyond it the
 /// legs cannot push (the landing is unreachable).
 pub const MAX_EXTRA_SPEED_MPS: f64 = 4.0;
+
+/// Accepted Levenberg–Marquardt steps between two multiplier updates. Over nine edits of
+/// CMU 16_01 (landing moved up to 0.8 m, turned 0, 90 and 180°) 2 took 12–25 steps, 4 took
+/// 27–28 for the same measures (root velocity, feet, floor within a few per cent).
+const STEPS_PER_UPDATE: usize = 2;
 
 /// Penalties grow at most this much above their start (beyond it the normal equations
 /// lose precision; the multipliers do the rest).
@@ -80,6 +103,10 @@ pub const LIMIT_MARGIN_RAD: f64 = 0.1;
 /// lock's default blend): released at once, the foot would jump by the drift the hold took
 /// out of the capture.
 const RELEASE_SECS: f64 = 0.15;
+
+/// A foot contact that starts no later than this after a landing is held from the landing,
+/// seconds.
+const LANDING_SECS: f64 = 0.1;
 
 /// Ankles are kept this far above the floor, metres (a margin for the one-sided penalty).
 const FLOOR_MARGIN_M: f64 = 2e-4;
@@ -163,6 +190,8 @@ pub struct SolveReport {
     pub active_joints: usize,
     /// Similarity term Σ (δ/range)².
     pub similarity: f64,
+    /// Smoothness term Σ (Δ²δ (fps · SMOOTH_SECS)² / range)².
+    pub smoothness: f64,
     /// Pseudo-balance term Σ (Δcom / BALANCE_SCALE_M)².
     pub balance: f64,
     /// Every constraint group at the end.
@@ -285,6 +314,8 @@ struct Eval {
     clip: Clip,
     poses: ClipPoses,
     track: MomentumTrack,
+    /// Segment centres of mass, frame-major (frames × segments), metres.
+    segments: Vec<DVec3>,
 }
 
 /// Optimises `setup`'s edit: returns the edited clip and the report.
@@ -297,18 +328,22 @@ pub fn momentum_edit(setup: EditSetup<'_>, options: &SolveOptions) -> Result<(Cl
     let mut multipliers = vec![0.0; constraint_count];
     let mut lambda = 1e-3;
     let mut iterations = 0;
-    let mut symbolic: Option<SymbolicFactor> = None;
+    let mut normal: Option<NormalEquations> = None;
     let mut worst = problem.worst(&state, &eval);
     while iterations < options.max_iterations && worst.1 > 1.0 {
         // Inner: Levenberg–Marquardt on the augmented Lagrangian until it stalls.
         let mut merit = problem.merit(&state, &eval, &multipliers, &penalty);
-        for _ in 0..4 {
-            let normal =
-                NormalEquations::new(problem.system(&state, &eval, &multipliers, &penalty), problem.unknowns())?;
+        for _ in 0..STEPS_PER_UPDATE {
+            let rows = problem.system(&state, &eval, &multipliers, &penalty);
+            let refilled = normal.as_mut().is_some_and(|n| n.refill(&rows));
+            let normal = match normal.as_mut() {
+                Some(n) if refilled => n,
+                _ => normal.insert(NormalEquations::new(&rows, &problem.time_order())?),
+            };
             let mut accepted = false;
             while iterations < options.max_iterations {
                 iterations += 1;
-                let step = normal.damped_step(lambda, &mut symbolic)?;
+                let step = normal.damped_step(lambda)?;
                 let trial = problem.apply(&state, &eval, &step);
                 let trial_eval = problem.eval(&trial)?;
                 let trial_merit = problem.merit(&trial, &trial_eval, &multipliers, &penalty);
@@ -372,13 +407,14 @@ pub fn momentum_edit(setup: EditSetup<'_>, options: &SolveOptions) -> Result<(Cl
             iterations,
         });
     }
-    let (similarity, balance) = problem.objective_terms(&state, &eval);
+    let [similarity, smoothness, balance] = problem.objective_terms(&state, &eval);
     let report = SolveReport {
         iterations,
         seconds: started.elapsed().as_secs_f64(),
         unknowns: problem.unknowns(),
         active_joints: problem.active.len(),
         similarity,
+        smoothness,
         balance,
         violations,
     };
@@ -505,7 +541,14 @@ impl<'a> Problem<'a> {
             (toe, floor_height(&original_poses, &[toe]))
         };
         let toes: Vec<(usize, (usize, f64))> = feet.iter().map(|&j| (j, toe_of(j))).collect();
-        for &(j, r) in planted {
+        let landing = (LANDING_SECS * fps).round() as usize;
+        for &(j, mut r) in planted {
+            // A contact that starts just after a landing is held from the landing frame: the
+            // edit may bring the foot down faster than the capture did, and a foot left free
+            // until the contact slid on after touching down (2 cm over CMU 16_01's landing).
+            if let Some(g) = grounds.iter().find(|g| g.start > 0 && r.start > g.start && r.start <= g.start + landing) {
+                r.start = g.start;
+            }
             // Frames of the contact in a ground stage, and after it, within that stage, the
             // frames over which the foot is handed back to the clip's (the foot lock's blend).
             let room =
@@ -613,6 +656,32 @@ impl<'a> Problem<'a> {
         self.n * self.dof + i
     }
 
+    /// The unknowns in time order (new position → unknown): each frame's DOFs, and every
+    /// spline control point or flight-line value just after the last frame it acts on. The
+    /// rows couple only neighbouring frames and the G entries over them, so the Cholesky
+    /// factor keeps to a band in this order. With G last (every frame couples to it) or by
+    /// minimum degree it held twice the entries (6.6 M on CMU 16_01); with G in the middle
+    /// of its frames, its elimination joined all of them (36 M).
+    fn time_order(&self) -> Vec<usize> {
+        let mut at: Vec<(f64, usize)> = (0..self.n * self.dof).map(|c| ((c / self.dof) as f64, c)).collect();
+        for (c, ch) in self.fit.channels.iter().enumerate() {
+            for (i, piece) in ch.pieces.iter().enumerate() {
+                let base = self.g_cols[c][i];
+                match piece {
+                    Piece::Line { end_secs, .. } => at.push((end_secs * self.fps + 0.5, self.g_col(base))),
+                    Piece::Spline { spline, .. } => {
+                        for k in 0..spline.control.len() {
+                            let end = spline.knots[(k + 4).min(spline.knots.len() - 1)];
+                            at.push((end * self.fps + 0.5, self.g_col(base + k)));
+                        }
+                    }
+                }
+            }
+        }
+        at.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        at.into_iter().map(|(_, c)| c).collect()
+    }
+
     fn eval(&self, state: &State) -> Result<Eval, SolveError> {
         let clip = self.setup.clip;
         let mut translations = clip.translations().to_vec();
@@ -623,12 +692,38 @@ impl<'a> Problem<'a> {
         let clip = Clip::new(clip.skeleton().clone(), self.fps, rotations, translations, clip.import_scale)?;
         let poses = forward_kinematics(&clip);
         let track = momentum_of_poses(&poses, self.fps, self.setup.model);
-        Ok(Eval { clip, poses, track })
+        let model = self.setup.model;
+        let segments = (0..self.n)
+            .flat_map(|f| {
+                let frame = poses.frame(f);
+                model.segments.iter().map(move |s| {
+                    s.com_weights.iter().map(|&(j, w)| f64::from(w) * frame[j].translation.as_dvec3()).sum::<DVec3>()
+                })
+            })
+            .collect();
+        Ok(Eval { clip, poses, track, segments })
     }
 
-    /// The model momentum of channel `c` at frame `f` (per mass) and its G entries.
-    fn model_row(&self, state: &State, c: usize, f: usize) -> (f64, Vec<(usize, f64)>) {
-        let t = f as f64 / self.fps;
+    /// Linear momentum (the COM's velocity) and angular momentum per mass between frames
+    /// `f` and `f + 1`: channels p.x, p.y, p.z, L.x, L.y, L.z.
+    fn half_frame_momentum(&self, eval: &Eval, f: usize) -> [f64; 6] {
+        let segments = &self.setup.model.segments;
+        let count = segments.len();
+        let (now, next) =
+            (&eval.segments[f * count..(f + 1) * count], &eval.segments[(f + 1) * count..(f + 2) * count]);
+        let (c0, c1) = (eval.track.com_m[f], eval.track.com_m[f + 1]);
+        let (centre, moved) = (0.5 * (c0 + c1), c1 - c0);
+        let mut l = DVec3::ZERO;
+        for (s, seg) in segments.iter().enumerate() {
+            let arm = 0.5 * (now[s] + next[s]) - centre;
+            l += seg.mass_kg / self.mass * arm.cross((next[s] - now[s] - moved) * self.fps);
+        }
+        let v = moved * self.fps;
+        [v.x, v.y, v.z, l.x, l.y, l.z]
+    }
+
+    /// The model momentum of channel `c` at time `t` (seconds, per mass) and its G entries.
+    fn model_row(&self, state: &State, c: usize, t: f64) -> (f64, Vec<(usize, f64)>) {
         let ch = &self.fit.channels[c];
         let Some(i) = ch.piece_at(t) else { return (0.0, Vec::new()) };
         let base = self.g_cols[c][i];
@@ -665,12 +760,13 @@ impl<'a> Problem<'a> {
                 let base = self.g_cols[c][i];
                 let m = spline.control.len();
                 let k = &spline.knots;
-                if let (Some(Piece::Line { start_secs, end_secs, .. }), true) =
-                    (i.checked_sub(1).map(|p| &ch.pieces[p]), c != 1)
-                {
+                if let Some(Piece::Line { start_secs, end_secs, .. }) = i.checked_sub(1).map(|p| &ch.pieces[p]) {
                     let (line, slope) = (self.g_cols[c][i - 1], self.line_slope(c, i - 1));
                     rows.push((-slope * (end_secs - start_secs), vec![(base, 1.0), (line, -1.0)]));
-                    rows.push((-slope * (k[4] - a) / 3.0, vec![(base + 1, 1.0), (base, -1.0)]));
+                    // The vertical linear momentum at a landing: C0 only (fit_momentum).
+                    if c != 1 {
+                        rows.push((-slope * (k[4] - a) / 3.0, vec![(base + 1, 1.0), (base, -1.0)]));
+                    }
                 }
                 if let Some(Piece::Line { .. }) = ch.pieces.get(i + 1) {
                     let (line, slope) = (self.g_cols[c][i + 1], self.line_slope(c, i + 1));
@@ -720,11 +816,10 @@ impl<'a> Problem<'a> {
                 push(below, FLOOR, row, &mut jacobian);
             }
         }
-        for f in 1..self.n - 1 {
-            for c in 0..6 {
-                let (model, g_entries) = self.model_row(state, c, f);
-                let measured =
-                    if c < 3 { eval.track.com_velocity_mps[f][c] } else { eval.track.momentum[f][c - 3] / self.mass };
+        for f in 0..self.n - 1 {
+            let measured = self.half_frame_momentum(eval, f);
+            for (c, measured) in measured.into_iter().enumerate() {
+                let (model, g_entries) = self.model_row(state, c, (f as f64 + 0.5) / self.fps);
                 let mut row = Vec::new();
                 if want {
                     row = if c < 3 { self.linear_row(frames, f, c) } else { self.angular_row(frames, f, c - 3) };
@@ -771,11 +866,10 @@ impl<'a> Problem<'a> {
         row
     }
 
-    /// Entries of COM velocity component `i` at frame `f` (central difference).
+    /// Entries of COM velocity component `i` between frames `f` and `f + 1`.
     fn linear_row(&self, frames: &[FrameGeometry], f: usize, i: usize) -> Vec<(usize, f64)> {
-        let half = 0.5 * self.fps;
         let mut row = Vec::new();
-        for (h, s) in [(f - 1, -half), (f + 1, half)] {
+        for (h, s) in [(f, -self.fps), (f + 1, self.fps)] {
             row.push((self.col(h, i), s));
             for (k, d) in frames[h].com_arm.iter().enumerate() {
                 for a in 0..3 {
@@ -786,45 +880,39 @@ impl<'a> Problem<'a> {
         row
     }
 
-    /// Entries of (angular momentum / mass) component `i` at frame `f`:
-    /// δL = Σ m_s ((δx_s × u_s) + r_s × δv_s), the centre's own terms cancelling (Σ m_s u_s =
-    /// Σ m_s r_s = 0), so root translations do not enter.
+    /// Entries of (angular momentum / mass) component `i` between frames `f` and `f + 1`:
+    /// with r̄_s, ū_s a segment's mid-point arm and velocity relative to the centre,
+    /// δL = Σ m_s (δr̄_s × ū_s + r̄_s × δū_s), δr̄ = ½(δx(f) + δx(f+1)), δū = fps (δx(f+1) − δx(f));
+    /// the centre's own terms cancel (Σ m_s ū_s = Σ m_s r̄_s = 0), so root translations do
+    /// not enter.
     fn angular_row(&self, frames: &[FrameGeometry], f: usize, i: usize) -> Vec<(usize, f64)> {
-        let half = 0.5 * self.fps;
         let masses = &self.setup.model.segments;
         let k_count = self.active.len();
-        let geo = &frames[f];
-        let com = geo.com;
-        let mut row = Vec::new();
-        let u: Vec<DVec3> = (0..masses.len())
-            .map(|s| {
-                (frames[f + 1].segments[s] - frames[f - 1].segments[s]) * half
-                    - (frames[f + 1].com - frames[f - 1].com) * half
-            })
-            .collect();
-        let r: Vec<DVec3> = geo.segments.iter().map(|x| *x - com).collect();
-        for k in 0..k_count {
-            for a in 0..3 {
-                let e = axis(a);
-                let mut now = DVec3::ZERO;
-                let mut next = DVec3::ZERO;
-                let mut prev = DVec3::ZERO;
-                for (s, seg) in masses.iter().enumerate() {
-                    let m = seg.mass_kg / self.mass;
-                    now += m * e.cross(geo.seg_arm[s * k_count + k]).cross(u[s]);
-                    next += m * r[s].cross(e.cross(frames[f + 1].seg_arm[s * k_count + k]));
-                    prev += m * r[s].cross(e.cross(frames[f - 1].seg_arm[s * k_count + k]));
+        let (now, next) = (&frames[f], &frames[f + 1]);
+        let centre = 0.5 * (now.com + next.com);
+        let moved = next.com - now.com;
+        let u: Vec<DVec3> =
+            now.segments.iter().zip(&next.segments).map(|(a, b)| (*b - *a - moved) * self.fps).collect();
+        let r: Vec<DVec3> = now.segments.iter().zip(&next.segments).map(|(a, b)| 0.5 * (*a + *b) - centre).collect();
+        let mut row = Vec::with_capacity(6 * k_count);
+        for (h, geo, sign) in [(f, now, -1.0), (f + 1, next, 1.0)] {
+            for k in 0..k_count {
+                for a in 0..3 {
+                    let e = axis(a);
+                    let mut d = DVec3::ZERO;
+                    for (s, seg) in masses.iter().enumerate() {
+                        let moved = e.cross(geo.seg_arm[s * k_count + k]);
+                        d += seg.mass_kg / self.mass * (0.5 * moved.cross(u[s]) + sign * self.fps * r[s].cross(moved));
+                    }
+                    row.push((self.col(h, 3 + 3 * k + a), d[i]));
                 }
-                row.push((self.col(f, 3 + 3 * k + a), now[i]));
-                row.push((self.col(f + 1, 3 + 3 * k + a), half * next[i]));
-                row.push((self.col(f - 1, 3 + 3 * k + a), -half * prev[i]));
             }
         }
         row
     }
 
-    /// Objective rows: similarity then balance, (value, entries); the entries only with
-    /// `geometry` (the frames' geometry of `eval`).
+    /// Objective rows: similarity, smoothness, then balance, (value, entries); the entries
+    /// only with `geometry` (the frames' geometry of `eval`).
     // `frames` is empty when no Jacobian is asked, so the loop indexes it by frame number.
     #[allow(clippy::needless_range_loop)]
     fn objective_rows(
@@ -833,7 +921,7 @@ impl<'a> Problem<'a> {
         eval: &Eval,
         geometry: Option<&[FrameGeometry]>,
     ) -> Vec<(f64, Vec<(usize, f64)>)> {
-        let mut rows = Vec::new();
+        let mut rows = Vec::with_capacity((2 * self.n - 2) * self.dof + 3 * self.balance.len());
         let want = geometry.is_some();
         let frames = geometry.unwrap_or_default();
         for f in 0..self.n {
@@ -855,6 +943,20 @@ impl<'a> Problem<'a> {
                 }
             }
         }
+        // Smoothness: the second difference of every DOF's displacement, so that a feature
+        // shorter than SMOOTH_SECS costs more as acceleration than as distance.
+        let scale = (self.fps * SMOOTH_SECS).powi(2);
+        for f in 1..self.n - 1 {
+            for i in 0..self.dof {
+                let [prev, now, next] = [f - 1, f, f + 1].map(|h| &rows[h * self.dof + i]);
+                let value = scale * (prev.0 - 2.0 * now.0 + next.0);
+                let entries = [(prev, scale), (now, -2.0 * scale), (next, scale)]
+                    .iter()
+                    .flat_map(|(row, w)| row.1.iter().map(move |&(c, v)| (c, w * v)))
+                    .collect();
+                rows.push((value, entries));
+            }
+        }
         for &(f, target) in &self.balance {
             let d = (eval.track.com_m[f] - target) / BALANCE_SCALE_M;
             for i in 0..3 {
@@ -873,16 +975,17 @@ impl<'a> Problem<'a> {
         rows
     }
 
-    fn objective_terms(&self, state: &State, eval: &Eval) -> (f64, f64) {
+    /// The objective's terms: similarity, smoothness and balance.
+    fn objective_terms(&self, state: &State, eval: &Eval) -> [f64; 3] {
         let rows = self.objective_rows(state, eval, None);
-        let split = rows.len() - 3 * self.balance.len();
+        let (similar, smooth) = (self.n * self.dof, (self.n - 2) * self.dof);
         let sq = |r: &[(f64, Vec<(usize, f64)>)]| r.iter().map(|(v, _)| v * v).sum::<f64>();
-        (sq(&rows[..split]), sq(&rows[split..]))
+        [sq(&rows[..similar]), sq(&rows[similar..similar + smooth]), sq(&rows[similar + smooth..])]
     }
 
     /// ½‖objective‖² + Σ_g μ_g/2 ‖c + y/μ_g‖² (inequalities: only the part above zero).
     fn merit(&self, state: &State, eval: &Eval, multipliers: &[f64], penalty: &[f64]) -> f64 {
-        let (s, b) = self.objective_terms(state, eval);
+        let terms: f64 = self.objective_terms(state, eval).iter().sum();
         let (values, groups) = self.constraints(state, eval, None);
         let c: f64 = values
             .iter()
@@ -890,7 +993,7 @@ impl<'a> Problem<'a> {
             .zip(multipliers)
             .map(|((v, g), y)| penalty[*g] * shifted(*v, *y, penalty[*g], *g).powi(2))
             .sum();
-        0.5 * (s + b + c)
+        0.5 * (terms + c)
     }
 
     /// Residuals and Jacobian triplets of the least-squares subproblem.
@@ -1000,18 +1103,14 @@ impl FrameGeometry {
                     })
                     .collect();
                 let mut seg_arm = vec![DVec3::ZERO; segments.len() * k_count];
-                let mut seg_pos = Vec::with_capacity(segments.len());
                 for (s, seg) in segments.iter().enumerate() {
-                    let mut x = DVec3::ZERO;
                     for &(j, w) in &seg.com_weights {
-                        let w = f64::from(w);
-                        x += w * positions[j];
                         for &k in &p.ancestors[j] {
-                            seg_arm[s * k_count + k] += w * (positions[j] - positions[p.active[k]]);
+                            seg_arm[s * k_count + k] += f64::from(w) * (positions[j] - positions[p.active[k]]);
                         }
                     }
-                    seg_pos.push(x);
                 }
+                let seg_pos = eval.segments[f * segments.len()..(f + 1) * segments.len()].to_vec();
                 let com = eval.track.com_m[f];
                 let com_arm = (0..k_count)
                     .map(|k| {
@@ -1029,88 +1128,198 @@ impl FrameGeometry {
     }
 }
 
-/// A symbolic Cholesky factorisation with the pattern (column pointers, row indices) of the
-/// matrix it was made for.
-type SymbolicFactor = (Vec<usize>, Vec<usize>, SymbolicLlt<usize>);
-
-/// The Gauss–Newton normal equations of one linearisation, JᵀJ and −Jᵀr. Built once and
-/// kept while the damping is retried: a rejected step changes only the diagonal, so
-/// rebuilding J, its transpose and the product for every retry was wasted work.
+/// The Gauss–Newton normal equations JᵀJ δ = −Jᵀr, kept from one linearisation to the
+/// next. Every linearisation has the same rows with the same columns (an inactive
+/// inequality keeps its entries as zeros), so J's transpose, the product's pattern and the
+/// Cholesky factor's symbolic part (a fill-reducing ordering) are made once per edit and
+/// every step only refills values into buffers it owns: no allocation per step, where
+/// building them afresh spent about half of each step in the allocator and the kernel's
+/// page faults (the whole factor, ~100 MB on CMU 16_01, new every step).
 struct NormalEquations {
+    /// Jᵀ, one column per residual row.
+    jt: SparseColMat<usize, f64>,
+    /// J, column-major, and where each of its values sits in `jt`'s.
+    j: SparseColMat<usize, f64>,
+    j_from_jt: Vec<usize>,
+    product: SparseMatMulInfo,
     jtj: SparseColMat<usize, f64>,
-    /// Where each unknown's diagonal entry sits in `jtj`'s values.
+    /// Where each unknown's diagonal entry sits in `jtj`'s values, and the entries undamped.
     diagonal: Vec<usize>,
+    undamped: Vec<f64>,
     /// −Jᵀr.
     gradient: Vec<f64>,
+    cholesky: SymbolicCholesky<usize>,
+    factor: Vec<f64>,
+    workspace: MemBuffer,
+    /// A row's entries sorted by column, reused.
+    sorted: Vec<(usize, f64)>,
 }
 
 fn factor_error(e: &dyn std::fmt::Debug) -> SolveError {
     SolveError::Factor(format!("{e:?}"))
 }
 
+/// Parallelism of the product and the factorisation: none. On CMU 16_01 two threads made
+/// each step slower (the product 31 → 54 ms), and a family already solves its samples in
+/// parallel.
+const PAR: Par = Par::Seq;
+
 impl NormalEquations {
-    /// From the residual rows (value, sparse entries by unknown). Each row is a column of
-    /// Jᵀ, so Jᵀ is assembled directly (a short sort per row) and J is its transpose: no
-    /// sort of the whole Jacobian.
-    fn new(rows: Vec<(f64, Vec<(usize, f64)>)>, unknowns: usize) -> Result<Self, SolveError> {
+    /// Makes the pattern from the first linearisation's residual rows (value, entries by
+    /// unknown) and fills it; `order` lists the unknowns in the order to factor them.
+    fn new(rows: &[(f64, Vec<(usize, f64)>)], order: &[usize]) -> Result<Self, SolveError> {
+        let unknowns = order.len();
+        let mut inverse = vec![usize::MAX; unknowns];
+        for (new, &old) in order.iter().enumerate() {
+            match inverse.get_mut(old) {
+                Some(slot) if *slot == usize::MAX => *slot = new,
+                _ => return Err(SolveError::Factor(format!("the order lists unknown {old} twice or out of range"))),
+            }
+        }
         let mut col_ptr = Vec::with_capacity(rows.len() + 1);
         col_ptr.push(0);
-        let (mut row_idx, mut values) = (Vec::new(), Vec::new());
-        let mut gradient = vec![0.0; unknowns];
-        let row_count = rows.len();
-        for (residual, mut entries) in rows {
-            entries.sort_unstable_by_key(|&(c, _)| c);
-            let start = row_idx.len();
-            for (c, w) in entries {
-                let Some(g) = gradient.get_mut(c) else {
-                    return Err(SolveError::Factor(format!("unknown {c} is out of range ({unknowns} unknowns)")));
-                };
-                *g -= w * residual;
-                match (row_idx.len() > start).then(|| row_idx.len() - 1) {
-                    Some(last) if row_idx[last] == c => values[last] += w,
-                    _ => {
-                        row_idx.push(c);
-                        values.push(w);
-                    }
-                }
+        let mut row_idx = Vec::new();
+        let mut sorted = Vec::new();
+        for (_, entries) in rows {
+            sort_merged(entries, &mut sorted);
+            if let Some(&(c, _)) = sorted.iter().find(|(c, _)| *c >= unknowns) {
+                return Err(SolveError::Factor(format!("unknown {c} is out of range ({unknowns} unknowns)")));
             }
+            row_idx.extend(sorted.iter().map(|(c, _)| *c));
             col_ptr.push(row_idx.len());
         }
-        let pattern = SymbolicSparseColMat::new_checked(unknowns, row_count, col_ptr, None, row_idx);
-        let jt = SparseColMat::new(pattern, values);
-        let j = jt.as_ref().transpose().to_col_major().map_err(|e| factor_error(&e))?;
-        let jtj = sparse_sparse_matmul(jt.as_ref(), j.as_ref(), 1.0, Par::Seq).map_err(|e| factor_error(&e))?;
-        let (col_ptr, row_idx) = (jtj.symbolic().col_ptr(), jtj.symbolic().row_idx());
+        let nnz = row_idx.len();
+        let pattern = SymbolicSparseColMat::new_checked(unknowns, rows.len(), col_ptr, None, row_idx);
+        // J's values as positions in Jᵀ's: transposing the positions themselves (exact in f64).
+        let positions = SparseColMat::new(pattern, (0..nnz).map(|p| p as f64).collect());
+        let j = positions.as_ref().transpose().to_col_major().map_err(|e| factor_error(&e))?;
+        let j_from_jt = j.val().iter().map(|p| *p as usize).collect();
+        let jt = SparseColMat::new(positions.symbolic().to_owned().map_err(|e| factor_error(&e))?, vec![0.0; nnz]);
+        let (product_pattern, product) =
+            sparse_sparse_matmul_symbolic(jt.symbolic(), j.symbolic()).map_err(|e| factor_error(&e))?;
+        let jtj_nnz = product_pattern.row_idx().len();
+        let jtj = SparseColMat::new(product_pattern, vec![0.0; jtj_nnz]);
+        let (cp, ri) = (jtj.symbolic().col_ptr(), jtj.symbolic().row_idx());
         let diagonal = (0..unknowns)
             .map(|c| {
-                (col_ptr[c]..col_ptr[c + 1])
-                    .find(|&p| row_idx[p] == c)
+                (cp[c]..cp[c + 1])
+                    .find(|&p| ri[p] == c)
                     .ok_or_else(|| SolveError::Factor(format!("unknown {c} enters no residual")))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        Ok(NormalEquations { jtj, diagonal, gradient })
+        let cholesky = factorize_symbolic_cholesky(
+            jtj.symbolic(),
+            Side::Lower,
+            SymmetricOrdering::Custom(PermRef::new_checked(order, &inverse, unknowns)),
+            CholeskySymbolicParams::default(),
+        )
+        .map_err(|e| factor_error(&e))?;
+        let workspace = MemBuffer::try_new(StackReq::any_of(&[
+            sparse_sparse_matmul_numeric_scratch::<usize, f64>(jtj.symbolic(), PAR),
+            cholesky.factorize_numeric_llt_scratch::<f64>(PAR, Default::default()),
+            cholesky.solve_in_place_scratch::<f64>(1, PAR),
+        ]))
+        .map_err(|e| factor_error(&e))?;
+        let mut normal = NormalEquations {
+            factor: vec![0.0; cholesky.len_val()],
+            jt,
+            j,
+            j_from_jt,
+            product,
+            jtj,
+            undamped: vec![0.0; unknowns],
+            diagonal,
+            gradient: vec![0.0; unknowns],
+            cholesky,
+            workspace,
+            sorted,
+        };
+        if !normal.refill(rows) {
+            return Err(SolveError::Factor("the residual rows changed their pattern while being read".into()));
+        }
+        Ok(normal)
     }
 
-    /// One damped step, (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr by sparse Cholesky. The symbolic
-    /// factorisation is kept while the pattern of JᵀJ stays the same.
-    fn damped_step(&self, lambda: f64, symbolic: &mut Option<SymbolicFactor>) -> Result<Vec<f64>, SolveError> {
-        let mut h = self.jtj.clone();
-        let values = h.val_mut();
-        for &p in &self.diagonal {
+    /// Fills JᵀJ and −Jᵀr from a linearisation's rows; false (nothing changed) when the
+    /// rows do not have the pattern these equations were made for.
+    fn refill(&mut self, rows: &[(f64, Vec<(usize, f64)>)]) -> bool {
+        if rows.len() != self.jt.ncols() {
+            return false;
+        }
+        self.gradient.fill(0.0);
+        let (pattern, jt_values) = self.jt.parts_mut();
+        let (col_ptr, row_idx) = (pattern.col_ptr(), pattern.row_idx());
+        let mut values = std::mem::take(&mut self.sorted);
+        for (r, (residual, entries)) in rows.iter().enumerate() {
+            sort_merged(entries, &mut values);
+            let span = col_ptr[r]..col_ptr[r + 1];
+            if values.len() != span.len() || values.iter().zip(&row_idx[span.clone()]).any(|((c, _), i)| c != i) {
+                self.sorted = values;
+                return false;
+            }
+            for ((c, w), slot) in values.iter().zip(&mut jt_values[span]) {
+                *slot = *w;
+                self.gradient[*c] -= w * residual;
+            }
+        }
+        self.sorted = values;
+        let jt_values = self.jt.val();
+        for (slot, &p) in self.j.val_mut().iter_mut().zip(&self.j_from_jt) {
+            *slot = jt_values[p];
+        }
+        sparse_sparse_matmul_numeric(
+            self.jtj.as_dyn_mut(),
+            Accum::Replace,
+            self.jt.as_ref(),
+            self.j.as_ref(),
+            1.0,
+            &self.product,
+            PAR,
+            MemStack::new(&mut self.workspace),
+        );
+        for (u, &p) in self.undamped.iter_mut().zip(&self.diagonal) {
+            *u = self.jtj.val()[p];
+        }
+        true
+    }
+
+    /// One damped step, (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr by sparse Cholesky.
+    fn damped_step(&mut self, lambda: f64) -> Result<Vec<f64>, SolveError> {
+        let values = self.jtj.val_mut();
+        for (&p, &u) in self.diagonal.iter().zip(&self.undamped) {
             // Marquardt's scaling: the damping follows each unknown's own curvature, so the
             // penalties' large rows do not swamp it.
-            values[p] += lambda * values[p] + 1e-9;
+            values[p] = u + lambda * u + 1e-9;
         }
-        let (col_ptr, row_idx) = (h.symbolic().col_ptr(), h.symbolic().row_idx());
-        let reuse = matches!(symbolic, Some((cp, ri, _)) if cp.as_slice() == col_ptr && ri.as_slice() == row_idx);
-        if !reuse {
-            let s = SymbolicLlt::try_new(h.symbolic(), Side::Lower).map_err(|e| factor_error(&e))?;
-            *symbolic = Some((col_ptr.to_vec(), row_idx.to_vec(), s));
-        }
-        let Some((_, _, s)) = symbolic.as_ref() else { return Err(SolveError::Factor("no symbolic factor".into())) };
-        let llt = Llt::try_new_with_symbolic(s.clone(), h.as_ref(), Side::Lower).map_err(|e| factor_error(&e))?;
+        let stack = MemStack::new(&mut self.workspace);
+        let llt = self
+            .cholesky
+            .factorize_numeric_llt(
+                &mut self.factor,
+                self.jtj.as_ref(),
+                Side::Lower,
+                Default::default(),
+                PAR,
+                stack,
+                Default::default(),
+            )
+            .map_err(|e| factor_error(&e))?;
         let mut rhs = faer::Mat::<f64>::from_fn(self.gradient.len(), 1, |i, _| self.gradient[i]);
-        faer::linalg::solvers::Solve::solve_in_place(&llt, rhs.as_mut());
+        llt.solve_in_place_with_conj(faer::Conj::No, rhs.as_mut(), PAR, MemStack::new(&mut self.workspace));
         Ok((0..self.gradient.len()).map(|i| rhs[(i, 0)]).collect())
     }
+}
+
+/// `entries` sorted by column into `out`, entries of the same column added.
+fn sort_merged(entries: &[(usize, f64)], out: &mut Vec<(usize, f64)>) {
+    out.clear();
+    out.extend_from_slice(entries);
+    out.sort_unstable_by_key(|&(c, _)| c);
+    out.dedup_by(|next, kept| {
+        let same = next.0 == kept.0;
+        if same {
+            kept.1 += next.1;
+        }
+        same
+    });
 }

@@ -223,7 +223,7 @@ impl Node for MomentumEdit {
                 "iterations": report.iterations,
                 "unknowns": report.unknowns,
                 "active_joints": report.active_joints,
-                "objective": { "similarity": report.similarity, "balance": report.balance },
+                "objective": { "similarity": report.similarity, "smoothness": report.smoothness, "balance": report.balance },
                 "constraints": violations,
                 "gravity_mps2": g,
                 "optimised": optimised,
