@@ -188,3 +188,33 @@ fn every_frame_value_matches_an_independent_parse_bit_for_bit() {
         assert!(bits(&clip) == bits(&expected), "{}: a value differs from the independent parse", path.display());
     }
 }
+
+/// cgspeed's CMU conversions put a T-pose before the motion (the corpus README; its copy of
+/// 144_05 had it removed upstream), and so does MakeHuman's conversion of CMU 10_01 (its
+/// shoulders turn 86° into frame 1, then 0.1° a frame). The loader finds it in exactly those
+/// files, by the pop alone, and drops only that frame when asked.
+#[test]
+fn cgspeed_t_pose_frames_are_found_in_exactly_the_cgspeed_files() {
+    use kinegraph_nodes::kernels::load::{ClipLoadOptions, LeadingTPose, load_clip};
+    let Some(data) = shared_data() else { return };
+    let mut found = Vec::new();
+    for path in files_with_extension(&data.join("bvh"), "bvh") {
+        let name = path.strip_prefix(&data).unwrap().to_string_lossy().replace('\\', "/");
+        let options = ClipLoadOptions { t_pose: LeadingTPose::Drop, ..Default::default() };
+        let dropped = load_clip(&path, options).unwrap().value;
+        let kept = load(&path);
+        if dropped.frame_count() != kept.frame_count() {
+            assert_eq!(dropped.frame_count() + 1, kept.frame_count(), "{name}");
+            // The rest is the file's frames 1.., untouched.
+            assert_eq!(dropped.rotations(), &kept.rotations()[kept.joint_count()..], "{name}");
+            found.push(name);
+        }
+    }
+    let cgspeed: Vec<String> = files_with_extension(&data.join("bvh/cmu"), "bvh")
+        .iter()
+        .map(|p| p.strip_prefix(&data).unwrap().to_string_lossy().replace('\\', "/"))
+        .filter(|n| !n.ends_with("144_05.bvh"))
+        .chain(["bvh/makehuman/10_01.bvh".to_owned()])
+        .collect();
+    assert_eq!(found, cgspeed);
+}

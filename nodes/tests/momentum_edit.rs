@@ -104,10 +104,25 @@ fn optimised_landing_shift_is_ballistic_with_feet_planted_where_asked() {
         ((excess - LIMIT_MARGIN_RAD).max(0.0) - reported).abs() < 1e-3,
         "measured {excess} rad, reported {reported} + margin"
     );
+    // The root's velocity changes in one frame no more than half again the capture's largest
+    // change: no zigzag beside the pins, the landing's impact spread over frames as captured.
+    let (root_ours, root_capture) = (largest_root_velocity_change(&edited), largest_root_velocity_change(&clip));
+    eprintln!("16_01 root velocity change in a frame: optimised {root_ours:.3} m/s, capture {root_capture:.3} m/s");
+    assert!(root_ours < 1.5 * root_capture, "root velocity change {root_ours} m/s vs the capture's {root_capture}");
     // The impulse the naive edit needs at the take-off is almost gone (the landing is an
     // impact: its vertical momentum may jump, so it is only printed above).
     let (ours_takeoff, naive_takeoff) = (ours.border_momentum_jump[0], base.border_momentum_jump[0]);
     assert!(ours_takeoff < 0.05 * naive_takeoff, "take-off impulse {ours_takeoff} vs naive {naive_takeoff}");
+}
+
+/// Largest change of the root's velocity from one frame to the next, m/s (read from the
+/// root's world positions by forward kinematics).
+fn largest_root_velocity_change(clip: &Clip) -> f64 {
+    let poses = forward_kinematics(clip);
+    let at = |f: usize| poses.position(f, 0).as_dvec3();
+    (1..clip.frame_count() - 1)
+        .map(|f| ((at(f + 1) - at(f)) - (at(f) - at(f - 1))).length() * clip.fps())
+        .fold(0.0, f64::max)
 }
 
 /// Largest angle by which a non-root joint of `edited` leaves the range of `original`: the

@@ -5,7 +5,7 @@ use std::sync::Arc;
 use crate::formats::Loaded;
 use crate::formats::bvh::{BvhUnit, BvhWriteOptions, write_bvh_to};
 use crate::formats::gltf::{DEFAULT_ANIMATION_NAME, GlbAnimation, build_glb_animations};
-use crate::kernels::load::{ClipLoadOptions, UpAxis, load_clip};
+use crate::kernels::load::{ClipLoadOptions, LeadingTPose, UpAxis, load_clip};
 use crate::kernels::resample::resample;
 use crate::model::choice::choices;
 use crate::model::{Clip, Mesh};
@@ -52,6 +52,12 @@ const UP_AXIS: ChoiceParam<UpAxis> = ChoiceParam::new(
     "BVH only: the axis that points up in the file; \"z\" converts a Z-up file to Y up.",
     "y",
 );
+choices!(LeadingTPose { Drop = "drop", Keep = "keep" });
+const T_POSE: ChoiceParam<LeadingTPose> = ChoiceParam::new(
+    "t_pose",
+    "A T-pose before the motion (cgspeed's CMU conversions put one in frame 0): \"drop\" removes that frame, with a warning, so the clip does not start with a pop; \"keep\" keeps every frame of the file.",
+    "drop",
+);
 const CLIP_OUT: Output<Arc<Clip>> = Output::new("clip", "The loaded clip, in metres and seconds.");
 
 /// `clip.load`: reads a clip from a file.
@@ -60,12 +66,12 @@ pub struct LoadClip;
 static LOAD_CLIP: NodeSchema = NodeSchema {
     kind: "clip.load",
     category: "io",
-    doc: "Loads an animation clip from a BVH or glTF file, converting it to metres, Y up.",
+    doc: "Loads an animation clip from a BVH, glTF or FBX file, converting it to metres, Y up (and by default without the T-pose cgspeed's CMU conversions put before the motion).",
     inputs: &[],
     outputs: &[CLIP_OUT.spec()],
-    params: &[PATH.0, SCALE.0, ANIMATION.0, SAMPLE_FPS.0, UP_AXIS.0],
+    params: &[PATH.0, SCALE.0, ANIMATION.0, SAMPLE_FPS.0, UP_AXIS.0, T_POSE.0],
     writes_files: false,
-    version: 1,
+    version: 2,
 };
 
 impl Node for LoadClip {
@@ -80,6 +86,7 @@ impl Node for LoadClip {
             sample_fps: ctx.optional_float(&SAMPLE_FPS)?,
             up_axis: ctx.choice(&UP_AXIS)?,
             max_clip_bytes: Some(ctx.memory_limit_bytes()),
+            t_pose: ctx.choice(&T_POSE)?,
         };
         let Loaded { value: clip, warnings } = load_clip(&path, options)?;
         ctx.warn_all(warnings);

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use super::load::{ClipLoadOptions, load_clip};
+use super::load::{ClipLoadOptions, LeadingTPose, load_clip};
 use super::resample::resample;
 use crate::formats::FormatError;
 use crate::model::clip::{sampled_bytes, sampling_refusal};
@@ -19,24 +19,6 @@ fn wildcard(pattern: &[u8], name: &[u8]) -> bool {
         (Some(b'*'), _) => wildcard(&pattern[1..], name) || (!name.is_empty() && wildcard(pattern, &name[1..])),
         (Some(p), Some(n)) if *p == b'?' || p.eq_ignore_ascii_case(n) => wildcard(&pattern[1..], &name[1..]),
         _ => false,
-    }
-}
-
-/// Whether a captured T-pose starts the clip: cgspeed's CMU conversions put one before
-/// the first captured frame, and it would become a cluster of its own (every clip's first
-/// frame would sit in it, and transitions into a clip would all start from it). It is
-/// recognised as a pop: the joints turn on average more than 0.1 rad from frame 0 to
-/// frame 1, and more than ten times as far as from frame 1 to frame 2. (The T-pose's
-/// local rotations are not all identity: cgspeed's rest pose bends the arms and legs.)
-fn starts_with_t_pose(clip: &Clip) -> bool {
-    let mean_turn = |a: usize, b: usize| {
-        let (ra, rb) = (clip.frame_rotations(a), clip.frame_rotations(b));
-        let turn = |(p, q): (&glam::Quat, &glam::Quat)| 2.0 * p.dot(*q).abs().min(1.0).acos();
-        ra[1..].iter().zip(&rb[1..]).map(turn).sum::<f32>() / (ra.len() - 1).max(1) as f32
-    };
-    clip.frame_count() > 2 && clip.joint_count() > 1 && {
-        let pop = mean_turn(0, 1);
-        pop > 0.1 && pop > 10.0 * mean_turn(1, 2)
     }
 }
 
@@ -204,7 +186,8 @@ pub fn load_clip_set(
     let mut clips = Vec::new();
     let mut budget = MemoryBudget { limit: max_bytes, used: 0.0 };
     for path in &files {
-        let options = ClipLoadOptions { max_clip_bytes: budget.left(), ..Default::default() };
+        let options =
+            ClipLoadOptions { max_clip_bytes: budget.left(), t_pose: LeadingTPose::Drop, ..Default::default() };
         let loaded = load_clip(path, options)?;
         warnings.extend(loaded.warnings);
         let relative = path.strip_prefix(folder).unwrap_or(path).with_extension("");
@@ -236,15 +219,9 @@ pub fn load_clip_set(
     let mut named = Vec::new();
     for &i in &chosen {
         let (relative, clip) = &clips[i];
-        let clip = if starts_with_t_pose(clip) {
-            warnings.push(format!("{relative}: dropped a T-pose first frame"));
-            clip.slice(1, clip.frame_count())
-        } else {
-            clip.clone()
-        };
         budget.take((clip.duration_secs() * fps).ceil() + 1.0, skeleton.len(), relative)?;
-        let clip = conform(&clip, &skeleton, fps)
-            .map_err(|source| LoadSetError::Conform { clip: relative.clone(), source })?;
+        let clip =
+            conform(clip, &skeleton, fps).map_err(|source| LoadSetError::Conform { clip: relative.clone(), source })?;
         if clip.frame_count() < 2 {
             warnings.push(format!("{relative}: left out, fewer than 2 frames"));
             continue;
@@ -259,29 +236,6 @@ pub fn load_clip_set(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_t_pose_first_frame_is_recognised_and_a_smooth_start_is_not() {
-        use glam::{Quat, Vec3};
-        let s = Arc::new(
-            Skeleton::new(vec![
-                crate::model::Joint::new("Hips", None, Vec3::Y),
-                crate::model::Joint::new("LeftArm", Some(0), Vec3::X),
-                crate::model::Joint::new("RightArm", Some(0), -Vec3::X),
-            ])
-            .unwrap(),
-        );
-        // Arms 0.14 rad in the T-pose, then captured at 1.6 rad moving 0.004 rad a frame.
-        let clip = |first: f32| {
-            let angles = [first, 1.6, 1.604, 1.608];
-            let rotations =
-                angles.iter().flat_map(|a| [Quat::IDENTITY, Quat::from_rotation_z(*a), Quat::from_rotation_z(-*a)]);
-            Clip::new(s.clone(), 120.0, rotations.collect(), vec![Vec3::Y; 12], crate::model::ImportScale::METRES)
-                .unwrap()
-        };
-        assert!(starts_with_t_pose(&clip(0.14)));
-        assert!(!starts_with_t_pose(&clip(1.596)));
-    }
 
     /// A standing clip captured on 0.8 m legs, put on a set whose skeleton has 1.0 m legs:
     /// its feet stay on the floor (found by forward kinematics on the set's skeleton, not

@@ -27,6 +27,51 @@ pub struct ClipLoadOptions {
     /// glTF and FBX: largest clip to sample, in bytes (the run's memory limit); `None`
     /// uses the readers' default.
     pub max_clip_bytes: Option<u64>,
+    /// What to do with a T-pose captured before the motion (the file as stored by default).
+    pub t_pose: LeadingTPose,
+}
+
+/// A T-pose before the first captured frame: cgspeed's CMU conversions (most CMU BVH files
+/// users find) put one there, and kept it is a pop into the motion's first frame (the arms
+/// swing 80–90° in 1/120 s) that every later step inherits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LeadingTPose {
+    /// Keep every frame of the file.
+    #[default]
+    Keep,
+    /// Drop the first frame when it is a T-pose ([`starts_with_t_pose`]), with a warning.
+    Drop,
+}
+
+/// Whether a captured T-pose starts the clip: it is recognised as a pop of most of the body,
+/// at least half of the joints between the root and the end sites turning more than 0.1 rad from frame 0 to
+/// frame 1 and more than five times as far as they turn from frame 1 to frame 2. (The
+/// T-pose's local rotations are not all identity: cgspeed's rest pose bends the arms and
+/// legs. A count rather than a mean: CMU 90_11's legs and 90_28's thumbs jitter over the
+/// first captured frames, which hid the pop from a mean over the joints.)
+pub fn starts_with_t_pose(clip: &Clip) -> bool {
+    if clip.frame_count() < 3 || clip.joint_count() < 2 {
+        return false;
+    }
+    let (r0, r1, r2) = (clip.frame_rotations(0), clip.frame_rotations(1), clip.frame_rotations(2));
+    let turn = |p: &glam::Quat, q: &glam::Quat| 2.0 * p.dot(*q).abs().min(1.0).acos();
+    // Joints that turn something: those with children (end sites never rotate).
+    let mut parents = vec![false; clip.joint_count()];
+    for joint in clip.skeleton().joints() {
+        if let Some(p) = joint.parent {
+            parents[p] = true;
+        }
+    }
+    let turning: Vec<usize> =
+        (0..clip.joint_count()).filter(|&j| parents[j] && clip.skeleton().joints()[j].parent.is_some()).collect();
+    let popping = turning
+        .iter()
+        .filter(|&&j| {
+            let pop = turn(&r0[j], &r1[j]);
+            pop > 0.1 && pop > 5.0 * turn(&r1[j], &r2[j]).max(0.002)
+        })
+        .count();
+    !turning.is_empty() && 2 * popping >= turning.len()
 }
 
 /// Which axis points up in a source file.
@@ -49,6 +94,19 @@ fn looks_z_up(clip: &Clip) -> bool {
 /// including the unit a BVH was taken to be in and what an FBX declared (unit, up axis,
 /// frame rate, takes) before its conversion to metres, Y up.
 pub fn load_clip(path: &Path, options: ClipLoadOptions) -> Result<Loaded<Clip>, FormatError> {
+    let Loaded { value: clip, mut warnings } = load_stored_clip(path, options)?;
+    if options.t_pose == LeadingTPose::Drop && starts_with_t_pose(&clip) {
+        warnings.push(format!(
+            "{}: dropped the T-pose before the motion (frame 0; cgspeed's CMU conversions put one there); set t_pose to \"keep\" to keep it",
+            path.display()
+        ));
+        return Ok(Loaded { value: clip.slice(1, clip.frame_count()), warnings });
+    }
+    Ok(Loaded { value: clip, warnings })
+}
+
+/// The clip as the file stores it.
+fn load_stored_clip(path: &Path, options: ClipLoadOptions) -> Result<Loaded<Clip>, FormatError> {
     let ext = crate::formats::extension(path);
     match ext.as_str() {
         "bvh" => {
@@ -407,4 +465,38 @@ pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>
     };
     mesh.skin = Some(Skin { skeleton, joints, weights, inverse_bind_matrices });
     Ok(Loaded { value: Character { clip, mesh, parts, file_inverse_bind_matrices }, warnings })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use glam::{Quat, Vec3};
+
+    use super::*;
+    use crate::model::{ImportScale, Joint, Skeleton};
+
+    #[test]
+    fn a_t_pose_first_frame_is_recognised_and_a_smooth_start_is_not() {
+        let s = Arc::new(
+            Skeleton::new(vec![
+                Joint::new("Hips", None, Vec3::Y),
+                Joint::new("LeftArm", Some(0), Vec3::X),
+                Joint::new("RightArm", Some(0), -Vec3::X),
+                Joint::new("LeftHand", Some(1), Vec3::X),
+                Joint::new("RightHand", Some(2), -Vec3::X),
+            ])
+            .unwrap(),
+        );
+        // Arms 0.14 rad in the T-pose, then captured at 1.6 rad moving 0.004 rad a frame.
+        let clip = |first: f32| {
+            let angles = [first, 1.6, 1.604, 1.608];
+            let rotations = angles.iter().flat_map(|a| {
+                [Quat::IDENTITY, Quat::from_rotation_z(*a), Quat::from_rotation_z(-*a), Quat::IDENTITY, Quat::IDENTITY]
+            });
+            Clip::new(s.clone(), 120.0, rotations.collect(), vec![Vec3::Y; 20], ImportScale::METRES).unwrap()
+        };
+        assert!(starts_with_t_pose(&clip(0.14)));
+        assert!(!starts_with_t_pose(&clip(1.596)));
+    }
 }

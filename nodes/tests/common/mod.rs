@@ -8,7 +8,7 @@ use glam::DVec3;
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::kernels::body::{BodyModel, MassTable, body_model};
 use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
-use kinegraph_nodes::kernels::load::{ClipLoadOptions, load_clip};
+use kinegraph_nodes::kernels::load::{ClipLoadOptions, LeadingTPose, load_clip};
 use kinegraph_nodes::kernels::stages::{StagedClip, stage_clip};
 use kinegraph_nodes::model::{Clip, FrameRange, forward_kinematics};
 
@@ -31,7 +31,9 @@ pub struct Jump {
 /// CMU 16_01, or None without the shared corpus.
 pub fn jump_16_01() -> Option<Jump> {
     let data = shared_data()?;
-    let clip = load_clip(&data.join("bvh/cmu/16_01.bvh"), ClipLoadOptions::default()).unwrap().value;
+    // As clip.load gives it: without cgspeed's T-pose before the motion.
+    let options = ClipLoadOptions { t_pose: LeadingTPose::Drop, ..Default::default() };
+    let clip = load_clip(&data.join("bvh/cmu/16_01.bvh"), options).unwrap().value;
     let model = body_model(clip.skeleton(), 70.0, MassTable::DeLevaMale, None).unwrap();
     let staged = stage_clip(&clip, &model, None, None).unwrap();
     let flight = staged.stages.stages[1].frames;

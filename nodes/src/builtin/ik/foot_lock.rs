@@ -5,7 +5,7 @@ use std::sync::Arc;
 use serde_json::json;
 
 use super::solve::parse_weights;
-use crate::kernels::ik::foot_lock::{FootLockError, FootLockParams, Ground, foot_lock};
+use crate::kernels::ik::foot_lock::{DEFAULT_SOFT_REACH, FootLockError, FootLockParams, Ground, foot_lock};
 use crate::kernels::ik::{RigError, SolveParams};
 use crate::model::choice::choices;
 use crate::model::{Clip, Contacts, Mesh};
@@ -83,7 +83,7 @@ const FLOOR: FloatParam = FloatParam::new(
 const SOFT_REACH: FloatParam = FloatParam::new(
     "soft_reach",
     "The last part of each leg's reach, as a fraction of its length, over which the ankle's goal eases towards full stretch (soft IK): a plant coming into or going out of reach bends the knee smoothly instead of snapping it straight, and is held that much short. 0: a hard reach.",
-    0.03,
+    DEFAULT_SOFT_REACH,
     0.0,
     0.2,
     "",
@@ -103,7 +103,8 @@ static FOOT_LOCK: NodeSchema = NodeSchema {
     writes_files: false,
     // 4: goals near full stretch eased (soft_reach), the shortfall reported per foot.
     // 5: soft_reach 0.02 -> 0.03 (a straight knee at toe-off no longer jumps on CesiumMan's run).
-    version: 5,
+    // 6: soft_reach 0.03 -> 0.05 (the next toe-off of that run, with the T-pose frame dropped).
+    version: 6,
 };
 
 impl Node for FootLock {
