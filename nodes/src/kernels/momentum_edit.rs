@@ -151,7 +151,10 @@ pub struct EditMeasures {
     /// the floor where the capture has it below), metres: the ankle and the toe tip at the
     /// frame of each contact starting in the stage where the original's toe tip is lowest
     /// (a landing foot still slides and turns onto its heel for some frames after its toe
-    /// touches); a stage where no contact starts, the ankles at its first frame.
+    /// touches), contacts held from a landing as the edit holds them
+    /// ([`held_from_landings`]: a capture's toe that slides on at floor height after the
+    /// landing is held at its lowest point); a stage where no contact starts, the ankles at
+    /// its first frame.
     pub placement_error_m: Vec<f64>,
     /// Largest horizontal drift of a planted foot's toe tip during any of its contact
     /// intervals, metres (from its place at the interval's first frame): the point a
@@ -198,10 +201,11 @@ pub fn measure_edit(
         asked.y = asked.y.max(rest);
         (foot(&pe, f, j) - asked).length()
     };
+    let held = held_from_landings(planted, &grounds, original.fps());
     let placement_error_m = grounds
         .iter()
         .map(|g| {
-            let resting: Vec<(usize, usize)> = planted
+            let resting: Vec<(usize, usize)> = held
                 .iter()
                 .filter(|(_, r)| g.contains(r.start) && r.end <= po.frame_count())
                 .filter_map(|&(j, r)| {
@@ -270,6 +274,32 @@ pub fn measure_edit(
         })
         .collect();
     Ok(EditMeasures { placement_error_m, planted_drift_m, below_floor_m, parabola_rms_m, border_momentum_jump })
+}
+
+/// A foot contact that starts no later than this after a landing is held from the landing,
+/// seconds.
+pub const LANDING_SECS: f64 = 0.1;
+
+/// The contacts an edit holds: `planted` (foot joint, frames), each starting no later than
+/// [`LANDING_SECS`] after a landing (the first frame of a ground stage but the clip's first)
+/// moved to start there. The edit may bring a foot down faster than the capture did, and a
+/// foot left free until its contact slid on after touching down (2 cm over CMU 16_01's
+/// landing).
+pub fn held_from_landings(
+    planted: &[(usize, FrameRange)],
+    grounds: &[FrameRange],
+    fps: f64,
+) -> Vec<(usize, FrameRange)> {
+    let landing = (LANDING_SECS * fps).round() as usize;
+    planted
+        .iter()
+        .map(|&(j, r)| {
+            match grounds.iter().find(|g| g.start > 0 && r.start > g.start && r.start <= g.start + landing) {
+                Some(g) => (j, FrameRange::new(g.start, r.end)),
+                None => (j, r),
+            }
+        })
+        .collect()
 }
 
 /// The floor under `feet` in `poses`: the lowest of their resting heights

@@ -60,7 +60,7 @@ use glam::{DMat3, DQuat, DVec3, Quat};
 use super::angular::{MomentumTrack, momentum_of_poses};
 use super::body::{BodyModel, limb_tip};
 use super::ik::foot_lock::Plants;
-use super::momentum_edit::{EditError, GroundEdit, floor_height, naive_edit};
+use super::momentum_edit::{EditError, GroundEdit, floor_height, held_from_landings, naive_edit};
 use super::momentum_splines::{MomentumFit, Piece, SplineError, basis, fit_momentum};
 use crate::model::{Clip, ClipError, ClipPoses, FrameRange, StageKind, Stages, forward_kinematics};
 
@@ -103,10 +103,6 @@ pub const LIMIT_MARGIN_RAD: f64 = 0.1;
 /// lock's default blend): released at once, the foot would jump by the drift the hold took
 /// out of the capture.
 const RELEASE_SECS: f64 = 0.15;
-
-/// A foot contact that starts no later than this after a landing is held from the landing,
-/// seconds.
-const LANDING_SECS: f64 = 0.1;
 
 /// Ankles are kept this far above the floor, metres (a margin for the one-sided penalty).
 const FLOOR_MARGIN_M: f64 = 2e-4;
@@ -541,14 +537,7 @@ impl<'a> Problem<'a> {
             (toe, floor_height(&original_poses, &[toe]))
         };
         let toes: Vec<(usize, (usize, f64))> = feet.iter().map(|&j| (j, toe_of(j))).collect();
-        let landing = (LANDING_SECS * fps).round() as usize;
-        for &(j, mut r) in planted {
-            // A contact that starts just after a landing is held from the landing frame: the
-            // edit may bring the foot down faster than the capture did, and a foot left free
-            // until the contact slid on after touching down (2 cm over CMU 16_01's landing).
-            if let Some(g) = grounds.iter().find(|g| g.start > 0 && r.start > g.start && r.start <= g.start + landing) {
-                r.start = g.start;
-            }
+        for (j, r) in held_from_landings(planted, &grounds, fps) {
             // Frames of the contact in a ground stage, and after it, within that stage, the
             // frames over which the foot is handed back to the clip's (the foot lock's blend).
             let room =
