@@ -56,14 +56,14 @@ pub fn starts_with_t_pose(clip: &Clip) -> bool {
     let (r0, r1, r2) = (clip.frame_rotations(0), clip.frame_rotations(1), clip.frame_rotations(2));
     let turn = |p: &glam::Quat, q: &glam::Quat| 2.0 * p.dot(*q).abs().min(1.0).acos();
     // Joints that turn something: those with children (end sites never rotate).
-    let mut parents = vec![false; clip.joint_count()];
+    let mut has_children = vec![false; clip.joint_count()];
     for joint in clip.skeleton().joints() {
         if let Some(p) = joint.parent {
-            parents[p] = true;
+            has_children[p] = true;
         }
     }
     let turning: Vec<usize> =
-        (0..clip.joint_count()).filter(|&j| parents[j] && clip.skeleton().joints()[j].parent.is_some()).collect();
+        (0..clip.joint_count()).filter(|&j| has_children[j] && clip.skeleton().joints()[j].parent.is_some()).collect();
     let popping = turning
         .iter()
         .filter(|&&j| {

@@ -205,14 +205,15 @@ pub fn measure_edit(
     let placement_error_m = grounds
         .iter()
         .map(|g| {
-            let resting: Vec<(usize, usize)> = held
+            // (ankle, toe tip, the contact's frame where the original's toe tip is lowest)
+            let resting: Vec<(usize, usize, usize)> = held
                 .iter()
                 .filter(|(_, r)| g.contains(r.start) && r.end <= po.frame_count())
                 .filter_map(|&(j, r)| {
                     let toe = limb_tip(skeleton, j);
                     let lowest =
                         (r.start..r.end).min_by(|a, b| foot(&po, *a, toe).y.total_cmp(&foot(&po, *b, toe).y))?;
-                    Some((j, lowest))
+                    Some((j, toe, lowest))
                 })
                 .collect();
             if resting.is_empty() {
@@ -220,10 +221,7 @@ pub fn measure_edit(
             }
             resting
                 .iter()
-                .map(|&(j, f)| {
-                    let toe = limb_tip(skeleton, j);
-                    missed(f, j, floor).max(missed(f, toe, floor_height(&po, &[toe])))
-                })
+                .map(|&(j, toe, f)| missed(f, j, floor).max(missed(f, toe, floor_height(&po, &[toe]))))
                 .fold(0.0, f64::max)
         })
         .collect();

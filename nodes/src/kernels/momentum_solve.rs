@@ -693,21 +693,26 @@ impl<'a> Problem<'a> {
         Ok(Eval { clip, poses, track, segments })
     }
 
-    /// Linear momentum (the COM's velocity) and angular momentum per mass between frames
-    /// `f` and `f + 1`: channels p.x, p.y, p.z, L.x, L.y, L.z.
-    fn half_frame_momentum(&self, eval: &Eval, f: usize) -> [f64; 6] {
-        let segments = &self.setup.model.segments;
-        let count = segments.len();
+    /// Between frames `f` and `f + 1`, each segment's mid-point arm r̄_s from the centre of
+    /// mass and its velocity ū_s relative to the centre's.
+    fn half_frame_arms(&self, eval: &Eval, f: usize) -> (Vec<DVec3>, Vec<DVec3>) {
+        let count = self.setup.model.segments.len();
         let (now, next) =
             (&eval.segments[f * count..(f + 1) * count], &eval.segments[(f + 1) * count..(f + 2) * count]);
         let (c0, c1) = (eval.track.com_m[f], eval.track.com_m[f + 1]);
         let (centre, moved) = (0.5 * (c0 + c1), c1 - c0);
+        now.iter().zip(next).map(|(a, b)| (0.5 * (*a + *b) - centre, (*b - *a - moved) * self.fps)).unzip()
+    }
+
+    /// Linear momentum (the COM's velocity) and angular momentum per mass between frames
+    /// `f` and `f + 1` (channels p.x, p.y, p.z, L.x, L.y, L.z), with `arms` from
+    /// [`Self::half_frame_arms`].
+    fn half_frame_momentum(&self, eval: &Eval, f: usize, (r, u): &(Vec<DVec3>, Vec<DVec3>)) -> [f64; 6] {
         let mut l = DVec3::ZERO;
-        for (s, seg) in segments.iter().enumerate() {
-            let arm = 0.5 * (now[s] + next[s]) - centre;
-            l += seg.mass_kg / self.mass * arm.cross((next[s] - now[s] - moved) * self.fps);
+        for (s, seg) in self.setup.model.segments.iter().enumerate() {
+            l += seg.mass_kg / self.mass * r[s].cross(u[s]);
         }
-        let v = moved * self.fps;
+        let v = (eval.track.com_m[f + 1] - eval.track.com_m[f]) * self.fps;
         [v.x, v.y, v.z, l.x, l.y, l.z]
     }
 
@@ -806,12 +811,14 @@ impl<'a> Problem<'a> {
             }
         }
         for f in 0..self.n - 1 {
-            let measured = self.half_frame_momentum(eval, f);
+            let arms = self.half_frame_arms(eval, f);
+            let measured = self.half_frame_momentum(eval, f, &arms);
+            let mut angular = if want { self.angular_rows(frames, f, &arms) } else { Default::default() };
             for (c, measured) in measured.into_iter().enumerate() {
                 let (model, g_entries) = self.model_row(state, c, (f as f64 + 0.5) / self.fps);
                 let mut row = Vec::new();
                 if want {
-                    row = if c < 3 { self.linear_row(frames, f, c) } else { self.angular_row(frames, f, c - 3) };
+                    row = if c < 3 { self.linear_row(frames, f, c) } else { std::mem::take(&mut angular[c - 3]) };
                     row.extend(g_entries.iter().map(|&(i, w)| (self.g_col(i), -w)));
                 }
                 push(measured - model, if c < 3 { LINEAR } else { ANGULAR }, row, &mut jacobian);
@@ -869,22 +876,22 @@ impl<'a> Problem<'a> {
         row
     }
 
-    /// Entries of (angular momentum / mass) component `i` between frames `f` and `f + 1`:
-    /// with r̄_s, ū_s a segment's mid-point arm and velocity relative to the centre,
+    /// Entries of the three components of (angular momentum / mass) between frames `f` and
+    /// `f + 1`, with `arms` (r̄_s, ū_s) from [`Self::half_frame_arms`]:
     /// δL = Σ m_s (δr̄_s × ū_s + r̄_s × δū_s), δr̄ = ½(δx(f) + δx(f+1)), δū = fps (δx(f+1) − δx(f));
     /// the centre's own terms cancel (Σ m_s ū_s = Σ m_s r̄_s = 0), so root translations do
-    /// not enter.
-    fn angular_row(&self, frames: &[FrameGeometry], f: usize, i: usize) -> Vec<(usize, f64)> {
+    /// not enter. All three at once: each entry's vector gives all three.
+    fn angular_rows(
+        &self,
+        frames: &[FrameGeometry],
+        f: usize,
+        (r, u): &(Vec<DVec3>, Vec<DVec3>),
+    ) -> [Vec<(usize, f64)>; 3] {
         let masses = &self.setup.model.segments;
         let k_count = self.active.len();
-        let (now, next) = (&frames[f], &frames[f + 1]);
-        let centre = 0.5 * (now.com + next.com);
-        let moved = next.com - now.com;
-        let u: Vec<DVec3> =
-            now.segments.iter().zip(&next.segments).map(|(a, b)| (*b - *a - moved) * self.fps).collect();
-        let r: Vec<DVec3> = now.segments.iter().zip(&next.segments).map(|(a, b)| 0.5 * (*a + *b) - centre).collect();
-        let mut row = Vec::with_capacity(6 * k_count);
-        for (h, geo, sign) in [(f, now, -1.0), (f + 1, next, 1.0)] {
+        let mut rows: [Vec<(usize, f64)>; 3] = std::array::from_fn(|_| Vec::with_capacity(6 * k_count));
+        for (h, sign) in [(f, -1.0), (f + 1, 1.0)] {
+            let geo = &frames[h];
             for k in 0..k_count {
                 for a in 0..3 {
                     let e = axis(a);
@@ -893,11 +900,13 @@ impl<'a> Problem<'a> {
                         let moved = e.cross(geo.seg_arm[s * k_count + k]);
                         d += seg.mass_kg / self.mass * (0.5 * moved.cross(u[s]) + sign * self.fps * r[s].cross(moved));
                     }
-                    row.push((self.col(h, 3 + 3 * k + a), d[i]));
+                    for (i, row) in rows.iter_mut().enumerate() {
+                        row.push((self.col(h, 3 + 3 * k + a), d[i]));
+                    }
                 }
             }
         }
-        row
+        rows
     }
 
     /// Objective rows: similarity, smoothness, then balance, (value, entries); the entries
@@ -1063,9 +1072,6 @@ struct FrameGeometry {
     positions: Vec<DVec3>,
     /// World rotation of each active joint's parent (identity for the root).
     parent_rotation: Vec<DMat3>,
-    /// Segment centres of mass.
-    segments: Vec<DVec3>,
-    com: DVec3,
     /// Per (segment, active joint): Σ w (p_j − p_a) over the segment's joints below a, so
     /// that δx_s = ω_a × seg_arm.
     seg_arm: Vec<DVec3>,
@@ -1099,8 +1105,6 @@ impl FrameGeometry {
                         }
                     }
                 }
-                let seg_pos = eval.segments[f * segments.len()..(f + 1) * segments.len()].to_vec();
-                let com = eval.track.com_m[f];
                 let com_arm = (0..k_count)
                     .map(|k| {
                         segments
@@ -1111,7 +1115,7 @@ impl FrameGeometry {
                             / p.mass
                     })
                     .collect();
-                FrameGeometry { positions, parent_rotation, segments: seg_pos, com, seg_arm, com_arm }
+                FrameGeometry { positions, parent_rotation, seg_arm, com_arm }
             })
             .collect()
     }
