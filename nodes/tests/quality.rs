@@ -244,6 +244,21 @@ fn a_teleporting_root_is_a_finding_with_its_size_and_frame() {
     assert!(broken[1].starts_with("pop_frames = 1, above max_pop_frames 0"), "{broken:?}");
 }
 
+/// A body that stands and starts moving in the clip's last frame (a toe-off cut there) has
+/// no move after it to compare with: not a pop. The same start followed by a stop one frame
+/// later, inside the clip, is one.
+#[test]
+fn a_start_in_the_last_frame_is_not_a_pop_and_the_same_move_inside_is() {
+    let step = |frames: usize, at: usize| {
+        mannequin_moving(frames, move |f| Vec3::new(if f >= at { 0.05 } else { 0.0 }, 0.0, 0.0))
+    };
+    let at_end = measure(&step(20, 19), None, &[]);
+    assert_eq!(at_end.summary.pop_frames, Some(0), "{:?}", at_end.findings);
+    let inside = measure(&step(21, 19), None, &[]);
+    assert_eq!(inside.summary.pop_frames, Some(1), "{:?}", inside.findings);
+    assert!(inside.findings.iter().any(|f| f.contains("5.0 cm into frame 19")), "{:?}", inside.findings);
+}
+
 #[test]
 fn a_stretching_bone_drifts_by_its_stretch() {
     let mut clip = mannequin_moving(10, |_| Vec3::ZERO);

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use glam::{Quat, Vec3};
-use kinegraph_nodes::builtin::transitions::actions::{ActionLabels, find_actions};
+use kinegraph_nodes::builtin::transitions::actions::{Action, ActionLabels, find_actions};
 use kinegraph_nodes::builtin::transitions::synthesis::{Frames, Motion, SynthesisParams, append_transition};
 use kinegraph_nodes::builtin::transitions::{hold_planted_feet, play_sequence, smoothness_against_crossfade};
 use kinegraph_nodes::cancel::Cancel;
@@ -361,22 +361,34 @@ fn planted_skate_cm(clip: &Clip) -> (f64, usize) {
     worst
 }
 
-/// walk_punch_kick's sequence (walk, punch, kick, punch from 02_01, 02_05 and 144_05 at 30
-/// fps, seed 7), as synthesised (before the foot clean-up), and its clip set.
-fn walk_punch_kick(data: &std::path::Path) -> (Arc<ClipSet>, Clip) {
+/// walk_punch_kick's clip set (02_01, 02_05 and 144_05 at 30 fps) and its four actions
+/// (walk, punch, kick, punch) as the graph's label file names them.
+fn walk_punch_kick_actions(data: &std::path::Path) -> (Arc<ClipSet>, Vec<Action>) {
     let set = Arc::new(
         load_clip_set(&data.join("bvh/cmu"), "02_01.bvh, 02_05.bvh, 144_05.bvh", 30.0, None, None).unwrap().set,
     );
-    let g = build_graph(
+    let labels = concat!(env!("CARGO_MANIFEST_DIR"), "/../graphs/labels/walk_punch_kick.ron");
+    let labelled = ActionLabels::parse(&std::fs::read_to_string(labels).unwrap()).unwrap().resolve(&set).unwrap();
+    let actions = find_actions(&set, &labelled, &["walk", "punch", "kick", "punch"]).unwrap();
+    (set, actions)
+}
+
+/// The transition graph walk_punch_kick.ron builds over `set` (its nodes' defaults).
+fn transition_graph_of(set: &Arc<ClipSet>) -> TransitionGraph {
+    build_graph(
         Arc::new(
             cluster(set.clone(), DistanceParams::lee_defaults(set.skeleton(), 0.003), 0.6, Cancel::NEVER).unwrap(),
         ),
         Direction::Directed,
         PathLimits { k: 5, max_cost: f64::INFINITY },
-    );
-    let labels = concat!(env!("CARGO_MANIFEST_DIR"), "/../graphs/labels/walk_punch_kick.ron");
-    let labelled = ActionLabels::parse(&std::fs::read_to_string(labels).unwrap()).unwrap().resolve(&set).unwrap();
-    let actions = find_actions(&set, &labelled, &["walk", "punch", "kick", "punch"]).unwrap();
+    )
+}
+
+/// walk_punch_kick's sequence (seed 7) as synthesised (before the foot clean-up), and its
+/// clip set.
+fn walk_punch_kick(data: &std::path::Path) -> (Arc<ClipSet>, Clip) {
+    let (set, actions) = walk_punch_kick_actions(data);
+    let g = transition_graph_of(&set);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     let (motion, _) = play_sequence(&g, &actions, &SynthesisParams::default(), &mut rng);
     let raw = motion.into_clip(&actions[0].clip).unwrap();
@@ -450,5 +462,62 @@ fn no_foot_of_the_held_sequence_jumps_further_in_a_frame_than_in_the_sources() {
             sources * 100.0
         );
         assert!(step <= sources * 1.05, "{foot} jumps {step} m into frame {frame} (sources at most {sources} m)");
+    }
+}
+
+/// The largest `measure` of joint `joint` over frames `frames` of `clip`, in leg lengths of
+/// the clip's own rest pose (so a capture and the same action carried onto the set's
+/// skeleton are compared in proportion to the body).
+fn extreme_in_leg_lengths(
+    clip: &Clip,
+    frames: std::ops::Range<usize>,
+    joint: &str,
+    measure: fn(Vec3, Vec3) -> f32,
+) -> f64 {
+    let j = clip.skeleton().index_of(joint).unwrap();
+    let poses = forward_kinematics(clip);
+    let best = frames.map(|f| measure(poses.position(f, j), poses.position(f, 0))).fold(f32::MIN, f32::max);
+    f64::from(best) / kinegraph_nodes::kernels::stride::rest_leg_length_m(clip.skeleton()).unwrap()
+}
+
+/// Issue 19: the captured actions survive the sequence. walk_punch_kick's kick toe reaches
+/// as high, and its punch hand as far from the hips, in leg lengths, as in the capture
+/// files read on their own skeletons (144_05 and 02_05 over their labelled stretches), within
+/// 5 %. Both punches of the sequence are checked, each between the transitions around it.
+#[test]
+fn the_sequence_keeps_each_captured_strike_within_five_percent() {
+    use kinegraph_nodes::kernels::load::{ClipLoadOptions, LeadingTPose, load_clip};
+    let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };
+    let (set, actions) = walk_punch_kick_actions(&data);
+    let g = transition_graph_of(&set);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let (motion, infos) = play_sequence(&g, &actions, &SynthesisParams::default(), &mut rng);
+    let held = hold_planted_feet(motion.into_clip(&actions[0].clip).unwrap()).unwrap();
+    let height: fn(Vec3, Vec3) -> f32 = |p, _| p.y;
+    let reach: fn(Vec3, Vec3) -> f32 = |p, root| (p - root).with_y(0.0).length();
+    let capture = |file: &str, secs: (f64, f64)| {
+        let options = ClipLoadOptions { t_pose: LeadingTPose::Drop, ..Default::default() };
+        let clip = load_clip(&data.join("bvh/cmu").join(file), options).unwrap().value;
+        let frame = |s: f64| ((s * clip.fps()).round() as usize).min(clip.frame_count());
+        let range = frame(secs.0)..frame(secs.1) + 1;
+        (clip, range)
+    };
+    // (action index in the sequence, capture file and labelled seconds, joint, measure)
+    let strikes = [
+        (1, "02_05.bvh", (0.8, 2.2), "RightHand", reach, "punch reach"),
+        (2, "144_05.bvh", (4.2, 5.8), "RightToeBase_EndSite", height, "kick apex"),
+        (3, "02_05.bvh", (0.8, 2.2), "RightHand", reach, "punch reach"),
+    ];
+    for (action, file, secs, joint, measure, what) in strikes {
+        let (clip, range) = capture(file, secs);
+        let captured = extreme_in_leg_lengths(&clip, range, joint, measure);
+        let start = infos[action - 1].frames.start;
+        let end = infos.get(action).map_or(held.frame_count(), |t| t.frames.end);
+        let played = extreme_in_leg_lengths(&held, start..end, joint, measure);
+        let change = 100.0 * (played / captured - 1.0);
+        eprintln!(
+            "{what} (action {action}, frames {start}..{end}): capture {captured:.4}, sequence {played:.4} leg lengths ({change:+.2} %)"
+        );
+        assert!(change.abs() <= 5.0, "{what} of action {action} changed by {change:.2} %");
     }
 }

@@ -35,7 +35,8 @@
 //!    the clip; the largest.
 //! 7. Pops: a joint that moves in one frame more than [`POP_RATIO`] times as far as in
 //!    the frame before and the frame after, and faster than [`POP_MIN_SPEED_MPS`] (a
-//!    teleporting root pops every joint).
+//!    teleporting root pops every joint). Only moves with a move before and after them
+//!    are judged (not into the first two frames or the last).
 //! 8. Stride ([`super::stride`]): step length ÷ leg length and the pelvis's horizontal
 //!    speed range (5th–95th percentile), of the clip and of its first source (contacts
 //!    detected on it); the change of step ÷ leg against the source, and how far the
@@ -489,13 +490,13 @@ fn pops(tracks: &Tracks, window: FrameRange) -> (usize, Option<(usize, usize, f6
     let moved = |f: usize, j: usize| (tracks.at(f, j) - tracks.at(f - 1, j)).length();
     let min_move_m = POP_MIN_SPEED_MPS / tracks.fps;
     let (mut frames, mut largest): (usize, Option<(usize, usize, f64)>) = (0, None);
-    for f in window.start.max(1)..window.end {
+    // A move needs a frame before and after it to be judged: at the clip's edges a foot
+    // speeding up from rest (a toe-off in the last frame) would count as a pop.
+    for f in window.start.max(2)..window.end.min(tracks.frames.saturating_sub(1)) {
         let mut popped = false;
         for j in 0..tracks.joints {
-            let around: Vec<f64> =
-                [f - 1, f + 1].into_iter().filter(|&g| g >= 1 && g < tracks.frames).map(|g| moved(g, j)).collect();
             let here = moved(f, j);
-            let Some(neighbour) = around.into_iter().reduce(f64::max) else { continue };
+            let neighbour = moved(f - 1, j).max(moved(f + 1, j));
             if here > min_move_m && here > POP_RATIO * neighbour {
                 popped = true;
                 if largest.is_none_or(|l| here > l.2) {
