@@ -205,23 +205,50 @@ fn clip_sets_stay_within_the_memory_limit() {
     }
 }
 
+/// The whole BVH corpus as one clip set: the CMU MotionBuilder-friendly family is kept, the
+/// other rigs are left out. The two passes of Peng's clustering, checked frame by frame
+/// with a plain scan of every centre (the clustering prunes its scans with a bound): each
+/// centre is in its own cluster; a frame is within the radius r of its centre (the first
+/// pass took it), or its centre is the nearest of all and within 2r (the second pass).
+/// (Sequences over the corpus are in `real_corpus_transitions_against_a_crossfade`.)
 #[test]
-fn real_corpus_statistics_and_a_sequence() {
+fn real_corpus_clusters_follow_the_two_passes() {
     let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };
     let folder = data.join("bvh");
     let loaded = load_clip_set(&folder, "*.bvh", 30.0, None, None).unwrap();
-    // The CMU MotionBuilder-friendly clips are the largest family; the assimp copy of 01_01
-    // carries another hierarchy and is left out with the other rigs.
+    // The assimp copy of 01_01 carries another hierarchy and is left out with the other rigs.
     assert_eq!(loaded.set.clips().len(), 24, "{:?}", loaded.left_out);
     assert_eq!(loaded.left_out.len(), 15);
     let set = Arc::new(loaded.set);
     let params = DistanceParams::lee_defaults(set.skeleton(), 0.003);
     let clusters = cluster(set, params, 0.6, Cancel::NEVER).unwrap();
+    let frames = clusters.features.len();
+    assert_eq!(clusters.labels.len(), frames);
+    for (c, &centre) in clusters.centres.iter().enumerate() {
+        assert_eq!(clusters.labels[centre] as usize, c, "centre frame {centre} is not in its own cluster");
+    }
+    let r = clusters.radius;
+    let (mut first_pass, mut second_pass) = (0, 0);
+    for f in 0..frames {
+        let own = clusters.features.distance(f, clusters.centres[clusters.labels[f] as usize]);
+        let nearest = clusters.centres.iter().map(|&c| clusters.features.distance(f, c)).fold(f32::INFINITY, f32::min);
+        if own < r {
+            first_pass += 1;
+        } else {
+            assert!(
+                own <= nearest * (1.0 + 1e-5) && own <= 2.0 * r,
+                "frame {f}: {own} from its centre, nearest {nearest}, r {r}"
+            );
+            second_pass += 1;
+        }
+    }
+    eprintln!(
+        "{frames} frames, {} clusters: {first_pass} within r, {second_pass} at their nearest centre",
+        clusters.centres.len()
+    );
     let g = build_graph(Arc::new(clusters), Direction::Directed, PathLimits { k: 5, max_cost: f64::INFINITY });
-    let t = std::time::Instant::now();
     let s = g.summary_with_paths(Cancel::NEVER).unwrap();
-    eprintln!("{s:#} paths in {:?}", t.elapsed());
-    assert!(s["clusters"].as_u64().unwrap() > 20);
+    eprintln!("{s:#}");
 }
 
 /// Clustering the whole corpus with a tiny radius makes every frame a centre: about n²/2
@@ -249,10 +276,11 @@ fn a_stop_request_ends_quadratic_clustering_and_the_path_statistics() {
     assert!(g.summary_with_paths(Cancel::NEVER).is_ok());
 }
 
-/// Smoothness of ten transitions on the whole corpus (printed with `--nocapture`; the
-/// figures are the report): peak joint angular acceleration inside each
-/// transition over the peak inside its two clips, and foot skate, against a crossfade of
-/// the same two clips.
+/// Ten transitions over the whole corpus, five sequences of three clips: their smoothness
+/// against a crossfade of the same two clips is printed (`--nocapture`: peak joint angular
+/// acceleration inside each transition over the peak inside its two clips, and foot
+/// skate); checked are the transitions' frames and the foot clean-up after synthesis,
+/// measured by `motion.quality`'s kernel: planted feet slide less and sink no deeper.
 #[test]
 fn real_corpus_transitions_against_a_crossfade() {
     let Some(data) = kinegraph_nodes::corpus::shared_data() else { return };
@@ -289,9 +317,6 @@ fn real_corpus_transitions_against_a_crossfade() {
             )
             .unwrap();
             let figure = |key: &str| q[key].as_f64().unwrap_or(f64::NAN);
-            for key in ["peak_ratio", "foot_skate_m", "crossfade_peak_ratio", "crossfade_foot_skate_m"] {
-                assert!(figure(key).is_finite() && figure(key) >= 0.0, "{key}: {q}");
-            }
             eprintln!(
                 "| {} → {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} |",
                 names[k],
