@@ -645,6 +645,83 @@ mod tests {
     use super::*;
     use crate::model::Joint;
 
+    /// Choi & Ko's secondary task moves the joints only in the null space of the primary
+    /// one: with the tip on its goal, one update is `(I − J⁺J) K₂ (θ_src − θ)`. Checked
+    /// against that formula evaluated another way: `J` by central differences of forward
+    /// kinematics, `J⁺` by nalgebra's SVD pseudo-inverse (a bent leg, no damping, unit
+    /// weights). The tip does not move to first order.
+    #[test]
+    fn the_imitation_moves_only_in_the_null_space_of_the_tips() {
+        let skeleton = Arc::new(
+            Skeleton::new(vec![
+                Joint::new("Hips", None, Vec3::new(0.0, 0.9, 0.0)),
+                Joint::new("LeftUpLeg", Some(0), Vec3::new(0.1, 0.0, 0.0)),
+                Joint::new("LeftLeg", Some(1), Vec3::new(0.0, -0.45, 0.0)),
+                Joint::new("LeftFoot", Some(2), Vec3::new(0.0, -0.4, 0.0)),
+                Joint::new("LeftToe", Some(3), Vec3::new(0.0, -0.05, 0.12)),
+            ])
+            .unwrap(),
+        );
+        let mut rig = IkRig::new(skeleton.clone());
+        for j in 1..4 {
+            rig.add_joint(j, [true; 3], 1.0);
+        }
+        rig.add_effector(4);
+        let rig = rig.finish().unwrap();
+        let rest: Vec<Vec3> = skeleton.joints().iter().map(|j| j.rest_offset).collect();
+        let bent =
+            [Quat::IDENTITY, Quat::from_rotation_x(-0.4), Quat::from_rotation_x(0.7), Quat::IDENTITY, Quat::IDENTITY];
+        let initial = rig.pose_from(&bent, &rest);
+        let n = rig.dofs().len();
+        let mut fk = IkSolver::new(rig.clone());
+        let mut tip = [DVec3::ZERO];
+        fk.effector_positions(&initial, &mut tip);
+        let goal = tip[0];
+        // The source's angles a little away from the initial pose, every DOF.
+        let mut source = initial.clone();
+        let z: Vec<f64> = (0..n).map(|d| 0.01 * ((d as f64 * 1.7).sin() + 0.3)).collect();
+        for (d, dz) in z.iter().enumerate() {
+            rig.set_dof(&mut source, d, rig.dof_value(&initial, d) + dz);
+        }
+        let params = RetargetParams { max_corrections: 0, dexterity: 0.0, ..RetargetParams::default() };
+        let mut filter = OnlineRetargeter::new(rig.clone(), initial.clone(), params);
+        filter.step(&source, &[goal]);
+        let moved: Vec<f64> = (0..n).map(|d| rig.dof_value(filter.pose(), d) - rig.dof_value(&initial, d)).collect();
+        // J by central differences.
+        let h = 1e-6;
+        let mut j = nalgebra::DMatrix::<f64>::zeros(3, n);
+        for d in 0..n {
+            let mut at = |sign: f64| {
+                let mut p = initial.clone();
+                rig.set_dof(&mut p, d, rig.dof_value(&initial, d) + sign * h);
+                fk.effector_positions(&p, &mut tip);
+                tip[0]
+            };
+            let column = (at(1.0) - at(-1.0)) / (2.0 * h);
+            for k in 0..3 {
+                j[(k, d)] = column[k];
+            }
+        }
+        let pinv = j.clone().pseudo_inverse(1e-12).unwrap();
+        let projector = nalgebra::DMatrix::<f64>::identity(n, n) - &pinv * &j;
+        let expected = projector * nalgebra::DVector::from_vec(z.clone());
+        for d in 0..n {
+            assert!(
+                (moved[d] - expected[d]).abs() < 1e-6,
+                "DOF {d}: moved {} expected {} ({moved:?})",
+                moved[d],
+                expected[d]
+            );
+        }
+        // Something moved, and the tip stayed (second order in the step).
+        let step = moved.iter().map(|v| v * v).sum::<f64>().sqrt();
+        fk.effector_positions(filter.pose(), &mut tip);
+        println!("null-space step {step:.4} rad, tip moved {:.2e} m", tip[0].distance(goal));
+        assert!(step > 0.01, "{moved:?}");
+        // Second order: at most ½ · reach · step², the leg reaching less than 1 m.
+        assert!(tip[0].distance(goal) < 0.5 * step * step, "{}", tip[0].distance(goal));
+    }
+
     /// A long synthetic stream (a leg swinging for 100 000 frames): the filter's buffers do
     /// not grow, and it keeps tracking.
     #[test]
