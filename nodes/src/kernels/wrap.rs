@@ -255,6 +255,32 @@ mod tests {
         }
     }
 
+    /// A control triangle stretched and tilted (not a rigid motion), solved by hand: a
+    /// point 0.3 below the face's middle keeps its barycentric place and its height along the
+    /// new unit normal; a point 0.4 beyond edge ab keeps its distance along the new in-plane
+    /// direction away from that edge. Triangle a = 0, b = x, c = z (normal −y); b goes to
+    /// (2, 0, 0), c to (0, 0.5, 1): new normal (0, −2, 1)/√5, in-plane (0, −1, −2)/√5.
+    #[test]
+    fn offsets_replay_in_the_deformed_triangles_frame_as_solved_by_hand() {
+        let triangles = [[0, 1, 2]];
+        let rest = [Vec3::ZERO, Vec3::X, Vec3::Z];
+        let points = [Vec3::new(0.25, -0.3, 0.25), Vec3::new(0.5, 0.0, -0.4)];
+        let bindings = bind(&points, &rest, &triangles).unwrap();
+        assert!((bindings[0].barycentric - Vec3::new(0.5, 0.25, 0.25)).length() < 1e-6, "{:?}", bindings[0]);
+        assert!((bindings[1].barycentric - Vec3::new(0.5, 0.5, 0.0)).length() < 1e-6, "{:?}", bindings[1]);
+        let deformed = [Vec3::ZERO, Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.5, 1.0)];
+        let mut out = [Vec3::ZERO; 2];
+        deform_frame(&bindings, &deformed, &triangles, &mut WrapScratch::default(), &mut out);
+        let root5 = 5.0f32.sqrt();
+        let expected = [
+            Vec3::new(0.5, 0.125, 0.25) + 0.3 * Vec3::new(0.0, -2.0, 1.0) / root5,
+            Vec3::new(1.0, 0.0, 0.0) + 0.4 * Vec3::new(0.0, -1.0, -2.0) / root5,
+        ];
+        for (got, want) in out.iter().zip(expected) {
+            assert!((*got - want).length() < 1e-6, "{got} vs {want}");
+        }
+    }
+
     #[test]
     fn degenerate_or_non_finite_meshes_are_refused() {
         let positions = vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
