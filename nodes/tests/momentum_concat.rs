@@ -375,3 +375,34 @@ fn a_double_kick_keeps_its_standing_foot_planted_through_the_blend() {
     assert!(depth <= 0.5, "the standing foot is {depth} cm under the floor");
     assert!(apex >= 0.7, "the first kick's toe reaches only {apex} m");
 }
+
+/// Eq. 9 from outside: the same join with time scaling turned off (bounds 1..1) and no foot
+/// clean-up is the plain blend; its whole-body angular momentum, computed again by
+/// analysing that clip, gives s = mean of the window's end magnitudes ÷ the window's mean
+/// magnitude, which is the time scale the scaled join reports before clamping. Both
+/// punch pairs and the double kick.
+#[test]
+fn the_time_scale_is_eq_9_on_the_blend() {
+    let Some(data) = shared_data() else { return };
+    let options = AnalysisOptions::default();
+    let pairs = [
+        (("cmu/79_08.bvh", 2.2, 3.1), ("cmu/79_08.bvh", 3.6, 4.6), Rule::Reverse),
+        (("cmu/144_05.bvh", 0.5, 2.2), ("cmu/144_05.bvh", 2.2, 3.9), Rule::Forward),
+    ];
+    for ((fa, a0, a1), (fb, b0, b1), rule) in pairs {
+        let a = analyse(clip(&data, fa, a0, a1), &options, None, None).unwrap();
+        let b = analyse(clip(&data, fb, b0, b1), &options, None, None).unwrap();
+        let scaled = ConcatParams { rule, ..ConcatParams::default() };
+        let plain = ConcatParams { time_scale_range: (1.0, 1.0), foot_lock: false, ..scaled };
+        let reported = number(&concatenate(&a, &b, &scaled, &options).unwrap().report, "time_scale_raw");
+        let blend = concatenate(&a, &b, &plain, &options).unwrap();
+        let window = blend.report["window_frames"].as_array().unwrap().clone();
+        let (f0, ff) = (window[0].as_u64().unwrap() as usize, window[1].as_u64().unwrap() as usize);
+        let momentum = analyse(Arc::new(blend.clip), &options, None, None).unwrap().smoothed;
+        let magnitudes: Vec<f64> = (f0..=ff).map(|f| momentum[f].length()).collect();
+        let mean = magnitudes.iter().sum::<f64>() / magnitudes.len() as f64;
+        let s = 0.5 * (magnitudes[0] + magnitudes[magnitudes.len() - 1]) / mean;
+        eprintln!("{fa} {a0}-{a1} s + {fb} {b0}-{b1} s: window {f0}..={ff}, eq. 9 here {s:.6}, reported {reported:.6}");
+        assert!((s - reported).abs() < 1e-6 * reported.abs().max(1.0), "eq. 9 gives {s}, the join reports {reported}");
+    }
+}
