@@ -36,12 +36,16 @@
 //! 6. **Pelvis.** At the middle of each double support the pelvis is between the two
 //!    planted heels; between those keys its distance along the path is a monotone cubic
 //!    (Hermite); `u` ∈ [0, 1] runs from one key to the next. It sways sideways toward the
-//!    stance foot by `hip_sway_m · sin πu`. Its height is as high as the legs allow: per
-//!    frame, the highest root for which every planned ankle is within 98 % of its leg's
-//!    length (never above the rest height over the ground), eroded and averaged over
-//!    ±0.05 s so it is smooth and stays under that limit; then lowered by
-//!    `hip_bounce_m · cos² πu` (deepest at the double supports). The legs' geometry alone
-//!    gives a compass-like rise and fall; `hip_bounce_m` adds to it.
+//!    stance foot by `hip_sway_m · sin πu` and turns about the vertical by
+//!    `hip_rotation_rad · cos πu` (the paper's hip swing: the leading leg's hip ahead at each
+//!    double support; the spine turns back so the chest faces the path). Its height comes
+//!    from the legs: the limit is, per frame, the highest root for which every planned ankle
+//!    is within 99.9 % of its leg's length (never above the rest height over the ground),
+//!    eroded and averaged over ±0.05 s; at each key the pelvis is at the lowest of that limit
+//!    around the double support (legs nearly straight at heel strike), between keys it rises
+//!    by `hip_bounce_m · sin² πu` (the paper's vertical travel; 2–5 cm in a human walk),
+//!    never above the limit. The upper arms swing about the body's left-right axis by
+//!    `arm_swing_rad · cos πu`, each against its own side's leg.
 //! 7. **Legs by weighted IK.** Per leg, the hip joints turn about three axes with the hip
 //!    weight, the knee about its hinge (the Euler axis nearest the body's left-right axis,
 //!    bending backward only) with the knee weight, the ankle about three axes with the ankle
@@ -62,7 +66,7 @@ use std::sync::Arc;
 use glam::{DQuat, DVec3, Quat, Vec3};
 use serde_json::json;
 
-use crate::kernels::body::{find_legs, limb_tip};
+use crate::kernels::body::{find_landmarks, find_legs, limb_tip};
 use crate::kernels::ik::{DofKind, IkRig, IkSolver, RigError, SolveParams};
 use crate::kernels::mannequin::mannequin_skeleton;
 use crate::math::smoothstep;
@@ -78,7 +82,7 @@ use crate::node::{
 };
 
 /// Planned ankles stay within this fraction of the leg's length (hip → knee → ankle).
-const REACH: f64 = 0.98;
+const REACH: f64 = 0.999;
 
 /// Length of one swing in the curve's parameter: `x ∈ [0, 3π]`.
 pub const SWING_CYCLE: f64 = 3.0 * PI;
@@ -178,9 +182,15 @@ pub struct GaitParams {
     pub step_height_m: f64,
     /// Sideways pelvis swing toward the stance foot (metres, each way). Default 0.03.
     pub hip_sway_m: f64,
-    /// Extra pelvis dip at the double supports (metres), on top of the rise and fall the
-    /// legs' reach gives. Default 0.02.
+    /// Rise of the pelvis from the double supports, where the legs are nearly straight, to
+    /// mid-stance (metres; a human's is 2–5 cm at a normal walk). Default 0.03.
     pub hip_bounce_m: f64,
+    /// Turn of the pelvis about the vertical, each way (radians; the paper's hip swing): the
+    /// leading leg's hip is ahead at each double support. Default 0.08.
+    pub hip_rotation_rad: f64,
+    /// Swing of each upper arm forward and back about the body's left-right axis, each
+    /// way, against its own side's leg (radians; 0 = still arms). Default 0.2.
+    pub arm_swing_rad: f64,
     /// Height of each stair (metres; 0 = flat ground, negative = going down). Default 0.
     pub stair_rise_m: f64,
     /// Depth of each stair along the path (metres). Default 0.3.
@@ -213,7 +223,9 @@ impl Default for GaitParams {
             turn_rate_rad_per_s: 0.0,
             step_height_m: 0.1,
             hip_sway_m: 0.03,
-            hip_bounce_m: 0.02,
+            hip_bounce_m: 0.03,
+            hip_rotation_rad: 0.08,
+            arm_swing_rad: 0.2,
             stair_rise_m: 0.0,
             stair_run_m: 0.3,
             stair_start_m: 1.0,
@@ -484,6 +496,7 @@ struct Plan {
     slopes: Vec<f64>,
     sway_m: f64,
     bounce_m: f64,
+    rotation_rad: f64,
     /// Swing height per leg (m).
     heights: [f64; 2],
     heel_strike_rad: f64,
@@ -535,6 +548,7 @@ impl Plan {
                 keys,
                 sway_m: 0.0,
                 bounce_m: 0.0,
+                rotation_rad: 0.0,
                 heights,
                 heel_strike_rad: p.heel_strike_rad,
                 toe_off_rad: p.toe_off_rad,
@@ -611,18 +625,26 @@ impl Plan {
             slopes,
             sway_m: p.hip_sway_m,
             bounce_m: p.hip_bounce_m,
+            rotation_rad: p.hip_rotation_rad,
             heights,
             heel_strike_rad: p.heel_strike_rad,
             toe_off_rad: p.toe_off_rad,
         }
     }
 
-    /// Path distance, ground height, sway and bounce dip of the pelvis at `t`.
-    fn pelvis(&self, t: f64) -> (f64, f64, f64, f64) {
+    /// The pelvis keys before and after `t` (index of the first) and the phase `u` ∈ [0, 1]
+    /// between them.
+    fn phase(&self, t: f64) -> (usize, f64) {
         let k = self.keys.partition_point(|key| key.secs <= t).clamp(1, self.keys.len() - 1) - 1;
         let (a, b) = (self.keys[k], self.keys[k + 1]);
+        (k, ((t - a.secs) / (b.secs - a.secs)).clamp(0.0, 1.0))
+    }
+
+    /// The pelvis at `t` (see [`Pelvis`]).
+    fn pelvis(&self, t: f64) -> Pelvis {
+        let (k, u) = self.phase(t);
+        let (a, b) = (self.keys[k], self.keys[k + 1]);
         let h = b.secs - a.secs;
-        let u = ((t - a.secs) / h).clamp(0.0, 1.0);
         let (u2, u3) = (u * u, u * u * u);
         let s = (2.0 * u3 - 3.0 * u2 + 1.0) * a.progress_m
             + (u3 - 2.0 * u2 + u) * h * self.slopes[k]
@@ -630,7 +652,16 @@ impl Plan {
             + (u3 - u2) * h * self.slopes[k + 1];
         let ground = a.ground_m + (b.ground_m - a.ground_m) * smoothstep(u);
         let wave = (PI * u).sin();
-        (s, ground, self.sway_m * wave * a.side, self.bounce_m * (1.0 - wave * wave))
+        let swing = a.side * (PI * u).cos();
+        let psi = self.path.heading(s);
+        Pelvis {
+            position: self.path.point(s) + left(psi) * (self.sway_m * wave * a.side),
+            heading: DQuat::from_rotation_y(psi),
+            turn: DQuat::from_rotation_y(-self.rotation_rad * swing),
+            ground_m: ground,
+            rise_m: self.bounce_m * wave * wave,
+            swing,
+        }
     }
 
     /// The planned foot of leg `side` at `t`.
@@ -683,14 +714,76 @@ impl Plan {
         let heel_floor_m = list.get(k + 1).map_or(f.heel.y, |next| f.heel.y.min(next.heel.y));
         FootPlan { points, rotation: yaw * roll * body.face, swing_u, toe_phase, heel_floor_m }
     }
+}
 
-    /// Root position and rotation at `t`, with `height` the pelvis height above the ground.
-    /// The pelvis at `t`: horizontal position (Y = 0), heading rotation, ground height and
-    /// bounce dip (m).
-    fn root(&self, t: f64) -> (DVec3, DQuat, f64, f64) {
-        let (s, ground, sway, dip) = self.pelvis(t);
-        let psi = self.path.heading(s);
-        (self.path.point(s) + left(psi) * sway, DQuat::from_rotation_y(psi), ground, dip)
+/// Where the plan puts the pelvis at one time.
+#[derive(Clone, Copy, Debug)]
+struct Pelvis {
+    /// Horizontal position (Y = 0), swayed toward the stance foot.
+    position: DVec3,
+    /// The path's heading.
+    heading: DQuat,
+    /// The hip swing about the vertical on top of the heading (the paper's hip rotation):
+    /// the leading leg's hip ahead at each double support.
+    turn: DQuat,
+    /// Ground height under the pelvis (m).
+    ground_m: f64,
+    /// Rise above the double supports' height, `hip_bounce_m · sin² πu` (m).
+    rise_m: f64,
+    /// `±cos πu`: +1 at a double support with the left foot ahead, −1 with the right;
+    /// the arms swing with it, each against its own side's leg.
+    swing: f64,
+}
+
+/// The joints a walk turns above the legs: the spine's first joints, which undo the
+/// pelvis's hip swing so the chest keeps facing the path, and the upper arms, which swing.
+struct UpperBody {
+    /// Children of the root that do not lead to a leg.
+    spine: Vec<usize>,
+    /// The upper arms, left then right, when the skeleton's arms are found.
+    arms: Option<[usize; 2]>,
+}
+
+impl UpperBody {
+    fn of(skeleton: &Skeleton, legs: &[LegJoints; 2]) -> UpperBody {
+        let leads_to = |from: usize, to: usize| {
+            let mut j = Some(to);
+            while let Some(k) = j {
+                if k == from {
+                    return true;
+                }
+                j = skeleton.joints()[k].parent;
+            }
+            false
+        };
+        let spine = skeleton.children(0).filter(|&c| !legs.iter().any(|l| leads_to(c, l.hip))).collect();
+        UpperBody { spine, arms: find_landmarks(skeleton).ok().map(|l| l.shoulders()) }
+    }
+
+    /// Turns one frame's local `rotations` (the root's already set for `pelvis`).
+    fn pose(&self, pelvis: &Pelvis, params: &GaitParams, skeleton: &Skeleton, rotations: &mut [Quat]) {
+        // root = turn · rest of the root's rotation; the spine's world rotations must not
+        // see the turn: each spine child gets root⁻¹ · turn⁻¹ · root in front.
+        let root = rotations[0].as_dquat();
+        let undo = (root.inverse() * pelvis.turn.inverse() * root).as_quat();
+        for &j in &self.spine {
+            rotations[j] = undo * rotations[j];
+        }
+        let Some(arms) = self.arms else { return };
+        let axis = pelvis.heading * DVec3::X;
+        for (side, &arm) in arms.iter().enumerate() {
+            // About the left axis a positive angle takes a hanging hand back: the left arm
+            // is back when the left foot is ahead (swing +1), the right arm forward.
+            let sign = if side == 0 { 1.0 } else { -1.0 };
+            let swing = DQuat::from_axis_angle(axis, sign * params.arm_swing_rad * pelvis.swing);
+            let mut parent = DQuat::IDENTITY;
+            let mut j = skeleton.joints()[arm].parent;
+            while let Some(k) = j {
+                parent = rotations[k].as_dquat() * parent;
+                j = skeleton.joints()[k].parent;
+            }
+            rotations[arm] = (parent.inverse() * swing * parent).as_quat() * rotations[arm];
+        }
     }
 }
 
@@ -768,6 +861,8 @@ fn validate(p: &GaitParams) -> Result<(), GaitError> {
     check("step_height_m", finite_nonneg(p.step_height_m), "must be 0 or more")?;
     check("hip_sway_m", finite_nonneg(p.hip_sway_m), "must be 0 or more")?;
     check("hip_bounce_m", finite_nonneg(p.hip_bounce_m), "must be 0 or more")?;
+    check("hip_rotation_rad", finite_nonneg(p.hip_rotation_rad), "must be 0 or more")?;
+    check("arm_swing_rad", finite_nonneg(p.arm_swing_rad), "must be 0 or more")?;
     check("stair_rise_m", p.stair_rise_m.is_finite(), "must be a number")?;
     check("stair_run_m", p.stair_run_m.is_finite() && p.stair_run_m > 0.0, "must be positive")?;
     check("stair_start_m", p.stair_start_m.is_finite(), "must be a number")?;
@@ -809,17 +904,25 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     let frames = (params.duration_secs * params.fps).round() as usize + 1;
     let time = |f: usize| f as f64 / params.fps;
 
-    // Pelvis height: as high as the legs allow (every planned ankle within `REACH` of its
-    // leg's length, at most the rest height), eroded and averaged over ±0.05 s so it stays
-    // under that limit and is smooth, minus the bounce dip at the double supports.
-    let allowed: Vec<f64> = (0..frames)
+    // Pelvis height. The limit: as high as the legs allow (every planned ankle within
+    // `REACH` of its leg's length, at most the rest height), eroded and averaged over
+    // ±0.05 s so it is smooth and stays under itself. At each double support (a key) the
+    // pelvis is at the limit, legs nearly straight; between keys it rises by the bounce
+    // and comes down again, never above the limit. Worked out up to 2 s past the clip's
+    // end, so the last steps know where the legs stretch next.
+    let window = ((0.05 * params.fps).round() as usize).max(1);
+    let last_key = plan.keys.last().map_or(0.0, |k| k.secs);
+    let span_frames =
+        frames.max(((last_key.min(params.duration_secs + 2.0)) * params.fps).ceil() as usize + window + 1);
+    let allowed: Vec<f64> = (0..span_frames)
         .map(|f| {
             let t = time(f);
-            let (root, yaw, ground, _) = plan.root(t);
-            let mut top = ground + body.root_height_m;
+            let pelvis = plan.pelvis(t);
+            let turn = pelvis.turn * pelvis.heading;
+            let mut top = pelvis.ground_m + body.root_height_m;
             for side in 0..2 {
                 let ankle = plan.foot(&body, side, t).points[0];
-                let hip = root + yaw * body.hips[side];
+                let hip = pelvis.position + turn * body.hips[side];
                 let horizontal = (ankle - hip).with_y(0.0).length();
                 let limit = REACH * body.leg_length_m[side];
                 let vertical = (limit * limit - horizontal * horizontal).max(0.0).sqrt();
@@ -828,17 +931,31 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
             top
         })
         .collect();
-    let window = ((0.05 * params.fps).round() as usize).max(1);
-    let around = |f: usize| f.saturating_sub(window)..(f + window + 1).min(frames);
+    let around = |f: usize| f.saturating_sub(window)..(f + window + 1).min(span_frames);
+    let smooth = |values: &[f64]| -> Vec<f64> {
+        (0..span_frames).map(|f| values[around(f)].iter().sum::<f64>() / around(f).len() as f64).collect()
+    };
     let eroded: Vec<f64> =
-        (0..frames).map(|f| allowed[around(f)].iter().copied().fold(f64::INFINITY, f64::min)).collect();
-    let root_y: Vec<f64> = (0..frames)
+        (0..span_frames).map(|f| allowed[around(f)].iter().copied().fold(f64::INFINITY, f64::min)).collect();
+    let limit = smooth(&eroded);
+    // A key's height: the lowest of the limit within a quarter step of it (the legs are
+    // longest-stretched around the double support, not always at its middle).
+    let frame_of = |secs: f64| ((secs * params.fps).round().max(0.0) as usize).min(span_frames - 1);
+    let at_key = |k: usize| {
+        let keys = &plan.keys;
+        let before = if k > 0 { (keys[k].secs - keys[k - 1].secs) / 4.0 } else { 0.0 };
+        let after = if k + 1 < keys.len() { (keys[k + 1].secs - keys[k].secs) / 4.0 } else { 0.0 };
+        let span = frame_of(keys[k].secs - before)..=frame_of(keys[k].secs + after);
+        limit[span].iter().copied().fold(f64::INFINITY, f64::min)
+    };
+    let wanted: Vec<f64> = (0..span_frames)
         .map(|f| {
-            let r = around(f);
-            let n = r.len() as f64;
-            eroded[r].iter().sum::<f64>() / n - plan.root(time(f)).3
+            let (k, u) = plan.phase(time(f));
+            let trough = at_key(k) + (at_key(k + 1) - at_key(k)) * smoothstep(u);
+            (trough + plan.pelvis(time(f)).rise_m).min(limit[f])
         })
         .collect();
+    let root_y: Vec<f64> = smooth(&wanted).iter().zip(&limit).take(frames).map(|(y, top)| y.min(*top)).collect();
 
     // The IK skeleton: the character plus a heel point under each ankle.
     let mut joints = skeleton.joints().to_vec();
@@ -878,6 +995,7 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
         poses.push(pose);
     }
     let foot_rest = body.foot_rest;
+    let upper_body = UpperBody::of(skeleton, &body.legs);
     let ankle_rest_rotation: Vec<DQuat> = body.legs.iter().map(|l| body.rest[l.ankle].rotation.as_dquat()).collect();
 
     let mut rotations = Vec::with_capacity(frames * n);
@@ -888,9 +1006,9 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     let mut positions = [DVec3::ZERO; 3];
     for (f, &height_m) in root_y.iter().enumerate() {
         let t = time(f);
-        let (root_xz, yaw, _, _) = plan.root(t);
-        let root = root_xz.with_y(height_m);
-        let root_rotation = yaw * body.face * body.root_rest_rotation;
+        let pelvis = plan.pelvis(t);
+        let root = pelvis.position.with_y(height_m);
+        let root_rotation = pelvis.turn * pelvis.heading * body.face * body.root_rest_rotation;
         let mut frame_rotations = rest_rotations[..n].to_vec();
         let mut frame_converged = true;
         frame_rotations[0] = root_rotation.as_quat();
@@ -938,6 +1056,7 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
             }
         }
         unconverged += usize::from(!frame_converged);
+        upper_body.pose(&pelvis, params, skeleton, &mut frame_rotations);
         let mut frame_translations = rest_offsets[..n].to_vec();
         frame_translations[0] = root.as_vec3();
         rotations.extend(frame_rotations);
@@ -967,7 +1086,7 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     let double_support = intersect_all(&feet[0].intervals, &feet[1].intervals);
     let contacts = Contacts { fps: params.fps, frame_count: frames, feet, double_support };
 
-    let lift: Vec<f64> = (0..frames).map(|f| root_y[f] - plan.root(time(f)).2).collect();
+    let lift: Vec<f64> = (0..frames).map(|f| root_y[f] - plan.pelvis(time(f)).ground_m).collect();
     let (legs, cadence_steps_per_min, speed_m_per_s) = measure(&clip, &body, &plan, params, walking);
     let report = GaitReport {
         legs,
@@ -1166,11 +1285,27 @@ const SWAY: FloatParam =
     FloatParam::new("hip_sway_m", "Sideways pelvis swing toward the stance foot, each way.", 0.03, 0.0, 0.5, "m");
 const BOUNCE: FloatParam = FloatParam::new(
     "hip_bounce_m",
-    "Extra pelvis dip at the double supports, on top of the rise and fall the legs' reach gives.",
-    0.02,
+    "Rise of the pelvis from the double supports (legs nearly straight) to mid-stance; a human's is 2–5 cm at a normal walk.",
+    0.03,
     0.0,
     0.5,
     "m",
+);
+const ROTATION: FloatParam = FloatParam::new(
+    "hip_rotation_rad",
+    "Turn of the pelvis about the vertical, each way (the paper's hip swing): the leading leg's hip ahead at each double support; the chest keeps facing the path.",
+    0.08,
+    0.0,
+    0.8,
+    "rad",
+);
+const ARM_SWING: FloatParam = FloatParam::new(
+    "arm_swing_rad",
+    "Swing of each upper arm forward and back, each way, against its own side's leg (0: the arms hang still).",
+    0.2,
+    0.0,
+    1.5,
+    "rad",
 );
 const STAIR_RISE: FloatParam =
     FloatParam::new("stair_rise_m", "Height of each stair (0 = flat ground, negative = down).", 0.0, -0.5, 0.5, "m");
@@ -1200,12 +1335,15 @@ static PROCEDURAL_GAIT: NodeSchema = NodeSchema {
         STEP_HEIGHT.0,
         SWAY.0,
         BOUNCE.0,
+        ROTATION.0,
+        ARM_SWING.0,
+        super::WEIGHTING.0,
         STAIR_RISE.0,
         STAIR_RUN.0,
         STAIR_START.0,
     ],
     writes_files: false,
-    version: 1,
+    version: 2,
 };
 
 fn leg_json(leg: &LegReport) -> serde_json::Value {
@@ -1248,10 +1386,13 @@ impl Node for ProceduralGait {
             step_height_m: ctx.float(&STEP_HEIGHT)?,
             hip_sway_m: ctx.float(&SWAY)?,
             hip_bounce_m: ctx.float(&BOUNCE)?,
+            hip_rotation_rad: ctx.float(&ROTATION)?,
+            arm_swing_rad: ctx.float(&ARM_SWING)?,
             stair_rise_m: ctx.float(&STAIR_RISE)?,
             stair_run_m: ctx.float(&STAIR_RUN)?,
             stair_start_m: ctx.float(&STAIR_START)?,
             legs,
+            solve: SolveParams { weighting: ctx.choice(&super::WEIGHTING)?, ..GaitParams::default().solve },
             ..GaitParams::default()
         };
         let gait = procedural_gait(&skeleton, &params).map_err(|e| match e {
@@ -1295,6 +1436,7 @@ impl Node for ProceduralGait {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::kernels::ik::Weighting;
     use crate::model::ClipPoses;
 
     fn mannequin() -> Arc<Skeleton> {
@@ -1324,12 +1466,14 @@ mod tests {
     }
 
     /// Times (s) at which leg `side`'s heel comes down to within 1 mm of its lowest height
-    /// over the clip (flat ground), read from the poses alone.
+    /// over the clip (flat ground) and stays there at least 0.1 s (a heel that grazes the
+    /// floor mid-swing has not struck), read from the poses alone.
     fn heel_strikes(gait: &Gait, poses: &ClipPoses, side: usize) -> Vec<f64> {
         let heights: Vec<f64> = (0..gait.clip.frame_count()).map(|f| heel_toe(gait, poses, side, f).0.y).collect();
         let floor = heights.iter().copied().fold(f64::INFINITY, f64::min) + 1e-3;
-        (1..heights.len())
-            .filter(|&f| heights[f] <= floor && heights[f - 1] > floor)
+        let stay = (0.1 * gait.clip.fps()).round() as usize;
+        (1..heights.len().saturating_sub(stay))
+            .filter(|&f| heights[f - 1] > floor && heights[f..f + stay].iter().all(|&h| h <= floor))
             .map(|f| f as f64 / gait.clip.fps())
             .collect()
     }
@@ -1522,6 +1666,98 @@ mod tests {
         assert!(injured.report.max_residual_m < 1e-3, "{:?}", injured.report);
     }
 
+    /// The stiff knee of the limp (knee weight 0.1) bends less than the same limp's free
+    /// knee under both weightings: inside the pseudo-inverse and the paper's eq. 1.6; and
+    /// both walks hold their planted feet (the solves converge).
+    #[test]
+    fn the_stiff_knee_bends_less_under_both_weightings() {
+        let skeleton = mannequin();
+        for weighting in [Weighting::InsideInverse, Weighting::Paper] {
+            let base = GaitParams {
+                fps: 60.0,
+                duration_secs: 4.0,
+                solve: SolveParams { weighting, ..GaitParams::default().solve },
+                ..GaitParams::default()
+            };
+            let stiff = walk(&skeleton, &GaitParams { legs: GaitPreset::InjuredLeftLeg.legs(), ..base });
+            let free_legs =
+                [LegParams { knee_weight: 1.0, ..GaitPreset::InjuredLeftLeg.legs()[0] }, LegParams::default()];
+            let free = walk(&skeleton, &GaitParams { legs: free_legs, ..base });
+            let (bend_stiff, bend_free) = (
+                max_knee_bend(&stiff, &forward_kinematics(&stiff.clip), 0),
+                max_knee_bend(&free, &forward_kinematics(&free.clip), 0),
+            );
+            println!(
+                "{weighting:?}: left knee bends at most {bend_stiff:.3} rad stiff, {bend_free:.3} free; residual {:.2e} m, unconverged {}",
+                stiff.report.max_residual_m, stiff.report.unconverged_frames
+            );
+            assert!(bend_stiff < bend_free - 0.02, "{weighting:?}: {bend_stiff} vs {bend_free}");
+            assert!(stiff.report.max_residual_m < 1e-3, "{weighting:?}: {:?}", stiff.report);
+        }
+    }
+
+    /// Meredith & Maddock's hip swing and a human walk's shape, read from the poses of the
+    /// normal walk after its first step: the pelvis rises and falls by the bounce (2–5 cm,
+    /// the default 3 cm), the knee is nearly straight at each heel strike (under 15°; the
+    /// legs are stretched to `REACH` at the double supports), the pelvis turns about the
+    /// vertical by the rotation each way while the chest keeps facing the path, and each hand
+    /// swings forward and back, against its own side's leg.
+    #[test]
+    fn the_walk_bounces_straightens_its_knees_and_swings_hips_and_arms() {
+        let params = GaitParams { fps: 60.0, duration_secs: 5.0, ..GaitParams::default() };
+        let skeleton = mannequin();
+        let gait = walk(&skeleton, &params);
+        let poses = forward_kinematics(&gait.clip);
+        let index = |name: &str| skeleton.index_of(name).unwrap();
+        let settled = (params.fps * 1.0) as usize..gait.clip.frame_count();
+        let hips: Vec<f64> = settled.clone().map(|f| f64::from(poses.position(f, 0).y)).collect();
+        let bounce = hips.iter().copied().fold(f64::MIN, f64::max) - hips.iter().copied().fold(f64::MAX, f64::min);
+        let mut knee_at_strikes = Vec::new();
+        for side in 0..2 {
+            let leg = &gait.legs[side];
+            for t in heel_strikes(&gait, &poses, side) {
+                let f = (t * params.fps).round() as usize;
+                if settled.contains(&f) {
+                    let p = |j: usize| poses.position(f, j).as_dvec3();
+                    knee_at_strikes.push((p(leg.knee) - p(leg.hip)).angle_between(p(leg.ankle) - p(leg.knee)));
+                }
+            }
+        }
+        let yaw = |f: usize, j: usize| {
+            let z = poses.frame(f)[j].rotation.as_dquat() * DVec3::Z;
+            z.x.atan2(z.z)
+        };
+        let (root_turn, chest_turn) = settled
+            .clone()
+            .fold((0.0f64, 0.0f64), |(r, c), f| (r.max(yaw(f, 0).abs()), c.max(yaw(f, index("Spine")).abs())));
+        // Hands forward of the pelvis along the walk (+Z), and the legs' ankles.
+        let ahead = |f: usize, j: usize| f64::from(poses.position(f, j).z - poses.position(f, 0).z);
+        let (left_hand, right_ankle) = (index("LeftHand"), gait.legs[1].ankle);
+        let swing = settled.clone().map(|f| ahead(f, left_hand)).fold(f64::MIN, f64::max)
+            - settled.clone().map(|f| ahead(f, left_hand)).fold(f64::MAX, f64::min);
+        // The left hand is ahead when the right foot is ahead: their forward offsets correlate.
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let (h, a): (Vec<f64>, Vec<f64>) =
+            settled.clone().map(|f| (ahead(f, left_hand), ahead(f, right_ankle))).unzip();
+        let (mh, ma) = (mean(&h), mean(&a));
+        let covariance: f64 = h.iter().zip(&a).map(|(x, y)| (x - mh) * (y - ma)).sum();
+        println!(
+            "bounce {:.2} cm, knee at strikes {:?} deg, pelvis turn {root_turn:.3} rad, chest {chest_turn:.4} rad, left hand swing {:.1} cm",
+            bounce * 100.0,
+            knee_at_strikes.iter().map(|k| (k.to_degrees() * 10.0).round() / 10.0).collect::<Vec<_>>(),
+            swing * 100.0
+        );
+        assert!((0.02..=0.05).contains(&bounce), "bounce {bounce} m");
+        assert!(
+            knee_at_strikes.len() >= 4 && knee_at_strikes.iter().all(|k| k.to_degrees() < 15.0),
+            "{knee_at_strikes:?}"
+        );
+        assert!((root_turn - params.hip_rotation_rad).abs() < 0.01, "pelvis turns {root_turn}");
+        assert!(chest_turn < 0.005, "the chest turns {chest_turn}");
+        assert!(swing > 0.1, "the left hand swings {swing} m");
+        assert!(covariance > 0.0, "the left hand moves with the left foot: {covariance}");
+    }
+
     #[test]
     fn the_other_presets_change_what_they_name() {
         let skeleton = mannequin();
@@ -1567,9 +1803,12 @@ mod tests {
             GaitParams { turn_rate_rad_per_s: 0.3, direction_rad: 0.2, duration_secs: 4.0, ..GaitParams::default() };
         let gait = walk(&mannequin(), &params);
         let last = gait.clip.frame_count() - 1;
-        // The mannequin faces +Z: its root's heading is the yaw of its +Z axis.
+        // The mannequin faces +Z: the heading is the yaw of the spine's +Z axis (the pelvis
+        // swings about it; the chest keeps facing the path).
+        let poses = forward_kinematics(&gait.clip);
+        let spine = gait.clip.skeleton().index_of("Spine").unwrap();
         let heading = |f: usize| {
-            let z = gait.clip.frame_rotations(f)[0].as_dquat() * DVec3::Z;
+            let z = poses.frame(f)[spine].rotation.as_dquat() * DVec3::Z;
             z.x.atan2(z.z)
         };
         let turned = heading(last) - heading(0);

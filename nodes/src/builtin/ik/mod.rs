@@ -11,8 +11,19 @@ pub mod solve;
 
 use std::sync::Arc;
 
+use crate::kernels::ik::Weighting;
 use crate::model::Curves;
-use crate::node::{NodeError, Output, Registry};
+use crate::model::choice::choices;
+use crate::node::{ChoiceParam, NodeError, Output, Registry};
+
+choices!(Weighting { InsideInverse = "inside", Paper = "paper" });
+
+/// Where the joint weights enter the IK steps, shared by the nodes that solve IK.
+const WEIGHTING: ChoiceParam<Weighting> = ChoiceParam::new(
+    "weighting",
+    "How the joint weights shape each step: inside the pseudo-inverse (every step reaches its linear goal; stiff joints take less of it), or the paper's eq. 1.6 (the plain step with each joint's share scaled by its weight; more iterations).",
+    "inside",
+);
 
 /// The per-frame curves output of the IK nodes, for the editor's plots.
 const RESIDUAL_CURVES: Output<Arc<Curves>> = Output::new(

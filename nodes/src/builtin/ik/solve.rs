@@ -147,9 +147,9 @@ static IK_SOLVE: NodeSchema = NodeSchema {
     doc: "Weighted Jacobian IK (Meredith & Maddock): moves chains so their ends reach goals; stiff joints (low weight) move less and the others take up the motion.",
     inputs: &[CLIP.spec(), TARGET_CURVES.spec()],
     outputs: &[SOLVED.spec(), SOLVE_REPORT.spec(), super::RESIDUAL_CURVES.spec()],
-    params: &[CHAINS.0, GOALS.0, WEIGHTS.0, TOLERANCE.0, ITERATIONS.0],
+    params: &[CHAINS.0, GOALS.0, WEIGHTS.0, super::WEIGHTING.0, TOLERANCE.0, ITERATIONS.0],
     writes_files: false,
-    version: 1,
+    version: 2,
 };
 
 impl Node for IkSolve {
@@ -169,6 +169,7 @@ impl Node for IkSolve {
         let params = SolveParams {
             tolerance_m: ctx.float(&TOLERANCE)?,
             max_iterations: usize::try_from(ctx.int(&ITERATIONS)?).unwrap_or(1),
+            weighting: ctx.choice(&super::WEIGHTING)?,
             ..SolveParams::default()
         };
         let result = match &curves {

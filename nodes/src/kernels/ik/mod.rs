@@ -8,4 +8,4 @@ pub mod rig;
 pub mod solve;
 
 pub use rig::{Dof, DofKind, IkPose, IkRig, RigError};
-pub use solve::{IkSolver, SolveParams, SolveReport};
+pub use solve::{IkSolver, SolveParams, SolveReport, Weighting};

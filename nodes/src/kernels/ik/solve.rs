@@ -9,14 +9,17 @@
 //! 3. The weighted damped pseudo-inverse `J⁺ = W Jᵀ (J W Jᵀ + Λ²)⁻¹`. With `W = I` and no
 //!    damping it is the paper's `Jᵀ(JJᵀ)⁻¹`; with `W < I` the step still reaches the
 //!    linearised goal but stiff DOFs take less of it (eq. 1.6 with the weights inside the
-//!    inverse, so a stiff joint does not stall convergence). `Λ` damps only the singular
+//!    inverse, so a stiff joint does not stall convergence: [`Weighting::InsideInverse`]).
+//!    The paper's own eq. 1.6, `Δθ = W J⁺ dX` with the unweighted `J⁺ = Jᵀ (J Jᵀ + Λ²)⁻¹`
+//!    ([`Weighting::Paper`]), scales each DOF's share of the plain step by its weight, so a
+//!    step falls short of the linearised goal and the iterations make up the rest. `Λ` damps only the singular
 //!    directions of `J √W` whose singular value is under `singular_m` (a straight chain, an
 //!    unreachable goal), growing to `max_damping_m` at an exact singularity.
 //! 4. Error halving: the step is halved while the linear prediction `X + J·Δθ` misses the
 //!    forward-kinematics result by more than `halving_m` (with damping, the paper's
 //!    `‖(I − J J⁺) dX‖` only measures what the damping held back, which halving cannot
-//!    fix; the prediction error is what halving controls), and while it does not improve
-//!    the error (at most `max_halvings` times).
+//!    fix; the prediction error is what halving controls), and, with the weights inside
+//!    the inverse, while it does not improve the error (at most `max_halvings` times).
 //! 5. `θ ← clamp(θ + J⁺ dX)` to the joint limits.
 //! 6. Stop when every effector is within `tolerance_m`, or after `max_iterations`.
 //!
@@ -48,6 +51,19 @@ pub struct SolveParams {
     pub singular_m: f64,
     /// Damping `λ` reached at an exact singularity (metres per radian).
     pub max_damping_m: f64,
+    /// Where the DOF weights enter the pseudo-inverse.
+    pub weighting: Weighting,
+}
+
+/// Where the DOF weights `W` enter a step (see the module doc, step 3).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Weighting {
+    /// `W Jᵀ (J W Jᵀ + Λ²)⁻¹`: every step reaches the linearised goal; stiff DOFs take less.
+    #[default]
+    InsideInverse,
+    /// Meredith & Maddock's eq. 1.6, `W Jᵀ (J Jᵀ + Λ²)⁻¹`: the plain step, each DOF's share
+    /// scaled by its weight.
+    Paper,
 }
 
 impl Default for SolveParams {
@@ -59,6 +75,7 @@ impl Default for SolveParams {
             max_halvings: 8,
             singular_m: 0.02,
             max_damping_m: 0.05,
+            weighting: Weighting::InsideInverse,
         }
     }
 }
@@ -189,6 +206,7 @@ pub struct IkSolver {
     step: DVector<f64>,
     start: Vec<f64>,
     weights: Vec<f64>,
+    weighting: Weighting,
     /// Scratch pose for trial steps.
     trial: Option<IkPose>,
 }
@@ -215,6 +233,7 @@ impl IkSolver {
             step: DVector::zeros(n),
             start: vec![0.0; n],
             weights: rig.dofs().iter().map(|d| d.weight.clamp(0.0, 1.0)).collect(),
+            weighting: Weighting::InsideInverse,
             trial: None,
             rig,
         }
@@ -293,7 +312,8 @@ impl IkSolver {
         &self.jt
     }
 
-    /// Builds `W Jᵀ` and the eigen-decomposition of `J W Jᵀ`, and the per-direction
+    /// Builds `W Jᵀ` and the eigen-decomposition of `J W Jᵀ` (of `J Jᵀ` under
+    /// [`Weighting::Paper`]), and the per-direction
     /// inverse `1 / (σ² + λ²)` with the damping `λ` applied only to singular directions of
     /// `J √W` whose singular value is under the threshold (selective damping). The threshold
     /// is `singular` in metres per radian, or, when `relative`, a fraction of the largest
@@ -305,7 +325,11 @@ impl IkSolver {
         for (mut row, w) in self.wjt.row_iter_mut().zip(&self.weights) {
             row *= *w;
         }
-        self.jwjt.gemm_tr(1.0, &self.jt, &self.wjt, 0.0);
+        let inner = match self.weighting {
+            Weighting::InsideInverse => &self.wjt,
+            Weighting::Paper => &self.jt,
+        };
+        self.jwjt.gemm_tr(1.0, &self.jt, inner, 0.0);
         self.eigen.decompose(&self.jwjt, &mut self.basis, &mut self.sigma_sq);
         let s_max = self.sigma_sq.max().max(0.0).sqrt();
         let masks = self.rig.effector_masks();
@@ -367,6 +391,7 @@ impl IkSolver {
     /// updating `pose` in place.
     pub fn solve(&mut self, pose: &mut IkPose, goals: &[DVec3], params: &SolveParams) -> SolveReport {
         let mut trial = self.trial.take().unwrap_or_else(|| pose.clone());
+        self.weighting = params.weighting;
         let mut iterations = 0;
         let mut error = self.linearise(pose, goals);
         while error > params.tolerance_m && iterations < params.max_iterations {
@@ -394,7 +419,10 @@ impl IkSolver {
                     let p = self.dx[r] - scale * self.motion[r] - self.trial_dx[r];
                     predict_sq += p * p;
                 }
-                let improves = trial_error < error;
+                // Eq. 1.6's step (I − J W J⁺ with eigenvalues in [0, 1) on the error) shrinks
+                // the error over iterations but not always in every one: it is held to the
+                // paper's test, the linear prediction, alone.
+                let improves = trial_error < error || self.weighting == Weighting::Paper;
                 if improves && (predict_sq.sqrt() <= params.halving_m || halving == params.max_halvings) {
                     accepted = Some(trial_error);
                     break;
@@ -588,6 +616,60 @@ mod tests {
         // A fully stiff root does not move at all (the goal is then out of reach).
         let (locked_root, _, _) = run(&[0.0, 1.0, 1.0]);
         assert!(locked_root < 1e-12, "{locked_root}");
+    }
+
+    /// One step of each weighting on a bent three-link planar chain (weights 0.2, 1, 0.5),
+    /// against the formulas evaluated with nalgebra: `W J⁺ dX` with the SVD pseudo-inverse
+    /// (eq. 1.6) and `W Jᵀ (J W Jᵀ)⁻¹ dX`, `J` by central differences. The inside weighting
+    /// meets the linearised goal (`J Δθ = dX`), the paper's falls short of it; both reach
+    /// the goal when iterated.
+    #[test]
+    fn both_weightings_take_the_step_their_formula_gives() {
+        let weights = [0.2, 1.0, 0.5];
+        let rig = planar_chain(&[0.3, 0.3, 0.3], &weights);
+        let mut start = rest_pose(&rig);
+        start.euler[1][2] = 0.4;
+        start.euler[2][2] = 0.6;
+        let mut solver = IkSolver::new(rig);
+        let mut tip = [DVec3::ZERO];
+        solver.effector_positions(&start, &mut tip);
+        let goal = tip[0] + DVec3::new(-0.004, 0.003, 0.0);
+        let dx = DVector::from_vec(vec![goal.x - tip[0].x, goal.y - tip[0].y, 0.0]);
+        let mut j = DMatrix::<f64>::zeros(3, 3);
+        for d in 0..3 {
+            let h = 1e-6;
+            let mut at = |s: f64| {
+                let mut p = start.clone();
+                p.euler[d][2] += s * h;
+                solver.effector_positions(&p, &mut tip);
+                tip[0]
+            };
+            let column = (at(1.0) - at(-1.0)) / (2.0 * h);
+            for k in 0..3 {
+                j[(k, d)] = column[k];
+            }
+        }
+        let w = DMatrix::from_diagonal(&DVector::from_row_slice(&weights));
+        let paper = &w * j.clone().pseudo_inverse(1e-12).unwrap() * &dx;
+        let jw = j.rows(0, 2).into_owned();
+        let inside = &w * jw.transpose() * (&jw * &w * jw.transpose()).try_inverse().unwrap() * dx.rows(0, 2);
+        let mut one_step = |weighting: Weighting| {
+            let mut pose = start.clone();
+            let params = SolveParams { max_iterations: 1, halving_m: 1.0, weighting, ..SolveParams::default() };
+            solver.solve(&mut pose, &[goal], &params);
+            DVector::from_iterator(3, (0..3).map(|d| pose.euler[d][2] - start.euler[d][2]))
+        };
+        let (got_paper, got_inside) = (one_step(Weighting::Paper), one_step(Weighting::InsideInverse));
+        assert!((&got_paper - &paper).norm() < 1e-6 * paper.norm(), "{got_paper} vs {paper}");
+        assert!((&got_inside - &inside).norm() < 1e-6 * inside.norm(), "{got_inside} vs {inside}");
+        let reached = |step: &DVector<f64>| (&j * step - &dx).norm() / dx.norm();
+        assert!(reached(&got_inside) < 1e-5, "{}", reached(&got_inside));
+        assert!(reached(&got_paper) > 0.1, "{}", reached(&got_paper));
+        for weighting in [Weighting::Paper, Weighting::InsideInverse] {
+            let mut pose = start.clone();
+            let report = solver.solve(&mut pose, &[goal], &SolveParams { weighting, ..SolveParams::default() });
+            assert!(report.converged, "{weighting:?}: {report:?}");
+        }
     }
 
     #[test]
