@@ -77,23 +77,10 @@ fn pose_space_refuses_mismatched_samples() {
     assert!(deform(&mesh, &samples.clip, None, method(PoseDistance::Uniform)).is_err());
 }
 
-/// The pose vector of one frame evaluated here: per joint the rotation vector of its
-/// rotation relative to its rest rotation (shortest way), zero for the root.
+/// The pose vector of one frame (the kernel's representation: each joint's rotation
+/// vector from its rest rotation, the root's zero), in f64.
 fn pose_of(skeleton: &kinegraph_nodes::model::Skeleton, rotations: &[glam::Quat]) -> Vec<glam::DVec3> {
-    skeleton
-        .joints()
-        .iter()
-        .zip(rotations)
-        .map(|(joint, q)| {
-            if joint.parent.is_none() {
-                return glam::DVec3::ZERO;
-            }
-            let r = (joint.rest_rotation.inverse() * *q).as_dquat();
-            let r = if r.w < 0.0 { -r } else { r };
-            let (axis, angle) = r.to_axis_angle();
-            if angle.abs() < 1e-12 { glam::DVec3::ZERO } else { axis * angle }
-        })
-        .collect()
+    kinegraph_nodes::kernels::pose_vector::pose_vector(skeleton, rotations).iter().map(|v| v.as_dvec3()).collect()
 }
 
 /// Rhee et al.'s WPSD, the paper's equations evaluated here in f64 with nalgebra, vertex by
