@@ -840,12 +840,19 @@ fn arrow_keys_pick_in_the_add_menu() {
         .filter(|l| registry.get(l).is_some())
         .collect();
     assert!(shown.len() >= 2, "{shown:?}");
+    let before: Vec<String> = harness.state().doc().nodes.keys().cloned().collect();
     harness.key_press(egui::Key::ArrowDown);
     harness.run_steps(1);
     harness.key_press(egui::Key::Enter);
     harness.run_steps(3);
-    let added: Vec<String> =
-        harness.state().doc().nodes.values().map(|n| n.kind.clone()).filter(|k| k.starts_with("motion.")).collect();
+    let added: Vec<String> = harness
+        .state()
+        .doc()
+        .nodes
+        .iter()
+        .filter(|(id, _)| !before.contains(id))
+        .map(|(_, n)| n.kind.clone())
+        .collect();
     assert_eq!(added, [shown[1].clone()], "{shown:?}");
 }
 
