@@ -96,13 +96,21 @@ fn bench(c: &mut Criterion) {
         &find_landmarks(source.skeleton()).unwrap(),
         &ContactThresholds::default(),
     );
+    // The node's defaults (the paper's update and up to two chord corrections a frame), and
+    // the paper's single update alone (`max_corrections: 0`).
     let params = RetargetParams { settle_iterations: 0, ..RetargetParams::default() };
+    let single = RetargetParams { max_corrections: 0, ..params };
     let mut group = c.benchmark_group("retarget");
     group.throughput(Throughput::Elements(source.frame_count() as u64));
     group.sample_size(20);
-    group.bench_function("cmu_02_01_full_body_frames", |b| {
-        b.iter(|| black_box(retarget_clip(&source, &target, Some(&contacts), Effectors::FeetAndHands, params).unwrap()))
-    });
+    for (name, params) in [("cmu_02_01_full_body_frames", params), ("cmu_02_01_full_body_single_update_frames", single)]
+    {
+        group.bench_function(name, |b| {
+            b.iter(|| {
+                black_box(retarget_clip(&source, &target, Some(&contacts), Effectors::FeetAndHands, params).unwrap())
+            })
+        });
+    }
     group.finish();
 }
 
