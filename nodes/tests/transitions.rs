@@ -19,7 +19,7 @@ use kinegraph_nodes::kernels::transition_graph::cluster::cluster;
 use kinegraph_nodes::kernels::transition_graph::distance::DistanceParams;
 use kinegraph_nodes::kernels::transition_graph::graph::{Direction, TransitionGraph, build_graph};
 use kinegraph_nodes::kernels::transition_graph::paths::PathLimits;
-use kinegraph_nodes::model::{Clip, ClipSet, ImportScale, Joint, NamedClip, Skeleton, forward_kinematics};
+use kinegraph_nodes::model::{Clip, ClipPoses, ClipSet, ImportScale, Joint, NamedClip, Skeleton, forward_kinematics};
 use rand::SeedableRng;
 
 /// Hips plus one "arm" joint: a pose is (hip tilt about X, arm angle about Z), radians.
@@ -490,19 +490,25 @@ fn no_foot_of_the_held_sequence_jumps_further_in_a_frame_than_in_the_sources() {
     }
 }
 
-/// The largest `measure` of joint `joint` over frames `frames` of `clip`, in leg lengths of
-/// the clip's own rest pose (so a capture and the same action carried onto the set's
-/// skeleton are compared in proportion to the body).
+/// The largest `measure` (of a joint's and the root's world positions) of `joint` over
+/// frames `frames` of `poses`, in leg lengths `leg_m` of its own rest pose (so a capture and
+/// the same action carried onto the set's skeleton are compared in proportion to the body).
 fn extreme_in_leg_lengths(
-    clip: &Clip,
+    (clip, poses, leg_m): &(Clip, ClipPoses, f64),
     frames: std::ops::Range<usize>,
     joint: &str,
     measure: fn(Vec3, Vec3) -> f32,
 ) -> f64 {
     let j = clip.skeleton().index_of(joint).unwrap();
-    let poses = forward_kinematics(clip);
     let best = frames.map(|f| measure(poses.position(f, j), poses.position(f, 0))).fold(f32::MIN, f32::max);
-    f64::from(best) / kinegraph_nodes::kernels::stride::rest_leg_length_m(clip.skeleton()).unwrap()
+    f64::from(best) / leg_m
+}
+
+/// `clip` with its world positions and its rest-pose leg length.
+fn posed(clip: Clip) -> (Clip, ClipPoses, f64) {
+    let (poses, leg_m) =
+        (forward_kinematics(&clip), kinegraph_nodes::kernels::stride::rest_leg_length_m(clip.skeleton()).unwrap());
+    (clip, poses, leg_m)
 }
 
 /// Issue 19: the captured actions survive the sequence. walk_punch_kick's kick toe reaches
@@ -517,27 +523,27 @@ fn the_sequence_keeps_each_captured_strike_within_five_percent() {
     let g = transition_graph_of(&set);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     let (motion, infos) = play_sequence(&g, &actions, &SynthesisParams::default(), &mut rng);
-    let held = hold_planted_feet(motion.into_clip(&actions[0].clip).unwrap()).unwrap();
+    let held = posed(hold_planted_feet(motion.into_clip(&actions[0].clip).unwrap()).unwrap());
     let height: fn(Vec3, Vec3) -> f32 = |p, _| p.y;
     let reach: fn(Vec3, Vec3) -> f32 = |p, root| (p - root).with_y(0.0).length();
-    let capture = |file: &str, secs: (f64, f64)| {
+    // The capture's strike over its labelled seconds, in leg lengths.
+    let captured = |file: &str, secs: (f64, f64), joint: &str, measure: fn(Vec3, Vec3) -> f32| {
         let options = ClipLoadOptions { t_pose: LeadingTPose::Drop, ..Default::default() };
-        let clip = load_clip(&data.join("bvh/cmu").join(file), options).unwrap().value;
-        let frame = |s: f64| ((s * clip.fps()).round() as usize).min(clip.frame_count());
-        let range = frame(secs.0)..frame(secs.1) + 1;
-        (clip, range)
+        let capture = posed(load_clip(&data.join("bvh/cmu").join(file), options).unwrap().value);
+        let frame = |s: f64| ((s * capture.0.fps()).round() as usize).min(capture.0.frame_count());
+        extreme_in_leg_lengths(&capture, frame(secs.0)..frame(secs.1) + 1, joint, measure)
     };
-    // (action index in the sequence, capture file and labelled seconds, joint, measure)
+    let punch = captured("02_05.bvh", (0.8, 2.2), "RightHand", reach);
+    let kick = captured("144_05.bvh", (4.2, 5.8), "RightToeBase_EndSite", height);
+    // (action index in the sequence, the capture's figure, joint, measure)
     let strikes = [
-        (1, "02_05.bvh", (0.8, 2.2), "RightHand", reach, "punch reach"),
-        (2, "144_05.bvh", (4.2, 5.8), "RightToeBase_EndSite", height, "kick apex"),
-        (3, "02_05.bvh", (0.8, 2.2), "RightHand", reach, "punch reach"),
+        (1, punch, "RightHand", reach, "punch reach"),
+        (2, kick, "RightToeBase_EndSite", height, "kick apex"),
+        (3, punch, "RightHand", reach, "punch reach"),
     ];
-    for (action, file, secs, joint, measure, what) in strikes {
-        let (clip, range) = capture(file, secs);
-        let captured = extreme_in_leg_lengths(&clip, range, joint, measure);
+    for (action, captured, joint, measure, what) in strikes {
         let start = infos[action - 1].frames.start;
-        let end = infos.get(action).map_or(held.frame_count(), |t| t.frames.end);
+        let end = infos.get(action).map_or(held.0.frame_count(), |t| t.frames.end);
         let played = extreme_in_leg_lengths(&held, start..end, joint, measure);
         let change = 100.0 * (played / captured - 1.0);
         eprintln!(

@@ -632,19 +632,12 @@ impl Plan {
         }
     }
 
-    /// The pelvis keys before and after `t` (index of the first) and the phase `u` ∈ [0, 1]
-    /// between them.
-    fn phase(&self, t: f64) -> (usize, f64) {
-        let k = self.keys.partition_point(|key| key.secs <= t).clamp(1, self.keys.len() - 1) - 1;
-        let (a, b) = (self.keys[k], self.keys[k + 1]);
-        (k, ((t - a.secs) / (b.secs - a.secs)).clamp(0.0, 1.0))
-    }
-
     /// The pelvis at `t` (see [`Pelvis`]).
     fn pelvis(&self, t: f64) -> Pelvis {
-        let (k, u) = self.phase(t);
+        let k = self.keys.partition_point(|key| key.secs <= t).clamp(1, self.keys.len() - 1) - 1;
         let (a, b) = (self.keys[k], self.keys[k + 1]);
         let h = b.secs - a.secs;
+        let u = ((t - a.secs) / h).clamp(0.0, 1.0);
         let (u2, u3) = (u * u, u * u * u);
         let s = (2.0 * u3 - 3.0 * u2 + 1.0) * a.progress_m
             + (u3 - 2.0 * u2 + u) * h * self.slopes[k]
@@ -661,6 +654,8 @@ impl Plan {
             ground_m: ground,
             rise_m: self.bounce_m * wave * wave,
             swing,
+            key: k,
+            u,
         }
     }
 
@@ -733,6 +728,9 @@ struct Pelvis {
     /// `±cos πu`: +1 at a double support with the left foot ahead, −1 with the right;
     /// the arms swing with it, each against its own side's leg.
     swing: f64,
+    /// The key before `t` and the phase `u` ∈ [0, 1] from it to the next.
+    key: usize,
+    u: f64,
 }
 
 /// The joints a walk turns above the legs: the spine's first joints, which undo the
@@ -914,10 +912,10 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     let last_key = plan.keys.last().map_or(0.0, |k| k.secs);
     let span_frames =
         frames.max(((last_key.min(params.duration_secs + 2.0)) * params.fps).ceil() as usize + window + 1);
+    let pelvises: Vec<Pelvis> = (0..span_frames).map(|f| plan.pelvis(time(f))).collect();
     let allowed: Vec<f64> = (0..span_frames)
         .map(|f| {
-            let t = time(f);
-            let pelvis = plan.pelvis(t);
+            let (t, pelvis) = (time(f), &pelvises[f]);
             let turn = pelvis.turn * pelvis.heading;
             let mut top = pelvis.ground_m + body.root_height_m;
             for side in 0..2 {
@@ -941,18 +939,21 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     // A key's height: the lowest of the limit within a quarter step of it (the legs are
     // longest-stretched around the double support, not always at its middle).
     let frame_of = |secs: f64| ((secs * params.fps).round().max(0.0) as usize).min(span_frames - 1);
-    let at_key = |k: usize| {
-        let keys = &plan.keys;
-        let before = if k > 0 { (keys[k].secs - keys[k - 1].secs) / 4.0 } else { 0.0 };
-        let after = if k + 1 < keys.len() { (keys[k + 1].secs - keys[k].secs) / 4.0 } else { 0.0 };
-        let span = frame_of(keys[k].secs - before)..=frame_of(keys[k].secs + after);
-        limit[span].iter().copied().fold(f64::INFINITY, f64::min)
-    };
-    let wanted: Vec<f64> = (0..span_frames)
-        .map(|f| {
-            let (k, u) = plan.phase(time(f));
-            let trough = at_key(k) + (at_key(k + 1) - at_key(k)) * smoothstep(u);
-            (trough + plan.pelvis(time(f)).rise_m).min(limit[f])
+    let keys = &plan.keys;
+    let troughs: Vec<f64> = (0..keys.len())
+        .map(|k| {
+            let before = if k > 0 { (keys[k].secs - keys[k - 1].secs) / 4.0 } else { 0.0 };
+            let after = if k + 1 < keys.len() { (keys[k + 1].secs - keys[k].secs) / 4.0 } else { 0.0 };
+            let span = frame_of(keys[k].secs - before)..=frame_of(keys[k].secs + after);
+            limit[span].iter().copied().fold(f64::INFINITY, f64::min)
+        })
+        .collect();
+    let wanted: Vec<f64> = pelvises
+        .iter()
+        .zip(&limit)
+        .map(|(p, &top)| {
+            let trough = troughs[p.key] + (troughs[p.key + 1] - troughs[p.key]) * smoothstep(p.u);
+            (trough + p.rise_m).min(top)
         })
         .collect();
     let root_y: Vec<f64> = smooth(&wanted).iter().zip(&limit).take(frames).map(|(y, top)| y.min(*top)).collect();
@@ -1006,7 +1007,7 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     let mut positions = [DVec3::ZERO; 3];
     for (f, &height_m) in root_y.iter().enumerate() {
         let t = time(f);
-        let pelvis = plan.pelvis(t);
+        let pelvis = &pelvises[f];
         let root = pelvis.position.with_y(height_m);
         let root_rotation = pelvis.turn * pelvis.heading * body.face * body.root_rest_rotation;
         let mut frame_rotations = rest_rotations[..n].to_vec();
@@ -1056,7 +1057,7 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
             }
         }
         unconverged += usize::from(!frame_converged);
-        upper_body.pose(&pelvis, params, skeleton, &mut frame_rotations);
+        upper_body.pose(pelvis, params, skeleton, &mut frame_rotations);
         let mut frame_translations = rest_offsets[..n].to_vec();
         frame_translations[0] = root.as_vec3();
         rotations.extend(frame_rotations);
@@ -1086,7 +1087,7 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
     let double_support = intersect_all(&feet[0].intervals, &feet[1].intervals);
     let contacts = Contacts { fps: params.fps, frame_count: frames, feet, double_support };
 
-    let lift: Vec<f64> = (0..frames).map(|f| root_y[f] - plan.pelvis(time(f)).ground_m).collect();
+    let lift: Vec<f64> = root_y.iter().zip(&pelvises).map(|(y, p)| y - p.ground_m).collect();
     let (legs, cadence_steps_per_min, speed_m_per_s) = measure(&clip, &body, &plan, params, walking);
     let report = GaitReport {
         legs,

@@ -35,7 +35,7 @@ use std::f64::consts::PI;
 
 use crate::kernels::body::{find_landmarks, limb_tip};
 use crate::kernels::ik::foot_lock::Plants;
-use crate::kernels::ik::{DofKind, IkPose, IkRig, IkSolver};
+use crate::kernels::ik::{DofKind, IkPose, IkRig, IkSolver, Weighting};
 use crate::kernels::stride::rest_leg_length_m;
 use crate::model::choice::choices;
 use crate::model::fk::pose_world;
@@ -141,7 +141,6 @@ pub struct OnlineRetargeter {
     projected: DVector<f64>,
     j_secondary: DVector<f64>,
     goals: Vec<DVec3>,
-    reached: Vec<DVec3>,
 }
 
 impl OnlineRetargeter {
@@ -151,7 +150,6 @@ impl OnlineRetargeter {
         let m = 3 * rig.effectors().len();
         OnlineRetargeter {
             goals: vec![DVec3::ZERO; rig.effectors().len()],
-            reached: vec![DVec3::ZERO; rig.effectors().len()],
             solver: IkSolver::new(rig),
             params,
             pose: initial,
@@ -176,7 +174,7 @@ impl OnlineRetargeter {
     pub fn buffer_bytes(&self) -> usize {
         let f = std::mem::size_of::<f64>();
         (self.primary.len() + self.secondary.len() + self.projected.len() + self.j_secondary.len()) * f
-            + (self.goals.capacity() + self.reached.capacity()) * std::mem::size_of::<DVec3>()
+            + self.goals.capacity() * std::mem::size_of::<DVec3>()
             + self.pose.rotations.capacity() * std::mem::size_of::<glam::DQuat>()
             + self.pose.translations.capacity() * std::mem::size_of::<DVec3>()
             + self.pose.euler.capacity() * 3 * f
@@ -194,10 +192,8 @@ impl OnlineRetargeter {
         // The paper's update: linearised at the last frame's pose.
         self.solver.linearise(&self.pose, &self.goals);
         self.clamp_task_error();
-        let dexterity = self.solver.decompose(p.dexterity, p.max_damping_m, true);
-        let dx = std::mem::replace(&mut self.solver.dx, DVector::zeros(0));
-        self.solver.apply_pinv(&dx, &mut self.primary);
-        self.solver.dx = dx;
+        let dexterity = self.solver.decompose(p.dexterity, p.max_damping_m, true, Weighting::InsideInverse);
+        self.solver.apply_pinv_to_task(&mut self.primary);
         // Secondary task projected on the null space: z − J⁺ (J z).
         for d in 0..self.solver.rig().dofs().len() {
             let rig = self.solver.rig();
@@ -210,42 +206,23 @@ impl OnlineRetargeter {
             self.secondary[d] = p.secondary_gain * diff;
         }
         self.j_secondary.gemv_tr(1.0, self.solver.jacobian_transposed(), &self.secondary, 0.0);
-        let js = std::mem::replace(&mut self.j_secondary, DVector::zeros(0));
-        self.solver.apply_pinv(&js, &mut self.projected);
-        self.j_secondary = js;
+        self.solver.apply_pinv(&self.j_secondary, &mut self.projected);
         self.primary += &self.secondary;
         self.primary -= &self.projected;
         self.apply_primary();
         // Corrections on the error left, with the same J⁺ (a chord step: the Jacobian moves
         // little within one frame's update, and its decomposition is most of the cost).
-        let mut error_m = self.effector_error_m();
+        let mut error_m = self.solver.task_offsets(&self.pose, &self.goals);
         for _ in 0..p.max_corrections {
             if error_m <= p.tolerance_m {
                 break;
             }
             self.clamp_task_error();
-            let dx = std::mem::replace(&mut self.solver.dx, DVector::zeros(0));
-            self.solver.apply_pinv(&dx, &mut self.primary);
-            self.solver.dx = dx;
+            self.solver.apply_pinv_to_task(&mut self.primary);
             self.apply_primary();
-            error_m = self.effector_error_m();
+            error_m = self.solver.task_offsets(&self.pose, &self.goals);
         }
         FrameReport { error_m, dexterity }
-    }
-
-    /// The effectors' goal offsets at the current pose into the solver's task error (each
-    /// masked to its constrained axes); returns the largest, metres.
-    fn effector_error_m(&mut self) -> f64 {
-        self.solver.effector_positions(&self.pose, &mut self.reached);
-        let mut worst = 0.0f64;
-        for e in 0..self.goals.len() {
-            let d = (self.goals[e] - self.reached[e]) * self.solver.rig().effector_masks()[e];
-            worst = worst.max(d.length());
-            for k in 0..3 {
-                self.solver.dx[3 * e + k] = d[k];
-            }
-        }
-        worst
     }
 
     /// Update clamping and `K₁` on the solver's task error.

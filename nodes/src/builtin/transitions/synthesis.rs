@@ -287,15 +287,15 @@ fn pick_by_inverse_cost(costs: impl Iterator<Item = f64> + Clone, rng: &mut impl
     let weight = |c: f64| 1.0 / c.max(1e-9);
     let total: f64 = costs.clone().map(weight).sum();
     let mut pick = rng.gen_range(0.0..total);
-    let mut last = 0;
+    let mut chosen = 0;
     for (k, c) in costs.enumerate() {
+        chosen = k;
         pick -= weight(c);
         if pick < 0.0 {
-            return k;
+            break;
         }
-        last = k;
     }
-    last
+    chosen
 }
 
 /// Appends a transition and then `target` to `out`, which must be on the graph's skeleton

@@ -206,7 +206,6 @@ pub struct IkSolver {
     step: DVector<f64>,
     start: Vec<f64>,
     weights: Vec<f64>,
-    weighting: Weighting,
     /// Scratch pose for trial steps.
     trial: Option<IkPose>,
 }
@@ -233,7 +232,6 @@ impl IkSolver {
             step: DVector::zeros(n),
             start: vec![0.0; n],
             weights: rig.dofs().iter().map(|d| d.weight.clamp(0.0, 1.0)).collect(),
-            weighting: Weighting::InsideInverse,
             trial: None,
             rig,
         }
@@ -320,12 +318,12 @@ impl IkSolver {
     /// singular value. Returns the dexterity `σ_min / σ_max` of `J √W` over the directions
     /// the tasks constrain (an effector's unconstrained axis is a zero row, whose zero
     /// singular value says nothing of the limbs).
-    pub(crate) fn decompose(&mut self, singular: f64, max_damping: f64, relative: bool) -> f64 {
+    pub(crate) fn decompose(&mut self, singular: f64, max_damping: f64, relative: bool, weighting: Weighting) -> f64 {
         self.wjt.copy_from(&self.jt);
         for (mut row, w) in self.wjt.row_iter_mut().zip(&self.weights) {
             row *= *w;
         }
-        let inner = match self.weighting {
+        let inner = match weighting {
             Weighting::InsideInverse => &self.wjt,
             Weighting::Paper => &self.jt,
         };
@@ -361,6 +359,14 @@ impl IkSolver {
         if s_max > 0.0 && s_min.is_finite() { s_min / s_max } else { 0.0 }
     }
 
+    /// `out = J⁺ dX`, the task error of the last [`IkSolver::linearise`] or
+    /// [`IkSolver::task_offsets`], with the last [`IkSolver::decompose`].
+    pub(crate) fn apply_pinv_to_task(&mut self, out: &mut DVector<f64>) {
+        let dx = std::mem::take(&mut self.dx);
+        self.apply_pinv(&dx, out);
+        self.dx = dx;
+    }
+
     /// `out = J⁺ rhs` with the last [`IkSolver::decompose`] (`rhs` has one row per task row).
     pub(crate) fn apply_pinv(&mut self, rhs: &DVector<f64>, out: &mut DVector<f64>) {
         self.y.fill(0.0);
@@ -370,6 +376,14 @@ impl IkSolver {
             self.y.axpy(coef, &u, 1.0);
         }
         out.gemv(1.0, &self.wjt, &self.y, 0.0);
+    }
+
+    /// The goal offsets of `pose` as the task error (as [`IkSolver::linearise`] gives it,
+    /// without the Jacobian, which is kept); returns the largest effector error (metres).
+    pub(crate) fn task_offsets(&mut self, pose: &IkPose, goals: &[DVec3]) -> f64 {
+        let worst = self.evaluate(pose, goals);
+        self.dx.copy_from(&self.trial_dx);
+        worst
     }
 
     /// Forward kinematics only: the goal offsets of `pose` into `trial_dx`; returns the
@@ -391,15 +405,14 @@ impl IkSolver {
     /// updating `pose` in place.
     pub fn solve(&mut self, pose: &mut IkPose, goals: &[DVec3], params: &SolveParams) -> SolveReport {
         let mut trial = self.trial.take().unwrap_or_else(|| pose.clone());
-        self.weighting = params.weighting;
         let mut iterations = 0;
         let mut error = self.linearise(pose, goals);
         while error > params.tolerance_m && iterations < params.max_iterations {
             iterations += 1;
-            self.decompose(params.singular_m, params.max_damping_m, false);
-            let (dx, mut step) = (std::mem::take(&mut self.dx), std::mem::take(&mut self.step));
-            self.apply_pinv(&dx, &mut step);
-            (self.dx, self.step) = (dx, step);
+            self.decompose(params.singular_m, params.max_damping_m, false, params.weighting);
+            let mut step = std::mem::take(&mut self.step);
+            self.apply_pinv_to_task(&mut step);
+            self.step = step;
             // The motion the linear model predicts for the full step: J · step.
             self.motion.gemv_tr(1.0, &self.jt, &self.step, 0.0);
             for d in 0..self.start.len() {
@@ -422,7 +435,7 @@ impl IkSolver {
                 // Eq. 1.6's step (I − J W J⁺ with eigenvalues in [0, 1) on the error) shrinks
                 // the error over iterations but not always in every one: it is held to the
                 // paper's test, the linear prediction, alone.
-                let improves = trial_error < error || self.weighting == Weighting::Paper;
+                let improves = trial_error < error || params.weighting == Weighting::Paper;
                 if improves && (predict_sq.sqrt() <= params.halving_m || halving == params.max_halvings) {
                     accepted = Some(trial_error);
                     break;
