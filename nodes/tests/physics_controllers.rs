@@ -18,6 +18,7 @@ use kinegraph_nodes::formats::gltf::{GltfReadOptions, read_gltf_file};
 use kinegraph_nodes::kernels::physics::controller::{
     BID_CAN_REACH, BID_SENSIBLE, ControlContext, Controller, Outcome, Reason, Status, Supervisor, Targets,
 };
+use kinegraph_nodes::kernels::physics::controllers::fall::HEAD_HIT_M_S;
 use kinegraph_nodes::kernels::physics::figure::{FigureParams, build_figure};
 use kinegraph_nodes::kernels::physics::simulate::{Push, Script, SimParams, SimResult, simulate};
 use kinegraph_nodes::kernels::physics::state::{FigureState, capture_point, convex_hull, signed_distance};
@@ -234,6 +235,7 @@ fn blank_state(figure: &kinegraph_nodes::kernels::physics::figure::Figure) -> Fi
         com_support_distance_m: 0.0,
         capture_distance_m: 0.0,
         head_clearance_m: 1.5,
+        head_down_speed_m_s: 0.0,
         trunk_upright: 1.0,
         kinetic_energy_j: 0.0,
         joint_coords: vec![[0.0; 3]; n],
@@ -382,7 +384,8 @@ fn larger_push_makes_a_protective_step_that_reaches_its_post_condition() {
 /// foot lands (capture point 0.7 cm outside the support, inside its 1 cm entry margin)
 /// but fails 14 ms later with the capture point 2.4 cm out (the COM still moves forward at
 /// 0.68 m/s, and the swing foot lands 9 cm wider than aimed); a second step lands 18 cm
-/// short and the figure falls. Kept to measure the next attempt.
+/// short and the figure falls (the protective fall then lets the head down at 2.0 m/s).
+/// Kept to measure the next attempt.
 #[test]
 #[ignore = "the figure does not yet stand again after the protective step"]
 fn larger_push_is_recovered_by_a_step_and_the_figure_stands_again() {
@@ -398,11 +401,15 @@ fn larger_push_is_recovered_by_a_step_and_the_figure_stands_again() {
     assert!(r.samples.last().unwrap().com_support_m < 0.0, "COM not over the support at the end");
 }
 
-/// Not yet true on the CMU figure: the fall controller activates, but the head reaches the
-/// ground during the fall (0.91 s into the run) and, over the same window, the figure without
-/// the fall controller keeps its head higher. Kept to measure the next attempt.
+/// The straight-back push: the fall controller curls the figure (chin to chest, back
+/// rounded) and neither head hits the ground over the whole run. Not reliably true yet: the
+/// CMU head never touches, but the Xbot's comes down at 0.99 m/s, at the 1 m/s bar, and
+/// the CMU figure at rest re-enters the fall controller five times (a figure lying curled
+/// with its capture point outside its feet bids as falling); releasing it to the relaxed
+/// pose instead let the curl unroll and the head hit at 2.4 m/s. Kept to measure the next
+/// attempt (the table test below measures every direction).
 #[test]
-#[ignore = "the protective fall does not yet keep the head off the ground on the CMU figure"]
+#[ignore = "the Xbot's head comes down at the bar's speed; the CMU figure re-enters the fall at rest"]
 fn largest_push_is_a_protected_fall_with_the_head_off_the_ground() {
     let Some(data) = shared_data() else { return };
     for (label, skeleton) in [("cmu", cmu(&data)), ("xbot", xbot(&data))] {
@@ -414,28 +421,57 @@ fn largest_push_is_a_protected_fall_with_the_head_off_the_ground() {
             .iter()
             .find(|a| a.controller == "fall")
             .unwrap_or_else(|| panic!("{label}: no fall in {used:?}"));
-        let during: f32 = r
-            .samples
-            .iter()
-            .filter(|s| s.time_secs >= fall.start_secs && s.time_secs <= fall.end_secs)
-            .map(|s| s.head_clearance_m)
-            .fold(f32::INFINITY, f32::min);
-        // The same push without the fall controller (balance, step, relax only), over the
-        // same window: the impact.
-        let limp = run(&skeleton, &push_script(3.0, "chest", back, FALL_PUSH_NS, Some(&["balance", "step", "relax"])));
-        let limp_during: f32 = limp
-            .samples
-            .iter()
-            .filter(|s| s.time_secs >= fall.start_secs && s.time_secs <= fall.end_secs)
-            .map(|s| s.head_clearance_m)
-            .fold(f32::INFINITY, f32::min);
-        println!(
-            "{label} fall push: {used:?}; head clearance while the fall controller is active {during:.3} m; \
-             same window without it {limp_during:.3} m"
-        );
+        println!("{label} fall push: {used:?}; head impact {:.2} m/s", r.head_impact_speed_m_s);
         assert!(!matches!(fall.outcome, Outcome::Failed(_)), "{label}: {used:?}");
-        assert!(during > 0.05, "{label}: head came within {during} m of the ground during the protective fall");
+        assert!(r.head_impact_speed_m_s < 0.5 * HEAD_HIT_M_S, "{label}: head down at {} m/s", r.head_impact_speed_m_s);
+        assert_eq!(r.timeline.iter().filter(|a| a.controller == "fall").count(), 1, "{label}: {used:?}");
     }
+}
+
+/// What the protective fall is for, measured over pushes the figure cannot survive
+/// standing (8 directions × 80, 120, 160 N·s on the chest, both figures): the speed at which
+/// the head comes down onto the ground (its centre of mass, while within 1 cm of it), with
+/// the fall controller in the pool against the same push without it (balance, step, relax:
+/// the limp figure). The fall controller at least halves the median head impact speed and
+/// leaves at most a third as many strikes above 3 m/s. Prints the table
+/// (`cargo test --test physics_controllers protective_fall_table -- --nocapture`).
+#[test]
+fn protective_fall_table_halves_the_head_impact_speed() {
+    let Some(data) = shared_data() else { return };
+    let (mut protected, mut limp) = (Vec::new(), Vec::new());
+    println!("head impact speed, m/s: protected (fall in the pool) / limp (balance, step, relax)");
+    for (label, skeleton) in [("cmu", cmu(&data)), ("xbot", xbot(&data))] {
+        let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+        for d in 0..8 {
+            let angle = d as f32 * std::f32::consts::FRAC_PI_4;
+            let dir = (figure.forward * angle.cos() + figure.left * angle.sin()).to_array();
+            let mut row = String::new();
+            for impulse in [80.0, 120.0, 160.0] {
+                let with = run(&skeleton, &push_script(3.0, "chest", dir, impulse, None));
+                let without =
+                    run(&skeleton, &push_script(3.0, "chest", dir, impulse, Some(&["balance", "step", "relax"])));
+                assert!(with.timeline.iter().any(|a| a.controller == "fall"), "{label} {d}: no fall");
+                row += &format!(
+                    " | {impulse} N·s: {:.2} / {:.2}",
+                    with.head_impact_speed_m_s, without.head_impact_speed_m_s
+                );
+                protected.push(with.head_impact_speed_m_s);
+                limp.push(without.head_impact_speed_m_s);
+            }
+            println!("{label} {:>3}°{row}", d * 45);
+        }
+    }
+    let median = |v: &[f32]| {
+        let mut v = v.to_vec();
+        v.sort_by(f32::total_cmp);
+        v[v.len() / 2]
+    };
+    let strikes = |v: &[f32]| v.iter().filter(|&&s| s > 3.0).count();
+    let (m_with, m_without) = (median(&protected), median(&limp));
+    let (s_with, s_without) = (strikes(&protected), strikes(&limp));
+    println!("median {m_with:.2} / {m_without:.2} m/s; above 3 m/s {s_with} / {s_without} of {}", limp.len());
+    assert!(m_with < 0.5 * m_without, "median head impact {m_with} m/s with the fall controller, {m_without} without");
+    assert!(3 * s_with <= s_without, "{s_with} strikes above 3 m/s with the fall controller, {s_without} without");
 }
 
 #[test]

@@ -145,6 +145,7 @@ impl Node for Simulate {
                 })).collect::<Vec<_>>(),
                 "controllers": result.timeline.iter().map(|a| a.controller).collect::<Vec<_>>(),
                 "min_head_clearance_m": result.min_head_clearance_m,
+                "head_impact_speed_m_s": result.head_impact_speed_m_s,
                 "physics_steps": result.steps,
                 "dt_secs": params.world.dt_secs,
                 "figure": {

@@ -13,6 +13,7 @@ use serde::Deserialize;
 
 use super::controller::{Activation, ControlContext, Supervisor, Targets};
 use super::controllers;
+use super::controllers::fall::HEAD_CONTACT_M;
 use super::figure::{BodyRole, BodyShape, Figure, FigureError, FigureParams, Spawned, build_figure};
 use super::state::FigureState;
 use super::{PhysicsError, World, WorldParams, to_rapier};
@@ -190,6 +191,10 @@ pub struct SimResult {
     pub figure: Figure,
     /// The lowest head clearance over the whole run, metres.
     pub min_head_clearance_m: f32,
+    /// The fastest the head came down while touching the ground (clearance below
+    /// [`HEAD_CONTACT_M`]), m/s; 0 when it never touched. A head laid down gently is near 0,
+    /// a limp figure's head strikes the ground at several m/s.
+    pub head_impact_speed_m_s: f32,
     /// Steps simulated.
     pub steps: usize,
 }
@@ -416,6 +421,7 @@ pub fn simulate(
     let mut body_frames: Vec<(Vec<Quat>, Vec<Vec3>)> = Vec::with_capacity(frames);
     let mut samples = Vec::with_capacity(frames);
     let mut min_head = f32::INFINITY;
+    let mut head_impact = 0.0f32;
     let push_bodies: Vec<usize> = script.pushes.iter().filter_map(|p| figure.body_index(&p.body)).collect();
     for step in 0..=steps {
         let t = step as f32 * dt;
@@ -424,6 +430,9 @@ pub fn simulate(
             return Err(SimError::BlowUp { time_secs: t, what });
         }
         min_head = min_head.min(state.head_clearance_m);
+        if state.head_clearance_m < HEAD_CONTACT_M {
+            head_impact = head_impact.max(state.head_down_speed_m_s);
+        }
         while body_frames.len() < frames && f64::from(t) + 0.5 * f64::from(dt) >= body_frames.len() as f64 / params.fps
         {
             cancel.check().map_err(|_| SimError::Cancelled)?;
@@ -457,7 +466,15 @@ pub fn simulate(
         }));
     }
     let clip = clip_of(&figure, skeleton, &body_frames, params.fps).map_err(|e| SimError::Pose(e.to_string()))?;
-    Ok(SimResult { clip, timeline: supervisor.timeline, samples, figure, min_head_clearance_m: min_head, steps })
+    Ok(SimResult {
+        clip,
+        timeline: supervisor.timeline,
+        samples,
+        figure,
+        min_head_clearance_m: min_head,
+        head_impact_speed_m_s: head_impact,
+        steps,
+    })
 }
 
 /// The controllers' context for a figure standing in `state0` (its initial state): the

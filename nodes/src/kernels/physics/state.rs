@@ -43,6 +43,10 @@ pub struct FigureState {
     pub capture_distance_m: f32,
     /// Lowest point of the head body above the ground, metres.
     pub head_clearance_m: f32,
+    /// Downward speed of the head (its centre of mass), m/s; 0 while it rises. With
+    /// [`head_clearance_m`](Self::head_clearance_m) it tells a head laid on the ground from
+    /// one that hits it.
+    pub head_down_speed_m_s: f32,
     /// Cosine of the chest's tilt from vertical (1 upright, 0 lying).
     pub trunk_upright: f32,
     /// Kinetic energy of the figure, joules.
@@ -71,6 +75,7 @@ impl FigureState {
         let mut foot_down = [false; 2];
         let mut sole_centre = [Vec3::ZERO; 2];
         let mut head_clearance_m = f32::INFINITY;
+        let mut head_down_speed_m_s = 0.0f32;
         let mut trunk_upright = 1.0;
         for (i, body) in figure.bodies.iter().enumerate() {
             let (q, p) = (body_rot[i], body_pos[i]);
@@ -94,6 +99,7 @@ impl FigureState {
                 }
                 (BodyRole::Head, BodyShape::Capsule { a, b, radius_m }) => {
                     head_clearance_m = (p + q * a).y.min((p + q * b).y) - radius_m;
+                    head_down_speed_m_s = (-world.inner.bodies[spawned.handles[i]].linvel().y).max(0.0);
                 }
                 (BodyRole::Chest, _) => trunk_upright = (q * Vec3::Y).y,
                 _ => {}
@@ -126,6 +132,7 @@ impl FigureState {
             support,
             capture_point,
             head_clearance_m,
+            head_down_speed_m_s,
             trunk_upright,
             kinetic_energy_j: ke,
             joint_coords,

@@ -6,12 +6,24 @@
 //! The fall direction is fixed at activation: from the support centre towards the capture
 //! point (the way the COM is heading), or the horizontal COM velocity without support.
 //! Each upper arm aims [`REACH_DOWN_RAD`] below the horizontal in that direction, spread
-//! sideways by [`ARM_SPREAD`]; the neck and spine tilt the head away from the fall.
+//! sideways by [`ARM_SPREAD`], stiffening to [`ARM_GAIN`] times the figure's gains (an
+//! arm's own gains are sized for holding the arm, not for landing on it); the neck and spine
+//! tilt the head away from the fall. The knees and hips bend and the arms stiffen over
+//! [`CROUCH_SECS`] (at once, the legs folded up and dropped the figure from standing height).
+//!
+//! Falling backwards, where the hands cannot catch the body, the figure curls as a person
+//! does (chin to chest, back rounded, hips flexed): by the backward share `b` of the fall
+//! direction (0 forwards or sideways, 1 straight back) the tuck grows by
+//! [`BACK_TUCK_RAD`]·b, the knees and hips by [`BACK_CROUCH_RAD`]·b, the arms reach
+//! [`BACK_REACH_DOWN_RAD`]·b lower, and the trunk and neck hold the curl at
+//! `1 + BACK_TRUNK_GAIN·b` times their gains, so the body rolls on its rounded back with
+//! the head off the ground.
 //!
 //! Pre-condition: the figure is falling (no foot down, or the capture point outside the
 //! support) and the head is still above [`MIN_HEAD_M`]. Post-condition: at rest on the
 //! ground (COM slower than [`REST_SPEED`] for [`REST_SECS`]). Expected performance: the
-//! head never touches the ground.
+//! head never hits the ground (touches it coming down faster than [`HEAD_HIT_M_S`]); a head
+//! laid on the ground slower than that is not a hit.
 
 use glam::Vec3;
 
@@ -19,6 +31,7 @@ use super::{facing, tilt_towards, xz};
 use crate::kernels::physics::controller::{BID_SENSIBLE, ControlContext, Controller, Status, Targets};
 use crate::kernels::physics::figure::BodyRole;
 use crate::kernels::physics::state::FigureState;
+use crate::math::smoothstep;
 
 /// How far below the horizontal the arms reach, radians.
 pub const REACH_DOWN_RAD: f32 = 0.6;
@@ -32,6 +45,21 @@ pub const TUCK_RAD: f32 = 0.6;
 pub const KNEE_RAD: f32 = 0.8;
 /// The head is "on the ground" below this clearance, metres.
 pub const HEAD_CONTACT_M: f32 = 0.01;
+/// A head that reaches the ground coming down faster than this hits it, m/s (the speed of
+/// a 5 cm drop; a limp figure's head strikes at 3–6 m/s).
+pub const HEAD_HIT_M_S: f32 = 1.0;
+/// Gain multiplier on the arms while reaching.
+pub const ARM_GAIN: f32 = 5.0;
+/// The knees and hips reach their crouch over this long, seconds.
+pub const CROUCH_SECS: f32 = 0.3;
+/// Extra head and spine tuck when falling straight back, radians.
+pub const BACK_TUCK_RAD: f32 = 2.6;
+/// Extra knee and hip flexion when falling straight back, radians.
+pub const BACK_CROUCH_RAD: f32 = 0.8;
+/// How much lower the arms reach when falling straight back, radians.
+pub const BACK_REACH_DOWN_RAD: f32 = 0.4;
+/// Gain multiplier added to the trunk and neck when falling straight back.
+pub const BACK_TRUNK_GAIN: f32 = 4.0;
 /// The fall controller does not take over below this head clearance, metres.
 pub const MIN_HEAD_M: f32 = 0.2;
 /// At rest below this COM speed, m/s ...
@@ -43,6 +71,9 @@ pub const REST_SECS: f32 = 0.3;
 #[derive(Default)]
 pub struct Fall {
     dir: Vec3,
+    start_secs: f32,
+    /// Joint coordinates when the fall began: the legs bend from there.
+    start_coords: Vec<[f32; 3]>,
     still_since: Option<f32>,
 }
 
@@ -65,10 +96,15 @@ impl Controller for Fall {
         };
         self.dir = towards.try_normalize().unwrap_or(facing(state, ctx).0);
         self.still_since = None;
+        self.start_secs = state.time_secs;
+        self.start_coords.clone_from(&state.joint_coords);
     }
     fn control(&mut self, state: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
-        if state.head_clearance_m < HEAD_CONTACT_M {
-            return Status::Failed(format!("the head touched the ground at {:.2} s", state.time_secs));
+        if state.head_clearance_m < HEAD_CONTACT_M && state.head_down_speed_m_s > HEAD_HIT_M_S {
+            return Status::Failed(format!(
+                "the head hit the ground at {:.2} m/s at {:.2} s",
+                state.head_down_speed_m_s, state.time_secs
+            ));
         }
         if state.com_vel.length() < REST_SPEED {
             let since = *self.still_since.get_or_insert(state.time_secs);
@@ -81,27 +117,50 @@ impl Controller for Fall {
         targets.clone_from(ctx.stand);
         let fig = ctx.figure;
         let dir = self.dir;
-        let (_, left) = facing(state, ctx);
+        let (forward, left) = facing(state, ctx);
+        // Share of the fall that goes backwards (0 forwards or sideways, 1 straight back).
+        let back = (-dir.dot(forward)).max(0.0);
+        let tuck = TUCK_RAD + BACK_TUCK_RAD * back;
+        let crouch = smoothstep(f64::from(((state.time_secs - self.start_secs) / CROUCH_SECS).clamp(0.0, 1.0))) as f32;
+        let knee = KNEE_RAD + BACK_CROUCH_RAD * back;
+        // Hips flex by half the knee angle (the shank stays near vertical), more backwards.
+        let hip = 0.5 * KNEE_RAD + BACK_CROUCH_RAD * back;
+        let reach_down = REACH_DOWN_RAD + BACK_REACH_DOWN_RAD * back;
+        let trunk_gain = 1.0 + BACK_TRUNK_GAIN * back;
+        // Stiffened as the legs bend: at once, the arms swung up so hard that their reaction
+        // jerked the trunk (the root's velocity changed 1.6 m/s in a frame).
+        let arm_gain = 1.0 + (ARM_GAIN - 1.0) * crouch;
         for (i, body) in fig.bodies.iter().enumerate() {
             let parent_rot = body.parent.map_or(glam::Quat::IDENTITY, |p| state.body_rot[p]);
             match body.role {
                 BodyRole::UpperArm => {
                     // Each arm spreads to its own side of the fall direction.
                     let spread = left * if body.side == Some(0) { ARM_SPREAD } else { -ARM_SPREAD };
-                    let aim = dir * REACH_DOWN_RAD.cos() - Vec3::Y * REACH_DOWN_RAD.sin() + spread;
+                    let aim = dir * reach_down.cos() - Vec3::Y * reach_down.sin() + spread;
                     targets.aim(fig, i, parent_rot, aim);
+                    targets.gain[i] = arm_gain;
                 }
-                BodyRole::Forearm => targets.angles[i] = [ELBOW_RAD, 0.0, 0.0],
+                BodyRole::Forearm => {
+                    targets.angles[i] = [ELBOW_RAD, 0.0, 0.0];
+                    targets.gain[i] = arm_gain;
+                }
                 BodyRole::Head | BodyRole::Chest | BodyRole::Abdomen => {
                     let share = if body.role == BodyRole::Head { 0.5 } else { 0.25 };
-                    targets.set_relative(fig, i, tilt_towards(parent_rot.inverse() * dir, -TUCK_RAD * share));
+                    targets.set_relative(fig, i, tilt_towards(parent_rot.inverse() * dir, -tuck * share));
+                    targets.gain[i] = trunk_gain;
                 }
-                BodyRole::Shank => targets.angles[i] = [KNEE_RAD, 0.0, 0.0],
-                BodyRole::Thigh => {
-                    // Hips flex by half the knee angle so the shank stays near vertical.
-                    targets.set_relative(fig, i, glam::Quat::from_axis_angle(fig.left, -0.5 * KNEE_RAD));
-                }
+                BodyRole::Shank => targets.angles[i] = [knee, 0.0, 0.0],
+                BodyRole::Thigh => targets.set_relative(fig, i, glam::Quat::from_axis_angle(fig.left, -hip)),
                 _ => {}
+            }
+            // The legs move from where they were (a step's bent swing knee snapped straight
+            // when the crouch started from the rest pose, and bounced the body up at 1 m/s).
+            if matches!(body.role, BodyRole::Shank | BodyRole::Thigh)
+                && let Some(from) = self.start_coords.get(i)
+            {
+                for (k, a) in targets.angles[i].iter_mut().enumerate() {
+                    *a = from[k] + (*a - from[k]) * crouch;
+                }
             }
         }
         Status::Running

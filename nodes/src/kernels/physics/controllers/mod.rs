@@ -5,8 +5,8 @@
 //! | controller | pre-condition (bid) | post-condition | expected performance |
 //! |---|---|---|---|
 //! | [`balance`] | both feet down, trunk upright, capture point inside the support | none: holds until a request or failure | capture point stays inside the support, feet stay down |
-//! | [`step`] | a foot down, trunk upright, capture point outside the support but within a step | swing foot down with the capture point inside the new support | foot down within 0.8 s, trunk upright |
-//! | [`fall`] | the figure is falling (capture point outside, or no foot down) and the head is up | at rest on the ground | the head never touches the ground |
+//! | [`step`] | a foot down, trunk upright, capture point outside the support, and predicted at landing within a step | swing foot down with the capture point inside the new support | predicted capture point within reach, foot down within 0.8 s, trunk upright |
+//! | [`fall`] | the figure is falling (capture point outside, or no foot down) and the head is up | at rest on the ground | the head never hits the ground (faster than 1 m/s) |
 //! | [`Relax`] | always ([`BID_SENSIBLE`], lowest preference) | none | none |
 
 pub mod balance;

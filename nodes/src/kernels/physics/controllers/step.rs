@@ -11,11 +11,13 @@
 //! kept level.
 //!
 //! Pre-condition: a foot down, trunk within 35° of vertical, COM at least 75 % of its
-//! standing height, capture point outside the support and within [`REACH`] leg lengths of
-//! the stance sole. Post-condition: the swing foot, once lifted, is down again (after half
-//! the swing) with the
-//! capture point within [`LAND_MARGIN_M`] of the new support. Expected performance: the
-//! foot lands within [`TIMEOUT_SECS`] and the trunk stays within 50° of vertical.
+//! standing height, capture point outside the support, and the capture point predicted for
+//! the landing ([`predicted_capture`]) within [`REACH`] leg lengths of the stance sole (a
+//! push that will carry it farther is a fall, not a step). Post-condition: the swing foot,
+//! once lifted, is down again (after half the swing) with the capture point within
+//! [`LAND_MARGIN_M`] of the new support. Expected performance: the predicted capture point
+//! stays within reach while the target follows it, the foot lands within
+//! [`TIMEOUT_SECS`] and the trunk stays within 50° of vertical.
 
 use glam::{Quat, Vec2, Vec3};
 
@@ -80,6 +82,14 @@ pub fn choose_feet(state: &FigureState, ctx: &ControlContext<'_>) -> (usize, usi
     (swing, 1 - swing)
 }
 
+/// The capture point `remaining_secs` from now while the figure pivots on the stance
+/// sole's centre `p`: `ξ(t) = p + (ξ₀ − p)·e^{ω t}`, `ω = √(g/h)` at the COM height `h`.
+pub fn predicted_capture(state: &FigureState, ctx: &ControlContext<'_>, stance: usize, remaining_secs: f32) -> Vec2 {
+    let stance_xz = Vec2::new(state.sole_centre[stance].x, state.sole_centre[stance].z);
+    let omega = (ctx.gravity_m_s2 / state.com.y.max(0.1)).sqrt();
+    stance_xz + (state.capture_point - stance_xz) * (omega * remaining_secs.max(0.0)).exp()
+}
+
 /// Where the swing sole is put: on the capture point the figure will have when the foot
 /// lands. While it swings the figure is a linear inverted pendulum pivoting on the stance
 /// sole's centre `p`, whose capture point runs away from it as
@@ -96,8 +106,7 @@ pub fn step_target(
 ) -> Vec2 {
     let (_, left) = facing(state, ctx);
     let stance_xz = Vec2::new(state.sole_centre[stance].x, state.sole_centre[stance].z);
-    let omega = (ctx.gravity_m_s2 / state.com.y.max(0.1)).sqrt();
-    let mut t = stance_xz + (state.capture_point - stance_xz) * (omega * remaining_secs.max(0.0)).exp();
+    let mut t = predicted_capture(state, ctx, stance, remaining_secs);
     let l = Vec2::new(left.x, left.z);
     let sign = if (state.sole_centre[swing] - state.sole_centre[stance]).dot(left) >= 0.0 { 1.0 } else { -1.0 };
     let width = (t - stance_xz).dot(l) * sign;
@@ -107,6 +116,13 @@ pub fn step_target(
     let reach = REACH * ctx.leg_length_m;
     let d = t - stance_xz;
     if d.length() > reach { stance_xz + d * (reach / d.length()) } else { t }
+}
+
+/// Whether the capture point the figure will have `remaining_secs` from now, pivoting on
+/// the `stance` sole, is farther than a step ([`REACH`] leg lengths) from that sole.
+fn out_of_reach(state: &FigureState, ctx: &ControlContext<'_>, stance: usize, remaining_secs: f32) -> bool {
+    let s = state.sole_centre[stance];
+    predicted_capture(state, ctx, stance, remaining_secs).distance(Vec2::new(s.x, s.z)) > REACH * ctx.leg_length_m
 }
 
 impl Controller for Step {
@@ -125,9 +141,7 @@ impl Controller for Step {
             return 0;
         }
         let (_, stance) = choose_feet(state, ctx);
-        let s = state.sole_centre[stance];
-        let reach = state.capture_point.distance(Vec2::new(s.x, s.z));
-        if reach < REACH * ctx.leg_length_m { BID_CAN_REACH } else { 0 }
+        if out_of_reach(state, ctx, stance, LAND_SECS) { 0 } else { BID_CAN_REACH }
     }
     fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
         let (swing, stance) = choose_feet(state, ctx);
@@ -154,6 +168,9 @@ impl Controller for Step {
             plan.to = Vec3::new(to.x, plan.from.y, to.y);
         }
         let plan = *plan;
+        if tau < RETARGET_UNTIL * SWING_SECS && out_of_reach(state, ctx, 1 - plan.swing, LAND_SECS - tau) {
+            return Status::Failed("the capture point ran out of a step's reach".into());
+        }
         if state.trunk_upright < 50f32.to_radians().cos() {
             return Status::Failed("the trunk tilted past 50°".into());
         }
