@@ -127,8 +127,8 @@ impl Controller for Fall {
         let hip = 0.5 * KNEE_RAD + BACK_CROUCH_RAD * back;
         let reach_down = REACH_DOWN_RAD + BACK_REACH_DOWN_RAD * back;
         let trunk_gain = 1.0 + BACK_TRUNK_GAIN * back;
-        // Stiffened as the legs bend: at once, the arms swung up so hard that their reaction
-        // jerked the trunk (the root's velocity changed 1.6 m/s in a frame).
+        // Stiffened over the crouch time: a fall from standing takes longer than that to
+        // bring the hands to the ground.
         let arm_gain = 1.0 + (ARM_GAIN - 1.0) * crouch;
         for (i, body) in fig.bodies.iter().enumerate() {
             let parent_rot = body.parent.map_or(glam::Quat::IDENTITY, |p| state.body_rot[p]);
