@@ -8,14 +8,15 @@
 //! Each upper arm aims [`REACH_DOWN_RAD`] below the horizontal in that direction, spread
 //! sideways by [`ARM_SPREAD`], stiffening to [`ARM_GAIN`] times the figure's gains (an
 //! arm's own gains are sized for holding the arm, not for landing on it); the neck and spine
-//! tilt the head away from the fall. The knees and hips bend and the arms stiffen over
+//! tilt the head away from the fall; the knees ([`KNEE_RAD`]) and hips ([`HIP_RAD`]) bend so
+//! the figure drops towards its knees. The legs bend and the arms stiffen over
 //! [`CROUCH_SECS`] (at once, the legs folded up and dropped the figure from standing height).
 //!
 //! Falling backwards, where the hands cannot catch the body, the figure curls as a person
 //! does (chin to chest, back rounded, hips flexed): by the backward share `b` of the fall
 //! direction (0 forwards or sideways, 1 straight back) the tuck grows by
-//! [`BACK_TUCK_RAD`]·b, the knees and hips by [`BACK_CROUCH_RAD`]·b, the arms reach
-//! [`BACK_REACH_DOWN_RAD`]·b lower, and the trunk and neck hold the curl at
+//! [`BACK_TUCK_RAD`]·b, the knees by [`BACK_KNEE_RAD`]·b, the hips by [`BACK_HIP_RAD`]·b,
+//! the arms reach [`BACK_REACH_DOWN_RAD`]·b lower, and the trunk and neck hold the curl at
 //! `1 + BACK_TRUNK_GAIN·b` times their gains, so the body rolls on its rounded back with
 //! the head off the ground.
 //!
@@ -41,8 +42,12 @@ pub const ARM_SPREAD: f32 = 0.35;
 pub const ELBOW_RAD: f32 = 0.35;
 /// Head and spine tilt away from the fall, radians (split over neck and spine).
 pub const TUCK_RAD: f32 = 0.6;
-/// Knee flexion while falling, radians.
-pub const KNEE_RAD: f32 = 0.8;
+/// Knee flexion while falling, radians: the figure drops towards its knees before its
+/// hands and trunk reach the ground (0.8 rad let forward falls topple stiff-legged, the head
+/// hitting at 5–8 m/s).
+pub const KNEE_RAD: f32 = 1.2;
+/// Hip flexion while falling, radians.
+pub const HIP_RAD: f32 = 0.7;
 /// The head is "on the ground" below this clearance, metres.
 pub const HEAD_CONTACT_M: f32 = 0.01;
 /// A head that reaches the ground coming down faster than this hits it, m/s (the speed of
@@ -54,8 +59,11 @@ pub const ARM_GAIN: f32 = 5.0;
 pub const CROUCH_SECS: f32 = 0.3;
 /// Extra head and spine tuck when falling straight back, radians.
 pub const BACK_TUCK_RAD: f32 = 2.6;
-/// Extra knee and hip flexion when falling straight back, radians.
-pub const BACK_CROUCH_RAD: f32 = 0.8;
+/// Extra knee flexion when falling straight back, radians.
+pub const BACK_KNEE_RAD: f32 = 0.4;
+/// Extra hip flexion when falling straight back, radians (with the knees: sitting down
+/// into the roll).
+pub const BACK_HIP_RAD: f32 = 0.5;
 /// How much lower the arms reach when falling straight back, radians.
 pub const BACK_REACH_DOWN_RAD: f32 = 0.4;
 /// Gain multiplier added to the trunk and neck when falling straight back.
@@ -122,9 +130,8 @@ impl Controller for Fall {
         let back = (-dir.dot(forward)).max(0.0);
         let tuck = TUCK_RAD + BACK_TUCK_RAD * back;
         let crouch = smoothstep(f64::from(((state.time_secs - self.start_secs) / CROUCH_SECS).clamp(0.0, 1.0))) as f32;
-        let knee = KNEE_RAD + BACK_CROUCH_RAD * back;
-        // Hips flex by half the knee angle (the shank stays near vertical), more backwards.
-        let hip = 0.5 * KNEE_RAD + BACK_CROUCH_RAD * back;
+        let knee = KNEE_RAD + BACK_KNEE_RAD * back;
+        let hip = HIP_RAD + BACK_HIP_RAD * back;
         let reach_down = REACH_DOWN_RAD + BACK_REACH_DOWN_RAD * back;
         let trunk_gain = 1.0 + BACK_TRUNK_GAIN * back;
         // Stiffened over the crouch time: a fall from standing takes longer than that to
