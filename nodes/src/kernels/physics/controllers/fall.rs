@@ -21,7 +21,8 @@
 //! the head off the ground.
 //!
 //! Pre-condition: the figure is falling (no foot down, or the capture point outside the
-//! support) and the head is still above [`MIN_HEAD_M`]. Post-condition: at rest on the
+//! support), not lying still on the ground (COM slower than [`REST_SPEED`] and below
+//! [`LYING_COM_SHARE`] of its standing height) and the head still above [`MIN_HEAD_M`]. Post-condition: at rest on the
 //! ground (COM slower than [`REST_SPEED`] for [`REST_SECS`]). Expected performance: the
 //! head never hits the ground (touches it coming down faster than [`HEAD_HIT_M_S`]); a head
 //! laid on the ground slower than that is not a hit.
@@ -70,6 +71,8 @@ pub const BACK_REACH_DOWN_RAD: f32 = 0.4;
 pub const BACK_TRUNK_GAIN: f32 = 4.0;
 /// The fall controller does not take over below this head clearance, metres.
 pub const MIN_HEAD_M: f32 = 0.2;
+/// A still figure whose COM is below this share of its standing height is lying down.
+pub const LYING_COM_SHARE: f32 = 0.5;
 /// At rest below this COM speed, m/s ...
 pub const REST_SPEED: f32 = 0.15;
 /// ... held this long, seconds.
@@ -92,9 +95,11 @@ impl Controller for Fall {
     fn preference(&self) -> u32 {
         10
     }
-    fn bid(&self, state: &FigureState, _: &ControlContext<'_>) -> u32 {
+    fn bid(&self, state: &FigureState, ctx: &ControlContext<'_>) -> u32 {
         let falling = !(state.foot_down[0] || state.foot_down[1]) || state.capture_distance_m > 0.0;
-        if falling && state.head_clearance_m > MIN_HEAD_M { BID_SENSIBLE } else { 0 }
+        // Lying still on the ground is where a fall ends, not where one starts.
+        let lying = state.com_vel.length() < REST_SPEED && state.com.y < LYING_COM_SHARE * ctx.standing_com_height_m;
+        if falling && !lying && state.head_clearance_m > MIN_HEAD_M { BID_SENSIBLE } else { 0 }
     }
     fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
         let towards = if state.support.is_empty() {

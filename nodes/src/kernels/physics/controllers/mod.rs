@@ -7,7 +7,7 @@
 //! | [`balance`] | both feet down, trunk upright, capture point inside the support | none: holds until a request or failure | capture point stays inside the support, feet stay down |
 //! | [`step`] | a foot down, trunk upright, capture point outside the support, and predicted at landing within a step | swing foot down with the capture point inside the new support | predicted capture point within reach, foot down within 0.8 s, trunk upright |
 //! | [`fall`] | the figure is falling (capture point outside, or no foot down) and the head is up | at rest on the ground | the head never hits the ground (faster than 1 m/s) |
-//! | [`Relax`] | always ([`BID_SENSIBLE`], lowest preference) | none | none |
+//! | [`Relax`] | always ([`BID_SENSIBLE`], lowest preference): holds the posture it found | none | none |
 
 pub mod balance;
 pub mod fall;
@@ -28,7 +28,7 @@ pub fn pool() -> Vec<Box<dyn Controller>> {
         Box::new(balance::Balance::default()),
         Box::new(step::Step::default()),
         Box::new(fall::Fall::default()),
-        Box::new(Relax),
+        Box::new(Relax::default()),
     ]
 }
 
@@ -37,9 +37,14 @@ pub fn pool_of(names: &[&str]) -> Vec<Box<dyn Controller>> {
     pool().into_iter().filter(|c| names.contains(&c.name())).collect()
 }
 
-/// The default controller: holds the standing pose at a third of the gains, so a figure on
-/// the ground lies limp but joints do not flop through their limits.
-pub struct Relax;
+/// The default controller: holds the posture it found when it took over, at a third of the
+/// gains, so a figure on the ground lies limp but joints do not flop through their limits.
+/// (Pulling towards the standing pose instead unrolled a figure lying curled after a
+/// backward fall and struck its head on the ground at 2.4 m/s.)
+#[derive(Default)]
+pub struct Relax {
+    hold: Option<Targets>,
+}
 
 /// Gain multiplier of the relaxed pose.
 const RELAX_GAIN: f32 = 0.3;
@@ -54,10 +59,16 @@ impl Controller for Relax {
     fn bid(&self, _: &FigureState, _: &ControlContext<'_>) -> u32 {
         BID_SENSIBLE
     }
-    fn activate(&mut self, _: &FigureState, _: &ControlContext<'_>) {}
+    fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
+        let mut hold = ctx.stand.clone();
+        for (angles, coords) in hold.angles.iter_mut().zip(&state.joint_coords).skip(1) {
+            *angles = *coords;
+        }
+        hold.gain.iter_mut().for_each(|g| *g = RELAX_GAIN);
+        self.hold = Some(hold);
+    }
     fn control(&mut self, _: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
-        targets.clone_from(ctx.stand);
-        targets.gain.iter_mut().for_each(|g| *g = RELAX_GAIN);
+        targets.clone_from(self.hold.get_or_insert_with(|| ctx.stand.clone()));
         Status::Running
     }
 }
