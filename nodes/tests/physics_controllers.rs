@@ -384,8 +384,8 @@ fn larger_push_makes_a_protective_step_that_reaches_its_post_condition() {
 /// foot lands (capture point 0.7 cm outside the support, inside its 1 cm entry margin)
 /// but fails 14 ms later with the capture point 2.4 cm out (the COM still moves forward at
 /// 0.68 m/s, and the swing foot lands 9 cm wider than aimed); a second step lands 18 cm
-/// short and the figure falls (the protective fall then lets the head down at 2.0 m/s).
-/// Kept to measure the next attempt.
+/// short and the figure falls (the protective fall then fails: the head hits the ground at
+/// 4.75 m/s). Kept to measure the next attempt.
 #[test]
 #[ignore = "the figure does not yet stand again after the protective step"]
 fn larger_push_is_recovered_by_a_step_and_the_figure_stands_again() {

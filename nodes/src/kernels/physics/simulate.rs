@@ -13,7 +13,6 @@ use serde::Deserialize;
 
 use super::controller::{Activation, ControlContext, Supervisor, Targets};
 use super::controllers;
-use super::controllers::fall::HEAD_CONTACT_M;
 use super::figure::{BodyRole, BodyShape, Figure, FigureError, FigureParams, Spawned, build_figure};
 use super::state::FigureState;
 use super::{PhysicsError, World, WorldParams, to_rapier};
@@ -191,9 +190,9 @@ pub struct SimResult {
     pub figure: Figure,
     /// The lowest head clearance over the whole run, metres.
     pub min_head_clearance_m: f32,
-    /// The fastest the head came down while touching the ground (clearance below
-    /// [`HEAD_CONTACT_M`]), m/s; 0 when it never touched. A head laid down gently is near 0,
-    /// a limp figure's head strikes the ground at several m/s.
+    /// The fastest the head came down while touching the ground
+    /// ([`FigureState::head_contact_speed`]), m/s; 0 when it never touched. A head laid down
+    /// gently is near 0, a limp figure's head strikes the ground at several m/s.
     pub head_impact_speed_m_s: f32,
     /// Steps simulated.
     pub steps: usize,
@@ -430,8 +429,8 @@ pub fn simulate(
             return Err(SimError::BlowUp { time_secs: t, what });
         }
         min_head = min_head.min(state.head_clearance_m);
-        if state.head_clearance_m < HEAD_CONTACT_M {
-            head_impact = head_impact.max(state.head_down_speed_m_s);
+        if let Some(speed) = state.head_contact_speed() {
+            head_impact = head_impact.max(speed);
         }
         while body_frames.len() < frames && f64::from(t) + 0.5 * f64::from(dt) >= body_frames.len() as f64 / params.fps
         {

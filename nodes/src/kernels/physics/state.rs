@@ -13,6 +13,8 @@ use super::{World, from_rapier};
 
 /// A sole corner closer to the ground than this touches it, metres.
 pub const CONTACT_HEIGHT_M: f32 = 0.02;
+/// The head is on the ground below this clearance, metres.
+pub const HEAD_CONTACT_M: f32 = 0.01;
 
 /// The figure's state as the controllers see it.
 #[derive(Clone, Debug, PartialEq)]
@@ -137,6 +139,12 @@ impl FigureState {
             kinetic_energy_j: ke,
             joint_coords,
         }
+    }
+
+    /// The head's downward speed while it touches the ground (clearance below
+    /// [`HEAD_CONTACT_M`]), m/s; `None` while it is clear of the ground.
+    pub fn head_contact_speed(&self) -> Option<f32> {
+        (self.head_clearance_m < HEAD_CONTACT_M).then_some(self.head_down_speed_m_s)
     }
 
     /// The COM's ground projection (x, z).

@@ -22,10 +22,11 @@
 //!
 //! Pre-condition: the figure is falling (no foot down, or the capture point outside the
 //! support), not lying still on the ground (COM slower than [`REST_SPEED`] and below
-//! [`LYING_COM_SHARE`] of its standing height) and the head still above [`MIN_HEAD_M`]. Post-condition: at rest on the
-//! ground (COM slower than [`REST_SPEED`] for [`REST_SECS`]). Expected performance: the
-//! head never hits the ground (touches it coming down faster than [`HEAD_HIT_M_S`]); a head
-//! laid on the ground slower than that is not a hit.
+//! [`LYING_COM_SHARE`] of its standing height) and the head still above [`MIN_HEAD_M`].
+//! Post-condition: at rest on the ground (COM slower than [`REST_SPEED`] for
+//! [`REST_SECS`]). Expected performance: the head never hits the ground (touches it coming
+//! down faster than [`HEAD_HIT_M_S`]); a head laid on the ground slower than that is not a
+//! hit.
 
 use glam::Vec3;
 
@@ -49,8 +50,6 @@ pub const TUCK_RAD: f32 = 0.6;
 pub const KNEE_RAD: f32 = 1.2;
 /// Hip flexion while falling, radians.
 pub const HIP_RAD: f32 = 0.7;
-/// The head is "on the ground" below this clearance, metres.
-pub const HEAD_CONTACT_M: f32 = 0.01;
 /// A head that reaches the ground coming down faster than this hits it, m/s (the speed of
 /// a 5 cm drop; over the fall table's 48 pushes a limp figure's head comes down at 2.7 m/s
 /// median, up to 6.5).
@@ -114,11 +113,8 @@ impl Controller for Fall {
         self.start_coords.clone_from(&state.joint_coords);
     }
     fn control(&mut self, state: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
-        if state.head_clearance_m < HEAD_CONTACT_M && state.head_down_speed_m_s > HEAD_HIT_M_S {
-            return Status::Failed(format!(
-                "the head hit the ground at {:.2} m/s at {:.2} s",
-                state.head_down_speed_m_s, state.time_secs
-            ));
+        if let Some(speed) = state.head_contact_speed().filter(|&v| v > HEAD_HIT_M_S) {
+            return Status::Failed(format!("the head hit the ground at {speed:.2} m/s at {:.2} s", state.time_secs));
         }
         if state.com_vel.length() < REST_SPEED {
             let since = *self.still_since.get_or_insert(state.time_secs);

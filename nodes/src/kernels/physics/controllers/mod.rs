@@ -49,6 +49,11 @@ pub struct Relax {
 /// Gain multiplier of the relaxed pose.
 const RELAX_GAIN: f32 = 0.3;
 
+/// The figure's current joint coordinates at [`RELAX_GAIN`].
+fn relaxed(state: &FigureState) -> Targets {
+    Targets { angles: state.joint_coords.clone(), gain: vec![RELAX_GAIN; state.joint_coords.len()] }
+}
+
 impl Controller for Relax {
     fn name(&self) -> &'static str {
         "relax"
@@ -59,16 +64,11 @@ impl Controller for Relax {
     fn bid(&self, _: &FigureState, _: &ControlContext<'_>) -> u32 {
         BID_SENSIBLE
     }
-    fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
-        let mut hold = ctx.stand.clone();
-        for (angles, coords) in hold.angles.iter_mut().zip(&state.joint_coords).skip(1) {
-            *angles = *coords;
-        }
-        hold.gain.iter_mut().for_each(|g| *g = RELAX_GAIN);
-        self.hold = Some(hold);
+    fn activate(&mut self, state: &FigureState, _: &ControlContext<'_>) {
+        self.hold = Some(relaxed(state));
     }
-    fn control(&mut self, _: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
-        targets.clone_from(self.hold.get_or_insert_with(|| ctx.stand.clone()));
+    fn control(&mut self, state: &FigureState, _: &ControlContext<'_>, targets: &mut Targets) -> Status {
+        targets.clone_from(self.hold.get_or_insert_with(|| relaxed(state)));
         Status::Running
     }
 }

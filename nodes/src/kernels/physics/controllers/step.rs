@@ -90,23 +90,21 @@ pub fn predicted_capture(state: &FigureState, ctx: &ControlContext<'_>, stance: 
     stance_xz + (state.capture_point - stance_xz) * (omega * remaining_secs.max(0.0)).exp()
 }
 
-/// Where the swing sole is put: on the capture point the figure will have when the foot
-/// lands. While it swings the figure is a linear inverted pendulum pivoting on the stance
-/// sole's centre `p`, whose capture point runs away from it as
-/// `ξ(t) = p + (ξ₀ − p)·e^{ω t}`, with `ω = √(g/h)` at the COM height `h`; a sole centred
-/// on `ξ(remaining_secs)` holds the capture point under the foot when it lands, so the COM
-/// comes to rest over the new support (the capture point's defining property). Never
-/// closer than [`MIN_WIDTH_M`] sideways to the stance sole (no crossover), and within
-/// [`REACH`] leg lengths of it.
+/// Where the swing sole is put: on `landing`, the capture point the figure will have when
+/// the foot lands ([`predicted_capture`]; while it swings the figure is a linear inverted
+/// pendulum pivoting on the stance sole). A sole centred there holds the capture point under
+/// the foot when it lands, so the COM comes to rest over the new support (the capture
+/// point's defining property). Never closer than [`MIN_WIDTH_M`] sideways to the stance sole
+/// (no crossover), and within [`REACH`] leg lengths of it.
 pub fn step_target(
     state: &FigureState,
     ctx: &ControlContext<'_>,
     (swing, stance): (usize, usize),
-    remaining_secs: f32,
+    landing: Vec2,
 ) -> Vec2 {
     let (_, left) = facing(state, ctx);
     let stance_xz = Vec2::new(state.sole_centre[stance].x, state.sole_centre[stance].z);
-    let mut t = predicted_capture(state, ctx, stance, remaining_secs);
+    let mut t = landing;
     let l = Vec2::new(left.x, left.z);
     let sign = if (state.sole_centre[swing] - state.sole_centre[stance]).dot(left) >= 0.0 { 1.0 } else { -1.0 };
     let width = (t - stance_xz).dot(l) * sign;
@@ -118,11 +116,11 @@ pub fn step_target(
     if d.length() > reach { stance_xz + d * (reach / d.length()) } else { t }
 }
 
-/// Whether the capture point the figure will have `remaining_secs` from now, pivoting on
-/// the `stance` sole, is farther than a step ([`REACH`] leg lengths) from that sole.
-fn out_of_reach(state: &FigureState, ctx: &ControlContext<'_>, stance: usize, remaining_secs: f32) -> bool {
+/// Whether a predicted capture point is farther than a step ([`REACH`] leg lengths) from
+/// the `stance` sole.
+fn out_of_reach(state: &FigureState, ctx: &ControlContext<'_>, stance: usize, capture: Vec2) -> bool {
     let s = state.sole_centre[stance];
-    predicted_capture(state, ctx, stance, remaining_secs).distance(Vec2::new(s.x, s.z)) > REACH * ctx.leg_length_m
+    capture.distance(Vec2::new(s.x, s.z)) > REACH * ctx.leg_length_m
 }
 
 impl Controller for Step {
@@ -141,12 +139,13 @@ impl Controller for Step {
             return 0;
         }
         let (_, stance) = choose_feet(state, ctx);
-        if out_of_reach(state, ctx, stance, LAND_SECS) { 0 } else { BID_CAN_REACH }
+        let landing = predicted_capture(state, ctx, stance, LAND_SECS);
+        if out_of_reach(state, ctx, stance, landing) { 0 } else { BID_CAN_REACH }
     }
     fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
         let (swing, stance) = choose_feet(state, ctx);
         let from = state.sole_centre[swing];
-        let to = step_target(state, ctx, (swing, stance), LAND_SECS);
+        let to = step_target(state, ctx, (swing, stance), predicted_capture(state, ctx, stance, LAND_SECS));
         let stance_thigh = leg(ctx, stance).map_or(Quat::IDENTITY, |(t, _, _)| state.body_rot[t]);
         self.plan = Some(Plan {
             start_secs: state.time_secs,
@@ -164,13 +163,15 @@ impl Controller for Step {
         // until the last part of the swing.
         let tau = state.time_secs - plan.start_secs;
         if tau < RETARGET_UNTIL * SWING_SECS {
-            let to = step_target(state, ctx, (plan.swing, 1 - plan.swing), LAND_SECS - tau);
+            let stance = 1 - plan.swing;
+            let landing = predicted_capture(state, ctx, stance, LAND_SECS - tau);
+            if out_of_reach(state, ctx, stance, landing) {
+                return Status::Failed("the capture point ran out of a step's reach".into());
+            }
+            let to = step_target(state, ctx, (plan.swing, stance), landing);
             plan.to = Vec3::new(to.x, plan.from.y, to.y);
         }
         let plan = *plan;
-        if tau < RETARGET_UNTIL * SWING_SECS && out_of_reach(state, ctx, 1 - plan.swing, LAND_SECS - tau) {
-            return Status::Failed("the capture point ran out of a step's reach".into());
-        }
         if state.trunk_upright < 50f32.to_radians().cos() {
             return Status::Failed("the trunk tilted past 50°".into());
         }
