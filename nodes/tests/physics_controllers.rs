@@ -380,12 +380,11 @@ fn larger_push_makes_a_protective_step_that_reaches_its_post_condition() {
 }
 
 /// After the step, balance takes over again and the figure stands for 2 s with its COM
-/// over the new support. Not true yet: on the CMU figure balance re-activates when the
-/// foot lands (capture point 0.7 cm outside the support, inside its 1 cm entry margin)
-/// but fails 14 ms later with the capture point 2.4 cm out (the COM still moves forward at
-/// 0.68 m/s, and the swing foot lands 9 cm wider than aimed); a second step lands 18 cm
-/// short and the figure falls (the protective fall then fails: the head hits the ground at
-/// 4.75 m/s). Kept to measure the next attempt.
+/// over the new support. Not true yet: on the CMU figure the step lands at 0.80 s and
+/// balance re-activates, but fails 13 ms later with the capture point 2.4 cm outside the
+/// split stance; a second step ends with it 18 cm outside and the figure falls (the
+/// protective fall then fails: the head hits the ground at 2.14 m/s). Kept to measure the
+/// next attempt.
 #[test]
 #[ignore = "the figure does not yet stand again after the protective step"]
 fn larger_push_is_recovered_by_a_step_and_the_figure_stands_again() {
@@ -405,7 +404,7 @@ fn larger_push_is_recovered_by_a_step_and_the_figure_stands_again() {
 /// rounded) and neither head hits the ground over the whole run, with one fall activation.
 /// True of the CMU figure (its head never touches; at rest the relax controller holds the
 /// curl). Not yet of the Xbot: its rolling figure's head comes down at 1.06 m/s 1.45 s into
-/// the fall, just past the 1 m/s bar. Kept to measure the next attempt (the table test below
+/// the fall, just past the 1 m/s bar (1.22 m/s at most over the run). Kept to measure the next attempt (the table test below
 /// measures every direction).
 #[test]
 #[ignore = "the Xbot's head comes down at 1.06 m/s, just past the 1 m/s bar"]

@@ -241,8 +241,9 @@ fn ball_limits(role: BodyRole, side: Option<usize>) -> [[f32; 2]; 3] {
         BodyRole::Abdomen | BodyRole::Chest => [[-0.45, 0.8], [-0.5, 0.5], [-0.45, 0.45]],
         // Neck: 50° flexion, 60° extension, ±70° rotation, ±40° side bend.
         BodyRole::Head => [[-1.0, 0.9], [-1.2, 1.2], [-0.7, 0.7]],
-        // Shoulder from a T-pose: ±90° forward/back swing, ±90° twist, arm down 100°, up 85°.
-        BodyRole::UpperArm => [[-1.6, 1.6], [-1.6, 1.6], [-1.75, 1.5]],
+        // Shoulder from a T-pose: ±90° twist about the arm, swing back 90° and forward 130°
+        // (across the body), arm down 100°, up 85°.
+        BodyRole::UpperArm => [[-1.6, 1.6], [-2.3, 1.6], [-1.75, 1.5]],
         // Wrist: ±70° flexion, ±30° deviation, forearm twist ±80° lives here too.
         BodyRole::Hand => [[-1.2, 1.2], [-1.4, 1.4], [-0.5, 0.5]],
         _ => [[-0.1, 0.1]; 3],
