@@ -15,7 +15,8 @@ const CLIP: Input<Arc<Clip>> = Input::required("clip", "The motion to check.");
 const SOURCE: Input<Arc<Clip>> = Input::optional(
     "source",
     "A clip the motion was made from (e.g. a join's first clip): spikes and root jumps are compared with its own, \
-     and its stride (step ÷ leg length, pelvis speed scaled by the leg-length ratio) with the motion's.",
+     and its stride (step ÷ leg length, pelvis speed scaled by the leg-length ratio) with the motion's; with \
+     several sources the motion's stride is measured against the span of theirs.",
 );
 const OTHER_SOURCE: Input<Arc<Clip>> =
     Input::optional("other_source", "A second clip the motion was made from (e.g. a join's second clip).");

@@ -38,10 +38,11 @@
 //!    teleporting root pops every joint). Only moves with a move before and after them
 //!    are judged (not into the first two frames or the last).
 //! 8. Stride ([`super::stride`]): step length ÷ leg length and the pelvis's horizontal
-//!    speed range (5th–95th percentile), of the clip and of its first source (contacts
-//!    detected on it); the change of step ÷ leg against the source, and how far the
-//!    clip's pelvis speed range reaches outside the source's scaled by the leg-length
-//!    ratio.
+//!    speed range (5th–95th percentile), of the clip and of each source (contacts detected
+//!    on it); how far the clip's step ÷ leg lies outside the sources' span of it, and how
+//!    far its pelvis speed range reaches outside the span of the sources' ranges, each
+//!    scaled by its leg-length ratio (a walk joined to a punch is measured against both,
+//!    not against the walk alone).
 //!
 //! With a window (e.g. a transition's frames) only the frames inside it are looked at:
 //! contacts are cut to it, while accelerations and pops still see the frames around it.
@@ -143,11 +144,13 @@ pub struct QualitySummary {
     /// Mean step length over leg length (dimensionless).
     #[serde(default)]
     pub step_over_leg: Option<f64>,
-    /// Change of that against the first source's, percent of the source's.
+    /// How far that lies outside the sources' span of it, percent of the nearer end (with
+    /// one source: the change against it, percent of the source's).
     #[serde(default)]
     pub step_over_leg_change_pct: Option<f64>,
     /// How far the pelvis's horizontal speed range (5th–95th percentile) reaches outside
-    /// the first source's scaled by the leg-length ratio, percent of the scaled range's top.
+    /// the span of the sources' ranges, each scaled by its leg-length ratio, percent of the
+    /// span's top.
     #[serde(default)]
     pub pelvis_speed_outside_source_pct: Option<f64>,
 }
@@ -222,9 +225,10 @@ pub struct QualityReport {
     pub bone_length_drift_joint: Option<String>,
     /// The clip's stride (step length, leg length, pelvis speed range).
     pub stride: Option<Stride>,
-    /// The first source's stride, its contacts detected.
-    pub source_stride: Option<Stride>,
-    /// The clip's stride against the source's, scaled by leg length.
+    /// Each source's stride, its contacts detected (a source whose stride cannot be
+    /// measured is left out, with a finding).
+    pub source_strides: Vec<Stride>,
+    /// The clip's stride against the sources', scaled by leg length.
     pub stride_against_source: Option<StrideComparison>,
     /// What an animator would be told, one line each.
     pub findings: Vec<String>,
@@ -285,18 +289,19 @@ impl Tracks {
     }
 }
 
-/// The stride of `clip` (with its `feet`, over `window`) and of `source` (with its tracks,
-/// contacts detected with `options.contacts` for its legs, whole), each `None` with a finding saying
-/// why when it cannot be measured.
+/// The stride of `clip` (with its `feet`, over `window`) and of each of `sources` (with
+/// their tracks, contacts detected with `options.contacts` for their legs, whole): `None`
+/// for the clip, and a source left out, with a finding saying why when it cannot be
+/// measured.
 fn strides(
     clip: &Clip,
     tracks: &Tracks,
     feet: &[Foot],
     window: FrameRange,
-    source: Option<(&&Clip, &Tracks)>,
+    sources: &[(&Clip, &Tracks)],
     options: &QualityOptions,
     findings: &mut Vec<String>,
-) -> (Option<Stride>, Option<Stride>) {
+) -> (Option<Stride>, Vec<Stride>) {
     let mut note = |what: &str, result: Result<Stride, RolesError>| {
         result.map_err(|why| findings.push(format!("the {what}'s stride is not measured: {why}"))).ok()
     };
@@ -307,21 +312,34 @@ fn strides(
             measure_stride(clip.skeleton(), clip.fps(), clip.frame_count(), window, |f, j| tracks.at(f, j), &plants);
         note("clip", measured)
     });
-    let source_stride = source.map(|(source, t)| {
-        let measured = contacts_of(source, &forward_kinematics(source), &options.contacts).and_then(|(contacts, _)| {
-            let ankles: Vec<(usize, &[FrameRange])> = contacts
-                .feet
-                .iter()
-                .filter_map(|c| Some((source.skeleton().index_of(&c.foot)?, c.intervals.as_slice())))
-                .collect();
-            let plants: Vec<FootPlants<'_>> =
-                ankles.iter().map(|&(ankle, contacts)| FootPlants { ankle, contacts }).collect();
-            let whole = FrameRange::new(0, source.frame_count());
-            measure_stride(source.skeleton(), source.fps(), source.frame_count(), whole, |f, j| t.at(f, j), &plants)
-        });
-        note("source", measured)
-    });
-    (stride.flatten(), source_stride.flatten())
+    let several = sources.len() > 1;
+    let source_strides = sources
+        .iter()
+        .enumerate()
+        .filter_map(|(i, &(source, t))| {
+            let measured =
+                contacts_of(source, &forward_kinematics(source), &options.contacts).and_then(|(contacts, _)| {
+                    let ankles: Vec<(usize, &[FrameRange])> = contacts
+                        .feet
+                        .iter()
+                        .filter_map(|c| Some((source.skeleton().index_of(&c.foot)?, c.intervals.as_slice())))
+                        .collect();
+                    let plants: Vec<FootPlants<'_>> =
+                        ankles.iter().map(|&(ankle, contacts)| FootPlants { ankle, contacts }).collect();
+                    let whole = FrameRange::new(0, source.frame_count());
+                    measure_stride(
+                        source.skeleton(),
+                        source.fps(),
+                        source.frame_count(),
+                        whole,
+                        |f, j| t.at(f, j),
+                        &plants,
+                    )
+                });
+            note(&if several { format!("source {i}") } else { "source".to_string() }, measured)
+        })
+        .collect();
+    (stride.flatten(), source_strides)
 }
 
 /// The larger of `best` and `candidate` by value, the earlier on a tie (for folds).
@@ -689,9 +707,9 @@ pub fn measure_quality(
         ));
     }
     let drift = bone_length_drift(clip, &tracks, window);
-    let (stride, source_stride) =
-        strides(clip, &tracks, &feet, window, sources.first().zip(source_tracks.first()), options, &mut findings);
-    let stride_against_source = stride.as_ref().zip(source_stride.as_ref()).map(|(c, s)| compare_stride(c, s));
+    let source_pairs: Vec<(&Clip, &Tracks)> = sources.iter().copied().zip(&source_tracks).collect();
+    let (stride, source_strides) = strides(clip, &tracks, &feet, window, &source_pairs, options, &mut findings);
+    let stride_against_source = stride.as_ref().and_then(|c| compare_stride(c, &source_strides));
     let joint_name = |j: usize| clip.skeleton().joints()[j].name.clone();
     if findings.len() > MAX_LISTED_FINDINGS {
         let more = findings.len() - MAX_LISTED_FINDINGS;
@@ -739,7 +757,7 @@ pub fn measure_quality(
         sources_root_velocity_change_max_mps: sources_root,
         bone_length_drift_joint: drift.map(|d| joint_name(d.1)),
         stride,
-        source_stride,
+        source_strides,
         stride_against_source,
         findings,
     }

@@ -131,43 +131,61 @@ fn percentile(sorted: &[f64], p: f64) -> Option<f64> {
     Some(sorted[below] + (rank - below as f64) * (sorted[above] - sorted[below]))
 }
 
-/// How a clip's stride compares with its source's, the source's figures scaled by the
-/// leg-length ratio (clip's over source's).
+/// How a clip's stride compares with its sources' (a clip joined or blended from several
+/// takes may stride like any of them): each source's figures scaled by the leg-length ratio
+/// (clip's over that source's), and the clip measured against the span they cover.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct StrideComparison {
-    /// The clip's leg length over the source's.
+    /// The clip's leg length over the sources' mean.
     pub leg_length_ratio: f64,
-    /// |clip's step ÷ leg − source's| over the source's, percent.
+    /// How far the clip's step ÷ leg lies outside the sources' span of step ÷ leg, over the
+    /// nearer end of the span, percent; 0 inside it. With one source: |clip − source| over
+    /// the source.
     pub step_over_leg_change_pct: Option<f64>,
-    /// The source's pelvis speed range times the leg-length ratio, m/s.
+    /// The span of the sources' pelvis speed ranges, each times its leg-length ratio, m/s.
     pub scaled_source_pelvis_speed_mps: Option<(f64, f64)>,
-    /// How far the clip's pelvis speed range reaches outside that scaled range (below its
+    /// How far the clip's pelvis speed range reaches outside that scaled span (below its
     /// low end or above its high end, whichever is further), percent of its high end; 0
     /// when inside.
     pub pelvis_speed_outside_source_pct: Option<f64>,
 }
 
-/// Compares `clip`'s stride with `source`'s (see [`StrideComparison`]).
-pub fn compare_stride(clip: &Stride, source: &Stride) -> StrideComparison {
-    let leg_length_ratio = if source.leg_length_m > 0.0 { clip.leg_length_m / source.leg_length_m } else { 1.0 };
-    let step_over_leg_change_pct = match (clip.step_over_leg, source.step_over_leg) {
-        (Some(c), Some(s)) if s > 0.0 => Some((c - s).abs() / s * 100.0),
+/// Compares `clip`'s stride with its `sources`' (see [`StrideComparison`]); `None` without
+/// sources.
+pub fn compare_stride(clip: &Stride, sources: &[Stride]) -> Option<StrideComparison> {
+    if sources.is_empty() {
+        return None;
+    }
+    let ratio_to = |source: &Stride| {
+        if source.leg_length_m > 0.0 { clip.leg_length_m / source.leg_length_m } else { 1.0 }
+    };
+    let mean_leg = sources.iter().map(|s| s.leg_length_m).sum::<f64>() / sources.len() as f64;
+    let leg_length_ratio = if mean_leg > 0.0 { clip.leg_length_m / mean_leg } else { 1.0 };
+    let span = |values: &mut dyn Iterator<Item = (f64, f64)>| {
+        values
+            .fold(None, |acc: Option<(f64, f64)>, (lo, hi)| Some(acc.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi)))))
+    };
+    let step_span = span(&mut sources.iter().filter_map(|s| s.step_over_leg.filter(|&v| v > 0.0).map(|v| (v, v))));
+    let step_over_leg_change_pct = match (clip.step_over_leg, step_span) {
+        (Some(c), Some((lo, _))) if c < lo => Some((lo - c) / lo * 100.0),
+        (Some(c), Some((_, hi))) if c > hi => Some((c - hi) / hi * 100.0),
+        (Some(_), Some(_)) => Some(0.0),
         _ => None,
     };
-    let scaled = match (source.pelvis_speed_low_mps, source.pelvis_speed_high_mps) {
-        (Some(lo), Some(hi)) => Some((lo * leg_length_ratio, hi * leg_length_ratio)),
-        _ => None,
-    };
+    let scaled = span(&mut sources.iter().filter_map(|s| {
+        let r = ratio_to(s);
+        Some((s.pelvis_speed_low_mps? * r, s.pelvis_speed_high_mps? * r))
+    }));
     let outside = match (scaled, clip.pelvis_speed_low_mps, clip.pelvis_speed_high_mps) {
         (Some((lo, hi)), Some(c_lo), Some(c_hi)) if hi > 0.0 => Some((lo - c_lo).max(c_hi - hi).max(0.0) / hi * 100.0),
         _ => None,
     };
-    StrideComparison {
+    Some(StrideComparison {
         leg_length_ratio,
         step_over_leg_change_pct,
         scaled_source_pelvis_speed_mps: scaled,
         pelvis_speed_outside_source_pct: outside,
-    }
+    })
 }
 
 #[cfg(test)]
@@ -197,14 +215,43 @@ mod tests {
             pelvis_speed_low_mps: Some(lo),
             pelvis_speed_high_mps: Some(hi),
         };
-        let c = compare_stride(&stride(1.2, 0.66, 1.3, 1.9), &stride(1.0, 0.6, 1.0, 1.5));
+        let c = compare_stride(&stride(1.2, 0.66, 1.3, 1.9), &[stride(1.0, 0.6, 1.0, 1.5)]).unwrap();
         assert!((c.leg_length_ratio - 1.2).abs() < 1e-12);
         assert!((c.step_over_leg_change_pct.unwrap() - 10.0).abs() < 1e-9);
         let (lo, hi) = c.scaled_source_pelvis_speed_mps.unwrap();
         assert!((lo - 1.2).abs() < 1e-12 && (hi - 1.8).abs() < 1e-12);
         assert!((c.pelvis_speed_outside_source_pct.unwrap() - 0.1 / 1.8 * 100.0).abs() < 1e-9);
         // Inside the scaled range: 0.
-        let inside = compare_stride(&stride(1.2, 0.6, 1.25, 1.75), &stride(1.0, 0.6, 1.0, 1.5));
+        let inside = compare_stride(&stride(1.2, 0.6, 1.25, 1.75), &[stride(1.0, 0.6, 1.0, 1.5)]).unwrap();
         assert_eq!(inside.pelvis_speed_outside_source_pct, Some(0.0));
+        assert_eq!(compare_stride(&stride(1.2, 0.6, 1.25, 1.75), &[]), None);
+    }
+
+    /// Two sources, a walk (0.6 leg lengths, 1.0–1.5 m/s, legs 1.0 m) and a longer-legged
+    /// run (1.1 leg lengths, 2.0–3.0 m/s, legs 1.2 m), against a clip with 1.2 m legs: the
+    /// walk scales to 1.2–1.8 m/s and the run stays 2.0–3.0, so the span is 1.2–3.0 m/s
+    /// and 0.6–1.1 leg lengths. A clip stepping 0.8 at 1.3–2.6 m/s is inside both; one
+    /// stepping 1.32 (20 % past the run's 1.1) at 1.0–3.3 m/s reaches 0.3 m/s beyond the
+    /// top, 10 % of it (the 0.2 m/s below the bottom is less).
+    #[test]
+    fn several_sources_are_compared_as_the_span_they_cover() {
+        let stride = |leg: f64, ratio: f64, lo: f64, hi: f64| Stride {
+            leg_length_m: leg,
+            steps: 4,
+            step_length_m: Some(ratio * leg),
+            step_over_leg: Some(ratio),
+            pelvis_speed_low_mps: Some(lo),
+            pelvis_speed_high_mps: Some(hi),
+        };
+        let sources = [stride(1.0, 0.6, 1.0, 1.5), stride(1.2, 1.1, 2.0, 3.0)];
+        let inside = compare_stride(&stride(1.2, 0.8, 1.3, 2.6), &sources).unwrap();
+        let (lo, hi) = inside.scaled_source_pelvis_speed_mps.unwrap();
+        assert!((lo - 1.2).abs() < 1e-12 && (hi - 3.0).abs() < 1e-12, "{lo} {hi}");
+        assert_eq!(inside.step_over_leg_change_pct, Some(0.0));
+        assert_eq!(inside.pelvis_speed_outside_source_pct, Some(0.0));
+        assert!((inside.leg_length_ratio - 1.2 / 1.1).abs() < 1e-12);
+        let outside = compare_stride(&stride(1.2, 1.32, 1.0, 3.3), &sources).unwrap();
+        assert!((outside.step_over_leg_change_pct.unwrap() - 20.0).abs() < 1e-9);
+        assert!((outside.pelvis_speed_outside_source_pct.unwrap() - 10.0).abs() < 1e-9);
     }
 }
