@@ -2,9 +2,10 @@
 //! stiff each degree of freedom is, its limits, and which joints are end effectors.
 //!
 //! A rig joint's local rotation is written as Euler angles `R = Rx(a) · Ry(b) · Rz(c)`
-//! ([`euler::compose`] order `[X, Y, Z]`, the order [`JointLimits`] are given in). Free axes
-//! are degrees of freedom (DOFs); the others keep the angle the pose had. The root may also
-//! translate (three more DOFs). Joints outside the rig keep their pose rotations.
+//! ([`euler::compose`](crate::math::euler::compose) order `[X, Y, Z]`, the order
+//! [`JointLimits`] are given in). Free axes are degrees of freedom (DOFs); the others keep
+//! the angle the pose had. The root may also translate (three more DOFs). Joints outside
+//! the rig keep their pose rotations.
 //! Everything here is `f64`: the solver works to 1e-4 m and below.
 
 use std::sync::Arc;
