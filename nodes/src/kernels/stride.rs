@@ -202,19 +202,24 @@ mod tests {
         assert_eq!(percentile(&[], 50.0), None);
     }
 
-    /// A clip whose leg is 1.2 times the source's, stepping 0.66 leg lengths against the
-    /// source's 0.6 (10 % more), its pelvis at 1.3–1.9 m/s against the source's 1.0–1.5
-    /// scaled to 1.2–1.8: 0.1 m/s over the scaled top, 5.6 % of it.
-    #[test]
-    fn comparison_scales_the_source_by_leg_length() {
-        let stride = |leg: f64, ratio: f64, lo: f64, hi: f64| Stride {
+    /// A stride of four steps of `ratio` leg lengths on legs of `leg` metres, the pelvis at
+    /// `lo`–`hi` m/s.
+    fn stride(leg: f64, ratio: f64, lo: f64, hi: f64) -> Stride {
+        Stride {
             leg_length_m: leg,
             steps: 4,
             step_length_m: Some(ratio * leg),
             step_over_leg: Some(ratio),
             pelvis_speed_low_mps: Some(lo),
             pelvis_speed_high_mps: Some(hi),
-        };
+        }
+    }
+
+    /// A clip whose leg is 1.2 times the source's, stepping 0.66 leg lengths against the
+    /// source's 0.6 (10 % more), its pelvis at 1.3–1.9 m/s against the source's 1.0–1.5
+    /// scaled to 1.2–1.8: 0.1 m/s over the scaled top, 5.6 % of it.
+    #[test]
+    fn comparison_scales_the_source_by_leg_length() {
         let c = compare_stride(&stride(1.2, 0.66, 1.3, 1.9), &[stride(1.0, 0.6, 1.0, 1.5)]).unwrap();
         assert!((c.leg_length_ratio - 1.2).abs() < 1e-12);
         assert!((c.step_over_leg_change_pct.unwrap() - 10.0).abs() < 1e-9);
@@ -235,14 +240,6 @@ mod tests {
     /// top, 10 % of it (the 0.2 m/s below the bottom is less).
     #[test]
     fn several_sources_are_compared_as_the_span_they_cover() {
-        let stride = |leg: f64, ratio: f64, lo: f64, hi: f64| Stride {
-            leg_length_m: leg,
-            steps: 4,
-            step_length_m: Some(ratio * leg),
-            step_over_leg: Some(ratio),
-            pelvis_speed_low_mps: Some(lo),
-            pelvis_speed_high_mps: Some(hi),
-        };
         let sources = [stride(1.0, 0.6, 1.0, 1.5), stride(1.2, 1.1, 2.0, 3.0)];
         let inside = compare_stride(&stride(1.2, 0.8, 1.3, 2.6), &sources).unwrap();
         let (lo, hi) = inside.scaled_source_pelvis_speed_mps.unwrap();
