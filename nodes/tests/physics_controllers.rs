@@ -404,8 +404,8 @@ fn larger_push_is_recovered_by_a_step_and_the_figure_stands_again() {
 /// rounded) and neither head hits the ground over the whole run, with one fall activation.
 /// True of the CMU figure (its head never touches; at rest the relax controller holds the
 /// curl). Not yet of the Xbot: its rolling figure's head comes down at 1.06 m/s 1.45 s into
-/// the fall, just past the 1 m/s bar (1.22 m/s at most over the run). Kept to measure the next attempt (the table test below
-/// measures every direction).
+/// the fall, just past the 1 m/s bar (1.22 m/s at most over the run). Kept to measure the
+/// next attempt (the table test below measures every direction).
 #[test]
 #[ignore = "the Xbot's head comes down at 1.06 m/s, just past the 1 m/s bar"]
 fn largest_push_is_a_protected_fall_with_the_head_off_the_ground() {

@@ -60,7 +60,7 @@ use super::roles::{BodyRoles, RolesError};
 use super::skinning::SkinError;
 use super::soles::{foot_joints, lowest_sole_heights};
 use super::stride::{FootPlants, Stride, StrideComparison, compare_stride, measure_stride, rest_legs};
-use crate::model::{Clip, Contacts, FrameRange, Mesh, Skeleton, forward_kinematics};
+use crate::model::{Clip, ClipPoses, Contacts, FrameRange, Mesh, Skeleton, forward_kinematics};
 
 /// A foot more than this far under the floor (metres) counts as below it: capture noise
 /// of a millimetre is not a fault.
@@ -243,8 +243,9 @@ struct Tracks {
 }
 
 impl Tracks {
-    fn of(clip: &Clip) -> Tracks {
-        let poses = forward_kinematics(clip);
+    /// The joints' world positions of `clip`, from its forward kinematics `poses` (computed
+    /// once by the caller, which also detects contacts on them).
+    fn of(clip: &Clip, poses: &ClipPoses) -> Tracks {
         let pos_m = (0..clip.frame_count())
             .flat_map(|f| poses.frame(f).iter().map(|t| t.translation.as_dvec3()))
             .collect::<Vec<_>>();
@@ -290,15 +291,15 @@ impl Tracks {
 }
 
 /// The stride of `clip` (with its `feet`, over `window`) and of each of `sources` (with
-/// their tracks, contacts detected with `options.contacts` for their legs, whole): `None`
-/// for the clip, and a source left out, with a finding saying why when it cannot be
-/// measured.
+/// their forward kinematics and tracks, contacts detected with `options.contacts` for their
+/// legs, whole): `None` for the clip, and a source left out, with a finding saying why when
+/// it cannot be measured.
 fn strides(
     clip: &Clip,
     tracks: &Tracks,
     feet: &[Foot],
     window: FrameRange,
-    sources: &[(&Clip, &Tracks)],
+    sources: &[(&Clip, &ClipPoses, &Tracks)],
     options: &QualityOptions,
     findings: &mut Vec<String>,
 ) -> (Option<Stride>, Vec<Stride>) {
@@ -316,27 +317,21 @@ fn strides(
     let source_strides = sources
         .iter()
         .enumerate()
-        .filter_map(|(i, &(source, t))| {
-            let measured =
-                contacts_of(source, &forward_kinematics(source), &options.contacts).and_then(|(contacts, _)| {
-                    let ankles: Vec<(usize, &[FrameRange])> = contacts
-                        .feet
-                        .iter()
-                        .filter_map(|c| Some((source.skeleton().index_of(&c.foot)?, c.intervals.as_slice())))
-                        .collect();
-                    let plants: Vec<FootPlants<'_>> =
-                        ankles.iter().map(|&(ankle, contacts)| FootPlants { ankle, contacts }).collect();
-                    let whole = FrameRange::new(0, source.frame_count());
-                    measure_stride(
-                        source.skeleton(),
-                        source.fps(),
-                        source.frame_count(),
-                        whole,
-                        |f, j| t.at(f, j),
-                        &plants,
-                    )
-                });
-            note(&if several { format!("source {i}") } else { "source".to_string() }, measured)
+        .filter_map(|(i, &(source, poses, t))| {
+            let measured = contacts_of(source, poses, &options.contacts).and_then(|(contacts, _)| {
+                let ankles: Vec<(usize, &[FrameRange])> = contacts
+                    .feet
+                    .iter()
+                    .filter_map(|c| Some((source.skeleton().index_of(&c.foot)?, c.intervals.as_slice())))
+                    .collect();
+                let plants: Vec<FootPlants<'_>> =
+                    ankles.iter().map(|&(ankle, contacts)| FootPlants { ankle, contacts }).collect();
+                let whole = FrameRange::new(0, source.frame_count());
+                measure_stride(source.skeleton(), source.fps(), source.frame_count(), whole, |f, j| t.at(f, j), &plants)
+            });
+            // Numbered in the node's order: source, other_source, then the set's clips.
+            let what = if several { format!("source {} of {}", i + 1, sources.len()) } else { "source".into() };
+            note(&what, measured)
         })
         .collect();
     (stride.flatten(), source_strides)
@@ -587,7 +582,8 @@ pub fn measure_quality(
     mesh: Option<&Mesh>,
     options: &QualityOptions,
 ) -> QualityReport {
-    let tracks = Tracks::of(clip);
+    let poses = forward_kinematics(clip);
+    let tracks = Tracks::of(clip, &poses);
     let mut findings = Vec::new();
     match clip.frame_count() {
         0 => findings.push("the clip has no frames: nothing is measured".into()),
@@ -632,7 +628,7 @@ pub fn measure_quality(
     }
     let (contacts_from, feet) = match given {
         Some(c) => ("connected", feet_of(clip, c, window, &mut findings)),
-        None => match contacts_of(clip, &forward_kinematics(clip), &options.contacts) {
+        None => match contacts_of(clip, &poses, &options.contacts) {
             Ok((c, _)) => ("detected", feet_of(clip, &c, window, &mut findings)),
             Err(why) => {
                 findings.push(format!("the feet could not be found, so they are not measured: {why}"));
@@ -640,6 +636,8 @@ pub fn measure_quality(
             }
         },
     };
+    // Only the positions (`tracks`) are needed from here: the clip's world transforms go.
+    drop(poses);
     let (lowest, soles) = lowest_heights(clip, &tracks, &feet, mesh, &mut findings);
     let floor = options.floor_height_m;
     let feet_quality: Vec<FootQuality> = feet
@@ -682,7 +680,8 @@ pub fn measure_quality(
     let half_width = ((options.neighbourhood_secs * clip.fps()).round() as usize).max(2 * SPIKE_EXCLUSION_FRAMES);
     let spike = max_in_window(&spike_ratios(&peak_values, half_width), window);
     let root = max_in_window(&tracks.root_velocity_changes(), window);
-    let source_tracks: Vec<Tracks> = sources.iter().map(|s| Tracks::of(s)).collect();
+    let source_poses: Vec<ClipPoses> = sources.iter().map(|s| forward_kinematics(s)).collect();
+    let source_tracks: Vec<Tracks> = sources.iter().zip(&source_poses).map(|(s, p)| Tracks::of(s, p)).collect();
     let body_values: Vec<f64> = peaks.iter().map(|p| p[1].0).collect();
     let body_peak = max_in_window(&body_values, window).filter(|_| !sources.is_empty());
     let sources_peak = sources
@@ -707,8 +706,9 @@ pub fn measure_quality(
         ));
     }
     let drift = bone_length_drift(clip, &tracks, window);
-    let source_pairs: Vec<(&Clip, &Tracks)> = sources.iter().copied().zip(&source_tracks).collect();
-    let (stride, source_strides) = strides(clip, &tracks, &feet, window, &source_pairs, options, &mut findings);
+    let measured_sources: Vec<(&Clip, &ClipPoses, &Tracks)> =
+        sources.iter().zip(&source_poses).zip(&source_tracks).map(|((s, p), t)| (*s, p, t)).collect();
+    let (stride, source_strides) = strides(clip, &tracks, &feet, window, &measured_sources, options, &mut findings);
     let stride_against_source = stride.as_ref().and_then(|c| compare_stride(c, &source_strides));
     let joint_name = |j: usize| clip.skeleton().joints()[j].name.clone();
     if findings.len() > MAX_LISTED_FINDINGS {

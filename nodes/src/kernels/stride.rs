@@ -161,18 +161,14 @@ pub fn compare_stride(clip: &Stride, sources: &[Stride]) -> Option<StrideCompari
     };
     let mean_leg = sources.iter().map(|s| s.leg_length_m).sum::<f64>() / sources.len() as f64;
     let leg_length_ratio = if mean_leg > 0.0 { clip.leg_length_m / mean_leg } else { 1.0 };
-    let span = |values: &mut dyn Iterator<Item = (f64, f64)>| {
-        values
-            .fold(None, |acc: Option<(f64, f64)>, (lo, hi)| Some(acc.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi)))))
-    };
-    let step_span = span(&mut sources.iter().filter_map(|s| s.step_over_leg.filter(|&v| v > 0.0).map(|v| (v, v))));
+    let step_span = span(sources.iter().filter_map(|s| s.step_over_leg.filter(|&v| v > 0.0).map(|v| (v, v))));
     let step_over_leg_change_pct = match (clip.step_over_leg, step_span) {
         (Some(c), Some((lo, _))) if c < lo => Some((lo - c) / lo * 100.0),
         (Some(c), Some((_, hi))) if c > hi => Some((c - hi) / hi * 100.0),
         (Some(_), Some(_)) => Some(0.0),
         _ => None,
     };
-    let scaled = span(&mut sources.iter().filter_map(|s| {
+    let scaled = span(sources.iter().filter_map(|s| {
         let r = ratio_to(s);
         Some((s.pelvis_speed_low_mps? * r, s.pelvis_speed_high_mps? * r))
     }));
@@ -186,6 +182,11 @@ pub fn compare_stride(clip: &Stride, sources: &[Stride]) -> Option<StrideCompari
         scaled_source_pelvis_speed_mps: scaled,
         pelvis_speed_outside_source_pct: outside,
     })
+}
+
+/// The smallest low end and the largest high end of `ranges`; `None` without any.
+fn span(ranges: impl Iterator<Item = (f64, f64)>) -> Option<(f64, f64)> {
+    ranges.reduce(|(a, b), (lo, hi)| (a.min(lo), b.max(hi)))
 }
 
 #[cfg(test)]
