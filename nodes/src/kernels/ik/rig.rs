@@ -290,33 +290,38 @@ impl IkRig {
         self.rig_slot[joint].unwrap_or(0)
     }
 
-    /// Forward kinematics of `pose` into `world` (one transform per joint) and the world
-    /// axis and pivot of every rotational DOF into `axes` (one per DOF; translations get
-    /// their world axis and a zero pivot).
-    pub fn forward(&self, pose: &IkPose, world: &mut [(DQuat, DVec3)], axes: &mut [(DVec3, DVec3)]) {
+    /// Forward kinematics of `pose` into `world` (one transform per joint).
+    pub fn forward(&self, pose: &IkPose, world: &mut [(DQuat, DVec3)]) {
         for (j, joint) in self.skeleton.joints().iter().enumerate() {
             let (parent_rot, parent_pos) = joint.parent.map_or((DQuat::IDENTITY, DVec3::ZERO), |p| world[p]);
             let local = match self.rig_slot[j] {
-                Some(s) => {
-                    let [a, b, c] = pose.euler[s];
-                    DQuat::from_euler(glam::EulerRot::XYZ, a, b, c)
-                }
+                Some(s) => euler_rotation(pose.euler[s]),
                 None => pose.rotations[j],
             };
             let pos = parent_pos + parent_rot * pose.translations[j];
             world[j] = (parent_rot * local, pos);
         }
+    }
+
+    /// The world axis and pivot of every rotational DOF into `axes` (one per DOF;
+    /// translations get their world axis and a zero pivot), from `world` as
+    /// [`IkRig::forward`] left it for `pose`. With `R = P·Rx(a)·Ry(b)·Rz(c)` the X axis is
+    /// `P·X`, the Y axis `P·Rx(a)·Y = P·(0, cos a, sin a)` and the Z axis `R·Z` (`Rz` keeps
+    /// Z), so the axes take one sine and cosine per joint (of `a`) and nothing more.
+    pub fn dof_axes(&self, pose: &IkPose, world: &[(DQuat, DVec3)], axes: &mut [(DVec3, DVec3)]) {
         for (d, dof) in self.dofs.iter().enumerate() {
             axes[d] = match dof.kind {
                 DofKind::Rotation { joint, axis } => {
                     let parent_rot = self.skeleton.joints()[joint].parent.map_or(DQuat::IDENTITY, |p| world[p].0);
-                    let [a, b, _] = pose.euler[self.slot(joint)];
-                    let frame = match axis {
-                        0 => parent_rot,
-                        1 => parent_rot * DQuat::from_rotation_x(a),
-                        _ => parent_rot * DQuat::from_rotation_x(a) * DQuat::from_rotation_y(b),
+                    let direction = match axis {
+                        0 => parent_rot * DVec3::X,
+                        1 => {
+                            let (sin_a, cos_a) = pose.euler[self.slot(joint)][0].sin_cos();
+                            parent_rot * DVec3::new(0.0, cos_a, sin_a)
+                        }
+                        _ => world[joint].0 * DVec3::Z,
                     };
-                    (frame * AXES[axis].unit().as_dvec3(), world[joint].1)
+                    (direction, world[joint].1)
                 }
                 DofKind::Translation { axis } => (AXES[axis].unit().as_dvec3(), DVec3::ZERO),
             };
@@ -327,14 +332,21 @@ impl IkRig {
     pub fn rotations_of(&self, pose: &IkPose, out: &mut [Quat]) {
         for (j, q) in out.iter_mut().enumerate() {
             *q = match self.rig_slot[j] {
-                Some(s) => {
-                    let [a, b, c] = pose.euler[s];
-                    DQuat::from_euler(glam::EulerRot::XYZ, a, b, c).as_quat()
-                }
+                Some(s) => euler_rotation(pose.euler[s]).as_quat(),
                 None => pose.rotations[j].as_quat(),
             };
         }
     }
+}
+
+/// `Rx(a)·Ry(b)·Rz(c)` as the product of the three half-angle quaternions, the first two
+/// multiplied out by hand (they have two zero components each).
+#[inline]
+fn euler_rotation([a, b, c]: [f64; 3]) -> DQuat {
+    let (sx, cx) = (0.5 * a).sin_cos();
+    let (sy, cy) = (0.5 * b).sin_cos();
+    let (sz, cz) = (0.5 * c).sin_cos();
+    DQuat::from_xyzw(sx * cy, cx * sy, sx * sy, cx * cy) * DQuat::from_xyzw(0.0, 0.0, sz, cz)
 }
 
 /// Bounds of one Euler axis from optional joint limits (unbounded without).
@@ -390,7 +402,8 @@ mod tests {
         pose.euler[0] = [0.3, -0.4, 0.9];
         let mut world = [(DQuat::IDENTITY, DVec3::ZERO); 2];
         let mut axes = [(DVec3::ZERO, DVec3::ZERO); 3];
-        rig.forward(&pose, &mut world, &mut axes);
+        rig.forward(&pose, &mut world);
+        rig.dof_axes(&pose, &world, &mut axes);
         let (ca, sa) = (0.3f64.cos(), 0.3f64.sin());
         let (cb, sb) = ((-0.4f64).cos(), (-0.4f64).sin());
         // Rx(a) · Ry(b) · (0,0,1) = Rx(a) · (sb, 0, cb) = (sb, -sa cb, ca cb)

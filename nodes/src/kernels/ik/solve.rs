@@ -180,7 +180,7 @@ pub struct IkSolver {
     rig: IkRig,
     world: Vec<(DQuat, DVec3)>,
     axes: Vec<(DVec3, DVec3)>,
-    /// `Jᵀ` (DOFs × task rows): columns of `J` are rows here, so `J W Jᵀ` is one `gemm_tr`.
+    /// `Jᵀ` (DOFs × task rows): a task row of `J` is a contiguous column here.
     jt: DMatrix<f64>,
     /// `W Jᵀ`.
     wjt: DMatrix<f64>,
@@ -251,7 +251,7 @@ impl IkSolver {
 
     /// World positions of the effectors in `pose` into `out`.
     pub fn effector_positions(&mut self, pose: &IkPose, out: &mut [DVec3]) {
-        self.rig.forward(pose, &mut self.world, &mut self.axes);
+        self.rig.forward(pose, &mut self.world);
         for (o, &e) in out.iter_mut().zip(self.rig.effectors()) {
             *o = self.world[e].1;
         }
@@ -265,13 +265,14 @@ impl IkSolver {
     /// Runs forward kinematics, fills `dx` with `goals − X` and `jt` with `Jᵀ`; returns the
     /// largest effector error (metres).
     pub(crate) fn linearise(&mut self, pose: &IkPose, goals: &[DVec3]) -> f64 {
-        self.rig.forward(pose, &mut self.world, &mut self.axes);
-        self.linearise_forward(goals)
+        self.rig.forward(pose, &mut self.world);
+        self.linearise_forward(pose, goals)
     }
 
-    /// [`IkSolver::linearise`] for the pose of the last forward pass (its world transforms
-    /// and axes are current), so a step's accepted trial is not run through FK twice.
-    fn linearise_forward(&mut self, goals: &[DVec3]) -> f64 {
+    /// [`IkSolver::linearise`] for `pose`, the pose of the last forward pass (its world
+    /// transforms are current), so a step's accepted trial is not run through FK twice.
+    fn linearise_forward(&mut self, pose: &IkPose, goals: &[DVec3]) -> f64 {
+        self.rig.dof_axes(pose, &self.world, &mut self.axes);
         let mut worst = 0.0f64;
         for (e, (&joint, goal)) in self.rig.effectors().iter().zip(goals).enumerate() {
             let x = self.world[joint].1;
@@ -327,7 +328,15 @@ impl IkSolver {
             Weighting::InsideInverse => &self.wjt,
             Weighting::Paper => &self.jt,
         };
-        self.jwjt.gemm_tr(1.0, &self.jt, inner, 0.0);
+        // Symmetric (W is diagonal): the upper triangle's dot products, mirrored.
+        let m = self.jwjt.nrows();
+        for i in 0..m {
+            for k in i..m {
+                let v = self.jt.column(i).dot(&inner.column(k));
+                self.jwjt[(i, k)] = v;
+                self.jwjt[(k, i)] = v;
+            }
+        }
         self.eigen.decompose(&self.jwjt, &mut self.basis, &mut self.sigma_sq);
         let s_max = self.sigma_sq.max().max(0.0).sqrt();
         let masks = self.rig.effector_masks();
@@ -389,7 +398,7 @@ impl IkSolver {
     /// Forward kinematics only: the goal offsets of `pose` into `trial_dx`; returns the
     /// largest effector error (metres).
     fn evaluate(&mut self, pose: &IkPose, goals: &[DVec3]) -> f64 {
-        self.rig.forward(pose, &mut self.world, &mut self.axes);
+        self.rig.forward(pose, &mut self.world);
         let mut worst = 0.0f64;
         for (e, (&joint, goal)) in self.rig.effectors().iter().zip(goals).enumerate() {
             let d = (*goal - self.world[joint].1) * self.rig.effector_masks()[e];
@@ -450,7 +459,7 @@ impl IkSolver {
             error = new_error;
             if error > params.tolerance_m && iterations < params.max_iterations {
                 // The accepted trial was the last pose evaluated: its forward pass is current.
-                self.linearise_forward(goals);
+                self.linearise_forward(pose, goals);
             }
         }
         self.trial = Some(trial);
