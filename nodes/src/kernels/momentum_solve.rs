@@ -50,11 +50,8 @@ use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
 };
-use faer::sparse::linalg::matmul::{
-    SparseMatMulInfo, sparse_sparse_matmul_numeric, sparse_sparse_matmul_numeric_scratch, sparse_sparse_matmul_symbolic,
-};
-use faer::sparse::{SparseColMat, SymbolicSparseColMat};
-use faer::{Accum, Par, Side};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat, SymbolicSparseColMatRef};
+use faer::{Par, Side};
 use glam::{DMat3, DQuat, DVec3, Quat};
 
 use super::angular::{MomentumTrack, momentum_of_poses};
@@ -1128,16 +1125,20 @@ impl FrameGeometry {
 /// every step only refills values into buffers it owns: no allocation per step, where
 /// building them afresh spent about half of each step in the allocator and the kernel's
 /// page faults (the whole factor, ~100 MB on CMU 16_01, new every step).
+/// Only JᵀJ's lower triangle is made: the factorisation reads no more, and copies what it
+/// is given (permuted) into its workspace, so the full product cost its size twice over
+/// (6.1 M entries on CMU 16_01, ~100 MB with the copy).
 struct NormalEquations {
     /// Jᵀ, one column per residual row.
     jt: SparseColMat<usize, f64>,
     /// J, column-major, and where each of its values sits in `jt`'s.
     j: SparseColMat<usize, f64>,
     j_from_jt: Vec<usize>,
-    product: SparseMatMulInfo,
+    /// JᵀJ's lower triangle (row ≥ column); each column's first entry is its diagonal.
     jtj: SparseColMat<usize, f64>,
-    /// Where each unknown's diagonal entry sits in `jtj`'s values, and the entries undamped.
-    diagonal: Vec<usize>,
+    /// One column of the product being summed, by row (zero between columns).
+    accumulator: Vec<f64>,
+    /// The diagonal entries undamped.
     undamped: Vec<f64>,
     /// −Jᵀr.
     gradient: Vec<f64>,
@@ -1152,9 +1153,8 @@ fn factor_error(e: &dyn std::fmt::Debug) -> SolveError {
     SolveError::Factor(format!("{e:?}"))
 }
 
-/// Parallelism of the product and the factorisation: none. On CMU 16_01 two threads made
-/// each step slower (the product 31 → 54 ms), and a family already solves its samples in
-/// parallel.
+/// Parallelism of the factorisation: none. On CMU 16_01 two threads made each step slower
+/// (faer's sparse product 31 → 54 ms), and a family already solves its samples in parallel.
 const PAR: Par = Par::Seq;
 
 impl NormalEquations {
@@ -1188,18 +1188,12 @@ impl NormalEquations {
         let j = positions.as_ref().transpose().to_col_major().map_err(|e| factor_error(&e))?;
         let j_from_jt = j.val().iter().map(|p| *p as usize).collect();
         let jt = SparseColMat::new(positions.symbolic().to_owned().map_err(|e| factor_error(&e))?, vec![0.0; nnz]);
-        let (product_pattern, product) =
-            sparse_sparse_matmul_symbolic(jt.symbolic(), j.symbolic()).map_err(|e| factor_error(&e))?;
-        let jtj_nnz = product_pattern.row_idx().len();
-        let jtj = SparseColMat::new(product_pattern, vec![0.0; jtj_nnz]);
-        let (cp, ri) = (jtj.symbolic().col_ptr(), jtj.symbolic().row_idx());
-        let diagonal = (0..unknowns)
-            .map(|c| {
-                (cp[c]..cp[c + 1])
-                    .find(|&p| ri[p] == c)
-                    .ok_or_else(|| SolveError::Factor(format!("unknown {c} enters no residual")))
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        if let Some(c) = (0..unknowns).find(|&c| j.symbolic().col_range(c).is_empty()) {
+            return Err(SolveError::Factor(format!("unknown {c} enters no residual")));
+        }
+        let jtj_pattern = lower_gram_pattern(jt.symbolic(), j.symbolic());
+        let jtj_nnz = jtj_pattern.row_idx().len();
+        let jtj = SparseColMat::new(jtj_pattern, vec![0.0; jtj_nnz]);
         let cholesky = factorize_symbolic_cholesky(
             jtj.symbolic(),
             Side::Lower,
@@ -1208,7 +1202,6 @@ impl NormalEquations {
         )
         .map_err(|e| factor_error(&e))?;
         let workspace = MemBuffer::try_new(StackReq::any_of(&[
-            sparse_sparse_matmul_numeric_scratch::<usize, f64>(jtj.symbolic(), PAR),
             cholesky.factorize_numeric_llt_scratch::<f64>(PAR, Default::default()),
             cholesky.solve_in_place_scratch::<f64>(1, PAR),
         ]))
@@ -1218,10 +1211,9 @@ impl NormalEquations {
             jt,
             j,
             j_from_jt,
-            product,
             jtj,
+            accumulator: vec![0.0; unknowns],
             undamped: vec![0.0; unknowns],
-            diagonal,
             gradient: vec![0.0; unknowns],
             cholesky,
             workspace,
@@ -1260,26 +1252,40 @@ impl NormalEquations {
         for (slot, &p) in self.j.val_mut().iter_mut().zip(&self.j_from_jt) {
             *slot = jt_values[p];
         }
-        sparse_sparse_matmul_numeric(
-            self.jtj.as_dyn_mut(),
-            Accum::Replace,
-            self.jt.as_ref(),
-            self.j.as_ref(),
-            1.0,
-            &self.product,
-            PAR,
-            MemStack::new(&mut self.workspace),
-        );
-        for (u, &p) in self.undamped.iter_mut().zip(&self.diagonal) {
+        self.fill_lower_gram();
+        let diagonal = &self.jtj.symbolic().col_ptr()[..self.undamped.len()];
+        for (u, &p) in self.undamped.iter_mut().zip(diagonal) {
             *u = self.jtj.val()[p];
         }
         true
     }
 
+    /// JᵀJ's lower triangle from `j` and `jt`'s current values, a column at a time: column
+    /// `c` sums, over the residual rows `r` that hold unknown `c`, `J[r, c]` times row `r`'s
+    /// entries at unknowns from `c` on (Gustavson's product, scattered into `accumulator`).
+    fn fill_lower_gram(&mut self) {
+        let (pattern, values) = self.jtj.parts_mut();
+        let accumulator = &mut self.accumulator;
+        for c in 0..pattern.ncols() {
+            for (&r, &v) in self.j.symbolic().row_idx_of_col_raw(c).iter().zip(self.j.val_of_col(c)) {
+                let (row, weights) = (self.jt.symbolic().row_idx_of_col_raw(r), self.jt.val_of_col(r));
+                let from = row.partition_point(|&k| k < c);
+                for (&k, &w) in row[from..].iter().zip(&weights[from..]) {
+                    accumulator[k] += v * w;
+                }
+            }
+            for p in pattern.col_range(c) {
+                let k = pattern.row_idx()[p];
+                values[p] = accumulator[k];
+                accumulator[k] = 0.0;
+            }
+        }
+    }
+
     /// One damped step, (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr by sparse Cholesky.
     fn damped_step(&mut self, lambda: f64) -> Result<Vec<f64>, SolveError> {
-        let values = self.jtj.val_mut();
-        for (&p, &u) in self.diagonal.iter().zip(&self.undamped) {
+        let (pattern, values) = self.jtj.parts_mut();
+        for (&p, &u) in pattern.col_ptr().iter().zip(&self.undamped) {
             // Marquardt's scaling: the damping follows each unknown's own curvature, so the
             // penalties' large rows do not swamp it.
             values[p] = u + lambda * u + 1e-9;
@@ -1303,6 +1309,34 @@ impl NormalEquations {
     }
 }
 
+/// The pattern of JᵀJ's lower triangle from those of `Jᵀ` and `J`: column `c` holds every
+/// unknown from `c` on that shares a residual row with it, sorted (so `c` itself first).
+fn lower_gram_pattern(
+    jt: SymbolicSparseColMatRef<'_, usize>,
+    j: SymbolicSparseColMatRef<'_, usize>,
+) -> SymbolicSparseColMat<usize> {
+    let unknowns = j.ncols();
+    let mut seen_in = vec![usize::MAX; unknowns];
+    let mut col_ptr = Vec::with_capacity(unknowns + 1);
+    col_ptr.push(0);
+    let mut row_idx = Vec::new();
+    for c in 0..unknowns {
+        let start = row_idx.len();
+        for &r in j.row_idx_of_col_raw(c) {
+            let row = jt.row_idx_of_col_raw(r);
+            for &k in &row[row.partition_point(|&k| k < c)..] {
+                if seen_in[k] != c {
+                    seen_in[k] = c;
+                    row_idx.push(k);
+                }
+            }
+        }
+        row_idx[start..].sort_unstable();
+        col_ptr.push(row_idx.len());
+    }
+    SymbolicSparseColMat::new_checked(unknowns, unknowns, col_ptr, None, row_idx)
+}
+
 /// `entries` sorted by column into `out`, entries of the same column added.
 fn sort_merged(entries: &[(usize, f64)], out: &mut Vec<(usize, f64)>) {
     out.clear();
@@ -1315,4 +1349,72 @@ fn sort_merged(entries: &[(usize, f64)], out: &mut Vec<(usize, f64)>) {
         }
         same
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{DMatrix, DVector};
+
+    /// Random sparse residual rows (some entries repeated, which add) over `unknowns`, every
+    /// unknown in at least one row.
+    fn random_rows(unknowns: usize, count: usize, seed: u64) -> Vec<(f64, Vec<(usize, f64)>)> {
+        let mut state = seed;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let unit = |x: u64| (x % 2001) as f64 / 1000.0 - 1.0;
+        let mut rows: Vec<(f64, Vec<(usize, f64)>)> =
+            (0..unknowns).map(|c| (unit(next()), vec![(c, 1.0 + unit(next()).abs())])).collect();
+        for _ in 0..count {
+            let entries = (0..1 + next() % 5).map(|_| ((next() % unknowns as u64) as usize, unit(next()))).collect();
+            rows.push((unit(next()), entries));
+        }
+        rows
+    }
+
+    /// JᵀJ's lower triangle, built by Gustavson's product over the sparse rows, equals the
+    /// dense product's, and the damped step solves the dense system (nalgebra's LU).
+    #[test]
+    fn normal_equations_match_the_dense_product_and_solve() {
+        let unknowns = 40;
+        let rows = random_rows(unknowns, 120, 0x9e37_79b9_7f4a_7c15);
+        let mut dense = DMatrix::<f64>::zeros(rows.len(), unknowns);
+        let mut residuals = DVector::<f64>::zeros(rows.len());
+        for (r, (residual, entries)) in rows.iter().enumerate() {
+            residuals[r] = *residual;
+            for &(c, w) in entries {
+                dense[(r, c)] += w;
+            }
+        }
+        let gram = dense.transpose() * &dense;
+        let order: Vec<usize> = (0..unknowns).rev().collect();
+        let mut normal = NormalEquations::new(&rows, &order).unwrap();
+        let pattern = normal.jtj.symbolic();
+        for c in 0..unknowns {
+            let rows_of_c = pattern.row_idx_of_col_raw(c);
+            assert_eq!(rows_of_c.first(), Some(&c), "column {c} starts at its diagonal");
+            for (&k, &v) in rows_of_c.iter().zip(normal.jtj.val_of_col(c)) {
+                assert!((v - gram[(k, c)]).abs() < 1e-12, "({k}, {c}): {v} vs {}", gram[(k, c)]);
+            }
+            // Every structurally non-zero entry of the dense lower triangle is in the pattern.
+            for k in c..unknowns {
+                let shares_a_row = (0..rows.len()).any(|r| dense[(r, k)] != 0.0 && dense[(r, c)] != 0.0);
+                assert_eq!(rows_of_c.contains(&k), shares_a_row, "({k}, {c})");
+            }
+        }
+        let lambda = 0.25;
+        let step = normal.damped_step(lambda).unwrap();
+        let mut damped = gram.clone();
+        for c in 0..unknowns {
+            damped[(c, c)] += lambda * gram[(c, c)] + 1e-9;
+        }
+        let expected = damped.lu().solve(&(-(dense.transpose() * residuals))).unwrap();
+        for (c, (s, e)) in step.iter().zip(expected.iter()).enumerate() {
+            assert!((s - e).abs() < 1e-9 * (1.0 + e.abs()), "unknown {c}: {s} vs {e}");
+        }
+    }
 }
