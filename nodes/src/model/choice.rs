@@ -1,8 +1,8 @@
 //! Closed sets of named values (a choice parameter's options, a report's labels): a plain
-//! enum whose variants and persisted names are listed once, by [`choices!`], so a node reads
+//! enum whose variants and persisted names are listed once, by the `choices!` macro, so a node reads
 //! its enum and never compares the names itself.
 
-/// A plain enum whose values are persisted by name. Implement it with [`choices!`], which
+/// A plain enum whose values are persisted by name. Implement it with the `choices!` macro, which
 /// keeps [`Choice::NAMES`] and [`Choice::ALL`] in step.
 pub trait Choice: Copy + PartialEq + 'static {
     /// Persisted names, in the order of [`Choice::ALL`].

@@ -401,7 +401,7 @@ fn eased_time(u: f64, n: f64, span: f64, ramp: f64) -> f64 {
 /// Replaces frames `f0..=ff` of `clip` by the same stretch played over `new_len` frame
 /// intervals: the time scaling of eq. 9. Playback speed eases from normal speed into the
 /// scaled speed and back out over the first and last quarter of the window
-/// ([`eased_time`]) instead of switching in one frame: a jump in speed is a jump in every
+/// (`eased_time`) instead of switching in one frame: a jump in speed is a jump in every
 /// joint's velocity, an acceleration spike at both window edges. With the scale
 /// s = (ff − f0) / new_len in [1/2, 2] the speed stays positive (the window never plays
 /// backwards).

@@ -111,7 +111,7 @@ pub fn read_gltf(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result
 
 /// Infers a sampling rate from key times: the reciprocal of the median spacing between
 /// consecutive keys, snapped to a whole number of frames per second when within 1 %.
-/// Falls back to [`FALLBACK_SAMPLE_FPS`] when there is no spacing (single keys) or the
+/// Falls back to 30 fps (`FALLBACK_SAMPLE_FPS`) when there is no spacing (single keys) or the
 /// result lies outside 1–1000 fps. Median rather than minimum, so one pair of nearly
 /// coincident keys does not force a huge rate.
 pub fn infer_sample_fps<'a>(key_times_secs: impl IntoIterator<Item = &'a [f64]>) -> f64 {

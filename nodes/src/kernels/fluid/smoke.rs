@@ -100,7 +100,7 @@ type Located = Option<(usize, [f64; 4])>;
 /// uniform field stays uniform; totals are then kept exactly by a remesh without motion
 /// of a domain of unchanged volume, for any field (the quadrature integrates constants
 /// exactly and the transfer is linear in the node values). The ratio is clamped to
-/// [`CORRECTION_RANGE`] where an obstacle moved over or off the node.
+/// [0.5, 2] (`CORRECTION_RANGE`) where an obstacle moved over or off the node.
 pub struct Transfer {
     /// Per new tet and quadrature point: the old tet the traced point lies in (or is
     /// nearest) and its barycentric coordinates there; `None` on an empty old mesh.

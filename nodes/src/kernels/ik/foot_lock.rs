@@ -421,7 +421,7 @@ const CLEAN_UP_PASSES: usize = 4;
 /// lifting one), so the same detection run on the held clip can find the plant starting
 /// earlier or ending later, on frames that were only partly held and still slide. Those
 /// frames join the plant and the clip is held again, until detection on the result finds
-/// no planted frame next to a plant that is not held (at most [`CLEAN_UP_PASSES`] times).
+/// no planted frame next to a plant that is not held (at most four times, `CLEAN_UP_PASSES`).
 pub fn hold_detected_plants(
     clip: &Clip,
     thresholds: &ContactThresholds,
