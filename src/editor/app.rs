@@ -491,8 +491,8 @@ impl EditorApp {
         }
     }
 
-    /// Writes the unsaved document to its autosave now (also done every
-    /// [`AUTOSAVE_SECS`] while there are unsaved edits, and when the window closes).
+    /// Writes the unsaved document to its autosave now (also done every 30 s,
+    /// `AUTOSAVE_SECS`, while there are unsaved edits, and when the window closes).
     pub fn autosave_now(&mut self) {
         // The graphs a subgraph was opened from keep their unsaved edits too.
         for parent in &self.parents {

@@ -1,8 +1,8 @@
 //! The graph in memory: typed ids ([`NodeId`], [`PortRef`], [`ParamPath`]), the
 //! [`Graph`] with its edits, the one set of [`rules`] that `kg check` and the editor share,
-//! [`Overrides`] (settings from outside the file) and located [`Diagnostics`].
+//! [`Overrides`] (settings from outside the file) and located [`Diagnostic`]s.
 //!
-//! [`document`](crate::document) is the file's form on disk; a file is read into a
+//! [`crate::document`] is the file's form on disk; a file is read into a
 //! [`Graph`] once ([`GraphFile::load`]) and everything else works on that.
 
 mod diagnostics;

@@ -83,7 +83,7 @@ impl Graph {
 
     /// The graph a file describes. Fails, with every problem, only when the file's text
     /// cannot be read as a graph at all (an edge that is not `"node.port"`); what it says
-    /// about kinds and values is kept as written for [`validate`](super::validate).
+    /// about kinds and values is kept as written for the checks of [`rules`](super::rules).
     pub fn from_doc(doc: &GraphDoc) -> Result<Graph, Vec<GraphError>> {
         let mut errors = Vec::new();
         let mut edges = BTreeSet::new();
