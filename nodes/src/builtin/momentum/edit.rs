@@ -10,11 +10,12 @@ use super::{MASS_OVERRIDE, MASS_TABLE, TOTAL_MASS, check_stages_fit, mass_model_
 use crate::kernels::body::BodyModel;
 use crate::kernels::contacts::{ContactThresholds, contacts_of};
 use crate::kernels::momentum_edit::{EditError, GroundEdit, measure_edit, naive_edit};
-use crate::kernels::momentum_solve::{EditSetup, SolveError, SolveOptions, momentum_edit};
+use crate::kernels::momentum_solve::{EditSetup, SolveError, SolveOptions, SolvedFrames, momentum_edit};
+use crate::model::choice::choices;
 use crate::model::{Clip, FrameRange, StageKind, Stages, forward_kinematics};
 use crate::node::{
-    FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry, Report, TextParam,
-    report_of,
+    ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry, Report,
+    TextParam, report_of,
 };
 
 /// Registers the momentum edit node.
@@ -29,7 +30,8 @@ const EDITED: Output<Arc<Clip>> =
     Output::new("clip", "The edited motion: ground stages where asked, momentum physically plausible.");
 const REPORT: Output<Arc<Report>> = Output::new(
     "report",
-    "Solver: steps, unknowns, each objective term, every constraint's final violation and tolerance. Measures of \
+    "Solver: steps, unknowns, the frames solved (the others are the capture moved rigidly with their ground \
+     stages), each objective term, every constraint's final violation and tolerance. Measures of \
      the result next to the naive kinematic edit's: landing error, planted-foot drift, depth below the floor (m), \
      flight parabola RMS under the (scaled) gravity (m), unsupplied momentum change at each border (kg·m/s).",
 );
@@ -61,6 +63,15 @@ pub(super) const KNOT_SPACING: FloatParam = FloatParam::new(
     1.0,
     "s",
 );
+choices!(SolvedFrames { Auto = "auto", Whole = "whole_clip", AroundEdit = "around_edit" });
+pub(super) const SOLVED_FRAMES: ChoiceParam<SolvedFrames> = ChoiceParam::new(
+    "solved_frames",
+    "Which frames are re-solved: \"whole_clip\" cleans the whole capture as it edits (every contact held, every \
+     flight ballistic); \"around_edit\" solves from the middle of the ground stage before the first changed flight \
+     to the middle of the one after the last, and moves the rest of the capture rigidly, as captured; \"auto\": \
+     around the edit for clips longer than 10 s (a long capture as a whole converges slowly or not at all).",
+    "auto",
+);
 pub(super) const MAX_STEPS: IntParam =
     IntParam::new("max_iterations", "Most Gauss–Newton steps before the edit is declared not converged.", 120, 1, 1000);
 
@@ -85,6 +96,7 @@ static MOMENTUM_EDIT: NodeSchema = NodeSchema {
         GRAVITY_SCALE.0,
         KNOT_SPACING.0,
         MAX_STEPS.0,
+        SOLVED_FRAMES.0,
     ],
     writes_files: false,
     version: 1,
@@ -159,6 +171,7 @@ pub(super) fn solve_options(ctx: &NodeContext<'_>) -> Result<SolveOptions, NodeE
         gravity_scale: ctx.float(&GRAVITY_SCALE)?,
         knot_spacing_secs: ctx.float(&KNOT_SPACING)?,
         max_iterations: usize::try_from(ctx.int(&MAX_STEPS)?).unwrap_or(1),
+        frames: ctx.choice(&SOLVED_FRAMES)?,
     })
 }
 
@@ -223,6 +236,7 @@ impl Node for MomentumEdit {
                 "iterations": report.iterations,
                 "unknowns": report.unknowns,
                 "active_joints": report.active_joints,
+                "solved_frames": [report.solved_frames.start, report.solved_frames.end],
                 "objective": { "similarity": report.similarity, "smoothness": report.smoothness, "balance": report.balance },
                 "constraints": violations,
                 "gravity_mps2": g,

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use glam::DVec3;
 use serde_json::json;
 
-use super::edit::{GRAVITY_SCALE, KNOT_SPACING, MAX_STEPS, solve_inputs, solve_options};
+use super::edit::{GRAVITY_SCALE, KNOT_SPACING, MAX_STEPS, SOLVED_FRAMES, solve_inputs, solve_options};
 use super::{MASS_OVERRIDE, MASS_TABLE, TOTAL_MASS, check_stages_fit};
 use crate::kernels::family::{AxisSweep, FamilyError, FamilySpec, MAX_SAMPLES, populate};
 use crate::kernels::family_blend::{BlendError, ReachTarget, blend_family, blend_shares, reach};
@@ -94,6 +94,7 @@ static MOTION_FAMILY: NodeSchema = NodeSchema {
         GRAVITY_SCALE.0,
         KNOT_SPACING.0,
         MAX_STEPS.0,
+        SOLVED_FRAMES.0,
     ],
     writes_files: false,
     version: 1,
