@@ -210,7 +210,7 @@ pub struct SolveReport {
     pub unknowns: usize,
     /// Active joints (rotation DOFs per frame / 3).
     pub active_joints: usize,
-    /// Similarity term Σ (δ/range)².
+    /// Similarity term Σ (w·δ/range)² (w = 1, or [`CUT_EDGE_WEIGHT`] near a cut edge).
     pub similarity: f64,
     /// Smoothness term Σ (Δ²δ (fps · SMOOTH_SECS)² / range)².
     pub smoothness: f64,
@@ -426,16 +426,19 @@ fn check_reachable(stages: &Stages, edits: &[GroundEdit]) -> Result<(), SolveErr
 }
 
 /// The frames an edit has to solve, when fewer than the whole clip: from the middle of the
-/// ground stage before the first flight whose two ground stages are edited differently to
+/// ground stage before the first flight whose two ground stages do not move together to
 /// the middle of the ground stage after the last such flight (the clip's start or end when
-/// that stage is its first or last). Outside, each ground stage is edited as its neighbours
-/// are, so the capture moved rigidly with them is already the edit: a hop of CMU 01_01's
-/// eleven is solved alone, not the 23 s around it. None for the whole clip.
+/// that stage is its first or last). Two stages move together when they have the same
+/// offset and no turn (each stage turns about its own centre of mass, so two equal turns
+/// are two different moves). Outside, the capture moved rigidly with its stages is already
+/// the edit: a hop of CMU 01_01's eleven is solved alone, not the 23 s around it. None for
+/// the whole clip.
 pub fn edit_window(stages: &Stages, edits: &[GroundEdit]) -> Option<FrameRange> {
     let grounds: Vec<FrameRange> =
         stages.stages.iter().filter(|s| s.kind == StageKind::Ground).map(|s| s.frames).collect();
     let edit = |i: usize| edits.get(i).copied().unwrap_or_default();
-    let changes: Vec<usize> = (0..grounds.len().saturating_sub(1)).filter(|&i| edit(i) != edit(i + 1)).collect();
+    let together = |i: usize| edit(i) == edit(i + 1) && edit(i).turn_rad == 0.0;
+    let changes: Vec<usize> = (0..grounds.len().saturating_sub(1)).filter(|&i| !together(i)).collect();
     let (&first, &last) = (changes.first()?, changes.last()?);
     let middle = |r: FrameRange| r.start + r.len() / 2;
     let start = if first == 0 { 0 } else { middle(grounds[first]) };
@@ -1544,6 +1547,9 @@ mod tests {
         assert_eq!(window(&[still, still, moved]), Some((30, 100)));
         assert_eq!(window(&[moved; 4]), None);
         assert_eq!(window(&[still, moved, moved, still]), None);
+        // Equal turns are different moves (each stage turns about its own centre of mass).
+        let turned = GroundEdit { offset_m: DVec3::ZERO, turn_rad: 0.5 };
+        assert_eq!(window(&[still, still, turned, turned]), Some((30, 100)));
     }
 
     /// JᵀJ's lower triangle, built by Gustavson's product over the sparse rows, equals the
