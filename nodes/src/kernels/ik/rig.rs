@@ -389,6 +389,16 @@ mod tests {
     use crate::model::Joint;
 
     #[test]
+    fn euler_rotation_is_the_composition_of_the_three_axis_rotations() {
+        for angles in [[0.0, 0.0, 0.0], [0.3, -0.4, 0.9], [-3.0, 1.5, 2.9], [1e-9, -2.2, 0.0]] {
+            let [a, b, c] = angles;
+            let expected = DQuat::from_rotation_x(a) * DQuat::from_rotation_y(b) * DQuat::from_rotation_z(c);
+            let got = euler_rotation(angles);
+            assert!((got - expected).length() < 1e-15, "{angles:?}: {got:?} vs {expected:?}");
+        }
+    }
+
+    #[test]
     fn euler_axes_match_a_hand_built_frame() {
         // One joint rotated by (a, b, c): the Z DOF axis must be Rx(a)·Ry(b)·Z.
         let skeleton = Arc::new(
