@@ -196,8 +196,7 @@ fn other_corpus_jumps_land_where_asked_ballistic_and_planted() {
 fn a_hop_of_a_long_capture_is_solved_around_the_edit() {
     let Some(Jump { clip, model, staged, planted, .. }) = jump("bvh/cmu/01_01.bvh") else { return };
     let stages = &staged.stages;
-    let grounds: Vec<FrameRange> =
-        stages.stages.iter().filter(|s| s.kind == StageKind::Ground).map(|s| s.frames).collect();
+    let grounds = stages.ground_frames();
     assert!(grounds.len() >= 6, "{} ground stages", grounds.len());
     // The fifth hop: the flight between ground stages 3 and 4, along its own travel.
     let flight =

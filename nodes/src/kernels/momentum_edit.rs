@@ -190,8 +190,7 @@ pub fn measure_edit(
     let place = placements(stages, &to.com_m, edits)?;
     let foot = |poses: &ClipPoses, f: usize, j: usize| poses.position(f, j).as_dvec3();
     let floor = floor_height(&po, feet);
-    let grounds: Vec<FrameRange> =
-        stages.stages.iter().filter(|s| s.kind == StageKind::Ground).map(|s| s.frames).collect();
+    let grounds = stages.ground_frames();
     let skeleton = edited.skeleton();
     let toes: Vec<usize> = feet.iter().map(|&j| limb_tip(skeleton, j)).collect();
     let toe_floor = floor_height(&po, &toes);

@@ -410,8 +410,7 @@ pub fn momentum_edit(setup: EditSetup<'_>, options: &SolveOptions) -> Result<(Cl
 /// Refuses an edit whose ground stages move apart faster over a flight than
 /// [`MAX_EXTRA_SPEED_MPS`] allows (numbered as the edits are, the first ground stage 0).
 fn check_reachable(stages: &Stages, edits: &[GroundEdit]) -> Result<(), SolveError> {
-    let grounds: Vec<FrameRange> =
-        stages.stages.iter().filter(|s| s.kind == StageKind::Ground).map(|s| s.frames).collect();
+    let grounds = stages.ground_frames();
     for (i, w) in grounds.windows(2).enumerate() {
         if let (Some(a), Some(b)) = (edits.get(i), edits.get(i + 1)) {
             let secs = (w[1].start + 1 - w[0].end) as f64 / stages.fps;
@@ -434,8 +433,7 @@ fn check_reachable(stages: &Stages, edits: &[GroundEdit]) -> Result<(), SolveErr
 /// the edit: a hop of CMU 01_01's eleven is solved alone, not the 23 s around it. None for
 /// the whole clip.
 pub fn edit_window(stages: &Stages, edits: &[GroundEdit]) -> Option<FrameRange> {
-    let grounds: Vec<FrameRange> =
-        stages.stages.iter().filter(|s| s.kind == StageKind::Ground).map(|s| s.frames).collect();
+    let grounds = stages.ground_frames();
     let edit = |i: usize| edits.get(i).copied().unwrap_or_default();
     let together = |i: usize| edit(i) == edit(i + 1) && edit(i).turn_rad == 0.0;
     let changes: Vec<usize> = (0..grounds.len().saturating_sub(1)).filter(|&i| !together(i)).collect();
@@ -591,8 +589,7 @@ impl<'a> Problem<'a> {
             return Err(SolveError::NoFlight);
         }
         let fps = clip.fps();
-        let grounds: Vec<FrameRange> =
-            stages.stages.iter().filter(|s| s.kind == StageKind::Ground).map(|s| s.frames).collect();
+        let grounds = stages.ground_frames();
         let guess = naive_edit(clip, stages, model, edits)?;
         let skeleton = clip.skeleton();
         let joints = clip.joint_count();

@@ -44,6 +44,11 @@ impl Stages {
         self.stages.iter().filter(|s| s.kind == StageKind::Flight)
     }
 
+    /// The frames of each ground stage, in time order (the stages an edit moves).
+    pub fn ground_frames(&self) -> Vec<FrameRange> {
+        self.stages.iter().filter(|s| s.kind == StageKind::Ground).map(|s| s.frames).collect()
+    }
+
     /// The index of the stage holding `frame`.
     pub fn stage_of(&self, frame: usize) -> Option<usize> {
         self.stages.iter().position(|s| s.frames.contains(frame))
