@@ -629,3 +629,223 @@ fn faces_group_by_material_and_a_missing_texture_is_named() {
     // The texture now replaces the stated colour (white × DiffuseFactor); alpha stays 0.5.
     assert_eq!(glass.base_color_factor, [1.0, 1.0, 1.0, 0.5]);
 }
+
+/// A hand-written ASCII FBX as 3ds Max writes its "PBR Material (Metal/Rough)" (class ids
+/// 0xd00f1e00 / 0xbe77e500, properties under `3dsMax|main|`, maps connected to `*_map`): a
+/// UV-mapped square of two triangles, faces [steel, gloss], beside a one-bone skeleton.
+/// `steel` has base colour, roughness, metalness, ambient occlusion, normal and opacity maps;
+/// `gloss` has `useGlossiness` on, a glossiness map and a constant metalness of 0.25.
+const PBR_MAPS_FBX: &str = r#"; FBX 7.4.0 project file
+FBXHeaderExtension:  {
+	FBXHeaderVersion: 1003
+	FBXVersion: 7400
+}
+Objects:  {
+	Geometry: 100, "Geometry::square", "Mesh" {
+		Vertices: *12 {
+			a: 0,0,0,1,0,0,1,1,0,0,1,0
+		}
+		PolygonVertexIndex: *6 {
+			a: 0,1,-3,0,2,-4
+		}
+		LayerElementUV: 0 {
+			Version: 101
+			Name: "UVMap"
+			MappingInformationType: "ByPolygonVertex"
+			ReferenceInformationType: "IndexToDirect"
+			UV: *8 {
+				a: 0,0,1,0,1,1,0,1
+			}
+			UVIndex: *6 {
+				a: 0,1,2,0,2,3
+			}
+		}
+		LayerElementMaterial: 0 {
+			Version: 101
+			Name: ""
+			MappingInformationType: "ByPolygon"
+			ReferenceInformationType: "IndexToDirect"
+			Materials: *2 {
+				a: 0,1
+			}
+		}
+		Layer: 0 {
+			Version: 100
+			LayerElement:  {
+				Type: "LayerElementMaterial"
+				TypedIndex: 0
+			}
+			LayerElement:  {
+				Type: "LayerElementUV"
+				TypedIndex: 0
+			}
+		}
+	}
+	Model: 200, "Model::square", "Mesh" {
+		Version: 232
+	}
+	NodeAttribute: 301, "NodeAttribute::root", "LimbNode" {
+		TypeFlags: "Skeleton"
+	}
+	Model: 300, "Model::root", "LimbNode" {
+		Version: 232
+	}
+	Material: 400, "Material::steel", "" {
+		ShadingModel: "unknown"
+		Properties70:  {
+			P: "3dsMax|ClassIDa", "int", "Integer", "",-804315648
+			P: "3dsMax|ClassIDb", "int", "Integer", "",-1099438848
+			P: "3dsMax|main|base_color", "Color", "", "A",0.5,0.5,0.5
+			P: "3dsMax|main|roughness", "double", "Number", "",0.9
+			P: "3dsMax|main|metalness", "double", "Number", "",0.1
+			P: "3dsMax|main|useGlossiness", "int", "Integer", "",0
+		}
+	}
+	Material: 500, "Material::gloss", "" {
+		ShadingModel: "unknown"
+		Properties70:  {
+			P: "3dsMax|ClassIDa", "int", "Integer", "",-804315648
+			P: "3dsMax|ClassIDb", "int", "Integer", "",-1099438848
+			P: "3dsMax|main|base_color", "Color", "", "A",0.2,0.3,0.4
+			P: "3dsMax|main|metalness", "double", "Number", "",0.25
+			P: "3dsMax|main|useGlossiness", "int", "Integer", "",1
+		}
+	}
+	Texture: 601, "Texture::base", "" {
+		FileName: "maps\base.png"
+		RelativeFilename: "maps\base.png"
+	}
+	Texture: 602, "Texture::rough", "" {
+		FileName: "maps\rough.png"
+		RelativeFilename: "maps\rough.png"
+	}
+	Texture: 603, "Texture::metal", "" {
+		FileName: "maps\metal.png"
+		RelativeFilename: "maps\metal.png"
+	}
+	Texture: 604, "Texture::ao", "" {
+		FileName: "maps\ao.png"
+		RelativeFilename: "maps\ao.png"
+	}
+	Texture: 605, "Texture::normal", "" {
+		FileName: "maps\normal.png"
+		RelativeFilename: "maps\normal.png"
+	}
+	Texture: 606, "Texture::opacity", "" {
+		FileName: "maps\opacity.png"
+		RelativeFilename: "maps\opacity.png"
+	}
+	Texture: 607, "Texture::gloss", "" {
+		FileName: "maps\gloss.png"
+		RelativeFilename: "maps\gloss.png"
+	}
+}
+Connections:  {
+	C: "OO",200,0
+	C: "OO",300,0
+	C: "OO",301,300
+	C: "OO",100,200
+	C: "OO",400,200
+	C: "OO",500,200
+	C: "OP",601,400, "3dsMax|main|base_color_map"
+	C: "OP",602,400, "3dsMax|main|roughness_map"
+	C: "OP",603,400, "3dsMax|main|metalness_map"
+	C: "OP",604,400, "3dsMax|main|ao_map"
+	C: "OP",605,400, "3dsMax|main|norm_map"
+	C: "OP",606,400, "3dsMax|main|opacity_map"
+	C: "OP",607,500, "3dsMax|main|roughness_map"
+}
+"#;
+
+/// Issue 18, FBX PBR maps into glTF: a 3ds Max metal/rough material's roughness and
+/// metalness maps become one metallic-roughness image (roughness in green, metalness in
+/// blue, pixel for pixel), its opacity map the base colour image's alpha (which then
+/// blends), its occlusion and normal maps are kept byte for byte; a glossiness map is
+/// inverted and a constant metalness fills its channel. Exported, the GLB validates and
+/// the `gltf` crate reads each map in its slot with the same pixels.
+#[test]
+fn pbr_maps_of_an_fbx_material_become_gltf_channels() {
+    use image::{GrayImage, Luma, Rgb, RgbImage};
+    use kinegraph_nodes::model::{AlphaMode, Clip};
+    let encode = |image: image::DynamicImage| {
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        image.write_to(&mut bytes, image::ImageFormat::Png).unwrap();
+        bytes.into_inner()
+    };
+    let grey = |f: fn(u32, u32) -> u8| encode(GrayImage::from_fn(4, 4, |x, y| Luma([f(x, y)])).into());
+    let base_pixel = |x: u32, y: u32| [40 * x as u8, 60 * y as u8, 200];
+    let rough = |x: u32, y: u32| (16 * x + 64 * y) as u8;
+    let metal = |x: u32, y: u32| (250 - 20 * x - 3 * y) as u8;
+    let opacity = |x: u32, y: u32| (255 - 11 * x * y) as u8;
+    let glossiness = |x: u32, y: u32| (5 + 50 * x + y) as u8;
+    let tmp = tempfile::tempdir().unwrap();
+    let maps = tmp.path().join("maps");
+    std::fs::create_dir(&maps).unwrap();
+    let files = [
+        ("base.png", encode(RgbImage::from_fn(4, 4, |x, y| Rgb(base_pixel(x, y))).into())),
+        ("rough.png", grey(rough)),
+        ("metal.png", grey(metal)),
+        ("ao.png", grey(|x, y| (90 + x + y) as u8)),
+        ("normal.png", encode(RgbImage::from_fn(4, 4, |x, _| Rgb([128, 128 + x as u8, 255])).into())),
+        ("opacity.png", grey(opacity)),
+        ("gloss.png", grey(glossiness)),
+    ];
+    for (name, bytes) in &files {
+        std::fs::write(maps.join(name), bytes).unwrap();
+    }
+    let file = |name: &str| &files.iter().find(|(n, _)| *n == name).unwrap().1;
+    let path = tmp.path().join("pbr_maps.fbx");
+    std::fs::write(&path, PBR_MAPS_FBX).unwrap();
+    let loaded = read_fbx_file(&path, &FbxReadOptions { meshes: true, ..Default::default() }).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let mesh = &loaded.value.meshes[0];
+    let decode = |bytes: &[u8]| image::load_from_memory(bytes).unwrap().to_rgba8();
+    let each_pixel = |bytes: &[u8], want: &dyn Fn(u32, u32) -> [u8; 4]| {
+        let image = decode(bytes);
+        assert_eq!(image.dimensions(), (4, 4));
+        for (x, y, p) in image.enumerate_pixels() {
+            assert_eq!(p.0, want(x, y), "pixel ({x}, {y})");
+        }
+    };
+
+    let steel = mesh.materials.iter().find(|m| m.name.as_deref() == Some("steel")).unwrap();
+    let packed = &steel.metallic_roughness_texture.as_ref().expect("metallic-roughness image").image;
+    each_pixel(&packed.bytes, &|x, y| [255, rough(x, y), metal(x, y), 255]);
+    assert_eq!((steel.metallic_factor, steel.roughness_factor), (1.0, 1.0));
+    let base = &steel.base_color_texture.as_ref().expect("base colour image").image;
+    each_pixel(&base.bytes, &|x, y| {
+        let [r, g, b] = base_pixel(x, y);
+        [r, g, b, opacity(x, y)]
+    });
+    assert_eq!((steel.base_color_factor[3], steel.alpha_mode), (1.0, AlphaMode::Blend));
+    assert_eq!(&steel.occlusion_texture.as_ref().expect("occlusion").image.bytes, file("ao.png"));
+    assert_eq!(&steel.normal_texture.as_ref().expect("normal map").image.bytes, file("normal.png"));
+
+    let gloss = mesh.materials.iter().find(|m| m.name.as_deref() == Some("gloss")).unwrap();
+    let packed = &gloss.metallic_roughness_texture.as_ref().expect("metallic-roughness image").image;
+    // Metalness 0.25 → 63.75, rounded to 64.
+    each_pixel(&packed.bytes, &|x, y| [255, 255 - glossiness(x, y), 64, 255]);
+    assert!(gloss.base_color_texture.is_none() && gloss.occlusion_texture.is_none());
+
+    // Exported with a rest-pose clip: the GLB validates and a glTF reader finds the maps.
+    let clip = Clip::rest_pose(loaded.value.skeleton.clone(), 30.0, 2).unwrap();
+    let glb = tmp.path().join("pbr_maps.glb");
+    write_glb_file(&glb, &clip, Some(mesh)).unwrap();
+    gltf_validator::validate_gltf(std::slice::from_ref(&glb));
+    let (doc, _, images) = gltf::import(&glb).unwrap();
+    let steel = doc.materials().find(|m| m.name() == Some("steel")).unwrap();
+    let pixels = |texture: gltf::Texture<'_>| {
+        let data = &images[texture.source().index()];
+        assert_eq!((data.width, data.height), (4, 4));
+        data.pixels.clone()
+    };
+    let mr = steel.pbr_metallic_roughness().metallic_roughness_texture().expect("metallicRoughnessTexture");
+    let rgb = pixels(mr.texture());
+    for i in 0..16u32 {
+        let (x, y) = (i % 4, i / 4);
+        assert_eq!(&rgb[3 * i as usize..3 * i as usize + 3], &[255, rough(x, y), metal(x, y)]);
+    }
+    let occlusion = steel.occlusion_texture().expect("occlusionTexture");
+    assert_eq!(pixels(occlusion.texture())[0], 90);
+    assert_eq!(steel.alpha_mode(), gltf::material::AlphaMode::Blend);
+}

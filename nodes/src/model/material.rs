@@ -1,6 +1,8 @@
 //! Surface materials of meshes: glTF 2.0's metallic-roughness model, which is what
 //! characters arrive in and what viewers draw. Texture images keep the source file's
-//! encoded bytes (PNG, JPEG), never decoded, so a re-export embeds exactly what was read.
+//! encoded bytes (PNG, JPEG), not decoded, so a re-export embeds exactly what was read; the
+//! one exception is FBX's separate grey maps, which glTF reads as channels of one image
+//! (`formats/fbx/channels.rs` combines them into a new PNG).
 
 use std::sync::Arc;
 
@@ -11,7 +13,7 @@ pub struct Image {
     pub name: Option<String>,
     /// `image/png` or `image/jpeg`.
     pub mime_type: String,
-    /// The encoded file bytes, as read.
+    /// The encoded file bytes, as read (or as `formats/fbx/channels.rs` combined them).
     #[serde(with = "serde_bytes")]
     pub bytes: Vec<u8>,
 }

@@ -13,7 +13,13 @@
 //!   above 1 carried by the emission strength;
 //! - opacity: the PBR opacity, else a legacy material's `Opacity` property, else
 //!   1 − `TransparencyFactor` × the mean transparent colour; below 1 the material blends;
-//! - the normal map.
+//!   an opacity map becomes the base colour image's alpha (`channels.rs`) and blends;
+//! - the normal map, and the ambient occlusion map (glTF reads its red channel, a grey
+//!   map's value);
+//! - a PBR material's (3ds Max, Arnold, Maya) roughness and metalness maps, combined into
+//!   glTF's one metallic-roughness image (`channels.rs`; a glossiness map inverted); a
+//!   connected map replaces the value, so the factors become 1. A legacy material's
+//!   "roughness" texture is a shininess map and is not used.
 //!
 //! Colours are taken as linear, as stored, which is what Blender's importer does. Other
 //! textures (bump, specular, layered extras) are left out with a warning naming them.
@@ -29,6 +35,7 @@ use std::collections::HashMap;
 use std::path::{Component, Path};
 use std::sync::Arc;
 
+use super::channels::{self, Channel};
 use crate::model::{AlphaMode, Image, Material, Sampler, Texture};
 
 /// Opacity below which a material is drawn alpha-blended.
@@ -62,6 +69,10 @@ impl<'a> MaterialReader<'a> {
     fn convert(&mut self, material: &ufbx::Material, warnings: &mut Vec<String>) -> Material {
         let name = material.element.name.to_string();
         let pbr = &material.pbr;
+        let features = &material.features;
+        // With glossiness in place of roughness ufbx moves the map (and its value) there.
+        let glossy = features.roughness_as_glossiness.enabled;
+        let roughness_map = if glossy { &pbr.glossiness } else { &pbr.roughness };
         let mut kept = Vec::new();
         let mut texture = |map: &ufbx::MaterialMap, slot: &str, w: &mut Vec<String>| {
             let t = map.texture.as_ref().filter(|_| map.texture_enabled)?;
@@ -71,10 +82,20 @@ impl<'a> MaterialReader<'a> {
         let base_color_texture = texture(&pbr.base_color, "base colour", warnings);
         let normal_texture = texture(&pbr.normal_map, "normal map", warnings);
         let emissive_texture = texture(&pbr.emission_color, "emission", warnings);
+        let occlusion_texture = texture(&pbr.ambient_occlusion, "ambient occlusion", warnings);
+        let opacity_texture = texture(&pbr.opacity, "opacity", warnings);
+        // A legacy (Lambert/Phong) material's "roughness" texture is a shininess map: only
+        // PBR shading models have roughness and metalness maps.
+        let (roughness_texture, metalness_texture) = if features.pbr.enabled {
+            (texture(roughness_map, "roughness", warnings), texture(&pbr.metalness, "metalness", warnings))
+        } else {
+            (None, None)
+        };
         for t in material.textures.iter() {
             if !kept.contains(&t.texture.element.element_id) {
                 warnings.push(format!(
-                    "{}: material '{name}': texture '{}' on {} is not kept (base colour, normal map and emission are)",
+                    "{}: material '{name}': texture '{}' on {} is not kept (base colour, opacity, normal, \
+                     emission, occlusion, and a PBR material's roughness and metalness are)",
                     self.file.display(),
                     file_label(&t.texture),
                     t.material_prop
@@ -85,26 +106,70 @@ impl<'a> MaterialReader<'a> {
         let base_factor = pbr.base_factor.value_vec4.x;
         // A texture left out gives way to the colour the material states.
         let base = if base_color_texture.is_some() { [1.0; 3] } else { rgb(&pbr.base_color) };
-        let opacity = opacity(material).clamp(0.0, 1.0);
+        let opacity = if opacity_texture.is_some() { 1.0 } else { opacity(material).clamp(0.0, 1.0) };
         let emission_factor = pbr.emission_factor.value_vec4.x;
         let emission = if emissive_texture.is_some() { [1.0; 3] } else { rgb(&pbr.emission_color) };
         let emission = emission.map(|c| (c * emission_factor).max(0.0));
         let strongest = emission.iter().copied().fold(1.0, f64::max);
-        let roughness = if pbr.roughness.has_value { pbr.roughness.value_vec4.x } else { 1.0 };
+        let roughness = match (glossy, pbr.glossiness.has_value, pbr.roughness.has_value) {
+            (true, true, _) => 1.0 - pbr.glossiness.value_vec4.x,
+            (false, _, true) => pbr.roughness.value_vec4.x,
+            _ => 1.0,
+        };
         let metallic = if pbr.metalness.has_value { pbr.metalness.value_vec4.x } else { 0.0 };
         let unit = |v: f64| if v.is_finite() { v.clamp(0.0, 1.0) as f32 } else { 0.0 };
         let [r, g, b] = base.map(|c| unit(c * base_factor));
+        let mut combine = |what: &str, combined: Result<Image, String>, sampler: Sampler| match combined {
+            Ok(image) => Some(Texture { image: Arc::new(image), sampler }),
+            Err(why) => {
+                warnings.push(format!("{}: material '{name}': {what} left out: {why}", self.file.display()));
+                None
+            }
+        };
+        // A connected map replaces the value it stands for (as in the DCCs): the combined
+        // image carries the values, the factors are 1.
+        let (metallic_roughness_texture, metallic, roughness) = match (&roughness_texture, &metalness_texture) {
+            (None, None) => (None, metallic, roughness),
+            (r, m) => {
+                let combined = channels::metallic_roughness(
+                    format!("{name}_metallic_roughness.png"),
+                    channel(r.as_ref(), glossy, roughness),
+                    channel(m.as_ref(), false, metallic),
+                );
+                let sampler = r.as_ref().or(m.as_ref()).map(|t| t.sampler).unwrap_or_default();
+                let packed = combine("the roughness and metalness maps, combined,", combined, sampler);
+                if packed.is_some() { (packed, 1.0, 1.0) } else { (None, metallic, roughness) }
+            }
+        };
+        let base_color_texture = match &opacity_texture {
+            None => base_color_texture,
+            Some(alpha) => {
+                let combined = channels::with_opacity(
+                    format!("{name}_base_color_opacity.png"),
+                    base_color_texture.as_ref().map(|t| &*t.image),
+                    &alpha.image,
+                );
+                let sampler = base_color_texture.as_ref().unwrap_or(alpha).sampler;
+                combine("the opacity map, as the base colour's alpha,", combined, sampler).or(base_color_texture)
+            }
+        };
         Material {
-            name: Some(name),
+            name: Some(name.clone()),
             base_color_factor: [r, g, b, unit(opacity)],
             base_color_texture,
             metallic_factor: unit(metallic),
             roughness_factor: unit(roughness),
+            metallic_roughness_texture,
             normal_texture,
+            occlusion_texture,
             emissive_factor: emission.map(|c| unit(c / strongest)),
             emissive_texture,
             emissive_strength: if strongest.is_finite() { strongest as f32 } else { 1.0 },
-            alpha_mode: if opacity < OPAQUE { AlphaMode::Blend } else { AlphaMode::Opaque },
+            alpha_mode: if opacity < OPAQUE || opacity_texture.is_some() {
+                AlphaMode::Blend
+            } else {
+                AlphaMode::Opaque
+            },
             ..Material::default()
         }
     }
@@ -166,6 +231,14 @@ impl<'a> MaterialReader<'a> {
         let sampler =
             Sampler { wrap_s: wrap(file_texture.wrap_u), wrap_t: wrap(file_texture.wrap_v), ..Sampler::default() };
         Some(Texture { image, sampler })
+    }
+}
+
+/// The channel a map's texture gives, or its value where it has none.
+fn channel(texture: Option<&Texture>, invert: bool, value: f64) -> Channel<'_> {
+    match texture {
+        Some(t) => Channel::Map { image: &t.image, invert },
+        None => Channel::Constant(value),
     }
 }
 

@@ -15,6 +15,7 @@
 //! With meshes, each keeps the materials its faces use; `materials.rs` says how FBX
 //! materials and their textures become metallic-roughness ones.
 
+mod channels;
 mod materials;
 
 use std::path::Path;
