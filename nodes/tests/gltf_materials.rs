@@ -4,6 +4,7 @@
 //! with the nodes' rest transforms and the file's inverse bind matrices. Per material, the
 //! two must hold the same parameters, the same image bytes, the same triangles (rest-pose
 //! corners within 1e-5 m) and the same UVs; the Khronos validator must report 0 errors.
+//! Mixamo FBX downloads are read for comparison with ufbx alone, as modelled.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed unwrap is a failed test
 
@@ -377,4 +378,96 @@ fn a_character_without_materials_writes_none() {
     let prims: Vec<_> = doc.meshes().flat_map(|m| m.primitives()).collect();
     assert_eq!(prims.len(), 1);
     assert!(prims[0].material().index().is_none());
+}
+
+/// What an FBX file's meshes draw as modelled, read with ufbx alone (not kinegraph's
+/// reader): per material name, each face triangulated by ufbx in file order, its corners
+/// placed by the mesh node's geometry-to-world matrix (the undeformed mesh, where the skin
+/// binds it), its UVs with V flipped to glTF's convention; and the fingerprint of the base
+/// colour texture's embedded bytes.
+type FbxDrawn = Vec<(String, Vec<[Vec3; 3]>, Vec<[Vec2; 3]>, Option<(usize, u64)>)>;
+
+fn fbx_drawn_as_modelled(path: &Path) -> FbxDrawn {
+    let opts = ufbx::LoadOpts {
+        target_axes: ufbx::CoordinateAxes::right_handed_y_up(),
+        target_unit_meters: 1.0,
+        space_conversion: ufbx::SpaceConversion::AdjustTransforms,
+        handedness_conversion_axis: ufbx::MirrorAxis::Z,
+        ..Default::default()
+    };
+    let scene = ufbx::load_memory(&std::fs::read(path).unwrap(), opts).unwrap();
+    let mut groups: FbxDrawn = Vec::new();
+    for node in scene.nodes.iter() {
+        let Some(mesh) = node.mesh.as_ref() else { continue };
+        let m = &node.geometry_to_world;
+        let world = Mat4::from_cols_array(
+            &[m.m00, m.m10, m.m20, 0.0, m.m01, m.m11, m.m21, 0.0, m.m02, m.m12, m.m22, 0.0, m.m03, m.m13, m.m23, 1.0]
+                .map(|v| v as f32),
+        );
+        let materials = if node.materials.is_empty() { &mesh.materials } else { &node.materials };
+        let mut corners = vec![0u32; 3 * mesh.max_face_triangles];
+        for (f, face) in mesh.faces.iter().enumerate() {
+            let material = &materials[mesh.face_material[f] as usize];
+            let name = material.element.name.to_string();
+            let k = groups.iter().position(|g| g.0 == name).unwrap_or_else(|| {
+                let texture = material.pbr.base_color.texture.as_ref().map(|t| {
+                    let bytes: &[u8] =
+                        if t.content.is_empty() { &t.video.as_ref().unwrap().content } else { &t.content };
+                    fingerprint(bytes)
+                });
+                groups.push((name, Vec::new(), Vec::new(), texture));
+                groups.len() - 1
+            });
+            let n = mesh.triangulate_face(&mut corners, *face) as usize;
+            for t in corners[..3 * n].chunks_exact(3) {
+                groups[k].1.push([0, 1, 2].map(|c| {
+                    let p = mesh.vertex_position[t[c] as usize];
+                    world.transform_point3(Vec3::new(p.x as f32, p.y as f32, p.z as f32))
+                }));
+                groups[k].2.push([0, 1, 2].map(|c| {
+                    let uv = mesh.vertex_uv[t[c] as usize];
+                    Vec2::new(uv.x as f32, 1.0 - uv.y as f32)
+                }));
+            }
+        }
+    }
+    groups
+}
+
+/// Issue 18, Mixamo FBX in, GLB out, the same look: for each of the corpus's Mixamo
+/// downloads, the exported GLB drawn at rest through its skin (the `gltf` crate) holds, per
+/// material, the triangles ufbx reads from the FBX as modelled, in the same order (corners
+/// within 1e-5 m), with the same UVs (within 1e-6), and the FBX's embedded base colour
+/// image byte for byte; the validator reports 0 errors.
+#[test]
+fn mixamo_fbx_characters_keep_their_look_through_export() {
+    let Some(data) = shared_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for name in ["standard_walk.fbx", "jab_cross.fbx", "jumping.fbx"] {
+        let source = data.join("fbx").join(name);
+        let character = load_character(&source, 0).unwrap().value;
+        let out = dir.path().join(format!("{name}.glb"));
+        write_glb_file(&out, &character.clip, Some(&character.mesh)).unwrap();
+        let fbx = fbx_drawn_as_modelled(&source);
+        let glb = drawn_at_rest(&out);
+        assert_eq!(fbx.len(), glb.len(), "{name}: materials");
+        let (mut worst, mut worst_uv) = (0.0f32, 0.0f32);
+        for (material, corners, uvs, texture) in &fbx {
+            let drawn = glb.iter().find(|g| g.material.name.as_ref() == Some(material)).expect("material by name");
+            assert_eq!(drawn.material.textures[0].as_ref().map(|t| t.bytes), *texture, "{name}: {material}'s image");
+            assert_eq!(drawn.corners.len(), corners.len(), "{name}: triangles of {material}");
+            for ((a, b), (ua, ub)) in corners.iter().zip(&drawn.corners).zip(uvs.iter().zip(&drawn.uvs)) {
+                for c in 0..3 {
+                    worst = worst.max(a[c].distance(b[c]));
+                    worst_uv = worst_uv.max(ua[c].distance(ub[c]));
+                }
+            }
+            println!("{name}: material '{material}': {} triangles, image {texture:?}", corners.len());
+        }
+        println!("{name}: worst corner distance {worst:.2e} m, worst UV distance {worst_uv:.2e}");
+        assert!(worst < 1e-5 && worst_uv < 1e-6, "{name}: {worst} m, UV {worst_uv}");
+        files.push(out);
+    }
+    gltf_validator::validate_gltf(&files);
 }
