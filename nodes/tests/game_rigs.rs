@@ -381,6 +381,45 @@ fn named_toes_lock_like_the_original() {
     assert!(foot_lock(&lost, &lost_contacts, &bad).unwrap_err().to_string().contains("b999"));
 }
 
+/// Issue 18, `motion.foot_lock` on an IK-style game rig: with the feet hanging off a root
+/// on the ground (and twist bones in the legs), the lock turns the same hips and knees to
+/// hold the same plants and puts each foot at the end of its shin, so every joint of the
+/// rig moves as the original Xbot's does when the same walk is locked on it.
+#[test]
+fn a_game_rig_with_feet_under_the_root_locks_like_the_original() {
+    use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
+    use kinegraph_nodes::kernels::ik::foot_lock::{FootLockParams, foot_lock};
+    let Some(Setup { walk, xbot }) = setup() else { return };
+    let lock = |clip: &Clip| {
+        let clip = clip.slice(0, 120);
+        let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &ContactThresholds::default()).unwrap();
+        foot_lock(&clip, &contacts, &FootLockParams::default()).unwrap()
+    };
+    let (_, _, original) = carry(&walk, (*xbot).clone());
+    let want = lock(&original.clip);
+    let game = FAMILIES.iter().find(|(f, _)| *f == "game").unwrap().1;
+    let name = |n: &str| renamed(game, n);
+    let rig = game_rig(&rename(&xbot, name), ["FootL", "FootR"], &["UpperLegL", "UpperLegR"]);
+    let (_, _, out) = carry(&walk, rig);
+    let got = lock(&out.clip);
+    let foot = got.clip.skeleton().index_of("FootL").unwrap();
+    assert_eq!(got.clip.skeleton().joints()[foot].parent, Some(0), "the feet still hang off the root");
+    let (worst, at) = worst_joint_distance(&want.clip, &got.clip, name);
+    let skate = |l: &kinegraph_nodes::kernels::ik::foot_lock::FootLocked| {
+        l.feet.iter().map(|f| (f.skate_before_m, f.skate_after_m)).collect::<Vec<_>>()
+    };
+    println!(
+        "game rig locked: worst joint distance to the locked original {worst:.2e} m ({at}); skate (before, after) \
+         {:?} vs the original's {:?}",
+        skate(&got),
+        skate(&want)
+    );
+    assert!(worst < 1e-4, "{worst} m at {at}");
+    for ((gb, ga), (wb, wa)) in skate(&got).into_iter().zip(skate(&want)) {
+        assert!((gb - wb).abs() < 1e-3 && (ga - wa).abs() < 1e-4 && ga < 0.1 * gb, "{ga} vs {wa}");
+    }
+}
+
 /// Issue 18: an IK-style rig with names no reader knows (feet under a ground-level root,
 /// twist bones) is read by its shape, and walks exactly like the original Xbot.
 #[test]

@@ -18,6 +18,12 @@
 //! 4. The ankle's local rotation is then reset so the foot keeps its world orientation from
 //!    the clip: the whole foot, toes included, moves by exactly `c`.
 //!
+//! A foot that does not hang below its knee (an IK-style game rig hangs the feet off the
+//! root) has its hip and knee read from the body's roles; the effector is then the end of
+//! the shin, the point where the clip puts the foot in the knee's frame, and after the solve
+//! the foot is moved there (keeping its world orientation), so it follows the leg as a
+//! foot below the knee would.
+//!
 //! The root and every joint outside the legs are left untouched (but for the root's height
 //! on soles, below), so the body's path is the clip's; a plant out of the leg's reach is met as
 //! closely as the leg allows (eased short with a soft reach, counted in the report).
@@ -50,14 +56,14 @@ use super::rig::{IkRig, RigError};
 use super::solve::{IkSolver, SolveParams, SolveReport};
 use crate::kernels::body::limb_tip;
 use crate::kernels::contacts::{ContactThresholds, contacts_of};
-use crate::kernels::roles::RolesError;
+use crate::kernels::roles::{RolesError, roles_of};
 use crate::kernels::skinning::SkinError;
 use crate::kernels::soles::{foot_joints, lowest_sole_heights};
 use crate::math::smoothstep;
-use crate::model::fk::pose_world;
+use crate::model::fk::{pose_world, rest_world};
 use crate::model::intervals::union_all;
 use crate::model::{
-    Clip, ClipError, ClipPoses, Contacts, FootContacts, FrameRange, Mesh, Transform, forward_kinematics,
+    Clip, ClipError, ClipPoses, Contacts, FootContacts, FrameRange, Mesh, Skeleton, Transform, forward_kinematics,
 };
 
 /// Controls of a foot lock.
@@ -180,6 +186,16 @@ pub enum FootLockError {
     /// A foot without two joints above it to turn.
     #[error("foot `{0}` has no knee and hip above it to turn")]
     ShortLeg(String),
+    /// A foot that does not hang below its knee, on a body whose legs cannot be read.
+    #[error(
+        "foot `{foot}` does not hang below its knee (an IK-style rig), and its leg cannot be read from the body: {why}"
+    )]
+    DetachedFoot {
+        /// The foot joint.
+        foot: String,
+        /// Why the leg was not found.
+        why: String,
+    },
     /// A toe named by the toes param is not in the skeleton.
     #[error("the clip's skeleton has no toe joint named '{0}'")]
     UnknownToe(String),
@@ -242,6 +258,59 @@ fn eased_from(leg: f64, soft_reach: f64, clip_reach: f32) -> f64 {
     (leg - softness).max(f64::from(clip_reach)).min(leg - softness / 4.0)
 }
 
+/// The two joints a foot lock turns to move a foot, and how the foot hangs from them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Leg {
+    hip: usize,
+    knee: usize,
+    /// The foot does not hang below its knee (an IK-style game rig parents the feet to the
+    /// root): the knee carries the end of the shin, and the foot is placed there.
+    detached: bool,
+}
+
+/// The leg above each of `ankles`: the ankle's parent and grandparent, unless the parent
+/// also holds another of the feet (the root or pelvis of a rig that hangs its feet there),
+/// in which case the leg is read from the body's roles ([`roles_of`]: by name, else by
+/// shape, on the rest pose).
+fn legs_above(skeleton: &Skeleton, ankles: &[usize]) -> Result<Vec<Leg>, FootLockError> {
+    let joints = skeleton.joints();
+    let name = |a: usize| joints[a].name.clone();
+    let holds_another_foot = |parent: usize, ankle: usize| {
+        ankles.iter().any(|&other| other != ankle && (other == parent || skeleton.is_ancestor(parent, other)))
+    };
+    let mut roles = None;
+    ankles
+        .iter()
+        .map(|&ankle| {
+            let knee = joints[ankle].parent;
+            if let Some(knee) = knee.filter(|&k| !holds_another_foot(k, ankle)) {
+                let hip = joints[knee].parent.ok_or_else(|| FootLockError::ShortLeg(name(ankle)))?;
+                return Ok(Leg { hip, knee, detached: false });
+            }
+            let roles = match &roles {
+                Some(roles) => roles,
+                None => {
+                    let rest: Vec<Vec3> = rest_world(skeleton).iter().map(|t| t.translation).collect();
+                    let read = roles_of(skeleton, &rest)
+                        .map_err(|e| FootLockError::DetachedFoot { foot: name(ankle), why: e.to_string() })?;
+                    roles.insert(read)
+                }
+            };
+            let leg = roles.legs.iter().map(|l| l.joints()).find(|[_, _, a]| *a == ankle).ok_or_else(|| {
+                FootLockError::DetachedFoot {
+                    foot: name(ankle),
+                    why: format!(
+                        "the legs read from the body end at `{}` and `{}`",
+                        name(roles.legs[0].joints()[2]),
+                        name(roles.legs[1].joints()[2])
+                    ),
+                }
+            })?;
+            Ok(Leg { hip: leg[0], knee: leg[1], detached: true })
+        })
+        .collect()
+}
+
 /// Holds the feet of `clip` planted during `contacts` (see the module doc).
 pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> Result<FootLocked, FootLockError> {
     if contacts.frame_count != clip.frame_count() {
@@ -250,21 +319,21 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     let skeleton = clip.skeleton();
     let joints = skeleton.joints();
     let mut rig = IkRig::new(skeleton.clone());
-    let mut ankles = Vec::new();
-    let mut legs = Vec::new();
+    let ankles: Vec<usize> = contacts
+        .feet
+        .iter()
+        .map(|foot| skeleton.index_of(&foot.foot).ok_or_else(|| FootLockError::UnknownFoot(foot.foot.clone())))
+        .collect::<Result<_, _>>()?;
+    let legs = legs_above(skeleton, &ankles)?;
     let mut turned = Vec::new();
-    for foot in &contacts.feet {
-        let ankle = skeleton.index_of(&foot.foot).ok_or_else(|| FootLockError::UnknownFoot(foot.foot.clone()))?;
-        let knee = joints[ankle].parent.ok_or_else(|| FootLockError::ShortLeg(foot.foot.clone()))?;
-        let hip = joints[knee].parent.ok_or_else(|| FootLockError::ShortLeg(foot.foot.clone()))?;
-        for j in [hip, knee] {
+    for (&ankle, leg) in ankles.iter().zip(&legs) {
+        for j in [leg.hip, leg.knee] {
             turned.push(j);
             let w = params.weights.iter().find(|(n, _)| *n == joints[j].name).map_or(1.0, |(_, w)| *w);
             rig.add_joint(j, [true; 3], w);
         }
-        rig.add_effector(ankle);
-        ankles.push(ankle);
-        legs.push((hip, knee));
+        // A detached foot's effector is the end of its shin, a point the knee carries.
+        rig.add_effector(if leg.detached { leg.knee } else { ankle });
     }
     for (name, _) in &params.weights {
         rig.joint(name)?;
@@ -335,6 +404,8 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     let mut world = vec![Transform::IDENTITY; n];
     let mut goals = vec![DVec3::ZERO; ankles.len()];
     let mut foot_in_world = vec![Quat::IDENTITY; ankles.len()];
+    // Per detached foot, where the clip puts it in its knee's frame this frame.
+    let mut shin_ends = vec![Vec3::ZERO; ankles.len()];
     let mut shortfalls = vec![Vec::with_capacity(clip.frame_count()); ankles.len()];
     let mut rotations = clip.rotations().to_vec();
     let mut frames = Vec::with_capacity(clip.frame_count());
@@ -342,12 +413,21 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     for f in 0..clip.frame_count() {
         let original = before.frame(f);
         let frame_translations = &translations[f * n..(f + 1) * n];
-        for (k, (&ankle, &(hip, knee))) in ankles.iter().zip(&legs).enumerate() {
+        for (k, (&ankle, &Leg { hip, knee, detached })) in ankles.iter().zip(&legs).enumerate() {
             let toe = original[tips[k]].translation.as_dvec3();
             let correction = plants[k].shift(f, toe);
             let lift = lifts[k].get(f).copied().unwrap_or(0.0);
             let wanted = original[ankle].translation.as_dvec3() + correction + DVec3::Y * lift;
-            let leg = f64::from(frame_translations[knee].length() + frame_translations[ankle].length());
+            // A detached foot's shin ends where the clip puts the foot, in the knee's frame.
+            let shin = if detached {
+                let knee_world = original[knee];
+                shin_ends[k] = knee_world.rotation.inverse() * (original[ankle].translation - knee_world.translation);
+                solver.set_effector_offset(k, shin_ends[k].as_dvec3());
+                shin_ends[k].length()
+            } else {
+                frame_translations[ankle].length()
+            };
+            let leg = f64::from(frame_translations[knee].length() + shin);
             let (hip_before, ankle_before) = (original[hip].translation, original[ankle].translation);
             let eased_from = eased_from(leg, params.soft_reach, hip_before.distance(ankle_before));
             // The hip where this frame's solve finds it: the clip's, moved with the root.
@@ -371,10 +451,14 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
         let out = &mut rotations[f * n..(f + 1) * n];
         solver.rig().rotations_of(&pose, out);
         // Feet keep their world orientation: the ankle undoes what the leg above it turned.
-        pose_world(skeleton, out, frame_translations, &mut world);
-        for (k, &ankle) in ankles.iter().enumerate() {
-            if let Some(parent) = joints[ankle].parent {
-                out[ankle] = world[parent].rotation.inverse() * foot_in_world[k];
+        pose_world(skeleton, out, &translations[f * n..(f + 1) * n], &mut world);
+        for (k, (&ankle, leg)) in ankles.iter().zip(&legs).enumerate() {
+            let parent = joints[ankle].parent.map_or(Transform::IDENTITY, |p| world[p]);
+            out[ankle] = parent.rotation.inverse() * foot_in_world[k];
+            if leg.detached {
+                // The detached foot goes to the end of the shin the solve placed.
+                let end = world[leg.knee].translation + world[leg.knee].rotation * shin_ends[k];
+                translations[f * n + ankle] = parent.rotation.inverse() * (end - parent.translation);
             }
         }
     }

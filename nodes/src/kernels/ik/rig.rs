@@ -80,6 +80,8 @@ pub struct IkRig {
     /// Per effector, 1 on each world axis (X, Y, Z) its goal constrains and 0 on the others:
     /// multiplied into its error and its Jacobian rows.
     effector_masks: Vec<DVec3>,
+    /// Per effector, the point it stands for in its joint's frame (metres; zero: the joint).
+    effector_offsets: Vec<DVec3>,
     /// `moves[d * effectors + e]`: DOF `d` moves effector `e`.
     moves: Vec<bool>,
 }
@@ -94,6 +96,7 @@ impl IkRig {
             rig_slot: vec![None; joints],
             effectors: Vec::new(),
             effector_masks: Vec::new(),
+            effector_offsets: Vec::new(),
             moves: Vec::new(),
         }
     }
@@ -162,7 +165,23 @@ impl IkRig {
     pub fn add_effector_on_axes(&mut self, joint: usize, axes: [bool; 3]) -> usize {
         self.effectors.push(joint);
         self.effector_masks.push(DVec3::from(axes.map(f64::from)));
+        self.effector_offsets.push(DVec3::ZERO);
         self.effectors.len() - 1
+    }
+
+    /// Makes effector `e` the point `offset` (metres, in its joint's frame) instead of the
+    /// joint itself: a point the joint carries but no joint marks, such as the end of a shin
+    /// whose foot hangs elsewhere in the hierarchy. Can change between solves.
+    pub fn set_effector_offset(&mut self, e: usize, offset: DVec3) {
+        self.effector_offsets[e] = offset;
+    }
+
+    /// World position of effector `e` given the rig's world transforms `world`.
+    #[inline]
+    pub fn effector_position(&self, e: usize, world: &[(DQuat, DVec3)]) -> DVec3 {
+        let (rotation, position) = world[self.effectors[e]];
+        let offset = self.effector_offsets[e];
+        if offset == DVec3::ZERO { position } else { position + rotation * offset }
     }
 
     /// Per effector, 1 on the world axes its goal constrains and 0 on the others.

@@ -249,11 +249,16 @@ impl IkSolver {
         self.weights[d] = w;
     }
 
+    /// Makes effector `e` a point `offset` in its joint's frame ([`IkRig::set_effector_offset`]).
+    pub fn set_effector_offset(&mut self, e: usize, offset: DVec3) {
+        self.rig.set_effector_offset(e, offset);
+    }
+
     /// World positions of the effectors in `pose` into `out`.
     pub fn effector_positions(&mut self, pose: &IkPose, out: &mut [DVec3]) {
         self.rig.forward(pose, &mut self.world);
-        for (o, &e) in out.iter_mut().zip(self.rig.effectors()) {
-            *o = self.world[e].1;
+        for (e, o) in out.iter_mut().enumerate().take(self.rig.effectors().len()) {
+            *o = self.rig.effector_position(e, &self.world);
         }
     }
 
@@ -274,8 +279,8 @@ impl IkSolver {
     fn linearise_forward(&mut self, pose: &IkPose, goals: &[DVec3]) -> f64 {
         self.rig.dof_axes(pose, &self.world, &mut self.axes);
         let mut worst = 0.0f64;
-        for (e, (&joint, goal)) in self.rig.effectors().iter().zip(goals).enumerate() {
-            let x = self.world[joint].1;
+        for (e, goal) in goals.iter().enumerate().take(self.rig.effectors().len()) {
+            let x = self.rig.effector_position(e, &self.world);
             // Unconstrained axes are zero rows: no error, no motion asked of them.
             let keep = self.rig.effector_masks()[e];
             let d = (*goal - x) * keep;
@@ -400,8 +405,8 @@ impl IkSolver {
     fn evaluate(&mut self, pose: &IkPose, goals: &[DVec3]) -> f64 {
         self.rig.forward(pose, &mut self.world);
         let mut worst = 0.0f64;
-        for (e, (&joint, goal)) in self.rig.effectors().iter().zip(goals).enumerate() {
-            let d = (*goal - self.world[joint].1) * self.rig.effector_masks()[e];
+        for (e, goal) in goals.iter().enumerate().take(self.rig.effectors().len()) {
+            let d = (*goal - self.rig.effector_position(e, &self.world)) * self.rig.effector_masks()[e];
             worst = worst.max(d.length());
             for k in 0..3 {
                 self.trial_dx[3 * e + k] = d[k];
@@ -562,6 +567,41 @@ mod tests {
                     let analytic = jt[(d, 3 * e + k)];
                     assert!((analytic - fd[k]).abs() < 1e-6, "dof {d} effector {e} row {k}: {analytic} vs {}", fd[k]);
                 }
+            }
+        }
+    }
+
+    /// An effector on the ankle offset to where the toe sits in the ankle's frame stands
+    /// for the toe joint: the same Jacobian and the same solve as the rig whose effector is
+    /// the toe itself (positions through the joint's frame, as forward kinematics places the
+    /// toe).
+    #[test]
+    fn an_offset_effector_stands_for_the_joint_at_that_point() {
+        let with_toe = branching_rig();
+        let mut rig = IkRig::new(with_toe.skeleton().clone());
+        rig.add_root_translation(1.0);
+        rig.add_chain("pelvis", "toe", 1.0).unwrap();
+        rig.add_chain("pelvis", "hand", 1.0).unwrap();
+        let (ankle, toe, hand) = (rig.joint("ankle").unwrap(), rig.joint("toe").unwrap(), rig.joint("hand").unwrap());
+        let e = rig.add_effector(ankle);
+        rig.add_effector(hand);
+        rig.set_effector_offset(e, with_toe.skeleton().joints()[toe].rest_offset.as_dvec3());
+        let mut a = IkSolver::new(with_toe);
+        let mut b = IkSolver::new(rig.finish().unwrap());
+        let mut pose = rest_pose(a.rig());
+        for (s, e) in pose.euler.iter_mut().enumerate() {
+            *e = [0.2 - 0.1 * s as f64, 0.4 * s as f64, -0.3];
+        }
+        let (ja, jb) = (a.jacobian(&pose).clone(), b.jacobian(&pose).clone());
+        assert!((ja - jb).abs().max() < 1e-12);
+        let goals = [DVec3::new(0.2, 0.1, 0.3), DVec3::new(0.3, 1.5, 0.2)];
+        let (mut pa, mut pb) = (pose.clone(), pose);
+        let (ra, rb) =
+            (a.solve(&mut pa, &goals, &SolveParams::default()), b.solve(&mut pb, &goals, &SolveParams::default()));
+        assert!(ra.converged && rb.converged && ra.iterations == rb.iterations, "{ra:?} {rb:?}");
+        for (x, y) in pa.euler.iter().zip(&pb.euler) {
+            for k in 0..3 {
+                assert!((x[k] - y[k]).abs() < 1e-9, "{x:?} vs {y:?}");
             }
         }
     }
