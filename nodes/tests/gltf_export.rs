@@ -678,3 +678,75 @@ fn parts_are_written_as_separate_meshes_sharing_the_skin() {
     let err = write_glb(&clip, Some(&mesh)).unwrap_err().to_string();
     assert!(err.contains("mesh 'box': part 'right' triangle 12 uses a vertex outside its vertices 8..16"), "{err}");
 }
+
+/// Bad input, issue 18: a file holding two characters (two skins over two separate
+/// armatures, a skinned mesh on each) is not one character. `character.load` refuses it
+/// with a structure error naming the file, the mesh of the second skin and the joints it
+/// binds outside the skeleton; reading the file as meshes alone still works (that mesh
+/// unskinned, with a warning).
+#[test]
+fn two_meshes_with_conflicting_skins_are_refused_as_one_character() {
+    use base64::Engine as _;
+    use kinegraph_nodes::formats::FormatErrorKind;
+    // One triangle: positions (3 × VEC3 f32), indices (3 × u16, 2 bytes padding), joints
+    // (3 × VEC4 u8), weights (3 × VEC4 f32): every vertex on the skin's first joint.
+    let mut bin = Vec::new();
+    for v in [0.0f32, 0.0, 0.0, 0.2, 0.0, 0.0, 0.0, 0.3, 0.0] {
+        bin.extend_from_slice(&v.to_le_bytes());
+    }
+    for i in [0u16, 1, 2, 0] {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    bin.extend_from_slice(&[0u8; 12]);
+    for _ in 0..3 {
+        for w in [1.0f32, 0.0, 0.0, 0.0] {
+            bin.extend_from_slice(&w.to_le_bytes());
+        }
+    }
+    let data = base64::engine::general_purpose::STANDARD.encode(&bin);
+    let primitive = r#"{"attributes": {"POSITION": 0, "JOINTS_0": 2, "WEIGHTS_0": 3}, "indices": 1}"#;
+    let gltf = format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "scene": 0,
+  "scenes": [{{"nodes": [0, 2, 4, 5]}}],
+  "nodes": [
+    {{"name": "hero_root", "translation": [0, 1, 0], "children": [1]}},
+    {{"name": "hero_spine", "translation": [0, 0.5, 0]}},
+    {{"name": "sidekick_root", "translation": [2, 1, 0], "children": [3]}},
+    {{"name": "sidekick_spine", "translation": [0, 0.4, 0]}},
+    {{"name": "hero_body", "mesh": 0, "skin": 0}},
+    {{"name": "sidekick_body", "mesh": 1, "skin": 1}}
+  ],
+  "skins": [{{"joints": [0, 1]}}, {{"joints": [2, 3]}}],
+  "meshes": [{{"name": "hero_body", "primitives": [{primitive}]}}, {{"name": "sidekick_body", "primitives": [{primitive}]}}],
+  "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{data}"}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 6}},
+                  {{"buffer": 0, "byteOffset": 44, "byteLength": 12}}, {{"buffer": 0, "byteOffset": 56, "byteLength": 48}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [0.2, 0.3, 0]}},
+    {{"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}},
+    {{"bufferView": 2, "componentType": 5121, "count": 3, "type": "VEC4"}},
+    {{"bufferView": 3, "componentType": 5126, "count": 3, "type": "VEC4"}}
+  ]
+}}"#,
+        len = bin.len()
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("two_characters.gltf");
+    std::fs::write(&path, gltf).unwrap();
+    let error = kinegraph_nodes::kernels::load::load_character(&path, 0).map(|_| ()).unwrap_err();
+    println!("{error}");
+    assert_eq!((error.file.as_path(), error.kind), (path.as_path(), FormatErrorKind::Structure));
+    for what in ["two skeletons", "'sidekick_body'", "skin 1", "2 joints", "sidekick_root, sidekick_spine"] {
+        assert!(error.message.contains(what), "{what}: {error}");
+    }
+    let asset = read_gltf_file(&path, &GltfReadOptions::default()).unwrap();
+    assert_eq!(asset.value.meshes.len(), 2);
+    assert!(asset.value.meshes[0].skin.is_some() && asset.value.meshes[1].skin.is_none());
+    assert!(
+        asset.warnings.iter().any(|w| w.contains("skin 1 has joints outside the skeleton")),
+        "{:?}",
+        asset.warnings
+    );
+}

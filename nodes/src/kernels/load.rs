@@ -329,6 +329,25 @@ fn gltf_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSourc
     let Some(skeleton) = asset.skeleton.clone() else {
         return Err(FormatError::file(path, FormatErrorKind::Structure, "has no skeleton (no skin and no animation)"));
     };
+    // A character has one skeleton: a mesh skinned to another one cannot follow it.
+    if let Some(foreign) = asset.foreign_skins.first() {
+        let mesh = &asset.meshes[foreign.mesh].name;
+        let shown: Vec<&str> = foreign.outside.iter().take(5).map(String::as_str).collect();
+        let more = foreign.outside.len().saturating_sub(shown.len());
+        let more = if more > 0 { format!(" and {more} more") } else { String::new() };
+        return Err(FormatError::file(
+            path,
+            FormatErrorKind::Structure,
+            format!(
+                "holds two skeletons: mesh '{mesh}' is skinned (skin {}) to {} joints outside the skeleton read \
+                 from skin 0 ({}{more}); a character has one skeleton: export each character to its own file, or \
+                 join the armatures into one",
+                foreign.skin,
+                foreign.outside.len(),
+                shown.join(", ")
+            ),
+        ));
+    }
     let clip = character_clip(path, &skeleton, asset.clips.into_iter().map(|c| c.clip), animation, &mut warnings)?;
     let value = CharacterSource {
         skeleton,

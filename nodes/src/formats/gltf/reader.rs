@@ -91,10 +91,24 @@ pub struct GltfAsset {
     /// Per mesh of `meshes`: the name of the node carrying it (the object a viewer lists,
     /// which may differ from the mesh's own name), when the node has one.
     pub mesh_nodes: Vec<Option<String>>,
+    /// Meshes whose skin binds joints outside the skeleton (a second character's skeleton):
+    /// they are read unskinned, with a warning.
+    pub foreign_skins: Vec<ForeignSkin>,
     /// Per skeleton joint: the skeleton's skin's own inverse bind matrix for it, in the
     /// skeleton's unscaled metre frame (a scaled ancestor's scale taken out), or `None`
     /// for joints the skin does not list and files without a skin.
     pub skin_inverse_bind_matrices: Vec<Option<Mat4>>,
+}
+
+/// A mesh whose skin binds joints outside the skeleton the file was read with.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ForeignSkin {
+    /// Index into [`GltfAsset::meshes`].
+    pub mesh: usize,
+    /// The skin (index into the file's `skins`).
+    pub skin: usize,
+    /// Names of its joints outside the skeleton (node names, or `node N`).
+    pub outside: Vec<String>,
 }
 
 /// Reads a `.gltf` or `.glb` file from disk.
@@ -461,7 +475,7 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
     }
 
     let materials = if options.materials { read_materials(&doc, path, &mut warnings)? } else { Vec::new() };
-    let (meshes, mesh_joints, mesh_nodes) =
+    let NodeMeshes { meshes, mesh_joints, mesh_nodes, foreign_skins } =
         read_meshes(&doc, &tree, &joints, skeleton.as_ref(), skin_index, &materials, &mut warnings)?;
     let mut skin_inverse_bind_matrices = vec![None; joints.nodes.len()];
     if let Some(s) = skin_index {
@@ -482,6 +496,7 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
             meshes,
             mesh_joints,
             mesh_nodes,
+            foreign_skins,
             skin_inverse_bind_matrices,
         },
         warnings,
@@ -934,8 +949,14 @@ fn read_primitive(
 }
 
 /// The meshes of a file, one per node carrying a mesh, with the joint each unskinned one
-/// hangs under and the name of its node (see [`GltfAsset`]'s fields of the same names).
-type NodeMeshes = (Vec<Mesh>, Vec<Option<usize>>, Vec<Option<String>>);
+/// hangs under, the name of its node and the skins that bind another skeleton (see
+/// [`GltfAsset`]'s fields of the same names).
+struct NodeMeshes {
+    meshes: Vec<Mesh>,
+    mesh_joints: Vec<Option<usize>>,
+    mesh_nodes: Vec<Option<String>>,
+    foreign_skins: Vec<ForeignSkin>,
+}
 
 fn read_meshes(
     doc: &Document,
@@ -962,6 +983,7 @@ fn read_meshes(
     let mut meshes = Vec::new();
     let mut mesh_joints = Vec::new();
     let mut mesh_nodes = Vec::new();
+    let mut foreign_skins = Vec::new();
     for (node_index, node) in root.nodes.iter().enumerate() {
         let Some(mesh_ref) = node.mesh else { continue };
         let m = mesh_ref.value();
@@ -986,9 +1008,19 @@ fn read_meshes(
                 gskin.joints.iter().map(|n| joints.joint_of_node.get(n.value()).copied().flatten()).collect();
             match (mapped, skeleton) {
                 (Some(mapped), Some(skeleton)) => skin = Some((s, mapped, skeleton.clone())),
-                _ => warnings.push(format!(
-                    "node {node_index}: skin {s} has joints outside the skeleton (built from skin {skin_index:?}); mesh read unskinned"
-                )),
+                _ => {
+                    warnings.push(format!(
+                        "node {node_index}: skin {s} has joints outside the skeleton (built from skin {skin_index:?}); mesh read unskinned"
+                    ));
+                    let outside = gskin
+                        .joints
+                        .iter()
+                        .map(|n| n.value())
+                        .filter(|&n| joints.joint_of_node.get(n).copied().flatten().is_none())
+                        .map(|n| root.nodes.get(n).and_then(|x| x.name.clone()).unwrap_or_else(|| format!("node {n}")))
+                        .collect();
+                    foreign_skins.push(ForeignSkin { mesh: meshes.len(), skin: s, outside });
+                }
             }
         }
 
@@ -1116,7 +1148,7 @@ fn read_meshes(
         mesh_nodes.push(node.name.clone());
         meshes.push(mesh);
     }
-    Ok((meshes, mesh_joints, mesh_nodes))
+    Ok(NodeMeshes { meshes, mesh_joints, mesh_nodes, foreign_skins })
 }
 
 /// Skin `s`'s first `count` inverse bind matrices as the file stores them (identity when
