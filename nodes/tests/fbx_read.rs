@@ -849,3 +849,140 @@ fn pbr_maps_of_an_fbx_material_become_gltf_channels() {
     assert_eq!(pixels(occlusion.texture())[0], 90);
     assert_eq!(steel.alpha_mode(), gltf::material::AlphaMode::Blend);
 }
+
+/// An animation curve node `id` for `Lcl Translation` whose X, Y and Z curves (ids `id+1`…
+/// `id+3`) go linearly from `from` to `to` (file units) over one second.
+fn translation_curves(id: u64, from: [f64; 3], to: [f64; 3]) -> String {
+    const SECOND: u64 = 46_186_158_000; // FBX time units per second
+    let mut text = format!(
+        "\tAnimationCurveNode: {id}, \"AnimCurveNode::T\", \"\" {{\n\t\tProperties70:  {{\n\
+         \t\t\tP: \"d|X\", \"Number\", \"\", \"A\",{}\n\t\t\tP: \"d|Y\", \"Number\", \"\", \"A\",{}\n\
+         \t\t\tP: \"d|Z\", \"Number\", \"\", \"A\",{}\n\t\t}}\n\t}}\n",
+        from[0], from[1], from[2]
+    );
+    for axis in 0..3usize {
+        text += &format!(
+            "\tAnimationCurve: {}, \"AnimCurve::\", \"\" {{\n\t\tDefault: {}\n\t\tKeyVer: 4009\n\
+             \t\tKeyTime: *2 {{\n\t\t\ta: 0,{SECOND}\n\t\t}}\n\t\tKeyValueFloat: *2 {{\n\t\t\ta: {},{}\n\t\t}}\n\
+             \t\tKeyAttrFlags: *1 {{\n\t\t\ta: 24836\n\t\t}}\n\t\tKeyAttrDataFloat: *4 {{\n\t\t\ta: 0,0,0,0\n\t\t}}\n\
+             \t\tKeyAttrRefCount: *1 {{\n\t\t\ta: 2\n\t\t}}\n\t}}\n",
+            id + 1 + axis as u64,
+            from[axis],
+            from[axis],
+            to[axis]
+        );
+    }
+    text
+}
+
+/// An FBX as 3ds Max writes its scenes: Z up (front −Y), centimetres, 30 fps, a two-bone
+/// chain (`hips` 100 cm up, `knee` 50 cm below it) and two takes of one second: `slide`
+/// moves the hips 100 cm along X, `rise` 50 cm up along Z.
+fn z_up_centimetre_fbx() -> String {
+    const SECOND: u64 = 46_186_158_000;
+    let stack = |id: u64, name: &str| {
+        format!(
+            "\tAnimationStack: {id}, \"AnimStack::{name}\", \"\" {{\n\t\tProperties70:  {{\n\
+             \t\t\tP: \"LocalStart\", \"KTime\", \"Time\", \"\",0\n\t\t\tP: \"LocalStop\", \"KTime\", \"Time\", \"\",{SECOND}\n\
+             \t\t\tP: \"ReferenceStart\", \"KTime\", \"Time\", \"\",0\n\
+             \t\t\tP: \"ReferenceStop\", \"KTime\", \"Time\", \"\",{SECOND}\n\t\t}}\n\t}}\n\
+             \tAnimationLayer: {}, \"AnimLayer::BaseLayer\", \"\" {{\n\t}}\n",
+            id + 1
+        )
+    };
+    let mut text = String::from(
+        r#"; FBX 7.4.0 project file
+FBXHeaderExtension:  {
+	FBXHeaderVersion: 1003
+	FBXVersion: 7400
+}
+GlobalSettings:  {
+	Version: 1000
+	Properties70:  {
+		P: "UpAxis", "int", "Integer", "",2
+		P: "UpAxisSign", "int", "Integer", "",1
+		P: "FrontAxis", "int", "Integer", "",1
+		P: "FrontAxisSign", "int", "Integer", "",-1
+		P: "CoordAxis", "int", "Integer", "",0
+		P: "CoordAxisSign", "int", "Integer", "",1
+		P: "UnitScaleFactor", "double", "Number", "",1
+		P: "TimeMode", "enum", "", "",6
+	}
+}
+Objects:  {
+	NodeAttribute: 101, "NodeAttribute::hips", "LimbNode" {
+		TypeFlags: "Skeleton"
+	}
+	Model: 100, "Model::hips", "LimbNode" {
+		Version: 232
+		Properties70:  {
+			P: "Lcl Translation", "Lcl Translation", "", "A",0,0,100
+		}
+	}
+	NodeAttribute: 201, "NodeAttribute::knee", "LimbNode" {
+		TypeFlags: "Skeleton"
+	}
+	Model: 200, "Model::knee", "LimbNode" {
+		Version: 232
+		Properties70:  {
+			P: "Lcl Translation", "Lcl Translation", "", "A",0,0,-50
+		}
+	}
+"#,
+    );
+    text += &stack(1000, "slide");
+    text += &translation_curves(1100, [0.0, 0.0, 100.0], [100.0, 0.0, 100.0]);
+    text += &stack(2000, "rise");
+    text += &translation_curves(2100, [0.0, 0.0, 100.0], [0.0, 0.0, 150.0]);
+    text += "}\nConnections:  {\n\tC: \"OO\",100,0\n\tC: \"OO\",101,100\n\tC: \"OO\",200,100\n\tC: \"OO\",201,200\n";
+    for take in [1000, 2000] {
+        text += &format!("\tC: \"OO\",{},{take}\n\tC: \"OO\",{},{}\n", take + 1, take + 100, take + 1);
+        text += &format!("\tC: \"OP\",{},100, \"Lcl Translation\"\n", take + 100);
+        for (axis, name) in ["X", "Y", "Z"].iter().enumerate() {
+            text += &format!("\tC: \"OP\",{},{}, \"d|{name}\"\n", take + 101 + axis as u64, take + 100);
+        }
+    }
+    text + "}\n"
+}
+
+/// Issue 18, FBX units, axes and takes: a Z-up centimetre file with two takes reads as two
+/// clips in metres, Y up, each one second at the file's 30 fps (31 frames), the bones where
+/// the conversion (x, y, z) cm → (x, z, −y) / 100 m puts them at the first, middle and last
+/// frame; the report states centimetres, +Z up and both takes. Without its bones the same
+/// file is refused, naming what it holds.
+#[test]
+fn a_z_up_centimetre_fbx_with_two_takes_reads_in_metres_y_up() {
+    let text = z_up_centimetre_fbx();
+    let path = Path::new("z_up_cm.fbx");
+    let asset = read_fbx(text.as_bytes(), path, &FbxReadOptions::default()).unwrap().value;
+    println!("{}", asset.describe());
+    assert_eq!(asset.source.takes, ["slide", "rise"]);
+    assert_eq!((asset.source.up_axis.as_str(), asset.source.fps), ("+Z", 30.0));
+    assert!((asset.source.metres_per_unit - 0.01).abs() < 1e-12, "{}", asset.source.metres_per_unit);
+    assert!(asset.describe().contains("'cm'"), "{}", asset.describe());
+    let names: Vec<&str> = asset.skeleton.joints().iter().map(|j| j.name.as_str()).collect();
+    assert_eq!(names, ["hips", "knee"]);
+    assert_eq!(asset.clips.len(), 2);
+    // Hips at (x, y, z) cm in the file: (x, z, −y) / 100 in metres, Y up; the knee 0.5 m below.
+    let hips = |take: usize, t: f64| match take {
+        0 => glam::Vec3::new(t as f32, 1.0, 0.0),
+        _ => glam::Vec3::new(0.0, 1.0 + 0.5 * t as f32, 0.0),
+    };
+    for (take, fbx_clip) in asset.clips.iter().enumerate() {
+        let clip = &fbx_clip.clip;
+        assert_eq!((clip.frame_count(), clip.fps()), (31, 30.0), "{}", fbx_clip.name);
+        let poses = forward_kinematics(clip);
+        for f in [0, 15, 30] {
+            let want = hips(take, f as f64 / 30.0);
+            let (got, knee) = (poses.position(f, 0), poses.position(f, 1));
+            assert!(got.distance(want) < 1e-5, "{} frame {f}: {got} vs {want}", fbx_clip.name);
+            assert!(knee.distance(want - glam::Vec3::Y * 0.5) < 1e-5, "{} frame {f}: knee {knee}", fbx_clip.name);
+        }
+    }
+    // The same file with its bones as plain nodes ("Null"): no skeleton, a located refusal.
+    let boneless = text.replace("\"LimbNode\"", "\"Null\"");
+    let error = read_fbx(boneless.as_bytes(), path, &FbxReadOptions::default()).unwrap_err();
+    println!("{error}");
+    assert_eq!((error.file.as_path(), error.kind), (path, FormatErrorKind::Structure));
+    assert!(error.message.contains("has no skeleton: no bone (LimbNode) among its 2 nodes"), "{error}");
+}
