@@ -299,6 +299,9 @@ fn a_mixamo_fbx_loads_as_a_whole_character() {
     let Some(dir) = fbx_dir() else { return };
     let path = dir.join("standard_walk.fbx");
     let loaded = kinegraph_nodes::kernels::load::load_character(&path, 0).unwrap();
+    // The report says what was converted, as clip.load's does.
+    let converted = "FBX in 'm' (1 m per unit), +Y up, 30 fps, takes [mixamo.com]; converted to metres, Y up";
+    assert!(loaded.warnings.iter().any(|w| w.ends_with(converted)), "{:?}", loaded.warnings);
     let character = loaded.value;
     let fbx = read_fbx_file(&path, &FbxReadOptions { meshes: true, ..Default::default() }).unwrap().value;
     assert_eq!(character.clip.frame_count(), fbx.clips[0].clip.frame_count());

@@ -365,6 +365,8 @@ fn gltf_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSourc
 fn fbx_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSource>, FormatError> {
     let options = FbxReadOptions { meshes: true, ..FbxReadOptions::default() };
     let Loaded { value: asset, mut warnings } = read_fbx_file(path, &options)?;
+    // What was converted (unit, axes, frame rate, takes), as clip.load reports it.
+    warnings.push(format!("{}: {}", path.display(), asset.describe()));
     let clip =
         character_clip(path, &asset.skeleton, asset.clips.into_iter().map(|c| c.clip), animation, &mut warnings)?;
     let mesh_joints = vec![None; asset.meshes.len()];

@@ -48,7 +48,7 @@ pub struct FbxReadOptions {
 /// What the file said about itself before conversion.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FbxSource {
-    /// Metres per file unit (Mixamo: 0.01, centimetres).
+    /// Metres per file unit (the corpus's Mixamo downloads: 1, their UnitScaleFactor 100 cm).
     pub metres_per_unit: f64,
     /// The file's up axis: `"+Y"`, `"+Z"`, `"-Y"`, … (`"?"` when unstated).
     pub up_axis: String,
