@@ -329,6 +329,7 @@ fn named_feet_find_the_contacts_detection_cannot() {
     let named = NamedFeet {
         ankles: joint_pair(sk, &format!("{}, {}", name("FootL"), name("FootR"))).unwrap(),
         toes: joint_pair(sk, &format!("{} ,{}", name("LeftToe_End"), name("RightToe_End"))).unwrap(),
+        hands: None,
     };
     let found = contacts_with(&lost, &poses, &ContactThresholds::default(), &named).unwrap();
     assert_eq!(found.scaled_to_leg_m, None, "no legs to scale to");
@@ -360,7 +361,7 @@ fn named_toes_lock_like_the_original() {
     let lost = anonymous(&clip);
     let sk = clip.skeleton();
     let toes = ["mixamorig:LeftToe_End", "mixamorig:RightToe_End"].map(|n| sk.index_of(n).unwrap());
-    let named = NamedFeet { ankles: Some(feet), toes: Some(toes) };
+    let named = NamedFeet { ankles: Some(feet), toes: Some(toes), hands: None };
     let lost_contacts = contacts_with(&lost, &forward_kinematics(&lost), &t, &named).unwrap().contacts;
     let params = FootLockParams { toes: Some(toes.map(|j| format!("b{j:03}"))), ..FootLockParams::default() };
     let got = foot_lock(&lost, &lost_contacts, &params).unwrap();

@@ -53,6 +53,14 @@ const TOES: TextParam = TextParam::new(
     "",
 );
 
+const HANDS: TextParam = TextParam::new(
+    "hands",
+    "The hand joints, left then right, comma separated (e.g. 'LeftHand, RightHand'), for motions that put the hands down \
+     (cartwheels, crawls, push-ups): each is watched at its fingertip against the floor the feet stand on, and its \
+     contacts follow the feet's. Empty: hands are not watched.",
+    "",
+);
+
 /// Reads and checks the threshold params.
 fn thresholds_from(ctx: &NodeContext<'_>) -> Result<ContactThresholds, NodeError> {
     let t = ContactThresholds {
@@ -78,7 +86,8 @@ pub struct DetectContacts;
 static DETECT_CONTACTS: NodeSchema = NodeSchema {
     kind: "motion.contacts",
     category: "motion",
-    doc: "Finds when each foot is planted (low and slow, with hysteresis) and the double-support frames.",
+    doc: "Finds when each foot (and each named hand) is planted (low and slow, with hysteresis) and the double-support \
+          frames.",
     inputs: &[CLIP.spec()],
     outputs: &[CONTACTS.spec()],
     params: &[
@@ -90,6 +99,7 @@ static DETECT_CONTACTS: NodeSchema = NodeSchema {
         SCALE_TO_LEGS.0,
         FEET.0,
         TOES.0,
+        HANDS.0,
     ],
     writes_files: false,
     version: 2,
@@ -106,6 +116,7 @@ impl Node for DetectContacts {
         let named = NamedFeet {
             ankles: joint_pair(skeleton, ctx.text_param(&FEET)?).map_err(|e| NodeError::param("feet", e))?,
             toes: joint_pair(skeleton, ctx.text_param(&TOES)?).map_err(|e| NodeError::param("toes", e))?,
+            hands: joint_pair(skeleton, ctx.text_param(&HANDS)?).map_err(|e| NodeError::param("hands", e))?,
         };
         let found = contacts_with(&clip, &forward_kinematics(&clip), &thresholds, &named)
             .map_err(|why| NodeError::input("clip", format!("the feet could not be found: {why}")))?;

@@ -23,13 +23,17 @@ use crate::model::{
 
 /// Foot joints named by the user where detection fails (an unusual rig): the ankles and the
 /// toe points watched with them, left then right. `None`: the ankles come from the body
-/// roles, the toes are the joints farthest below each ankle.
+/// roles, the toes are the joints farthest below each ankle. Hands are watched only when
+/// named.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NamedFeet {
     /// Ankle joints, left then right.
     pub ankles: Option<[usize; 2]>,
     /// Toe joints, left then right.
     pub toes: Option<[usize; 2]>,
+    /// Hand (wrist) joints, left then right, for motions that put the hands down
+    /// (cartwheels, crawls, push-ups): see [`hand_contacts`].
+    pub hands: Option<[usize; 2]>,
 }
 
 /// Two joint names, `"Left, Right"` (comma separated, spaces trimmed), as joint indices;
@@ -115,10 +119,20 @@ impl ContactThresholds {
 /// The height a point rests at: the 10th percentile of its heights over the clip, so that
 /// a few frames of capture noise or a foot poking through the floor do not set it.
 pub fn ground_height(track: &[DVec3]) -> f64 {
+    height_quantile(track, 10)
+}
+
+/// The height below which `percent` % of a track's frames lie (0 for an empty track).
+fn height_quantile(track: &[DVec3], percent: usize) -> f64 {
     let mut heights: Vec<f64> = track.iter().map(|p| p.y).collect();
     heights.sort_by(f64::total_cmp);
-    heights.get(heights.len() / 10).copied().unwrap_or(0.0)
+    heights.get(heights.len() * percent / 100).copied().unwrap_or(0.0)
 }
+
+/// How far above the floor a hand may rest and still be taken as put down, in lift-off
+/// heights ([`ContactThresholds::leave_height_m`]): capture skeletons often model the hand
+/// coarsely (CMU's fingertip stays 14-15 cm up with the palm on the floor in 90_02).
+const HAND_REACH_LIFTS: f64 = 3.0;
 
 /// The fewest frames a contact lasts at `fps`.
 fn min_frames(t: &ContactThresholds, fps: f64) -> usize {
@@ -140,9 +154,14 @@ fn close_short_gaps(intervals: Vec<FrameRange>, max_gap: usize) -> Vec<FrameRang
     out
 }
 
-/// Contact intervals of one point's track (world positions per frame).
+/// Contact intervals of one point's track (world positions per frame), heights taken
+/// from the height the point rests at.
 fn point_contacts(track: &[DVec3], fps: f64, t: &ContactThresholds) -> Vec<FrameRange> {
-    let ground = ground_height(track);
+    contacts_above(track, ground_height(track), fps, t)
+}
+
+/// Contact intervals of one point's track, heights taken from `ground` (metres).
+fn contacts_above(track: &[DVec3], ground: f64, fps: f64, t: &ContactThresholds) -> Vec<FrameRange> {
     let min_frames = min_frames(t, fps);
     let (mut out, mut start) = (Vec::new(), None);
     for f in 0..track.len() {
@@ -217,6 +236,47 @@ fn feet_contacts(
     Contacts { fps: clip.fps(), frame_count: clip.frame_count(), feet, double_support }
 }
 
+/// Contacts of the two hand joints `hands` (left, right) of `clip`, for a clip whose feet
+/// `feet` rest on the floor. A hand is watched at its palm (half way from the wrist to the
+/// tip, the joint farthest below it) by height alone, with the feet's hysteresis, from the
+/// height it rests at when down (the 2nd percentile of its heights: hands are down for
+/// short spells), but only if that height is within [`HAND_REACH_LIFTS`] lift-off heights
+/// of the floor (the lowest height the feet's ankles and toes rest at): an arm hanging
+/// still is low and slow too, and must not count.
+pub fn hand_contacts(
+    clip: &Clip,
+    poses: &ClipPoses,
+    feet: [usize; 2],
+    hands: [usize; 2],
+    thresholds: &ContactThresholds,
+) -> Vec<FootContacts> {
+    let skeleton = clip.skeleton();
+    let track = |j: usize| (0..poses.frame_count()).map(|f| poses.position(f, j).as_dvec3()).collect::<Vec<DVec3>>();
+    let floor = feet
+        .iter()
+        .flat_map(|&ankle| [ankle, limb_tip(skeleton, ankle)])
+        .map(|j| ground_height(&track(j)))
+        .fold(f64::INFINITY, f64::min);
+    // Height alone: a planted hand's palm still slides and rolls on capture skeletons' coarse
+    // hands (CMU 90_02's left palm moves at 0.4-0.8 m/s through its support, above any
+    // foot's enter speed).
+    let by_height = ContactThresholds { enter_speed_mps: f64::INFINITY, leave_speed_mps: f64::INFINITY, ..*thresholds };
+    hands
+        .iter()
+        .map(|&hand| {
+            // The palm, half way from the wrist to the fingertip: what a planted hand turns
+            // about (the wrist circles it as the body goes over the hand).
+            let (wrist, tip) = (track(hand), track(limb_tip(skeleton, hand)));
+            let palm: Vec<DVec3> = wrist.iter().zip(&tip).map(|(w, t)| (*w + *t) * 0.5).collect();
+            let down = height_quantile(&palm, 2);
+            let reached = down - floor <= HAND_REACH_LIFTS * thresholds.leave_height_m;
+            let intervals = if reached { contacts_above(&palm, down, clip.fps(), &by_height) } else { Vec::new() };
+            let intervals = close_short_gaps(intervals, min_frames(thresholds, clip.fps()));
+            FootContacts { foot: skeleton.joints()[hand].name.clone(), intervals }
+        })
+        .collect()
+}
+
 /// Contacts of both feet of `clip` with the feet's joint indices (left, right). The feet
 /// are the body roles' ankles ([`roles_of`]: by joint name, or else from the body's shape
 /// in the first frame, e.g. a glTF character with generic joint names); otherwise why they
@@ -267,11 +327,11 @@ pub fn contacts_with(
     // Legs read from the body scale the thresholds; a rig whose body cannot be read keeps them.
     let leg_m = legs.ok().map(|legs| first_frame_leg_m(poses, legs));
     let scaled = leg_m.map_or(*thresholds, |leg_m| thresholds.for_leg(leg_m));
-    Ok(FoundContacts {
-        contacts: feet_contacts(clip, poses, feet, named.toes, &scaled),
-        feet,
-        scaled_to_leg_m: leg_m.filter(|_| thresholds.leg_m.is_some()),
-    })
+    let mut contacts = feet_contacts(clip, poses, feet, named.toes, &scaled);
+    if let Some(hands) = named.hands {
+        contacts.feet.extend(hand_contacts(clip, poses, feet, hands, &scaled));
+    }
+    Ok(FoundContacts { contacts, feet, scaled_to_leg_m: leg_m.filter(|_| thresholds.leg_m.is_some()) })
 }
 
 #[cfg(test)]

@@ -1,10 +1,11 @@
 //! Ground and flight stages of a dynamic motion, and the gravity that makes its flights
 //! ballistic (momentum-based dynamic motion editing, "motion pre-fitting").
 //!
-//! 1. A frame is *ground* when a foot is in contact (from the contact kernel or the user's
-//!    contacts), *flight* otherwise; runs of equal frames form alternating stages. The user
-//!    may instead give the borders (seconds), which replace the detected ones; kinds still
-//!    alternate, starting with the kind of the first frame.
+//! 1. A frame is *ground* when a foot (or a hand the contacts watch) is in contact (from
+//!    the contact kernel or the user's contacts), *flight* otherwise; runs of equal frames
+//!    form alternating stages. The user may instead give the borders (seconds), which
+//!    replace the detected ones; kinds still alternate, starting with the kind of the first
+//!    frame.
 //! 2. Gravity: over every flight stage of at least [`MIN_FIT_FRAMES`] frames, the centre of
 //!    mass height is fitted by least squares with y(t) = a_k + b_k (t − t_k) − ½ g (t − t_k)²,
 //!    one (a_k, b_k) per stage and one g for all; the horizontal components with a line per
@@ -72,9 +73,9 @@ pub fn stage_thresholds() -> ContactThresholds {
     ContactThresholds { enter_speed_mps: 5.0, leave_speed_mps: 8.0, ..ContactThresholds::default() }
 }
 
-/// Stages from foot contacts: ground wherever any foot is in contact. A flight must lie
-/// between a take-off and a landing and last `min_flight_frames`: runs without contact at
-/// the clip's ends, or shorter, count as ground.
+/// Stages from contacts: ground wherever any foot (or watched hand) is in contact. A flight
+/// must lie between a take-off and a landing and last `min_flight_frames`: runs without
+/// contact at the clip's ends, or shorter, count as ground.
 pub fn stages_from_contacts(contacts: &Contacts, min_flight_frames: usize) -> Vec<Stage> {
     let n = contacts.frame_count;
     let mut grounded = vec![false; n];

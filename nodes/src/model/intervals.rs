@@ -84,9 +84,10 @@ pub struct Contacts {
     pub fps: f64,
     /// Frames in that clip.
     pub frame_count: usize,
-    /// Contacts per foot (left first).
+    /// Contacts per foot (left first), then per hand when hands are watched (left first):
+    /// every limb that supports the body, each named by its joint.
     pub feet: Vec<FootContacts>,
-    /// Frames where every foot is in contact, sorted and disjoint.
+    /// Frames where both feet are in contact, sorted and disjoint.
     pub double_support: Vec<FrameRange>,
 }
 

@@ -18,6 +18,9 @@
 //! 4. The ankle's local rotation is then reset so the foot keeps its world orientation from
 //!    the clip: the whole foot, toes included, moves by exactly `c`.
 //!
+//! Hands in the contacts (`motion.contacts`' `hands`) are held the same way, the elbow and
+//! shoulder turning for the knee and hip, the fingertip for the toe.
+//!
 //! A foot that does not hang below its knee (an IK-style game rig hangs the feet off the
 //! root) has its hip and knee read from the body's roles; the effector is then the end of
 //! the shin, the point where the clip puts the foot in the knee's frame, and after the solve
@@ -76,7 +79,7 @@ pub struct FootLockParams {
     /// Tolerance and iteration limits of each frame's solve.
     pub solve: SolveParams,
     /// The toe joints held planted, per foot of the contacts (left, right), by name; `None`:
-    /// the joint farthest below each ankle.
+    /// the joint farthest below each ankle. Hands in the contacts are held at their tips.
     pub toes: Option<[String; 2]>,
     /// Where planted feet stand vertically.
     pub ground: Ground,
@@ -340,14 +343,15 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     }
     let rig = rig.finish()?;
     let blend = (params.blend_secs * clip.fps()).round().max(1.0) as usize;
-    let tips: Vec<usize> = match &params.toes {
-        Some(names) => names
-            .iter()
-            .take(ankles.len())
-            .map(|name| skeleton.index_of(name).ok_or_else(|| FootLockError::UnknownToe(name.clone())))
-            .collect::<Result<_, _>>()?,
-        None => ankles.iter().map(|&a| limb_tip(skeleton, a)).collect(),
-    };
+    // Named toes for the feet; any other limb (a hand) is held at its tip.
+    let tips: Vec<usize> = ankles
+        .iter()
+        .enumerate()
+        .map(|(k, &a)| match params.toes.as_ref().and_then(|names| names.get(k)) {
+            Some(name) => skeleton.index_of(name).ok_or_else(|| FootLockError::UnknownToe(name.clone())),
+            None => Ok(limb_tip(skeleton, a)),
+        })
+        .collect::<Result<_, _>>()?;
     let plants: Vec<Plants> =
         contacts.feet.iter().zip(&tips).map(|(foot, &tip)| Plants::new(clip, tip, &foot.intervals, blend)).collect();
     let lifts: Vec<Vec<f64>> = match &params.ground {
