@@ -750,3 +750,134 @@ fn two_meshes_with_conflicting_skins_are_refused_as_one_character() {
         asset.warnings
     );
 }
+
+/// Issue 18, the reference pose as a choice: `character.load` with `rest_pose: bind` rests
+/// CesiumMan's skeleton in its skin's bind pose. Read independently with the `gltf` crate,
+/// every joint of the skin stands where its inverse bind matrix, inverted and placed by the
+/// Z-up armature node above the skeleton, puts it (within 1e-5 m), and the mesh at rest is
+/// the file's vertex positions placed by their node (a skin binds the mesh as modelled).
+/// CesiumMan and Xbot were saved in their bind poses: both choices agree on them.
+#[test]
+fn cesium_man_rests_in_its_bind_pose_on_request() {
+    use kinegraph_nodes::kernels::load::{RestPose, load_character_resting};
+    use kinegraph_nodes::model::fk::rest_world;
+    let Some(data) = shared_data() else { return };
+    let path = data.join("gltf/CesiumMan.glb");
+    let nodes = load_character_resting(&path, 0, RestPose::Nodes).unwrap().value;
+    let bind = load_character_resting(&path, 0, RestPose::Bind).unwrap().value;
+    let (doc, buffers, _) = gltf::import(&path).unwrap();
+    let world = gltf_validator::rest_worlds(&doc);
+    let skin = doc.skins().next().unwrap();
+    let top = skin.joints().next().unwrap().index();
+    let armature = doc.nodes().find(|n| n.children().any(|c| c.index() == top)).unwrap();
+    let ibms: Vec<Mat4> = skin
+        .reader(|b| Some(&buffers[b.index()]))
+        .read_inverse_bind_matrices()
+        .unwrap()
+        .map(|m| Mat4::from_cols_array_2d(&m))
+        .collect();
+    let skeleton = bind.clip.skeleton();
+    let (rest, node_rest) = (rest_world(skeleton), rest_world(nodes.clip.skeleton()));
+    let (mut worst, mut moved) = (0.0f32, 0.0f32);
+    for (joint, ibm) in skin.joints().zip(&ibms) {
+        let j = skeleton.index_of(joint.name().unwrap()).unwrap();
+        let want = (world[armature.index()] * ibm.inverse()).w_axis.truncate();
+        worst = worst.max(rest[j].translation.distance(want));
+        moved = moved.max(node_rest[j].translation.distance(rest[j].translation));
+    }
+    println!("bind rest: joints within {worst:.2e} m of their bind pose; the node rest differs by up to {moved:.1e} m");
+    assert!(worst < 1e-5, "{worst}");
+
+    // The mesh at rest: the file's POSITION values placed by their node, in file order.
+    let mut modelled = Vec::new();
+    for node in doc.nodes() {
+        let Some(mesh) = node.mesh() else { continue };
+        for primitive in mesh.primitives() {
+            let positions = primitive.reader(|b| Some(&buffers[b.index()])).read_positions().unwrap();
+            modelled.extend(positions.map(|p| world[node.index()].transform_point3(Vec3::from(p))));
+        }
+    }
+    assert_eq!(modelled.len(), bind.mesh.positions.len());
+    let off = modelled.iter().zip(&bind.mesh.positions).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+    println!("mesh at bind rest: within {off:.2e} m of the mesh as modelled");
+    assert!(off < 1e-5, "{off}");
+
+    let xbot = data.join("gltf/Xbot.glb");
+    let (a, b) = (
+        load_character_resting(&xbot, 0, RestPose::Nodes).unwrap().value,
+        load_character_resting(&xbot, 0, RestPose::Bind).unwrap().value,
+    );
+    let (ra, rb) = (rest_world(a.clip.skeleton()), rest_world(b.clip.skeleton()));
+    let apart = ra.iter().zip(&rb).map(|(x, y)| x.translation.distance(y.translation)).fold(0.0f32, f32::max);
+    println!("Xbot: bind and node rest poses within {apart:.2e} m");
+    assert!(apart < 1e-4, "{apart}");
+}
+
+/// `rest_pose: bind` on a file saved with its arm posed: a root at 1 m and an arm joint
+/// 0.5 m out along X, turned 90° about Z in the node transforms, bound straight (inverse bind
+/// matrices of the unturned joints). Hand-solved: resting in the bind pose, the arm joint
+/// has no turn and the triangle bound to it stays where it is stored; resting in the node
+/// transforms, the arm is turned and the triangle swings up about the arm joint.
+#[test]
+fn a_file_saved_posed_rests_in_its_bind_pose_on_request() {
+    use base64::Engine as _;
+    use kinegraph_nodes::kernels::load::{RestPose, load_character_resting};
+    let stored = [Vec3::new(1.0, 1.0, 0.0), Vec3::new(1.0, 1.1, 0.0), Vec3::new(0.9, 1.0, 0.0)];
+    let mut bin = Vec::new();
+    for v in stored.iter().flat_map(|p| p.to_array()) {
+        bin.extend_from_slice(&v.to_le_bytes());
+    }
+    for i in [0u16, 1, 2, 0] {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    bin.extend_from_slice(&[1, 0, 0, 0].repeat(3));
+    for _ in 0..3 {
+        for w in [1.0f32, 0.0, 0.0, 0.0] {
+            bin.extend_from_slice(&w.to_le_bytes());
+        }
+    }
+    for ibm in [Mat4::from_translation(Vec3::new(0.0, -1.0, 0.0)), Mat4::from_translation(Vec3::new(-0.5, -1.0, 0.0))] {
+        for v in ibm.to_cols_array() {
+            bin.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    let data = base64::engine::general_purpose::STANDARD.encode(&bin);
+    let gltf = format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "scene": 0,
+  "scenes": [{{"nodes": [0, 2]}}],
+  "nodes": [
+    {{"name": "root", "translation": [0, 1, 0], "children": [1]}},
+    {{"name": "arm", "translation": [0.5, 0, 0], "rotation": [0, 0, 0.70710678, 0.70710678]}},
+    {{"name": "body", "mesh": 0, "skin": 0}}
+  ],
+  "skins": [{{"joints": [0, 1], "inverseBindMatrices": 4}}],
+  "meshes": [{{"name": "body", "primitives": [{{"attributes": {{"POSITION": 0, "JOINTS_0": 2, "WEIGHTS_0": 3}}, "indices": 1}}]}}],
+  "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{data}"}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 6}},
+                  {{"buffer": 0, "byteOffset": 44, "byteLength": 12}}, {{"buffer": 0, "byteOffset": 56, "byteLength": 48}},
+                  {{"buffer": 0, "byteOffset": 104, "byteLength": 128}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.9, 1, 0], "max": [1, 1.1, 0]}},
+    {{"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}},
+    {{"bufferView": 2, "componentType": 5121, "count": 3, "type": "VEC4"}},
+    {{"bufferView": 3, "componentType": 5126, "count": 3, "type": "VEC4"}},
+    {{"bufferView": 4, "componentType": 5126, "count": 2, "type": "MAT4"}}
+  ]
+}}"#,
+        len = bin.len()
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("posed.gltf");
+    std::fs::write(&path, gltf).unwrap();
+    let bind = load_character_resting(&path, 0, RestPose::Bind).unwrap().value;
+    let nodes = load_character_resting(&path, 0, RestPose::Nodes).unwrap().value;
+    let arm = bind.clip.skeleton().index_of("arm").unwrap();
+    let close = |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).all(|(x, y)| x.distance(*y) < 1e-6);
+    assert!(bind.clip.skeleton().joints()[arm].rest_rotation.angle_between(Quat::IDENTITY) < 1e-6);
+    assert!(close(&bind.mesh.positions, &stored), "{:?}", bind.mesh.positions);
+    // Turned 90° about Z at (0.5, 1, 0): (x, y) → (0.5 − (y − 1), 1 + (x − 0.5)).
+    let swung: Vec<Vec3> = stored.iter().map(|p| Vec3::new(0.5 - (p.y - 1.0), 1.0 + (p.x - 0.5), 0.0)).collect();
+    assert!(close(&nodes.mesh.positions, &swung), "{:?}", nodes.mesh.positions);
+}

@@ -4,11 +4,11 @@ use std::sync::Arc;
 
 use crate::formats::gltf::write_sequence_glb;
 use crate::formats::{FormatError, FormatErrorKind, Loaded};
-use crate::kernels::load::{Character, load_character, load_meshes};
+use crate::kernels::load::{Character, RestPose, load_character_resting, load_meshes};
 use crate::model::{Clip, Mesh, MeshSequence};
 use crate::node::{
-    FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
-    Registry,
+    ChoiceParam, FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output,
+    OutputPathParam, Registry,
 };
 use crate::node::{Report, into_report};
 
@@ -75,6 +75,13 @@ const CHARACTER_PATH: InputPathParam = InputPathParam::new(
     "glTF, GLB or FBX file of a rigged character (a Mixamo download with its skin). Relative paths start at the graph file's folder.",
     &["gltf", "glb", "fbx"],
 );
+const REST_POSE: ChoiceParam<RestPose> = ChoiceParam::new(
+    "rest_pose",
+    "The pose the skeleton rests in (skeleton.map's 'rest' reference, the mesh's rest shape): 'nodes', the file's node \
+     transforms; 'bind', the skin's bind pose (where the inverse bind matrices put each joint, the pose the mesh was \
+     bound in; glTF).",
+    "nodes",
+);
 const ANIMATION: IntParam = IntParam::new(
     "animation",
     "Which animation (FBX: take) of the file to output as the clip (0 = first).",
@@ -104,7 +111,7 @@ static LOAD_CHARACTER: NodeSchema = NodeSchema {
     doc: "Loads a rigged character from a glTF/GLB or FBX scene: its skeleton and animation, and every mesh merged into one skinned mesh (meshes attached to bones follow them rigidly) with each part's material, UVs and textures (FBX: converted to metallic-roughness, embedded textures kept), ready for export.glb. A texture image file missing beside the glTF is an error naming it; an FBX texture neither embedded nor beside the file is left out with a warning.",
     inputs: &[],
     outputs: &[CHARACTER_CLIP.spec(), CHARACTER_MESH.spec(), CHARACTER_REPORT.spec()],
-    params: &[CHARACTER_PATH.0, ANIMATION.0],
+    params: &[CHARACTER_PATH.0, ANIMATION.0, REST_POSE.0],
     writes_files: false,
     // 2: materials, textures and UVs kept; the file's inverse bind matrices when they fit.
     // 3: the mesh remembers its source meshes as parts (export.glb writes them apart).
@@ -120,7 +127,7 @@ impl Node for LoadCharacter {
         let path = ctx.input_path(&CHARACTER_PATH)?;
         let animation = usize::try_from(ctx.int(&ANIMATION)?).unwrap_or(0);
         let Loaded { value: Character { clip, mesh, parts, file_inverse_bind_matrices }, warnings } =
-            load_character(&path, animation)?;
+            load_character_resting(&path, animation, ctx.choice(&REST_POSE)?)?;
         ctx.warn_all(warnings);
         let parts: Vec<_> = parts
             .iter()

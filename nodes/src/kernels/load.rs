@@ -10,7 +10,7 @@ use crate::formats::{FormatError, FormatErrorKind, Loaded};
 use crate::model::fk::rest_world;
 use glam::Mat4;
 
-use crate::model::{Clip, Mesh, Skin};
+use crate::model::{Clip, Mesh, Skeleton, Skin, Transform};
 
 /// How to read a clip file.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -322,13 +322,78 @@ fn character_clip(
     }
 }
 
-/// A glTF/GLB scene as a [`CharacterSource`] (materials read).
-fn gltf_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSource>, FormatError> {
+/// Which pose a loaded character's skeleton rests in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RestPose {
+    /// The file's node transforms (what a viewer shows with no animation playing).
+    #[default]
+    Nodes,
+    /// The skin's bind pose: each joint where its inverse bind matrix puts it (the pose the
+    /// mesh was modelled and bound in; CesiumMan's differs from its node transforms). Joints
+    /// the skin does not list keep their node transforms under their parents.
+    Bind,
+}
+crate::model::choice::choices!(RestPose { Nodes = "nodes", Bind = "bind" });
+
+/// `skeleton` resting in the bind pose of `ibms` (per joint, `None` where the skin has
+/// none): each listed joint's world transform is `B` times its inverse bind matrix
+/// inverted (scale dropped), its local one that relative to its parent's. `B` places the
+/// bind space (exporters bind in the scene's space, as Xbot's, or in the armature's, as
+/// CesiumMan's Z-up one): it is the one that leaves the first listed joint (the root, as a
+/// rule) where the node transforms put it, so the character stands where it stood.
+fn bind_rest_skeleton(skeleton: &Skeleton, ibms: &[Option<Mat4>]) -> Result<Skeleton, String> {
+    let node_world = rest_world(skeleton);
+    let bind_space = ibms
+        .iter()
+        .zip(&node_world)
+        .find_map(|(ibm, world)| ibm.map(|ibm| world.to_mat4() * ibm))
+        .ok_or("the skin lists no joint of the skeleton")?;
+    let mut world: Vec<Transform> = Vec::with_capacity(skeleton.len());
+    let mut joints = skeleton.joints().to_vec();
+    for (j, joint) in joints.iter_mut().enumerate() {
+        let parent = joint.parent.map_or(Transform::IDENTITY, |p| world[p]);
+        let bound = match ibms.get(j).copied().flatten() {
+            Some(ibm) if ibm.determinant().abs() > f32::EPSILON => {
+                let (_, rotation, translation) = (bind_space * ibm.inverse()).to_scale_rotation_translation();
+                Transform { rotation: crate::math::quat_normalize_or_identity(rotation), translation }
+            }
+            // Not in the skin: its node transform under its (bound) parent.
+            _ => parent.compose(joint.rest_rotation, joint.rest_offset),
+        };
+        let to_parent = parent.rotation.inverse();
+        joint.rest_rotation = to_parent * bound.rotation;
+        joint.rest_offset = to_parent * (bound.translation - parent.translation);
+        world.push(bound);
+    }
+    Skeleton::new(joints).map_err(|e| e.to_string())
+}
+
+/// A glTF/GLB scene as a [`CharacterSource`] (materials read), resting in `rest`.
+fn gltf_character(path: &Path, animation: usize, rest: RestPose) -> Result<Loaded<CharacterSource>, FormatError> {
     let options = GltfReadOptions { materials: true, ..GltfReadOptions::default() };
-    let Loaded { value: asset, mut warnings } = read_gltf_file(path, &options)?;
-    let Some(skeleton) = asset.skeleton.clone() else {
+    let Loaded { value: mut asset, mut warnings } = read_gltf_file(path, &options)?;
+    let Some(mut skeleton) = asset.skeleton.clone() else {
         return Err(FormatError::file(path, FormatErrorKind::Structure, "has no skeleton (no skin and no animation)"));
     };
+    if rest == RestPose::Bind {
+        if asset.skin_inverse_bind_matrices.iter().all(Option::is_none) {
+            return Err(FormatError::file(path, FormatErrorKind::Structure, "has no skin, so no bind pose to rest in"));
+        }
+        let bound = bind_rest_skeleton(&skeleton, &asset.skin_inverse_bind_matrices)
+            .map_err(|e| FormatError::file(path, FormatErrorKind::Value, format!("its bind pose: {e}")))?;
+        skeleton = std::sync::Arc::new(bound);
+        // The animations' frames are local transforms, the same on either rest pose.
+        for c in &mut asset.clips {
+            c.clip = Clip::new(
+                skeleton.clone(),
+                c.clip.fps(),
+                c.clip.rotations().to_vec(),
+                c.clip.translations().to_vec(),
+                c.clip.import_scale,
+            )
+            .map_err(|e| FormatError::file(path, FormatErrorKind::Value, e.to_string()))?;
+        }
+    }
     // A character has one skeleton: a mesh skinned to another one cannot follow it.
     if let Some(foreign) = asset.foreign_skins.first() {
         let mesh = &asset.meshes[foreign.mesh].name;
@@ -391,9 +456,19 @@ fn fbx_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSource
 /// nor beside the file is left out with a warning (FBX files often name textures on the
 /// machine that wrote them; see [`crate::formats::fbx`]).
 pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>, FormatError> {
+    load_character_resting(path, animation, RestPose::Nodes)
+}
+
+/// [`load_character`] with the skeleton resting in `rest` (glTF; an FBX character rests in
+/// its node transforms, with a warning when `rest` asks otherwise).
+pub fn load_character_resting(path: &Path, animation: usize, rest: RestPose) -> Result<Loaded<Character>, FormatError> {
     let fbx = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("fbx"));
     let Loaded { value: source, mut warnings } =
-        if fbx { fbx_character(path, animation)? } else { gltf_character(path, animation)? };
+        if fbx { fbx_character(path, animation)? } else { gltf_character(path, animation, rest)? };
+    if fbx && rest == RestPose::Bind {
+        warnings
+            .push("rest_pose 'bind' is read from glTF skins; this FBX character rests in its node transforms".into());
+    }
     let CharacterSource { skeleton, clip, meshes, mesh_joints, mesh_objects, file_ibms } = source;
     if meshes.is_empty() {
         return Err(FormatError::file(path, FormatErrorKind::Structure, "has no mesh"));

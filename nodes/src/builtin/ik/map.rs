@@ -185,7 +185,8 @@ pub enum ReferencePose {
     #[default]
     FirstFrame,
     /// The skeleton's rest pose: a BVH's OFFSETs with no rotation (the T-pose of the CMU
-    /// captures), a glTF's or FBX's node transforms (a Mixamo character's bind T-pose).
+    /// captures), a glTF's or FBX's node transforms (a Mixamo character's bind T-pose), or
+    /// its skin's bind pose when `character.load` rests it there (`rest_pose: bind`).
     Rest,
     /// A frame of the clip, from 0 (the frame a named animation stands in its T-pose).
     Frame(usize),
@@ -535,7 +536,7 @@ const SOURCE_FRAME: IntParam = IntParam::new(
 );
 const TARGET_REFERENCE: ChoiceParam<Reference> = ChoiceParam::new(
     "target_reference",
-    "The target's pose the skeletons are aligned in: its first frame, its skeleton's rest pose (a Mixamo character's bind T-pose), or target_frame.",
+    "The target's pose the skeletons are aligned in: its first frame, its skeleton's rest pose (a Mixamo character's bind T-pose; character.load's rest_pose picks the node transforms or the skin's bind pose), or target_frame.",
     "first_frame",
 );
 const TARGET_FRAME: IntParam = IntParam::new(
