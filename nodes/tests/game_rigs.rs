@@ -382,8 +382,58 @@ fn named_toes_lock_like_the_original() {
     assert!(foot_lock(&lost, &lost_contacts, &bad).unwrap_err().to_string().contains("b999"));
 }
 
+/// `skeleton` with an Unreal-style IK bone set under its first joint: `ik_foot_root` with
+/// `ik_foot_l` / `ik_foot_r` standing on the feet (`feet`, by name), and `ik_hand_root` with
+/// `ik_hand_gun`, `ik_hand_l` / `ik_hand_r` on the hands (`hands`, by name). Game engines
+/// drive these for their own IK; no animation moves them.
+fn with_ik_bones(skeleton: &Skeleton, feet: [&str; 2], hands: [&str; 2]) -> Skeleton {
+    let world = rest_world(skeleton);
+    let mut joints = skeleton.joints().to_vec();
+    let at = |name: &str| world[skeleton.index_of(name).unwrap()].translation;
+    let root_at = world[0].translation;
+    for (group, ends, names) in
+        [("ik_foot_root", feet, ["ik_foot_l", "ik_foot_r"]), ("ik_hand_root", hands, ["ik_hand_l", "ik_hand_r"])]
+    {
+        let group_index = joints.len();
+        joints.push(Joint::new(group, Some(0), Vec3::ZERO));
+        if group == "ik_hand_root" {
+            joints.push(Joint::new("ik_hand_gun", Some(group_index), at(ends[1]) - root_at));
+        }
+        for (end, name) in ends.iter().zip(names) {
+            // In the first joint's frame (its rest rotation undone).
+            let offset = world[0].rotation.inverse() * (at(end) - root_at);
+            joints.push(Joint::new(name, Some(group_index), offset));
+        }
+    }
+    Skeleton::new(joints).unwrap()
+}
+
+/// Issue 18: a game rig with Unreal's IK bones beside its feet and hands (leaves standing
+/// exactly where the feet and hands are, named like them) is read and walks like the
+/// original Xbot: the IK bones are paired with nothing and stay where the rig put them.
+#[test]
+fn a_game_rig_with_ik_bones_walks_like_the_original() {
+    let Some(Setup { walk, xbot }) = setup() else { return };
+    let (_, _, original_out) = carry(&walk, (*xbot).clone());
+    let game = FAMILIES.iter().find(|(f, _)| *f == "game").unwrap().1;
+    let name = |n: &str| renamed(game, n);
+    let rig = game_rig(&rename(&xbot, name), ["FootL", "FootR"], &["UpperLegL", "UpperLegR"]);
+    let rig = with_ik_bones(&rig, ["FootL", "FootR"], ["HandL", "HandR"]);
+    let (_, map, out) = carry(&walk, rig);
+    let ik: Vec<&String> = map.joints.keys().filter(|t| t.starts_with("ik_")).collect();
+    assert!(ik.is_empty(), "IK bones paired: {ik:?}");
+    assert_eq!(map.joints.get("FootL").map(String::as_str), Some("LeftFoot"), "{map:?}");
+    assert!((out.root_scale - original_out.root_scale).abs() < 1e-6, "{}", out.root_scale);
+    let (worst, at) = worst_joint_distance(&original_out.clip, &out.clip, name);
+    println!(
+        "game rig with IK bones: {} pairs, worst joint distance to the original {worst:.2e} m ({at})",
+        map.joints.len()
+    );
+    assert!(worst < 1e-4, "{worst} m at {at}");
+}
+
 /// Issue 18, `motion.foot_lock` on an IK-style game rig: with the feet hanging off a root
-/// on the ground (and twist bones in the legs), the lock turns the same hips and knees to
+/// on the ground (twist bones in the legs, Unreal's IK bones beside the feet), the lock turns the same hips and knees to
 /// hold the same plants and puts each foot at the end of its shin, so every joint of the
 /// rig moves as the original Xbot's does when the same walk is locked on it.
 #[test]
@@ -401,6 +451,7 @@ fn a_game_rig_with_feet_under_the_root_locks_like_the_original() {
     let game = FAMILIES.iter().find(|(f, _)| *f == "game").unwrap().1;
     let name = |n: &str| renamed(game, n);
     let rig = game_rig(&rename(&xbot, name), ["FootL", "FootR"], &["UpperLegL", "UpperLegR"]);
+    let rig = with_ik_bones(&rig, ["FootL", "FootR"], ["HandL", "HandR"]);
     let (_, _, out) = carry(&walk, rig);
     let got = lock(&out.clip);
     let foot = got.clip.skeleton().index_of("FootL").unwrap();
