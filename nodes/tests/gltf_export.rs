@@ -881,3 +881,74 @@ fn a_file_saved_posed_rests_in_its_bind_pose_on_request() {
     let swung: Vec<Vec3> = stored.iter().map(|p| Vec3::new(0.5 - (p.y - 1.0), 1.0 + (p.x - 0.5), 0.0)).collect();
     assert!(close(&nodes.mesh.positions, &swung), "{:?}", nodes.mesh.positions);
 }
+
+/// Issue 18, a bone-attached mesh on a sample rig: Xbot (its two skinned meshes) with a
+/// helmet plate added as a mesh node under its `mixamorig:Head` node (in the head's
+/// centimetre frame, 20 cm up). `character.load` binds the plate rigidly to the head and puts
+/// it where the `gltf` crate, reading the same file, places it through the node hierarchy
+/// (within 1e-5 m); the skinned meshes stay skinned, and the export validates.
+#[test]
+fn a_prop_parented_to_xbots_head_follows_the_head() {
+    use base64::Engine as _;
+    use kinegraph_nodes::kernels::load::load_character;
+    let Some(data) = shared_data() else { return };
+    let glb = gltf::Gltf::open(data.join("gltf/Xbot.glb")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("xbot.bin"), glb.blob.as_ref().unwrap()).unwrap();
+    let mut json = serde_json::to_value(glb.document.clone().into_json()).unwrap();
+    json["buffers"][0]["uri"] = "xbot.bin".into();
+    // The plate: one triangle, 10 cm wide, in its node's (the head's centimetre) frame.
+    let corners = [[-5.0f32, 0.0, 0.0], [5.0, 0.0, 0.0], [0.0, 0.0, 8.0]];
+    let mut bin: Vec<u8> = corners.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+    bin.extend([0u16, 1, 2, 0].iter().flat_map(|i| i.to_le_bytes()));
+    let count = |key: &str| json[key].as_array().map_or(0, Vec::len);
+    let (buffer, view, accessor, mesh, node) =
+        (count("buffers"), count("bufferViews"), count("accessors"), count("meshes"), count("nodes"));
+    let uri =
+        format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bin));
+    json["buffers"].as_array_mut().unwrap().push(serde_json::json!({"byteLength": bin.len(), "uri": uri}));
+    json["bufferViews"].as_array_mut().unwrap().extend([
+        serde_json::json!({"buffer": buffer, "byteOffset": 0, "byteLength": 36}),
+        serde_json::json!({"buffer": buffer, "byteOffset": 36, "byteLength": 6}),
+    ]);
+    json["accessors"].as_array_mut().unwrap().extend([
+        serde_json::json!({"bufferView": view, "componentType": 5126, "count": 3, "type": "VEC3",
+                           "min": [-5.0, 0.0, 0.0], "max": [5.0, 0.0, 8.0]}),
+        serde_json::json!({"bufferView": view + 1, "componentType": 5123, "count": 3, "type": "SCALAR"}),
+    ]);
+    json["meshes"].as_array_mut().unwrap().push(serde_json::json!(
+        {"name": "helmet", "primitives": [{"attributes": {"POSITION": accessor}, "indices": accessor + 1}]}));
+    json["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"name": "helmet", "mesh": mesh, "translation": [0, 20, 0]}));
+    let head = json["nodes"].as_array().unwrap().iter().position(|n| n["name"] == "mixamorig:Head").unwrap();
+    let children =
+        json["nodes"][head].as_object_mut().unwrap().entry("children").or_insert_with(|| serde_json::json!([]));
+    children.as_array_mut().unwrap().push(node.into());
+    let path = dir.path().join("xbot_helmet.gltf");
+    std::fs::write(&path, serde_json::to_string(&json).unwrap()).unwrap();
+
+    let loaded = load_character(&path, 0).unwrap().value;
+    let bindings: Vec<(&str, &str)> = loaded.parts.iter().map(|p| (p.name.as_str(), p.binding.as_str())).collect();
+    println!("parts: {bindings:?}");
+    assert_eq!(bindings.iter().filter(|(_, b)| *b == "skinned").count(), 2);
+    let helmet = loaded.parts.iter().position(|p| p.name == "helmet").expect("the helmet part");
+    assert_eq!(loaded.parts[helmet].binding, "rigid to mixamorig:Head");
+    let first: usize = loaded.parts[..helmet].iter().map(|p| p.vertices).sum();
+    let skin = loaded.mesh.skin.as_ref().unwrap();
+    let head_joint = loaded.clip.skeleton().index_of("mixamorig:Head").unwrap();
+    assert!(skin.joints[first..first + 3].iter().all(|j| usize::from(j[0]) == head_joint));
+    let (doc, _, _) = gltf::import(&path).unwrap();
+    let world = gltf_validator::rest_worlds(&doc);
+    let worst = corners
+        .iter()
+        .zip(&loaded.mesh.positions[first..first + 3])
+        .map(|(c, p)| world[node].transform_point3(Vec3::from(*c)).distance(*p))
+        .fold(0.0f32, f32::max);
+    println!("helmet at rest within {worst:.2e} m of where the node hierarchy puts it");
+    assert!(worst < 1e-5, "{worst}");
+    let out = dir.path().join("xbot_helmet.glb");
+    write_glb_file(&out, &loaded.clip, Some(&loaded.mesh)).unwrap();
+    gltf_validator::validate_gltf(&[out]);
+}
