@@ -815,9 +815,10 @@ fn cesium_man_rests_in_its_bind_pose_on_request() {
 
 /// `rest_pose: bind` on a file saved with its arm posed: a root at 1 m and an arm joint
 /// 0.5 m out along X, turned 90° about Z in the node transforms, bound straight (inverse bind
-/// matrices of the unturned joints). Hand-solved: resting in the bind pose, the arm joint
-/// has no turn and the triangle bound to it stays where it is stored; resting in the node
-/// transforms, the arm is turned and the triangle swings up about the arm joint.
+/// matrices of the unturned joints), and a badge mesh hung on the arm node. Hand-solved:
+/// resting in the bind pose, the arm joint has no turn, the triangle skinned to it stays
+/// where it is stored and the badge hangs straight out; resting in the node transforms, the
+/// arm is turned and both swing up about the arm joint.
 #[test]
 fn a_file_saved_posed_rests_in_its_bind_pose_on_request() {
     use base64::Engine as _;
@@ -841,6 +842,10 @@ fn a_file_saved_posed_rests_in_its_bind_pose_on_request() {
             bin.extend_from_slice(&v.to_le_bytes());
         }
     }
+    let badge = [Vec3::new(0.2, 0.0, 0.0), Vec3::new(0.3, 0.0, 0.0), Vec3::new(0.2, 0.1, 0.0)];
+    for v in badge.iter().flat_map(|p| p.to_array()) {
+        bin.extend_from_slice(&v.to_le_bytes());
+    }
     let data = base64::engine::general_purpose::STANDARD.encode(&bin);
     let gltf = format!(
         r#"{{
@@ -849,21 +854,24 @@ fn a_file_saved_posed_rests_in_its_bind_pose_on_request() {
   "scenes": [{{"nodes": [0, 2]}}],
   "nodes": [
     {{"name": "root", "translation": [0, 1, 0], "children": [1]}},
-    {{"name": "arm", "translation": [0.5, 0, 0], "rotation": [0, 0, 0.70710678, 0.70710678]}},
-    {{"name": "body", "mesh": 0, "skin": 0}}
+    {{"name": "arm", "translation": [0.5, 0, 0], "rotation": [0, 0, 0.70710678, 0.70710678], "children": [3]}},
+    {{"name": "body", "mesh": 0, "skin": 0}},
+    {{"name": "badge", "mesh": 1}}
   ],
   "skins": [{{"joints": [0, 1], "inverseBindMatrices": 4}}],
-  "meshes": [{{"name": "body", "primitives": [{{"attributes": {{"POSITION": 0, "JOINTS_0": 2, "WEIGHTS_0": 3}}, "indices": 1}}]}}],
+  "meshes": [{{"name": "body", "primitives": [{{"attributes": {{"POSITION": 0, "JOINTS_0": 2, "WEIGHTS_0": 3}}, "indices": 1}}]}},
+             {{"name": "badge", "primitives": [{{"attributes": {{"POSITION": 5}}, "indices": 1}}]}}],
   "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{data}"}}],
   "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 6}},
                   {{"buffer": 0, "byteOffset": 44, "byteLength": 12}}, {{"buffer": 0, "byteOffset": 56, "byteLength": 48}},
-                  {{"buffer": 0, "byteOffset": 104, "byteLength": 128}}],
+                  {{"buffer": 0, "byteOffset": 104, "byteLength": 128}}, {{"buffer": 0, "byteOffset": 232, "byteLength": 36}}],
   "accessors": [
     {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.9, 1, 0], "max": [1, 1.1, 0]}},
     {{"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}},
     {{"bufferView": 2, "componentType": 5121, "count": 3, "type": "VEC4"}},
     {{"bufferView": 3, "componentType": 5126, "count": 3, "type": "VEC4"}},
-    {{"bufferView": 4, "componentType": 5126, "count": 2, "type": "MAT4"}}
+    {{"bufferView": 4, "componentType": 5126, "count": 2, "type": "MAT4"}},
+    {{"bufferView": 5, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.2, 0, 0], "max": [0.3, 0.1, 0]}}
   ]
 }}"#,
         len = bin.len()
@@ -876,9 +884,13 @@ fn a_file_saved_posed_rests_in_its_bind_pose_on_request() {
     let arm = bind.clip.skeleton().index_of("arm").unwrap();
     let close = |a: &[Vec3], b: &[Vec3]| a.iter().zip(b).all(|(x, y)| x.distance(*y) < 1e-6);
     assert!(bind.clip.skeleton().joints()[arm].rest_rotation.angle_between(Quat::IDENTITY) < 1e-6);
-    assert!(close(&bind.mesh.positions, &stored), "{:?}", bind.mesh.positions);
+    // The badge straight out from the arm joint at (0.5, 1, 0) in the bind pose.
+    let hung: Vec<Vec3> = badge.iter().map(|p| *p + Vec3::new(0.5, 1.0, 0.0)).collect();
+    let at_rest: Vec<Vec3> = stored.iter().chain(&hung).copied().collect();
+    assert!(close(&bind.mesh.positions, &at_rest), "{:?}", bind.mesh.positions);
     // Turned 90° about Z at (0.5, 1, 0): (x, y) → (0.5 − (y − 1), 1 + (x − 0.5)).
-    let swung: Vec<Vec3> = stored.iter().map(|p| Vec3::new(0.5 - (p.y - 1.0), 1.0 + (p.x - 0.5), 0.0)).collect();
+    let swing = |p: &Vec3| Vec3::new(0.5 - (p.y - 1.0), 1.0 + (p.x - 0.5), 0.0);
+    let swung: Vec<Vec3> = at_rest.iter().map(swing).collect();
     assert!(close(&nodes.mesh.positions, &swung), "{:?}", nodes.mesh.positions);
 }
 

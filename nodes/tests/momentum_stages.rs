@@ -103,6 +103,7 @@ fn a_synthetic_backflip_gives_back_its_stages_gravity_and_spin() {
             .map(|f| FootContacts { foot: f.to_string(), intervals: down.clone() })
             .collect(),
         double_support: down.clone(),
+        hands: Vec::new(),
     };
     let staged = stage_clip(&b.clip, &model, Some(&contacts), None).unwrap();
     let kinds: Vec<(StageKind, FrameRange)> = staged.stages.stages.iter().map(|s| (s.kind, s.frames)).collect();

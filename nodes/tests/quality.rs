@@ -42,6 +42,7 @@ fn left_foot_down(clip: &Clip, left: Vec<FrameRange>) -> Contacts {
             FootContacts { foot: "RightFoot".into(), intervals: Vec::new() },
         ],
         double_support: Vec::new(),
+        hands: Vec::new(),
     }
 }
 
@@ -438,6 +439,7 @@ fn a_hand_built_walk_has_its_step_length_and_pelvis_speed_range() {
             FootContacts { foot: "RightFoot".into(), intervals: intervals(1) },
         ],
         double_support: Vec::new(),
+        hands: Vec::new(),
     };
     let r = measure_quality(&clip, Some(&contacts), &[], None, &QualityOptions::default());
     let stride = r.stride.as_ref().unwrap();

@@ -56,8 +56,9 @@ const TOES: TextParam = TextParam::new(
 const HANDS: TextParam = TextParam::new(
     "hands",
     "The hand joints, left then right, comma separated (e.g. 'LeftHand, RightHand'), for motions that put the hands down \
-     (cartwheels, crawls, push-ups): each is watched at its fingertip against the floor the feet stand on, and its \
-     contacts follow the feet's. Empty: hands are not watched.",
+     (cartwheels, crawls, push-ups): each is watched at its palm (half way from the wrist to the fingertip), by height, \
+     when it comes within reach of the floor the feet stand on. Stages and motion.foot_lock take hand contacts like the \
+     feet's; gait measures do not. Empty: hands are not watched.",
     "",
 );
 

@@ -233,7 +233,7 @@ fn feet_contacts(
         [left, right] => intersect_all(&left.intervals, &right.intervals),
         _ => Vec::new(),
     };
-    Contacts { fps: clip.fps(), frame_count: clip.frame_count(), feet, double_support }
+    Contacts { fps: clip.fps(), frame_count: clip.frame_count(), feet, double_support, hands: Vec::new() }
 }
 
 /// Contacts of the two hand joints `hands` (left, right) of `clip`, for a clip whose feet
@@ -329,7 +329,7 @@ pub fn contacts_with(
     let scaled = leg_m.map_or(*thresholds, |leg_m| thresholds.for_leg(leg_m));
     let mut contacts = feet_contacts(clip, poses, feet, named.toes, &scaled);
     if let Some(hands) = named.hands {
-        contacts.feet.extend(hand_contacts(clip, poses, feet, hands, &scaled));
+        contacts.hands = hand_contacts(clip, poses, feet, hands, &scaled);
     }
     Ok(FoundContacts { contacts, feet, scaled_to_leg_m: leg_m.filter(|_| thresholds.leg_m.is_some()) })
 }

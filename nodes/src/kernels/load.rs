@@ -381,6 +381,16 @@ fn gltf_character(path: &Path, animation: usize, rest: RestPose) -> Result<Loade
         }
         let bound = bind_rest_skeleton(&skeleton, &asset.skin_inverse_bind_matrices)
             .map_err(|e| FormatError::file(path, FormatErrorKind::Value, format!("its bind pose: {e}")))?;
+        // A mesh hung on a bone goes with its bone from the node pose to the bind pose.
+        let (node_world, bind_world) = (rest_world(&skeleton), rest_world(&bound));
+        for (mesh, joint) in asset.meshes.iter_mut().zip(&asset.mesh_joints) {
+            if let (Some(j), None) = (*joint, &mesh.skin) {
+                let moved = bind_world[j].to_mat4() * node_world[j].inverse_to_mat4();
+                let turned = glam::Mat3::from_mat4(moved);
+                mesh.positions.iter_mut().for_each(|p| *p = moved.transform_point3(*p));
+                mesh.normals.iter_mut().for_each(|n| *n = turned * *n);
+            }
+        }
         skeleton = std::sync::Arc::new(bound);
         // The animations' frames are local transforms, the same on either rest pose.
         for c in &mut asset.clips {

@@ -79,7 +79,7 @@ pub fn stage_thresholds() -> ContactThresholds {
 pub fn stages_from_contacts(contacts: &Contacts, min_flight_frames: usize) -> Vec<Stage> {
     let n = contacts.frame_count;
     let mut grounded = vec![false; n];
-    for foot in &contacts.feet {
+    for foot in contacts.limbs() {
         for r in &foot.intervals {
             for g in grounded.iter_mut().take(r.end).skip(r.start) {
                 *g = true;
@@ -353,6 +353,7 @@ mod tests {
                 FootContacts { foot: "r".into(), intervals: vec![FrameRange::new(2, 4), FrameRange::new(8, 10)] },
             ],
             double_support: vec![],
+            hands: vec![],
         };
         let s = stages_from_contacts(&contacts, 2);
         let got: Vec<(StageKind, usize, usize)> = s.iter().map(|s| (s.kind, s.frames.start, s.frames.end)).collect();

@@ -84,11 +84,22 @@ pub struct Contacts {
     pub fps: f64,
     /// Frames in that clip.
     pub frame_count: usize,
-    /// Contacts per foot (left first), then per hand when hands are watched (left first):
-    /// every limb that supports the body, each named by its joint.
+    /// Contacts per foot (left first).
     pub feet: Vec<FootContacts>,
     /// Frames where both feet are in contact, sorted and disjoint.
     pub double_support: Vec<FrameRange>,
+    /// Contacts per hand (left first) when the hands are watched (cartwheels, crawls):
+    /// they support the body like the feet (stages, foot locking) but are not feet (gait
+    /// measures, soles).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub hands: Vec<FootContacts>,
+}
+
+impl Contacts {
+    /// Every limb's contacts: the feet's, then the hands'.
+    pub fn limbs(&self) -> impl Iterator<Item = &FootContacts> {
+        self.feet.iter().chain(&self.hands)
+    }
 }
 
 /// The frames inside both sorted, disjoint interval lists.

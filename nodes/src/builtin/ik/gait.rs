@@ -1085,7 +1085,7 @@ pub fn procedural_gait(skeleton: &Arc<Skeleton>, params: &GaitParams) -> Result<
         })
         .collect();
     let double_support = intersect_all(&feet[0].intervals, &feet[1].intervals);
-    let contacts = Contacts { fps: params.fps, frame_count: frames, feet, double_support };
+    let contacts = Contacts { fps: params.fps, frame_count: frames, feet, double_support, hands: Vec::new() };
 
     let lift: Vec<f64> = root_y.iter().zip(&pelvises).map(|(y, p)| y - p.ground_m).collect();
     let (legs, cadence_steps_per_min, speed_m_per_s) = measure(&clip, &body, &plan, params, walking);

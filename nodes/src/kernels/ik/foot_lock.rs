@@ -271,45 +271,37 @@ struct Leg {
     detached: bool,
 }
 
-/// The leg above each of `ankles`: the ankle's parent and grandparent, unless the parent
-/// also holds another of the feet (the root or pelvis of a rig that hangs its feet there),
-/// in which case the leg is read from the body's roles ([`roles_of`]: by name, else by
-/// shape, on the rest pose).
+/// The limb above each of `ankles` (feet, then any hands): the hip and knee (shoulder and
+/// elbow) the body's roles give it ([`roles_of`]: by name, else by shape, on the rest
+/// pose), so a shin split into segments turns at the knee and a foot hung off the root
+/// (an IK-style game rig) still has its leg; where the roles do not end a limb at that
+/// joint (an unusual rig, a joint the user chose), the joint's parent and grandparent.
 fn legs_above(skeleton: &Skeleton, ankles: &[usize]) -> Result<Vec<Leg>, FootLockError> {
     let joints = skeleton.joints();
     let name = |a: usize| joints[a].name.clone();
-    let holds_another_foot = |parent: usize, ankle: usize| {
-        ankles.iter().any(|&other| other != ankle && (other == parent || skeleton.is_ancestor(parent, other)))
-    };
-    let mut roles = None;
+    let rest: Vec<Vec3> = rest_world(skeleton).iter().map(|t| t.translation).collect();
+    let roles = roles_of(skeleton, &rest);
+    let limbs: Vec<[usize; 3]> =
+        roles.as_ref().map(|r| r.legs.iter().chain(&r.arms).map(|l| l.joints()).collect()).unwrap_or_default();
     ankles
         .iter()
         .map(|&ankle| {
-            let knee = joints[ankle].parent;
-            if let Some(knee) = knee.filter(|&k| !holds_another_foot(k, ankle)) {
-                let hip = joints[knee].parent.ok_or_else(|| FootLockError::ShortLeg(name(ankle)))?;
-                return Ok(Leg { hip, knee, detached: false });
+            if let Some(&[hip, knee, _]) = limbs.iter().find(|l| l[2] == ankle) {
+                return Ok(Leg { hip, knee, detached: !skeleton.is_ancestor(knee, ankle) });
             }
-            let roles = match &roles {
-                Some(roles) => roles,
-                None => {
-                    let rest: Vec<Vec3> = rest_world(skeleton).iter().map(|t| t.translation).collect();
-                    let read = roles_of(skeleton, &rest)
-                        .map_err(|e| FootLockError::DetachedFoot { foot: name(ankle), why: e.to_string() })?;
-                    roles.insert(read)
-                }
-            };
-            let leg = roles.legs.iter().map(|l| l.joints()).find(|[_, _, a]| *a == ankle).ok_or_else(|| {
-                FootLockError::DetachedFoot {
-                    foot: name(ankle),
-                    why: format!(
-                        "the legs read from the body end at `{}` and `{}`",
-                        name(roles.legs[0].joints()[2]),
-                        name(roles.legs[1].joints()[2])
-                    ),
-                }
-            })?;
-            Ok(Leg { hip: leg[0], knee: leg[1], detached: true })
+            let knee = joints[ankle].parent.ok_or_else(|| FootLockError::ShortLeg(name(ankle)))?;
+            // A parent that also holds another of the limbs is the root of a rig that hangs
+            // its feet there: the leg can only come from the body's roles.
+            let holds_another = ankles.iter().any(|&o| o != ankle && (o == knee || skeleton.is_ancestor(knee, o)));
+            if holds_another {
+                let why = match &roles {
+                    Ok(_) => "the legs read from the body end elsewhere".to_owned(),
+                    Err(e) => e.to_string(),
+                };
+                return Err(FootLockError::DetachedFoot { foot: name(ankle), why });
+            }
+            let hip = joints[knee].parent.ok_or_else(|| FootLockError::ShortLeg(name(ankle)))?;
+            Ok(Leg { hip, knee, detached: false })
         })
         .collect()
 }
@@ -323,8 +315,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     let joints = skeleton.joints();
     let mut rig = IkRig::new(skeleton.clone());
     let ankles: Vec<usize> = contacts
-        .feet
-        .iter()
+        .limbs()
         .map(|foot| skeleton.index_of(&foot.foot).ok_or_else(|| FootLockError::UnknownFoot(foot.foot.clone())))
         .collect::<Result<_, _>>()?;
     let legs = legs_above(skeleton, &ankles)?;
@@ -353,7 +344,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
         })
         .collect::<Result<_, _>>()?;
     let plants: Vec<Plants> =
-        contacts.feet.iter().zip(&tips).map(|(foot, &tip)| Plants::new(clip, tip, &foot.intervals, blend)).collect();
+        contacts.limbs().zip(&tips).map(|(foot, &tip)| Plants::new(clip, tip, &foot.intervals, blend)).collect();
     let lifts: Vec<Vec<f64>> = match &params.ground {
         Ground::Clip => vec![Vec::new(); ankles.len()],
         Ground::Soles { mesh, floor_height_m } => {
@@ -361,7 +352,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
             let soles = lowest_sole_heights(clip, mesh, &feet)?;
             soles
                 .into_iter()
-                .zip(&contacts.feet)
+                .zip(contacts.limbs())
                 .map(|(sole, foot)| {
                     let sole = sole.ok_or_else(|| FootLockError::NoSole(foot.foot.clone()))?;
                     Ok(ground_offsets(&sole, *floor_height_m, &foot.intervals, false))
@@ -372,7 +363,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
             let poses = forward_kinematics(clip);
             ankles
                 .iter()
-                .zip(&contacts.feet)
+                .zip(contacts.limbs())
                 .map(|(&a, foot)| {
                     let joints = foot_joints(skeleton, a);
                     let lowest: Vec<f64> = (0..clip.frame_count())
@@ -396,7 +387,8 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     if on_soles {
         let root = (0..n).find(|&j| joints[j].parent.is_none()).unwrap_or(0);
         for (f, frame) in translations.chunks_exact_mut(n).enumerate() {
-            let shared = lifts.iter().map(|l| l[f]).fold(f64::INFINITY, f64::min);
+            // The feet's: a hand that never comes down has no lift, and would keep the root low.
+            let shared = lifts.iter().take(contacts.feet.len()).map(|l| l[f]).fold(f64::INFINITY, f64::min);
             if shared.is_finite() {
                 root_lift[f] = shared as f32;
                 frame[root].y += root_lift[f];
@@ -469,8 +461,7 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
     let locked = Clip::new(skeleton.clone(), clip.fps(), rotations, translations, clip.import_scale)?;
     let after = forward_kinematics(&locked);
     let feet = contacts
-        .feet
-        .iter()
+        .limbs()
         .zip(&plants)
         .zip(&tips)
         .zip(&lifts)
@@ -702,7 +693,13 @@ mod tests {
             .into_iter()
             .map(|(foot, r)| FootContacts { foot: foot.into(), intervals: vec![r] })
             .collect();
-        Contacts { fps: clip.fps(), frame_count: clip.frame_count(), feet, double_support: Vec::new() }
+        Contacts {
+            fps: clip.fps(),
+            frame_count: clip.frame_count(),
+            feet,
+            double_support: Vec::new(),
+            hands: Vec::new(),
+        }
     }
 
     #[test]
@@ -848,6 +845,7 @@ mod tests {
                 FootContacts { foot: "RightFoot".into(), intervals: right },
             ],
             double_support: Vec::new(),
+            hands: Vec::new(),
         };
         let r = FrameRange::new;
         let held = contacts(vec![r(5, 10)], vec![r(20, 25)]);
