@@ -679,17 +679,14 @@ fn parts_are_written_as_separate_meshes_sharing_the_skin() {
     assert!(err.contains("mesh 'box': part 'right' triangle 12 uses a vertex outside its vertices 8..16"), "{err}");
 }
 
-/// Bad input, issue 18: a file holding two characters (two skins over two separate
-/// armatures, a skinned mesh on each) is not one character. `character.load` refuses it
-/// with a structure error naming the file, the mesh of the second skin and the joints it
-/// binds outside the skeleton; reading the file as meshes alone still works (that mesh
-/// unskinned, with a warning).
-#[test]
-fn two_meshes_with_conflicting_skins_are_refused_as_one_character() {
+/// A glTF of two skinned triangle meshes (`first` and `second`, on nodes 4 and 5, skins 0
+/// and 1, every vertex on its skin's first joint) over the joint nodes 0-3, 6 described by
+/// `nodes` (JSON objects, in order), with the scene's root nodes `roots` and the two skins'
+/// joint lists `skins`.
+fn two_skinned_meshes(nodes: [&str; 5], roots: &str, skins: [&str; 2]) -> String {
     use base64::Engine as _;
-    use kinegraph_nodes::formats::FormatErrorKind;
     // One triangle: positions (3 × VEC3 f32), indices (3 × u16, 2 bytes padding), joints
-    // (3 × VEC4 u8), weights (3 × VEC4 f32): every vertex on the skin's first joint.
+    // (3 × VEC4 u8), weights (3 × VEC4 f32).
     let mut bin = Vec::new();
     for v in [0.0f32, 0.0, 0.0, 0.2, 0.0, 0.0, 0.0, 0.3, 0.0] {
         bin.extend_from_slice(&v.to_le_bytes());
@@ -705,21 +702,18 @@ fn two_meshes_with_conflicting_skins_are_refused_as_one_character() {
     }
     let data = base64::engine::general_purpose::STANDARD.encode(&bin);
     let primitive = r#"{"attributes": {"POSITION": 0, "JOINTS_0": 2, "WEIGHTS_0": 3}, "indices": 1}"#;
-    let gltf = format!(
+    let [n0, n1, n2, n3, n6] = nodes;
+    format!(
         r#"{{
   "asset": {{"version": "2.0"}},
   "scene": 0,
-  "scenes": [{{"nodes": [0, 2, 4, 5]}}],
-  "nodes": [
-    {{"name": "hero_root", "translation": [0, 1, 0], "children": [1]}},
-    {{"name": "hero_spine", "translation": [0, 0.5, 0]}},
-    {{"name": "sidekick_root", "translation": [2, 1, 0], "children": [3]}},
-    {{"name": "sidekick_spine", "translation": [0, 0.4, 0]}},
-    {{"name": "hero_body", "mesh": 0, "skin": 0}},
-    {{"name": "sidekick_body", "mesh": 1, "skin": 1}}
-  ],
-  "skins": [{{"joints": [0, 1]}}, {{"joints": [2, 3]}}],
-  "meshes": [{{"name": "hero_body", "primitives": [{primitive}]}}, {{"name": "sidekick_body", "primitives": [{primitive}]}}],
+  "scenes": [{{"nodes": {roots}}}],
+  "nodes": [{n0}, {n1}, {n2}, {n3},
+    {{"name": "first", "mesh": 0, "skin": 0}},
+    {{"name": "second", "mesh": 1, "skin": 1}},
+    {n6}],
+  "skins": [{{"joints": {}}}, {{"joints": {}}}],
+  "meshes": [{{"name": "first", "primitives": [{primitive}]}}, {{"name": "second", "primitives": [{primitive}]}}],
   "buffers": [{{"byteLength": {len}, "uri": "data:application/octet-stream;base64,{data}"}}],
   "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 6}},
                   {{"buffer": 0, "byteOffset": 44, "byteLength": 12}}, {{"buffer": 0, "byteOffset": 56, "byteLength": 48}}],
@@ -730,15 +724,41 @@ fn two_meshes_with_conflicting_skins_are_refused_as_one_character() {
     {{"bufferView": 3, "componentType": 5126, "count": 3, "type": "VEC4"}}
   ]
 }}"#,
+        skins[0],
+        skins[1],
         len = bin.len()
-    );
+    )
+}
+
+/// Bad input, issue 18: a file holding two characters (two skins over two separate
+/// armatures, a skinned mesh on each) is not one character. `character.load` refuses it
+/// with a structure error naming the file, the mesh of the second skin and the joints it
+/// binds outside the skeleton; reading the file as meshes alone still works (that mesh
+/// unskinned, with a warning). Two armatures under one scene node are refused too (the
+/// skin on bones under two roots), while one armature with a skin per mesh, the second
+/// listing a bone the first does not (a jaw), is one character with both meshes skinned.
+#[test]
+fn two_meshes_with_conflicting_skins_are_refused_as_one_character() {
+    use kinegraph_nodes::formats::FormatErrorKind;
+    use kinegraph_nodes::kernels::load::load_character;
+    let hero = [
+        r#"{"name": "hero_root", "translation": [0, 1, 0], "children": [1]}"#,
+        r#"{"name": "hero_spine", "translation": [0, 0.5, 0], "children": [6]}"#,
+        r#"{"name": "sidekick_root", "translation": [2, 1, 0], "children": [3]}"#,
+        r#"{"name": "sidekick_spine", "translation": [0, 0.4, 0]}"#,
+        r#"{"name": "hero_jaw", "translation": [0, 0.2, 0.1]}"#,
+    ];
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("two_characters.gltf");
-    std::fs::write(&path, gltf).unwrap();
-    let error = kinegraph_nodes::kernels::load::load_character(&path, 0).map(|_| ()).unwrap_err();
+    let write = |name: &str, text: String| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let path = write("two_characters.gltf", two_skinned_meshes(hero, "[0, 2, 4, 5]", ["[0, 1]", "[2, 3]"]));
+    let error = load_character(&path, 0).map(|_| ()).unwrap_err();
     println!("{error}");
     assert_eq!((error.file.as_path(), error.kind), (path.as_path(), FormatErrorKind::Structure));
-    for what in ["two skeletons", "'sidekick_body'", "skin 1", "2 joints", "sidekick_root, sidekick_spine"] {
+    for what in ["two skeletons", "'second'", "skin 1", "2 joints", "sidekick_root, sidekick_spine"] {
         assert!(error.message.contains(what), "{what}: {error}");
     }
     let asset = read_gltf_file(&path, &GltfReadOptions::default()).unwrap();
@@ -749,6 +769,34 @@ fn two_meshes_with_conflicting_skins_are_refused_as_one_character() {
         "{:?}",
         asset.warnings
     );
+
+    // The two armatures under one scene node: one skeleton with two roots, both skinned.
+    let mut grouped = hero;
+    grouped[1] = r#"{"name": "hero_spine", "translation": [0, 0.5, 0]}"#;
+    grouped[4] = r#"{"name": "stage", "children": [0, 2]}"#;
+    let path = write("one_stage.gltf", two_skinned_meshes(grouped, "[6, 4, 5]", ["[0, 1]", "[2, 3]"]));
+    let error = load_character(&path, 0).map(|_| ()).unwrap_err();
+    println!("{error}");
+    assert!(
+        error.message.contains("holds 2 skeletons") && error.message.contains("hero_root, sidekick_root"),
+        "{error}"
+    );
+
+    // One armature, a skin per mesh, the second's with the jaw: one character.
+    let path = write("one_character.gltf", two_skinned_meshes(hero, "[0, 4, 5]", ["[0, 1]", "[6, 0, 1]"]));
+    let character = load_character(&path, 0).unwrap().value;
+    let skeleton = character.clip.skeleton();
+    assert!(
+        skeleton.index_of("hero_jaw").is_some(),
+        "{:?}",
+        skeleton.joints().iter().map(|j| &j.name).collect::<Vec<_>>()
+    );
+    let bindings: Vec<&str> = character.parts.iter().map(|p| p.binding.as_str()).collect();
+    assert_eq!(bindings, ["skinned", "skinned"]);
+    // The second mesh's vertices hang on the jaw (its skin's first joint).
+    let jaw = skeleton.index_of("hero_jaw").unwrap();
+    let skin = character.mesh.skin.as_ref().unwrap();
+    assert!(skin.joints[3..].iter().all(|j| usize::from(j[0]) == jaw), "{:?}", &skin.joints[3..]);
 }
 
 /// Issue 18, the reference pose as a choice: `character.load` with `rest_pose: bind` rests

@@ -414,9 +414,9 @@ fn gltf_character(path: &Path, animation: usize, rest: RestPose) -> Result<Loade
             path,
             FormatErrorKind::Structure,
             format!(
-                "holds two skeletons: mesh '{mesh}' is skinned (skin {}) to {} joints outside the skeleton read \
-                 from skin 0 ({}{more}); a character has one skeleton: export each character to its own file, or \
-                 join the armatures into one",
+                "holds two skeletons: mesh '{mesh}' is skinned (skin {}) to {} joints of another armature \
+                 ({}{more}); a character has one skeleton: export each character to its own file, or join the \
+                 armatures into one",
                 foreign.skin,
                 foreign.outside.len(),
                 shown.join(", ")
@@ -562,6 +562,34 @@ pub fn load_character_resting(path: &Path, animation: usize, rest: RestPose) -> 
         mesh.uvs = Some(uvs);
     }
     mesh.drop_empty_material_ranges();
+    // One character, one skeleton: skin on bones under two roots is two characters (an FBX
+    // scene's bones all become one skeleton, whatever armature they belong to).
+    let mut root_of: Vec<usize> = (0..skeleton.len()).collect();
+    for j in 0..skeleton.len() {
+        if let Some(p) = skeleton.joints()[j].parent {
+            root_of[j] = root_of[p];
+        }
+    }
+    let mut carried: Vec<usize> = joints
+        .iter()
+        .zip(&weights)
+        .flat_map(|(js, ws)| js.iter().zip(ws).filter(|(_, w)| **w > 0.0).map(|(&j, _)| root_of[usize::from(j)]))
+        .collect();
+    carried.sort_unstable();
+    carried.dedup();
+    if carried.len() > 1 {
+        let names: Vec<&str> = carried.iter().map(|&r| skeleton.joints()[r].name.as_str()).collect();
+        return Err(FormatError::file(
+            path,
+            FormatErrorKind::Structure,
+            format!(
+                "holds {} skeletons: its meshes are skinned to bones under the roots {}; a character has one \
+                 skeleton: export each character to its own file, or join the armatures into one",
+                carried.len(),
+                names.join(", ")
+            ),
+        ));
+    }
     let computed: Vec<Mat4> = rest.iter().map(|t| t.inverse_to_mat4()).collect();
     let fit = source_ibms_fit(&file_ibms, &computed, &mesh, &joints, &weights);
     let file_inverse_bind_matrices = fit.is_some();

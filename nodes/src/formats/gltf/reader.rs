@@ -47,8 +47,8 @@ const WEIGHT_SUM_TOL: f64 = 1e-3;
 pub struct GltfReadOptions {
     /// Read only this animation (index into the file's `animations`); `None` reads all.
     pub animation: Option<usize>,
-    /// Build the skeleton from this skin (index into `skins`); `None` uses skin 0, or the
-    /// animated nodes when the file has no skin.
+    /// Build the skeleton from this skin (index into `skins`); `None` uses skin 0 with the
+    /// other skins over the same armature, or the animated nodes when the file has no skin.
     pub skin: Option<usize>,
     /// Sampling rate for clips (frames per second); `None` infers it per animation with
     /// [`infer_sample_fps`].
@@ -442,6 +442,28 @@ fn read_inner(bytes: &[u8], path: &Path, options: &GltfReadOptions) -> Result<Lo
             }
             seen[v] = true;
             seeds.push(v);
+        }
+        // Without a chosen skin, the other skins over the same armature (one per mesh, some
+        // listing bones skin 0 does not: a face's, a weapon's) join the skeleton; skins over
+        // another armature (another character) stay out.
+        if options.skin.is_none() {
+            let top = |mut v: usize| {
+                while let Some(p) = tree.parent[v] {
+                    v = p;
+                }
+                v
+            };
+            let armature = seeds.first().map(|&v| top(v));
+            for other in root.skins.iter().skip(1) {
+                let nodes: Vec<usize> = other.joints.iter().map(|j| j.value()).filter(|&v| v < seen.len()).collect();
+                if nodes.iter().all(|&v| Some(top(v)) == armature) {
+                    for v in nodes {
+                        if !std::mem::replace(&mut seen[v], true) {
+                            seeds.push(v);
+                        }
+                    }
+                }
+            }
         }
     } else {
         for &a in &animation_indices {
