@@ -879,8 +879,8 @@ fn translation_curves(id: u64, from: [f64; 3], to: [f64; 3]) -> String {
 }
 
 /// An FBX as 3ds Max writes its scenes: Z up (front −Y), centimetres, 30 fps, a two-bone
-/// chain (`hips` 100 cm up, `knee` 50 cm below it) and two takes of one second: `slide`
-/// moves the hips 100 cm along X, `rise` 50 cm up along Z.
+/// chain (`hips` at (10, 20, 100) cm turned 90° about X, `knee` 50 cm down its own Z) and
+/// two takes of one second: `slide` moves the hips 100 cm along X, `rise` 50 cm up along Z.
 fn z_up_centimetre_fbx() -> String {
     const SECOND: u64 = 46_186_158_000;
     let stack = |id: u64, name: &str| {
@@ -919,7 +919,8 @@ Objects:  {
 	Model: 100, "Model::hips", "LimbNode" {
 		Version: 232
 		Properties70:  {
-			P: "Lcl Translation", "Lcl Translation", "", "A",0,0,100
+			P: "Lcl Translation", "Lcl Translation", "", "A",10,20,100
+			P: "Lcl Rotation", "Lcl Rotation", "", "A",90,0,0
 		}
 	}
 	NodeAttribute: 201, "NodeAttribute::knee", "LimbNode" {
@@ -934,9 +935,9 @@ Objects:  {
 "#,
     );
     text += &stack(1000, "slide");
-    text += &translation_curves(1100, [0.0, 0.0, 100.0], [100.0, 0.0, 100.0]);
+    text += &translation_curves(1100, [10.0, 20.0, 100.0], [110.0, 20.0, 100.0]);
     text += &stack(2000, "rise");
-    text += &translation_curves(2100, [0.0, 0.0, 100.0], [0.0, 0.0, 150.0]);
+    text += &translation_curves(2100, [10.0, 20.0, 100.0], [10.0, 20.0, 150.0]);
     text += "}\nConnections:  {\n\tC: \"OO\",100,0\n\tC: \"OO\",101,100\n\tC: \"OO\",200,100\n\tC: \"OO\",201,200\n";
     for take in [1000, 2000] {
         text += &format!("\tC: \"OO\",{},{take}\n\tC: \"OO\",{},{}\n", take + 1, take + 100, take + 1);
@@ -951,8 +952,9 @@ Objects:  {
 /// Issue 18, FBX units, axes and takes: a Z-up centimetre file with two takes reads as two
 /// clips in metres, Y up, each one second at the file's 30 fps (31 frames), the bones where
 /// the conversion (x, y, z) cm → (x, z, −y) / 100 m puts them at the first, middle and last
-/// frame; the report states centimetres, +Z up and both takes. Without its bones the same
-/// file is refused, naming what it holds.
+/// frame (hand-solved: the hips' 90° about X turns the knee's (0, 0, −50) cm into
+/// (0, 50, 0) cm, i.e. (0, 0, −0.5) m from the hips); the report states centimetres, +Z up and
+/// both takes. Without its bones the same file is refused, naming what it holds.
 #[test]
 fn a_z_up_centimetre_fbx_with_two_takes_reads_in_metres_y_up() {
     let text = z_up_centimetre_fbx();
@@ -966,10 +968,10 @@ fn a_z_up_centimetre_fbx_with_two_takes_reads_in_metres_y_up() {
     let names: Vec<&str> = asset.skeleton.joints().iter().map(|j| j.name.as_str()).collect();
     assert_eq!(names, ["hips", "knee"]);
     assert_eq!(asset.clips.len(), 2);
-    // Hips at (x, y, z) cm in the file: (x, z, −y) / 100 in metres, Y up; the knee 0.5 m below.
+    // Hips at (x, y, z) cm in the file: (x, z, −y) / 100 in metres, Y up.
     let hips = |take: usize, t: f64| match take {
-        0 => glam::Vec3::new(t as f32, 1.0, 0.0),
-        _ => glam::Vec3::new(0.0, 1.0 + 0.5 * t as f32, 0.0),
+        0 => glam::Vec3::new(0.1 + t as f32, 1.0, -0.2),
+        _ => glam::Vec3::new(0.1, 1.0 + 0.5 * t as f32, -0.2),
     };
     for (take, fbx_clip) in asset.clips.iter().enumerate() {
         let clip = &fbx_clip.clip;
@@ -979,7 +981,8 @@ fn a_z_up_centimetre_fbx_with_two_takes_reads_in_metres_y_up() {
             let want = hips(take, f as f64 / 30.0);
             let (got, knee) = (poses.position(f, 0), poses.position(f, 1));
             assert!(got.distance(want) < 1e-5, "{} frame {f}: {got} vs {want}", fbx_clip.name);
-            assert!(knee.distance(want - glam::Vec3::Y * 0.5) < 1e-5, "{} frame {f}: knee {knee}", fbx_clip.name);
+            let knee_want = want + glam::Vec3::new(0.0, 0.0, -0.5);
+            assert!(knee.distance(knee_want) < 1e-5, "{} frame {f}: knee {knee} vs {knee_want}", fbx_clip.name);
         }
     }
     // The same file with its bones as plain nodes ("Null"): no skeleton, a located refusal.

@@ -5,7 +5,7 @@
 //! and encodes again (as PNG); every other image keeps its bytes as read.
 //!
 //! A map's value is its image's first channel (a grey image's only one, the red of a colour
-//! one), as glTF reads occlusion. Maps of different sizes are resampled (bilinear) to the
+//! one), as glTF reads occlusion; an opacity image with an alpha channel gives its alpha. Maps of different sizes are resampled (bilinear) to the
 //! largest width and height among them. Values are copied as stored: these maps hold
 //! linear data, not colours.
 
@@ -40,10 +40,16 @@ pub(super) fn metallic_roughness(
     encode_png(name, &image::DynamicImage::ImageRgb8(packed))
 }
 
-/// `base` (white where there is none) with `opacity`'s first channel as its alpha, at the
-/// larger of the two sizes.
+/// `base` (white where there is none) with `opacity` as its alpha, at the larger of the
+/// two sizes: the opacity image's own alpha when it has one (a texture with transparency
+/// connected as the opacity map, often the base colour image itself), else its first
+/// channel (a grey map).
 pub(super) fn with_opacity(name: String, base: Option<&Image>, opacity: &Image) -> Result<Image, String> {
-    let mut opacity = first_channel(opacity)?;
+    let decoded = decode(opacity)?;
+    let channel = if decoded.color().has_alpha() { 3 } else { 0 };
+    let rgba = decoded.to_rgba8();
+    let mut opacity =
+        GrayImage::from_fn(rgba.width(), rgba.height(), |x, y| image::Luma([rgba.get_pixel(x, y).0[channel]]));
     let mut base = match base {
         Some(image) => decode(image)?.to_rgba8(),
         None => RgbaImage::from_pixel(opacity.width(), opacity.height(), image::Rgba([u8::MAX; 4])),
@@ -174,7 +180,8 @@ mod tests {
     }
 
     /// Opacity becomes the base colour's alpha with the colour untouched; without a base
-    /// image the colour is white (the material's factor gives it).
+    /// image the colour is white (the material's factor gives it); an opacity image with
+    /// an alpha channel gives its alpha.
     #[test]
     fn opacity_becomes_the_alpha_of_the_base_colour() {
         let base = png(image::DynamicImage::ImageRgb8(RgbImage::from_fn(3, 2, |x, y| Rgb([x as u8, y as u8, 9]))));
@@ -184,6 +191,13 @@ mod tests {
         }
         for (x, y, p) in decoded(&with_opacity("b".into(), None, &opacity).unwrap()).enumerate_pixels() {
             assert_eq!(p.0, [255, 255, 255, (100 + x + 10 * y) as u8]);
+        }
+        // An opacity texture with an alpha channel gives its alpha, not its red.
+        let see_through = png(image::DynamicImage::ImageRgba8(RgbaImage::from_fn(3, 2, |x, y| {
+            image::Rgba([200, 10, 10, (40 * x + 7 * y) as u8])
+        })));
+        for (x, y, p) in decoded(&with_opacity("b".into(), Some(&base), &see_through).unwrap()).enumerate_pixels() {
+            assert_eq!(p.0, [x as u8, y as u8, 9, (40 * x + 7 * y) as u8]);
         }
         let broken =
             Image { name: Some("broken.png".into()), mime_type: "image/png".into(), bytes: b"\x89PNG".to_vec() };
