@@ -46,10 +46,7 @@ pub(super) fn metallic_roughness(
 /// channel (a grey map).
 pub(super) fn with_opacity(name: String, base: Option<&Image>, opacity: &Image) -> Result<Image, String> {
     let decoded = decode(opacity)?;
-    let channel = if decoded.color().has_alpha() { 3 } else { 0 };
-    let rgba = decoded.to_rgba8();
-    let mut opacity =
-        GrayImage::from_fn(rgba.width(), rgba.height(), |x, y| image::Luma([rgba.get_pixel(x, y).0[channel]]));
+    let mut opacity = plane(&decoded, if decoded.color().has_alpha() { 3 } else { 0 });
     let mut base = match base {
         Some(image) => decode(image)?.to_rgba8(),
         None => RgbaImage::from_pixel(opacity.width(), opacity.height(), image::Rgba([u8::MAX; 4])),
@@ -100,8 +97,13 @@ fn grey_planes<const N: usize>(channels: [Channel<'_>; N]) -> Result<[GrayImage;
 
 /// An image's first channel.
 fn first_channel(image: &Image) -> Result<GrayImage, String> {
-    let rgba = decode(image)?.to_rgba8();
-    Ok(GrayImage::from_fn(rgba.width(), rgba.height(), |x, y| image::Luma([rgba.get_pixel(x, y).0[0]])))
+    Ok(plane(&decode(image)?, 0))
+}
+
+/// Channel `channel` (0-3: red, green, blue, alpha) of a decoded image.
+fn plane(decoded: &image::DynamicImage, channel: usize) -> GrayImage {
+    let rgba = decoded.to_rgba8();
+    GrayImage::from_fn(rgba.width(), rgba.height(), |x, y| image::Luma([rgba.get_pixel(x, y).0[channel]]))
 }
 
 fn decode(image: &Image) -> Result<image::DynamicImage, String> {
