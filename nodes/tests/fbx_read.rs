@@ -992,3 +992,124 @@ fn a_z_up_centimetre_fbx_with_two_takes_reads_in_metres_y_up() {
     assert_eq!((error.file.as_path(), error.kind), (path, FormatErrorKind::Structure));
     assert!(error.message.contains("has no skeleton: no bone (LimbNode) among its 2 nodes"), "{error}");
 }
+
+/// A hand-written ASCII FBX saved with its arm posed (metres, Y up): `root` at 1 m, `arm`
+/// 0.5 m out along X turned 90° about Z in its node transform, and a triangle skinned to
+/// `arm` by a cluster that bound it straight (TransformLink: the arm's world at bind, at
+/// (0.5, 1, 0) unturned; Transform: geometry to bone at bind, the mesh at the origin).
+const POSED_ARM_FBX: &str = r#"; FBX 7.4.0 project file
+FBXHeaderExtension:  {
+	FBXHeaderVersion: 1003
+	FBXVersion: 7400
+}
+GlobalSettings:  {
+	Version: 1000
+	Properties70:  {
+		P: "UnitScaleFactor", "double", "Number", "",100
+	}
+}
+Objects:  {
+	Geometry: 100, "Geometry::plate", "Mesh" {
+		Vertices: *9 {
+			a: 1,1,0,1,1.1,0,0.9,1,0
+		}
+		PolygonVertexIndex: *3 {
+			a: 0,1,-3
+		}
+	}
+	Model: 200, "Model::plate", "Mesh" {
+		Version: 232
+	}
+	NodeAttribute: 301, "NodeAttribute::root", "LimbNode" {
+		TypeFlags: "Skeleton"
+	}
+	Model: 300, "Model::root", "LimbNode" {
+		Version: 232
+		Properties70:  {
+			P: "Lcl Translation", "Lcl Translation", "", "A",0,1,0
+		}
+	}
+	NodeAttribute: 401, "NodeAttribute::arm", "LimbNode" {
+		TypeFlags: "Skeleton"
+	}
+	Model: 400, "Model::arm", "LimbNode" {
+		Version: 232
+		Properties70:  {
+			P: "Lcl Translation", "Lcl Translation", "", "A",0.5,0,0
+			P: "Lcl Rotation", "Lcl Rotation", "", "A",0,0,90
+		}
+	}
+	Deformer: 500, "Deformer::plate_skin", "Skin" {
+		Version: 101
+		Link_DeformAcuracy: 50
+	}
+	Deformer: 501, "SubDeformer::arm", "Cluster" {
+		Version: 100
+		Indexes: *3 {
+			a: 0,1,2
+		}
+		Weights: *3 {
+			a: 1,1,1
+		}
+		Transform: *16 {
+			a: 1,0,0,0,0,1,0,0,0,0,1,0,-0.5,-1,0,1
+		}
+		TransformLink: *16 {
+			a: 1,0,0,0,0,1,0,0,0,0,1,0,0.5,1,0,1
+		}
+	}
+}
+Connections:  {
+	C: "OO",200,0
+	C: "OO",100,200
+	C: "OO",300,0
+	C: "OO",301,300
+	C: "OO",400,300
+	C: "OO",401,400
+	C: "OO",500,100
+	C: "OO",501,500
+	C: "OO",400,501
+}
+"#;
+
+/// Issue 18, the bind pose for FBX: `character.load` with `rest_pose: bind` rests the posed
+/// arm straight, where its cluster bound it, and the skinned triangle where it is stored;
+/// with `nodes` the arm is turned and the triangle swings up about the arm joint (hand-solved:
+/// (x, y) → (0.5 − (y − 1), 1 + (x − 0.5))). On a Mixamo download the two agree.
+#[test]
+fn a_posed_fbx_rests_in_its_bind_pose_on_request() {
+    use kinegraph_nodes::kernels::load::{RestPose, load_character_resting};
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("posed_arm.fbx");
+    std::fs::write(&path, POSED_ARM_FBX).unwrap();
+    let stored = [glam::Vec3::new(1.0, 1.0, 0.0), glam::Vec3::new(1.0, 1.1, 0.0), glam::Vec3::new(0.9, 1.0, 0.0)];
+    let bind = load_character_resting(&path, 0, RestPose::Bind).unwrap().value;
+    let nodes = load_character_resting(&path, 0, RestPose::Nodes).unwrap().value;
+    let rest = kinegraph_nodes::model::fk::rest_world(bind.clip.skeleton());
+    let arm = bind.clip.skeleton().index_of("arm").unwrap();
+    assert!(rest[arm].translation.distance(glam::Vec3::new(0.5, 1.0, 0.0)) < 1e-6, "{:?}", rest[arm]);
+    assert!(rest[arm].rotation.angle_between(glam::Quat::IDENTITY) < 1e-6, "{:?}", rest[arm]);
+    let close = |a: &[glam::Vec3], b: &[glam::Vec3]| {
+        a.len() == b.len() && a.iter().all(|p| b.iter().any(|q| p.distance(*q) < 1e-5))
+    };
+    assert!(close(&bind.mesh.positions, &stored), "{:?}", bind.mesh.positions);
+    let swung: Vec<glam::Vec3> =
+        stored.iter().map(|p| glam::Vec3::new(0.5 - (p.y - 1.0), 1.0 + (p.x - 0.5), 0.0)).collect();
+    assert!(close(&nodes.mesh.positions, &swung), "{:?}", nodes.mesh.positions);
+
+    // A Mixamo download is saved in its bind pose: both choices agree on it.
+    let Some(dir) = fbx_dir() else { return };
+    let walk = dir.join("standard_walk.fbx");
+    let (a, b) = (
+        load_character_resting(&walk, 0, RestPose::Nodes).unwrap().value,
+        load_character_resting(&walk, 0, RestPose::Bind).unwrap().value,
+    );
+    let (ra, rb) = (
+        kinegraph_nodes::model::fk::rest_world(a.clip.skeleton()),
+        kinegraph_nodes::model::fk::rest_world(b.clip.skeleton()),
+    );
+    let joints = ra.iter().zip(&rb).map(|(x, y)| x.translation.distance(y.translation)).fold(0.0f32, f32::max);
+    let vertices = a.mesh.positions.iter().zip(&b.mesh.positions).map(|(x, y)| x.distance(*y)).fold(0.0f32, f32::max);
+    println!("Mixamo walk: bind and node rest within {joints:.2e} m (joints), {vertices:.2e} m (vertices)");
+    assert!(joints < 1e-4 && vertices < 1e-4, "{joints} {vertices}");
+}

@@ -79,7 +79,7 @@ const REST_POSE: ChoiceParam<RestPose> = ChoiceParam::new(
     "rest_pose",
     "The pose the skeleton rests in (skeleton.map's 'rest' reference, the mesh's rest shape): 'nodes', the file's node \
      transforms; 'bind', the skin's bind pose (where the inverse bind matrices put each joint, the pose the mesh was \
-     bound in; glTF).",
+     bound in).",
     "nodes",
 );
 const ANIMATION: IntParam = IntParam::new(

@@ -183,6 +183,7 @@ fn load_stored_clip(path: &Path, options: ClipLoadOptions) -> Result<Loaded<Clip
                 sample_fps: options.sample_fps,
                 meshes: false,
                 max_clip_bytes: options.max_clip_bytes,
+                bind_pose: false,
             };
             let Loaded { value: asset, mut warnings } = read_fbx_file(path, &fbx_options)?;
             if options.metres_per_unit.is_some() {
@@ -437,8 +438,8 @@ fn gltf_character(path: &Path, animation: usize, rest: RestPose) -> Result<Loade
 
 /// An FBX scene as a [`CharacterSource`]: its meshes come skinned to the skeleton in the
 /// rest pose with their materials (see [`read_fbx_file`]); the clip is take `animation`.
-fn fbx_character(path: &Path, animation: usize) -> Result<Loaded<CharacterSource>, FormatError> {
-    let options = FbxReadOptions { meshes: true, ..FbxReadOptions::default() };
+fn fbx_character(path: &Path, animation: usize, rest: RestPose) -> Result<Loaded<CharacterSource>, FormatError> {
+    let options = FbxReadOptions { meshes: true, bind_pose: rest == RestPose::Bind, ..FbxReadOptions::default() };
     let Loaded { value: asset, mut warnings } = read_fbx_file(path, &options)?;
     // What was converted (unit, axes, frame rate, takes), as clip.load reports it.
     warnings.push(format!("{}: {}", path.display(), asset.describe()));
@@ -469,16 +470,11 @@ pub fn load_character(path: &Path, animation: usize) -> Result<Loaded<Character>
     load_character_resting(path, animation, RestPose::Nodes)
 }
 
-/// [`load_character`] with the skeleton resting in `rest` (glTF; an FBX character rests in
-/// its node transforms, with a warning when `rest` asks otherwise).
+/// [`load_character`] with the skeleton resting in `rest`.
 pub fn load_character_resting(path: &Path, animation: usize, rest: RestPose) -> Result<Loaded<Character>, FormatError> {
     let fbx = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("fbx"));
     let Loaded { value: source, mut warnings } =
-        if fbx { fbx_character(path, animation)? } else { gltf_character(path, animation, rest)? };
-    if fbx && rest == RestPose::Bind {
-        warnings
-            .push("rest_pose 'bind' is read from glTF skins; this FBX character rests in its node transforms".into());
-    }
+        if fbx { fbx_character(path, animation, rest)? } else { gltf_character(path, animation, rest)? };
     let CharacterSource { skeleton, clip, meshes, mesh_joints, mesh_objects, file_ibms } = source;
     if meshes.is_empty() {
         return Err(FormatError::file(path, FormatErrorKind::Structure, "has no mesh"));

@@ -43,6 +43,9 @@ pub struct FbxReadOptions {
     /// Largest clip to sample, in bytes of rotations and translations (the run's memory
     /// limit); `None` uses [`crate::model::clip::DEFAULT_MAX_SAMPLED_BYTES`].
     pub max_clip_bytes: Option<u64>,
+    /// Rest the skeleton in the skin's bind pose (where the skin clusters bound the bones)
+    /// rather than in the node transforms; the meshes then rest as they were bound.
+    pub bind_pose: bool,
 }
 
 /// What the file said about itself before conversion.
@@ -172,7 +175,12 @@ fn dmat(m: &ufbx::Matrix) -> DMat4 {
 }
 
 fn rigid(m: &ufbx::Matrix) -> Option<Rigid> {
-    let mat = dmat(m);
+    rigid_of(dmat(m))
+}
+
+/// The rotation and position of `mat` (scale dropped), or `None` when it is degenerate,
+/// mirrored or not finite.
+fn rigid_of(mat: DMat4) -> Option<Rigid> {
     let det = mat.determinant();
     if !(det.is_finite() && det > 1e-30) {
         return None;
@@ -263,8 +271,11 @@ pub fn read_fbx(bytes: &[u8], path: &Path, options: &FbxReadOptions) -> Result<L
             .collect()
     };
 
-    // Rest pose: the static node transforms.
-    let rest_world = worlds(&scene, "in the rest pose")?;
+    // Rest pose: the static node transforms, or the skin's bind pose.
+    let mut rest_world = worlds(&scene, "in the rest pose")?;
+    if options.bind_pose {
+        rest_world = bind_worlds(&scene, &nodes, &parents, &rest_world, path, &mut warnings);
+    }
     let rest = locals(&parents, &rest_world);
     let mut joints = Vec::with_capacity(nodes.len());
     for ((&id, parent), (rotation, offset)) in nodes.iter().zip(&parents).zip(&rest) {
@@ -352,11 +363,62 @@ pub fn read_fbx(bytes: &[u8], path: &Path, options: &FbxReadOptions) -> Result<L
         ));
     }
     let meshes = if options.meshes {
-        read_meshes(&scene, path, &skeleton, &nodes, &rest_world, &mut warnings)?
+        read_meshes(&scene, path, &skeleton, &nodes, &rest_world, options.bind_pose, &mut warnings)?
     } else {
         Vec::new()
     };
     Ok(Loaded { value: FbxAsset { skeleton, clips, source, meshes }, warnings })
+}
+
+/// The joints' world transforms in the pose the skin clusters bound them: a bone's bind
+/// world is its mesh's geometry-to-world times the cluster's geometry-to-bone inverted (the
+/// mesh node standing where it was bound); bones no cluster binds keep their node transform
+/// under their parent. The first cluster of a bone is used; a file without clusters rests
+/// in its node transforms, with a warning.
+fn bind_worlds(
+    scene: &ufbx::Scene,
+    nodes: &[u32],
+    parents: &[Option<usize>],
+    node_world: &[Rigid],
+    path: &Path,
+    warnings: &mut Vec<String>,
+) -> Vec<Rigid> {
+    let mut bound: Vec<Option<Rigid>> = vec![None; nodes.len()];
+    for node in scene.nodes.iter() {
+        let Some(mesh) = node.mesh.as_ref() else { continue };
+        for skin in mesh.skin_deformers.iter() {
+            for cluster in skin.clusters.iter() {
+                let Some(bone) = cluster.bone_node.as_ref() else { continue };
+                let Some(j) = nodes.iter().position(|&n| n == bone.element.typed_id) else { continue };
+                if bound[j].is_none() {
+                    bound[j] = rigid_of(dmat(&node.geometry_to_world) * dmat(&cluster.geometry_to_bone).inverse());
+                }
+            }
+        }
+    }
+    if bound.iter().all(Option::is_none) {
+        warnings
+            .push(format!("{}: no skin binds the bones; the skeleton rests in its node transforms", path.display()));
+    }
+    let mut world: Vec<Rigid> = Vec::with_capacity(nodes.len());
+    for (j, parent) in parents.iter().enumerate() {
+        let w = match (bound[j], parent) {
+            (Some(b), _) => b,
+            (None, None) => node_world[j],
+            // Its node transform relative to its parent, under the parent's bind world.
+            (None, Some(p)) => {
+                let (parent_node, parent_bind) = (node_world[*p], world[*p]);
+                let local_rotation = parent_node.rotation.inverse() * node_world[j].rotation;
+                let local_position = parent_node.rotation.inverse() * (node_world[j].position - parent_node.position);
+                Rigid {
+                    rotation: parent_bind.rotation * local_rotation,
+                    position: parent_bind.position + parent_bind.rotation * local_position,
+                }
+            }
+        };
+        world.push(w);
+    }
+    world
 }
 
 /// Largest number of vertices (corners) of one mesh read.
@@ -364,7 +426,8 @@ const MAX_MESH_INDICES: usize = 50_000_000;
 
 /// Every mesh node's mesh, triangulated, with one vertex per distinct (source vertex,
 /// normal, UV) corner, put in the skeleton's rest pose: skinned vertices by linear blend skinning
-/// with the rest bone matrices (`Σ w · bone world · geometry-to-bone`), unskinned ones by
+/// with the rest bone matrices (`Σ w · bone world · geometry-to-bone`, the bone world being
+/// its node transform, or with `bind_pose` its bind world `rest_world`), unskinned ones by
 /// their node's world matrix. Four strongest weights per vertex, renormalised. Triangles are
 /// grouped by material (in the node's material order, file order within each), and only the
 /// materials used are kept.
@@ -374,6 +437,7 @@ fn read_meshes(
     skeleton: &Arc<Skeleton>,
     nodes: &[u32],
     rest_world: &[Rigid],
+    bind_pose: bool,
     warnings: &mut Vec<String>,
 ) -> Result<Vec<Mesh>, FormatError> {
     let joint_of = |node_id: u32| nodes.iter().position(|&n| n == node_id);
@@ -405,11 +469,19 @@ fn read_meshes(
         if let Some(skin) = skin {
             let cluster_joint: Vec<Option<usize>> =
                 skin.clusters.iter().map(|c| c.bone_node.as_ref().and_then(|b| joint_of(b.element.typed_id))).collect();
+            // The bone where the skeleton rests: its node transform, or in the bind pose its
+            // bind world (so the mesh rests as it was bound).
             let cluster_matrix: Vec<DMat4> = skin
                 .clusters
                 .iter()
-                .map(|c| {
-                    let bone = c.bone_node.as_ref().map_or(DMat4::IDENTITY, |b| dmat(&b.node_to_world));
+                .zip(&cluster_joint)
+                .map(|(c, joint)| {
+                    let bone = match (bind_pose, joint) {
+                        (true, Some(j)) => {
+                            DMat4::from_rotation_translation(rest_world[*j].rotation, rest_world[*j].position)
+                        }
+                        _ => c.bone_node.as_ref().map_or(DMat4::IDENTITY, |b| dmat(&b.node_to_world)),
+                    };
                     bone * dmat(&c.geometry_to_bone)
                 })
                 .collect();
