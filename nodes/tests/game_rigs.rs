@@ -432,6 +432,81 @@ fn a_game_rig_with_ik_bones_walks_like_the_original() {
     assert!(worst < 1e-4, "{worst} m at {at}");
 }
 
+/// `skeleton` with each of `bones` split in two (Rigify's `DEF-shin.L` → `DEF-shin.L.001`
+/// deform segments): a joint `NAME.001` half way to the bone's one child, which then hangs
+/// from it; world rest transforms and joint order (parents first) kept.
+fn split_bones(skeleton: &Skeleton, bones: &[&str]) -> Skeleton {
+    let old = skeleton.joints();
+    let splits: Vec<(usize, usize)> = bones
+        .iter()
+        .map(|b| {
+            let k = skeleton.index_of(b).unwrap();
+            (k, skeleton.children(k).next().unwrap())
+        })
+        .collect();
+    // New joints in order: each split segment right before the child it now carries.
+    let mut order: Vec<(usize, bool)> = Vec::new(); // (old joint, is the inserted segment before it)
+    for j in 0..old.len() {
+        if splits.iter().any(|&(_, c)| c == j) {
+            order.push((j, true));
+        }
+        order.push((j, false));
+    }
+    let index_of = |j: usize, segment: bool| order.iter().position(|&o| o == (j, segment)).unwrap();
+    let joints = order
+        .iter()
+        .map(|&(j, segment)| {
+            let split = splits.iter().find(|&&(_, c)| c == j);
+            match (segment, split) {
+                (true, Some(&(bone, _))) => {
+                    let mut s = Joint::new(
+                        format!("{}.001", old[bone].name),
+                        Some(index_of(bone, false)),
+                        0.5 * old[j].rest_offset,
+                    );
+                    s.rest_rotation = Quat::IDENTITY;
+                    s
+                }
+                (false, Some(_)) => {
+                    Joint { parent: Some(index_of(j, true)), rest_offset: 0.5 * old[j].rest_offset, ..old[j].clone() }
+                }
+                _ => Joint { parent: old[j].parent.map(|p| index_of(p, false)), ..old[j].clone() },
+            }
+        })
+        .collect();
+    Skeleton::new(joints).unwrap()
+}
+
+/// Issue 18: a Rigify-style rig whose thighs and shins are split into two deform segments
+/// (`DEF-thigh.L` → `DEF-thigh.L.001` → `DEF-shin.L` → `DEF-shin.L.001` → `DEF-foot.L`) maps
+/// and locks like the original Xbot: the lock turns the thigh and the shin, not the two shin
+/// segments above the foot.
+#[test]
+fn a_rig_with_split_leg_bones_maps_and_locks_like_the_original() {
+    use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
+    use kinegraph_nodes::kernels::ik::foot_lock::{FootLockParams, foot_lock};
+    let Some(Setup { walk, xbot }) = setup() else { return };
+    let lock = |clip: &Clip| {
+        let clip = clip.slice(0, 120);
+        let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &ContactThresholds::default()).unwrap();
+        foot_lock(&clip, &contacts, &FootLockParams::default()).unwrap()
+    };
+    let (_, _, original) = carry(&walk, (*xbot).clone());
+    let want = lock(&original.clip);
+    let rigify = FAMILIES.iter().find(|(f, _)| *f == "rigify").unwrap().1;
+    let name = |n: &str| renamed(rigify, n);
+    let rig = split_bones(&rename(&xbot, name), &["DEF-thigh.L", "DEF-thigh.R", "DEF-shin.L", "DEF-shin.R"]);
+    let (_, map, out) = carry(&walk, rig);
+    assert_eq!(map.joints.get("DEF-shin.L").map(String::as_str), Some("LeftLeg"), "{map:?}");
+    let (worst, at) = worst_joint_distance(&original.clip, &out.clip, name);
+    println!("split legs: worst joint distance to the original {worst:.2e} m ({at})");
+    assert!(worst < 1e-4, "{worst} m at {at}");
+    let got = lock(&out.clip);
+    let (worst, at) = worst_joint_distance(&want.clip, &got.clip, name);
+    println!("split legs locked: worst joint distance to the locked original {worst:.2e} m ({at})");
+    assert!(worst < 1e-4, "{worst} m at {at}");
+}
+
 /// Issue 18, `motion.foot_lock` on an IK-style game rig: with the feet hanging off a root
 /// on the ground (twist bones in the legs, Unreal's IK bones beside the feet), the lock turns the same hips and knees to
 /// hold the same plants and puts each foot at the end of its shin, so every joint of the

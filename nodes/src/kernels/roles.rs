@@ -34,15 +34,24 @@ use crate::model::fk::rest_world;
 pub struct Limb {
     /// Joints from the one after the spine or pelvis to the leaf, in order.
     pub chain: Vec<usize>,
-    /// Index in `chain` of the upper joint (hip or shoulder); the lower (knee or elbow) and
-    /// end (ankle or wrist) joints follow it.
+    /// Index in `chain` of the upper joint (hip or shoulder).
     pub upper: usize,
+    /// Index in `chain` of the lower joint (knee or elbow): after the upper one, with any
+    /// segments a rig splits the upper bone into between them (Rigify's `DEF-thigh.L.001`).
+    pub lower: usize,
+    /// Index in `chain` of the end joint (ankle or wrist), after the lower one.
+    pub end: usize,
 }
 
 impl Limb {
+    /// A limb whose upper, lower and end joints follow each other in `chain` from `upper`.
+    pub fn consecutive(chain: Vec<usize>, upper: usize) -> Limb {
+        Limb { chain, upper, lower: upper + 1, end: upper + 2 }
+    }
+
     /// The upper, lower and end joints (hip, knee, ankle or shoulder, elbow, wrist).
     pub fn joints(&self) -> [usize; 3] {
-        [self.chain[self.upper], self.chain[self.upper + 1], self.chain[self.upper + 2]]
+        [self.chain[self.upper], self.chain[self.lower], self.chain[self.end]]
     }
 }
 
@@ -263,7 +272,7 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
         let chain = path_below(skeleton, from, leaf).ok_or(ShapeError::LimbNotBelowBody { limb })?;
         // A hand with fingers (or a foot with toes) is where the chain branches.
         if let Some(end) = chain.iter().position(|&j| children[j] >= 2).filter(|&e| e >= 2) {
-            return Ok(Limb { chain, upper: end - 2 });
+            return Ok(Limb::consecutive(chain, end - 2));
         }
         let bone = |j: usize| joints[j].parent.map_or(0.0, |p| pos_in_world[j].distance(pos_in_world[p]));
         let upper = (0..chain.len().saturating_sub(2))
@@ -271,7 +280,7 @@ pub fn body_roles(skeleton: &Skeleton, pos_in_world: &[Vec3]) -> Result<BodyRole
                 (bone(chain[a + 1]) + bone(chain[a + 2])).total_cmp(&(bone(chain[b + 1]) + bone(chain[b + 2])))
             })
             .ok_or(ShapeError::ShortLimb { limb })?;
-        Ok(Limb { chain, upper })
+        Ok(Limb::consecutive(chain, upper))
     };
     let legs = match (detached, other_foot) {
         (Some((_, legs)), _) => legs,
@@ -341,7 +350,9 @@ fn named_roles(skeleton: &Skeleton, landmarks: &Landmarks) -> Option<BodyRoles> 
             chain.extend(path_below(skeleton, end, tip)?);
             chain
         };
-        Some(Limb { upper: chain.iter().position(|&j| j == upper)?, chain })
+        let at = |joint: usize| chain.iter().position(|&j| j == joint);
+        let (upper, lower, end) = (at(upper)?, at(lower)?, at(end)?);
+        (upper < lower && lower < end).then_some(Limb { chain, upper, lower, end })
     };
     let three = |slots: &[usize; 6], first: usize| [slots[first], slots[first + 1], slots[first + 2]];
     Some(BodyRoles {
@@ -400,7 +411,7 @@ fn detached_legs(
         let mut chain = path_below(skeleton, pelvis, knee).ok_or(ShapeError::KneeNotBelowPelvis)?;
         let upper = chain.len().checked_sub(2).ok_or(ShapeError::NoThigh)?;
         chain.extend(path_below(skeleton, split, leaf).ok_or(ShapeError::FootNotBelowRoot)?);
-        Ok(Limb { chain, upper })
+        Ok(Limb::consecutive(chain, upper))
     };
     Ok((pelvis, [leg(ka, lowest)?, leg(kb, other)?]))
 }

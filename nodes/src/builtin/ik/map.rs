@@ -146,11 +146,20 @@ fn by_length(target: Chain<'_>, source: Chain<'_>) -> Vec<(usize, usize)> {
 }
 
 /// Pairs two limbs: the upper, lower and end joints, the joints above counted back from the
-/// upper joint, the joints below counted on from the end.
+/// upper joint, the joints below counted on from the end; segments a rig splits a bone into
+/// (between the upper and lower, or lower and end joints) pair up only where both limbs have
+/// as many, and otherwise follow their bone unpaired.
 fn limb_pairs(t: &Limb, s: &Limb) -> Vec<(usize, usize)> {
     let above = t.chain[..t.upper].iter().rev().zip(s.chain[..s.upper].iter().rev());
-    let from_upper = t.chain[t.upper..].iter().zip(&s.chain[s.upper..]);
-    above.chain(from_upper).map(|(&a, &b)| (a, b)).collect()
+    let mut pairs: Vec<(usize, usize)> = above.map(|(&a, &b)| (a, b)).collect();
+    for (tr, sr) in
+        [(&t.chain[t.upper..t.lower], &s.chain[s.upper..s.lower]), (&t.chain[t.lower..t.end], &s.chain[s.lower..s.end])]
+    {
+        let n = if tr.len() == sr.len() { tr.len() } else { 1 };
+        pairs.extend(tr.iter().zip(sr).take(n).map(|(&a, &b)| (a, b)));
+    }
+    pairs.extend(t.chain[t.end..].iter().zip(&s.chain[s.end..]).map(|(&a, &b)| (a, b)));
+    pairs
 }
 
 /// A bone map resolved to joint indices: `(target joint, source joint)` pairs.

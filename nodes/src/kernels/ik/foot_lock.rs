@@ -421,9 +421,10 @@ pub fn foot_lock(clip: &Clip, contacts: &Contacts, params: &FootLockParams) -> R
                 solver.set_effector_offset(k, shin_ends[k].as_dvec3());
                 shin_ends[k].length()
             } else {
-                frame_translations[ankle].length()
+                original[knee].translation.distance(original[ankle].translation)
             };
-            let leg = f64::from(frame_translations[knee].length() + shin);
+            // Joint to joint (a rig may split the thigh or shin into segments).
+            let leg = f64::from(original[hip].translation.distance(original[knee].translation) + shin);
             let (hip_before, ankle_before) = (original[hip].translation, original[ankle].translation);
             let eased_from = eased_from(leg, params.soft_reach, hip_before.distance(ankle_before));
             // The hip where this frame's solve finds it: the clip's, moved with the root.
