@@ -432,6 +432,16 @@ fn a_game_rig_with_ik_bones_walks_like_the_original() {
     assert!(worst < 1e-4, "{worst} m at {at}");
 }
 
+/// The first 120 frames of `clip` with their feet locked (contacts detected, default
+/// thresholds and lock).
+fn lock(clip: &Clip) -> kinegraph_nodes::kernels::ik::foot_lock::FootLocked {
+    use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
+    use kinegraph_nodes::kernels::ik::foot_lock::{FootLockParams, foot_lock};
+    let clip = clip.slice(0, 120);
+    let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &ContactThresholds::default()).unwrap();
+    foot_lock(&clip, &contacts, &FootLockParams::default()).unwrap()
+}
+
 /// `skeleton` with each of `bones` split in two (Rigify's `DEF-shin.L` → `DEF-shin.L.001`
 /// deform segments): a joint `NAME.001` half way to the bone's one child, which then hangs
 /// from it; world rest transforms and joint order (parents first) kept.
@@ -483,14 +493,7 @@ fn split_bones(skeleton: &Skeleton, bones: &[&str]) -> Skeleton {
 /// segments above the foot.
 #[test]
 fn a_rig_with_split_leg_bones_maps_and_locks_like_the_original() {
-    use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
-    use kinegraph_nodes::kernels::ik::foot_lock::{FootLockParams, foot_lock};
     let Some(Setup { walk, xbot }) = setup() else { return };
-    let lock = |clip: &Clip| {
-        let clip = clip.slice(0, 120);
-        let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &ContactThresholds::default()).unwrap();
-        foot_lock(&clip, &contacts, &FootLockParams::default()).unwrap()
-    };
     let (_, _, original) = carry(&walk, (*xbot).clone());
     let want = lock(&original.clip);
     let rigify = FAMILIES.iter().find(|(f, _)| *f == "rigify").unwrap().1;
@@ -513,14 +516,7 @@ fn a_rig_with_split_leg_bones_maps_and_locks_like_the_original() {
 /// rig moves as the original Xbot's does when the same walk is locked on it.
 #[test]
 fn a_game_rig_with_feet_under_the_root_locks_like_the_original() {
-    use kinegraph_nodes::kernels::contacts::{ContactThresholds, contacts_of};
-    use kinegraph_nodes::kernels::ik::foot_lock::{FootLockParams, foot_lock};
     let Some(Setup { walk, xbot }) = setup() else { return };
-    let lock = |clip: &Clip| {
-        let clip = clip.slice(0, 120);
-        let (contacts, _) = contacts_of(&clip, &forward_kinematics(&clip), &ContactThresholds::default()).unwrap();
-        foot_lock(&clip, &contacts, &FootLockParams::default()).unwrap()
-    };
     let (_, _, original) = carry(&walk, (*xbot).clone());
     let want = lock(&original.clip);
     let game = FAMILIES.iter().find(|(f, _)| *f == "game").unwrap().1;

@@ -11,6 +11,8 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod gltf_validator;
+
 use std::path::Path;
 use std::sync::Arc;
 
@@ -130,12 +132,7 @@ fn sole_heights_in_file(path: &Path, feet: &[&str], frames: usize) -> Vec<Vec<f3
     for node in doc.nodes() {
         let (Some(mesh), Some(skin)) = (node.mesh(), node.skin()) else { continue };
         let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
-        let ibms: Vec<Mat4> = skin
-            .reader(|b| Some(&buffers[b.index()]))
-            .read_inverse_bind_matrices()
-            .unwrap()
-            .map(|m| Mat4::from_cols_array_2d(&m))
-            .collect();
+        let ibms = gltf_validator::inverse_bind_matrices(&skin, &buffers);
         for primitive in mesh.primitives() {
             let reader = primitive.reader(|b| Some(&buffers[b.index()]));
             let positions: Vec<Vec3> = reader.read_positions().unwrap().map(Vec3::from).collect();

@@ -66,9 +66,14 @@ pub fn rest_worlds(doc: &gltf::Document) -> Vec<glam::Mat4> {
     node_worlds(doc, &local)
 }
 
+/// The inverse bind matrices of `skin`, per joint, as the file stores them.
+pub fn inverse_bind_matrices(skin: &gltf::Skin<'_>, buffers: &[gltf::buffer::Data]) -> Vec<glam::Mat4> {
+    let ibms = skin.reader(|b| Some(&buffers[b.index()])).read_inverse_bind_matrices().unwrap();
+    ibms.map(|m| glam::Mat4::from_cols_array_2d(&m)).collect()
+}
+
 /// Per joint of `skin`, the matrix that takes a bind-pose vertex to where the joints'
 /// `world` matrices put it: world · inverse bind matrix, read from the file.
 pub fn skin_matrices(skin: &gltf::Skin<'_>, buffers: &[gltf::buffer::Data], world: &[glam::Mat4]) -> Vec<glam::Mat4> {
-    let ibms = skin.reader(|b| Some(&buffers[b.index()])).read_inverse_bind_matrices().unwrap();
-    skin.joints().zip(ibms).map(|(j, ibm)| world[j.index()] * glam::Mat4::from_cols_array_2d(&ibm)).collect()
+    skin.joints().zip(inverse_bind_matrices(skin, buffers)).map(|(j, ibm)| world[j.index()] * ibm).collect()
 }
