@@ -1113,3 +1113,69 @@ fn a_posed_fbx_rests_in_its_bind_pose_on_request() {
     println!("Mixamo walk: bind and node rest within {joints:.2e} m (joints), {vertices:.2e} m (vertices)");
     assert!(joints < 1e-4 && vertices < 1e-4, "{joints} {vertices}");
 }
+
+/// Bad input, issue 18: an FBX scene holding two characters (the posed-arm file's skeleton
+/// and skinned triangle, and a second root `buddy_root` with its own skinned triangle) is
+/// not one character: `character.load` refuses it with a structure error naming the file
+/// and both roots, while reading its clips still works.
+#[test]
+fn an_fbx_holding_two_characters_is_refused_as_one() {
+    let second = r#"	Geometry: 1100, "Geometry::buddy_plate", "Mesh" {
+		Vertices: *9 {
+			a: 3,1,0,3,1.1,0,2.9,1,0
+		}
+		PolygonVertexIndex: *3 {
+			a: 0,1,-3
+		}
+	}
+	Model: 1200, "Model::buddy_plate", "Mesh" {
+		Version: 232
+	}
+	NodeAttribute: 1301, "NodeAttribute::buddy_root", "LimbNode" {
+		TypeFlags: "Skeleton"
+	}
+	Model: 1300, "Model::buddy_root", "LimbNode" {
+		Version: 232
+		Properties70:  {
+			P: "Lcl Translation", "Lcl Translation", "", "A",3,1,0
+		}
+	}
+	Deformer: 1500, "Deformer::buddy_skin", "Skin" {
+		Version: 101
+	}
+	Deformer: 1501, "SubDeformer::buddy_root", "Cluster" {
+		Version: 100
+		Indexes: *3 {
+			a: 0,1,2
+		}
+		Weights: *3 {
+			a: 1,1,1
+		}
+		Transform: *16 {
+			a: 1,0,0,0,0,1,0,0,0,0,1,0,-3,-1,0,1
+		}
+		TransformLink: *16 {
+			a: 1,0,0,0,0,1,0,0,0,0,1,0,3,1,0,1
+		}
+	}
+}
+Connections:  {
+	C: "OO",1200,0
+	C: "OO",1100,1200
+	C: "OO",1300,0
+	C: "OO",1301,1300
+	C: "OO",1500,1100
+	C: "OO",1501,1500
+	C: "OO",1300,1501
+"#;
+    let text = POSED_ARM_FBX.replacen("}\nConnections:  {\n", second, 1);
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("two_characters.fbx");
+    std::fs::write(&path, &text).unwrap();
+    let asset = read_fbx_file(&path, &FbxReadOptions::default()).unwrap().value;
+    assert_eq!(asset.skeleton.joints().iter().filter(|j| j.parent.is_none()).count(), 2);
+    let error = kinegraph_nodes::kernels::load::load_character(&path, 0).map(|_| ()).unwrap_err();
+    println!("{error}");
+    assert_eq!((error.file.as_path(), error.kind), (path.as_path(), FormatErrorKind::Structure));
+    assert!(error.message.contains("holds 2 skeletons") && error.message.contains("root, buddy_root"), "{error}");
+}
