@@ -1,6 +1,6 @@
 //! Set-up shared by the momentum-editing tests (`momentum_edit`, `momentum_family`): a
-//! jump of the corpus (mostly CMU 16_01, a standing jump) with what an edit of it needs. Needs `../shared/data` (None
-//! without it outside CI).
+//! jump of the corpus (mostly CMU 16_01, a standing jump) with what an edit of it needs.
+//! Needs `../shared/data` (None without it outside CI).
 
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 

@@ -265,4 +265,12 @@ mod tests {
         let err = parse_turns("0, x", 2).unwrap_err().to_string();
         assert!(err.contains("turns_rad") && err.contains("'x'"), "{err}");
     }
+
+    /// The solved_frames doc states the length `auto` switches at, which a const string
+    /// cannot take from the constant: this keeps the two together.
+    #[test]
+    fn the_solved_frames_doc_states_the_auto_window() {
+        let window = crate::kernels::momentum_solve::AUTO_WINDOW_SECS;
+        assert!(SOLVED_FRAMES.0.doc.contains(&format!("longer than {window} s")), "{}", SOLVED_FRAMES.0.doc);
+    }
 }
