@@ -134,6 +134,11 @@ fn height_quantile(track: &[DVec3], percent: usize) -> f64 {
 /// coarsely (CMU's fingertip stays 14-15 cm up with the palm on the floor in 90_02).
 const HAND_REACH_LIFTS: f64 = 3.0;
 
+/// Joint `joint`'s world position in every frame of `poses`.
+fn track(poses: &ClipPoses, joint: usize) -> Vec<DVec3> {
+    (0..poses.frame_count()).map(|f| poses.position(f, joint).as_dvec3()).collect()
+}
+
 /// The fewest frames a contact lasts at `fps`.
 fn min_frames(t: &ContactThresholds, fps: f64) -> usize {
     (t.min_duration_secs * fps).ceil() as usize
@@ -213,7 +218,7 @@ fn feet_contacts(
     thresholds: &ContactThresholds,
 ) -> Contacts {
     let skeleton = clip.skeleton();
-    let track = |j: usize| (0..poses.frame_count()).map(|f| poses.position(f, j).as_dvec3()).collect::<Vec<DVec3>>();
+    let track = |j: usize| track(poses, j);
     let feet: Vec<FootContacts> = feet
         .iter()
         .enumerate()
@@ -251,7 +256,7 @@ pub fn hand_contacts(
     thresholds: &ContactThresholds,
 ) -> Vec<FootContacts> {
     let skeleton = clip.skeleton();
-    let track = |j: usize| (0..poses.frame_count()).map(|f| poses.position(f, j).as_dvec3()).collect::<Vec<DVec3>>();
+    let track = |j: usize| track(poses, j);
     let floor = feet
         .iter()
         .flat_map(|&ankle| [ankle, limb_tip(skeleton, ankle)])

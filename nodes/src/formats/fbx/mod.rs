@@ -400,21 +400,17 @@ fn bind_worlds(
         warnings
             .push(format!("{}: no skin binds the bones; the skeleton rests in its node transforms", path.display()));
     }
+    let node_local = locals(parents, node_world);
     let mut world: Vec<Rigid> = Vec::with_capacity(nodes.len());
-    for (j, parent) in parents.iter().enumerate() {
+    for ((j, parent), (rotation, offset)) in parents.iter().enumerate().zip(node_local) {
         let w = match (bound[j], parent) {
             (Some(b), _) => b,
             (None, None) => node_world[j],
             // Its node transform relative to its parent, under the parent's bind world.
-            (None, Some(p)) => {
-                let (parent_node, parent_bind) = (node_world[*p], world[*p]);
-                let local_rotation = parent_node.rotation.inverse() * node_world[j].rotation;
-                let local_position = parent_node.rotation.inverse() * (node_world[j].position - parent_node.position);
-                Rigid {
-                    rotation: parent_bind.rotation * local_rotation,
-                    position: parent_bind.position + parent_bind.rotation * local_position,
-                }
-            }
+            (None, Some(p)) => Rigid {
+                rotation: world[*p].rotation * rotation.as_dquat(),
+                position: world[*p].position + world[*p].rotation * offset.as_dvec3(),
+            },
         };
         world.push(w);
     }
