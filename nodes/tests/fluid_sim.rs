@@ -105,6 +105,48 @@ fn smoke_mass_is_kept_across_sizing_field_remeshes() {
     assert!(worst < 1e-9, "worst mass change per remesh {worst}");
 }
 
+/// The fluid's only walls are the box and the obstacles: every boundary face of a remeshed
+/// domain lies in a face plane of the box or is a triangle of obstacle surface vertices,
+/// and the tets fill the box less the obstacle's volume (no holes). (Fill nodes placed on a cubic
+/// lattice wherever μ is at its maximum once gave cospherical nodes whose flat tets were
+/// dropped, leaving 656 walls inside the fluid of this domain.)
+#[test]
+fn a_remeshed_domain_has_walls_only_on_the_box_and_the_obstacles() {
+    let s = Sizing { k0_m: 0.05, kd: 0.3, ks_m: 0.0, kw_m_s: 0.0, min_edge_m: 0.05, max_edge_m: 0.2 };
+    let (lo, hi) = (DVec3::new(-1.0, 0.0, -1.0), DVec3::new(1.0, 2.4, 1.0));
+    let centre = DVec3::new(0.3, 0.5, 0.0);
+    let ball = Obstacle::sphere(centre, 0.2, 4);
+    let mu = |p: DVec3| s.edge_m(((p - centre).length() - 0.2).max(0.0), 0.0, 0.0);
+    let mut previous = Vec::new();
+    for step in 0..2 {
+        let mut nodes = place_nodes(lo, hi, std::slice::from_ref(&ball), &previous, &s, &mu, 1_000_000).unwrap();
+        let mesh = mesh_nodes(&mut nodes, std::slice::from_ref(&ball), 1_000_000).unwrap();
+        let on_ball = |p: DVec3| ball.positions_m.contains(&p);
+        let walls = (0..mesh.faces.len()).filter(|&f| mesh.is_boundary(f)).filter(|&f| {
+            let corners = mesh.faces[f].map(|i| mesh.nodes_m[i as usize]);
+            let on_box_face =
+                (0..3).any(|a| corners.iter().all(|p| p[a] == lo[a]) || corners.iter().all(|p| p[a] == hi[a]));
+            !on_box_face && !corners.iter().all(|p| on_ball(*p))
+        });
+        assert_eq!(walls.count(), 0, "step {step}: boundary faces inside the fluid");
+        // The ball's volume as the polyhedron's divergence sum, independent of the mesh.
+        let ball_volume: f64 = ball
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| ball.positions_m[i as usize]);
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum();
+        let box_volume = (hi - lo).x * (hi - lo).y * (hi - lo).z;
+        let fluid: f64 = mesh.tet_volume_m3.iter().sum();
+        // The carved ball is the polyhedron of its thinned surface nodes: within 1 % of it.
+        let missing = box_volume - ball_volume - fluid;
+        assert!(missing.abs() < 0.01 * ball_volume, "step {step}: {missing} m³ missing, ball {ball_volume} m³");
+        previous = nodes.free;
+    }
+}
+
 #[test]
 fn uniformly_heated_air_in_a_closed_box_with_an_obstacle_stays_at_rest() {
     // A source covering the whole box keeps the air uniformly 10 K warm and smoke-free: the
@@ -135,11 +177,13 @@ fn uniformly_heated_air_in_a_closed_box_with_an_obstacle_stays_at_rest() {
 
 #[test]
 fn a_sphere_started_through_still_air_sets_up_the_potential_flow_around_it() {
-    // An impulsively started sphere in inviscid air: after the first projection the air
-    // moves by the potential flow, on the axis ahead u(r) = U R³/r³ (Lamb §92). The box
-    // walls 0.35 m away and the mesh (0.04 m edges at the sphere) are the approximations.
+    // An impulsively started sphere in inviscid air: after a projection the air
+    // moves by the potential flow, u = U R³/(2r³) (3 (x̂·n) n − x̂) at distance r in the
+    // direction n from the centre (Lamb §92; U R³/r³ on the axis ahead), evaluated at the
+    // centre of every voxel sampled. The box walls 0.35 m away and the mesh (0.02 m edges at
+    // the sphere) are the approximations.
     let mut d = domain(true, Vec::new());
-    d.sizing = Sizing { k0_m: 0.04, kd: 0.6, ks_m: 0.0, kw_m_s: 0.0, min_edge_m: 0.04, max_edge_m: 0.2 };
+    d.sizing = Sizing { k0_m: 0.02, kd: 0.6, ks_m: 0.0, kw_m_s: 0.0, min_edge_m: 0.02, max_edge_m: 0.2 };
     d.voxel_m = 0.05;
     let (speed, radius, centre) = (0.5, 0.15, DVec3::splat(0.5));
     let moving = move |t: f64| {
@@ -153,21 +197,40 @@ fn a_sphere_started_through_still_air_sets_up_the_potential_flow_around_it() {
     let grid = volumes.grid;
     let last = volumes.frames.last().unwrap();
     eprintln!("sphere: {:?}", steps[0]);
-    let mut worst: f64 = 0.0;
-    for r in [0.2, 0.25, 0.3] {
-        let p = centre + DVec3::X * (r + speed / 240.0);
-        let n = (0..grid.len()).min_by(|&a, &b| {
-            (grid.centre_m(a).as_dvec3() - p).length().total_cmp(&(grid.centre_m(b).as_dvec3() - p).length())
-        });
-        let v = last.velocity_m_s[n.unwrap()];
-        let expected = speed * (radius / r).powi(3);
-        let error = (f64::from(v[0]) - expected).abs() / speed;
-        eprintln!("  r = {r} m: u_x {:.4} m/s, potential flow {expected:.4} ({:.1} % of U)", v[0], 100.0 * error);
+    let now = centre + DVec3::X * speed * (1.0 / 240.0);
+    let potential = |at: DVec3| {
+        let dir = at.normalize();
+        speed * radius.powi(3) / (2.0 * at.length().powi(3)) * (3.0 * dir.x * dir - DVec3::X)
+    };
+    // Every voxel centre of the shell r = 0.2 .. 0.25 m, two to five edges from the surface:
+    // RMS and largest error, as shares of U and of the flow's RMS there (a still field errs
+    // by 100 % of it).
+    let (mut sum_sq, mut flow_sq, mut count, mut worst) = (0.0, 0.0, 0usize, 0.0_f64);
+    for n in 0..grid.len() {
+        let at = grid.centre_m(n).as_dvec3() - now;
+        if !(0.2..=0.25).contains(&at.length()) {
+            continue;
+        }
+        let v = last.velocity_m_s[n];
+        let error = (DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])) - potential(at)).length() / speed;
+        sum_sq += error * error;
+        flow_sq += (potential(at) / speed).length_squared();
+        count += 1;
         worst = worst.max(error);
     }
-    // Measured 17.5, 6.6 and 5.0 % of U at 0.2, 0.25 and 0.3 m, all above the unbounded
-    // flow (the walls' blockage pushes the air round the sphere faster); tolerance 20 % of U.
-    assert!(worst < 0.2, "{worst}");
+    let rms = (sum_sq / count as f64).sqrt();
+    let flow_rms = (flow_sq / count as f64).sqrt();
+    eprintln!(
+        "  {count} voxels at r = 0.2 .. 0.25 m: error RMS {:.1} % of U ({:.1} % of the flow's RMS), largest {:.1} % of U",
+        100.0 * rms,
+        100.0 * rms / flow_rms,
+        100.0 * worst
+    );
+    assert!(count > 100, "{count}");
+    // Measured: RMS 5.1 % of U, 22.5 % of the flow's RMS, largest 12.7 % of U. The error
+    // is the mesh's: with 0.04 m edges at the sphere it was 70 % of the flow's RMS, with the
+    // box twice as large 17 % (the walls' blockage adds the rest).
+    assert!(rms / flow_rms < 0.3, "{rms} of U, flow {flow_rms}");
 }
 
 #[test]

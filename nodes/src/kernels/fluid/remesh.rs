@@ -232,14 +232,19 @@ pub fn place_nodes(
                 let corner = lo + DVec3::new(i as f64, j as f64, k as f64) * cell;
                 let n = (cell / mu(corner + DVec3::splat(0.5 * cell))).ceil().clamp(1.0, 64.0) as u32;
                 let sub = cell / f64::from(n);
+                let cell_index = (u64::from(k) * u64::from(cells.y) + u64::from(j)) * u64::from(cells.x) + u64::from(i);
                 for c in 0..n * n * n {
                     let (a, b, d) = (c % n, (c / n) % n, c / (n * n));
-                    // A fixed, irrational-ratio offset per sub-cell breaks the lattice's
-                    // cospherical ties without randomness (the same inputs give the same mesh).
+                    // A fixed, irrational-ratio offset per sub-cell of the whole box breaks
+                    // the lattice's cospherical ties without randomness (the same inputs give
+                    // the same mesh). Offsets repeated from cell to cell left a cubic lattice
+                    // wherever μ is at its maximum: four cospherical nodes per cube face,
+                    // whose flat tets were dropped and left walls inside the fluid.
+                    let m = (cell_index * 262_144 + u64::from(c)) as f64;
                     let jitter = DVec3::new(
-                        (f64::from(c) * 0.618_034).fract(),
-                        (f64::from(c) * 0.414_214).fract(),
-                        (f64::from(c) * 0.732_051).fract(),
+                        (m * 0.618_033_988_749_895).fract(),
+                        (m * 0.414_213_562_373_095).fract(),
+                        (m * 0.732_050_807_568_877).fract(),
                     ) * 0.5
                         - 0.25;
                     let p = corner + (DVec3::new(f64::from(a), f64::from(b), f64::from(d)) + 0.5 + jitter) * sub;
