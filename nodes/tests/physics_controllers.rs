@@ -403,11 +403,12 @@ fn larger_push_is_recovered_by_a_step_and_the_figure_stands_again() {
 /// The straight-back push: the fall controller curls the figure (chin to chest, back
 /// rounded) and neither head hits the ground over the whole run, with one fall activation.
 /// True of the CMU figure (its head never touches; at rest the relax controller holds the
-/// curl). Not yet of the Xbot: its rolling figure's head comes down at 1.06 m/s 1.45 s into
-/// the fall, just past the 1 m/s bar (1.22 m/s at most over the run). Kept to measure the
-/// next attempt (the table test below measures every direction).
+/// curl). Not yet of the Xbot: with the head reflex its fall succeeds, but its rolling
+/// figure's head still touches down at 0.82 m/s (1.06 m/s, a hit, without the reflex), above
+/// this test's 0.5 m/s. Kept to measure the next attempt (the table test below measures every
+/// direction).
 #[test]
-#[ignore = "the Xbot's head comes down at 1.06 m/s, just past the 1 m/s bar"]
+#[ignore = "the Xbot's head touches down at 0.82 m/s, above the 0.5 m/s bar"]
 fn largest_push_is_a_protected_fall_with_the_head_off_the_ground() {
     let Some(data) = shared_data() else { return };
     for (label, skeleton) in [("cmu", cmu(&data)), ("xbot", xbot(&data))] {
@@ -430,8 +431,9 @@ fn largest_push_is_a_protected_fall_with_the_head_off_the_ground() {
 /// standing (8 directions × 80, 120, 160 N·s on the chest, both figures): the speed at which
 /// the head comes down onto the ground (its centre of mass, while within 1 cm of it), with
 /// the fall controller in the pool against the same push without it (balance, step, relax:
-/// the limp figure). The fall controller at least halves the median head impact speed and
-/// leaves at most a third as many strikes above 3 m/s. Prints the table
+/// the limp figure). The fall controller at least halves the median head impact speed,
+/// leaves at most a third as many strikes above 3 m/s and at most 10 of the 48 above the
+/// 1 m/s of a hit. Prints the table
 /// (`cargo test --test physics_controllers protective_fall_table -- --nocapture`).
 #[test]
 fn protective_fall_table_halves_the_head_impact_speed() {
@@ -464,12 +466,20 @@ fn protective_fall_table_halves_the_head_impact_speed() {
         v.sort_by(f32::total_cmp);
         v[v.len() / 2]
     };
-    let strikes = |v: &[f32]| v.iter().filter(|&&s| s > 3.0).count();
+    let above = |v: &[f32], speed: f32| v.iter().filter(|&&s| s > speed).count();
     let (m_with, m_without) = (median(&protected), median(&limp));
-    let (s_with, s_without) = (strikes(&protected), strikes(&limp));
-    println!("median {m_with:.2} / {m_without:.2} m/s; above 3 m/s {s_with} / {s_without} of {}", limp.len());
+    let (s_with, s_without) = (above(&protected, 3.0), above(&limp, 3.0));
+    let (h_with, h_without) = (above(&protected, HEAD_HIT_M_S), above(&limp, HEAD_HIT_M_S));
+    println!(
+        "median {m_with:.2} / {m_without:.2} m/s; above 3 m/s {s_with} / {s_without}, above {HEAD_HIT_M_S} m/s \
+         {h_with} / {h_without} of {}",
+        limp.len()
+    );
     assert!(m_with < 0.5 * m_without, "median head impact {m_with} m/s with the fall controller, {m_without} without");
     assert!(3 * s_with <= s_without, "{s_with} strikes above 3 m/s with the fall controller, {s_without} without");
+    // Measured 8 of 48 with the head reflex (15 without it, 44 limp): the fall's contract,
+    // no hit at all, is not met yet.
+    assert!(h_with <= 10, "{h_with} of 48 falls struck the head faster than {HEAD_HIT_M_S} m/s");
 }
 
 #[test]
