@@ -10,9 +10,10 @@
 //! 1. box corners, then each box face on a square lattice at the smallest μ found on it;
 //! 2. obstacle surface vertices, thinned to spacing ≥ ½ μ;
 //! 3. the previous step's free nodes, then a fill lattice whose spacing follows μ (cells of
-//!    the largest edge, split into ⌈max/μ⌉³ sub-cells), each accepted when it is inside the
-//!    box at least ½ μ from the walls, outside the obstacles, and no accepted node lies
-//!    within 0.7 μ.
+//!    the largest edge, split into ⌈max/μ⌉³ sub-cells, at most 64 a side, each node offset
+//!    by a hashed quarter of its sub-cell so that no four are cocircular), each accepted when
+//!    it is inside the box at least ½ μ from the walls, outside the obstacles, and no
+//!    accepted node lies within 0.7 μ.
 
 use std::collections::HashMap;
 
@@ -24,6 +25,9 @@ use crate::model::volume::Sizing;
 
 /// Closest accepted spacing between two nodes, as a fraction of μ.
 const MIN_SPACING: f64 = 0.7;
+/// Most sub-cells per fill cell along an axis.
+const MAX_SPLIT: u32 = 64;
+
 /// Mean tets per node of a Delaunay mesh of well-spaced nodes (measured 5.5–6.5).
 pub const TETS_PER_NODE: f64 = 6.5;
 
@@ -230,23 +234,17 @@ pub fn place_nodes(
         for j in 0..cells.y {
             for i in 0..cells.x {
                 let corner = lo + DVec3::new(i as f64, j as f64, k as f64) * cell;
-                let n = (cell / mu(corner + DVec3::splat(0.5 * cell))).ceil().clamp(1.0, 64.0) as u32;
+                let n = (cell / mu(corner + DVec3::splat(0.5 * cell))).ceil().clamp(1.0, f64::from(MAX_SPLIT)) as u32;
                 let sub = cell / f64::from(n);
                 let cell_index = (u64::from(k) * u64::from(cells.y) + u64::from(j)) * u64::from(cells.x) + u64::from(i);
                 for c in 0..n * n * n {
                     let (a, b, d) = (c % n, (c / n) % n, c / (n * n));
-                    // A fixed, irrational-ratio offset per sub-cell of the whole box breaks
-                    // the lattice's cospherical ties without randomness (the same inputs give
-                    // the same mesh). Offsets repeated from cell to cell left a cubic lattice
-                    // wherever μ is at its maximum: four cospherical nodes per cube face,
-                    // whose flat tets were dropped and left walls inside the fluid.
-                    let m = (cell_index * 262_144 + u64::from(c)) as f64;
-                    let jitter = DVec3::new(
-                        (m * 0.618_033_988_749_895).fract(),
-                        (m * 0.414_213_562_373_095).fract(),
-                        (m * 0.732_050_807_568_877).fract(),
-                    ) * 0.5
-                        - 0.25;
+                    // A fixed offset per sub-cell of the whole box, hashed from its index,
+                    // breaks the lattice's cocircular ties without randomness (the same inputs
+                    // give the same mesh). Offsets repeated from cell to cell left a cubic
+                    // lattice wherever μ is at its maximum: four cocircular nodes per cube
+                    // face, whose flat tets were dropped and left walls inside the fluid.
+                    let jitter = sub_cell_jitter(cell_index * u64::from(MAX_SPLIT.pow(3)) + u64::from(c));
                     let p = corner + (DVec3::new(f64::from(a), f64::from(b), f64::from(d)) + 0.5 + jitter) * sub;
                     offer(p, &mut nodes, &mut hash)?;
                 }
@@ -254,6 +252,18 @@ pub fn place_nodes(
         }
     }
     Ok(nodes)
+}
+
+/// An offset in [−¼, ¼)³ of a sub-cell for the sub-cell numbered `index`: three fractions
+/// of a SplitMix64 hash of the index, so neighbouring sub-cells get unrelated offsets.
+fn sub_cell_jitter(index: u64) -> DVec3 {
+    let mut z = index.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    // Three 21-bit fractions of the 64-bit hash.
+    let fraction = |shift: u32| ((z >> shift) & 0x1F_FFFF) as f64 / f64::from(1u32 << 21);
+    DVec3::new(fraction(0), fraction(21), fraction(42)) * 0.5 - 0.25
 }
 
 /// The Delaunay tets of `points`, without those whose barycentre lies inside an obstacle

@@ -22,7 +22,7 @@
 //!
 //! Whatever the direction, a head closing in on the ground (within [`HEAD_REFLEX_M`],
 //! coming down faster than [`HEAD_REFLEX_SPEED`]) is lifted by the neck, as a falling person
-//! does: the head aims straight up, as far as the neck's range allows, at
+//! does: the head aims straight up, as far as the neck's range allows, at (at least)
 //! [`HEAD_REFLEX_GAIN`] times its gains. A posture chosen at the start of the fall cannot
 //! know how the body will land; the reflex reads where the head is. Over the fall table's
 //! 48 pushes it halved the falls whose head struck faster than 1 m/s (15 to 8).
@@ -192,7 +192,8 @@ impl Controller for Fall {
         {
             let parent_rot = fig.bodies[head].parent.map_or(glam::Quat::IDENTITY, |p| state.body_rot[p]);
             targets.aim(fig, head, parent_rot, Vec3::Y);
-            targets.gain[head] = HEAD_REFLEX_GAIN;
+            // At least: a backward fall's curl already stiffens the neck further.
+            targets.gain[head] = targets.gain[head].max(HEAD_REFLEX_GAIN);
         }
         Status::Running
     }
