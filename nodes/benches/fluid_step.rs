@@ -2,7 +2,10 @@
 //! and 100k tets (issue 17's goal: < 2 s per step at 100k on the 2-core machine), split into
 //! meshing (TetGen quality mesh + Delaunay of its nodes), the pressure solve (assembly,
 //! Cholesky, one projection; and the same with the cube a dynamic body coupled in, Klingner
-//! §7) and advection (velocity reconstruction + tracing every face).
+//! §7) and advection (velocity reconstruction + tracing every face). Group `fluid_remesh`:
+//! the remesh `fluid.simulate` runs every step (node placement by a uniform sizing field
+//! warm-started from the last step's nodes, Delaunay, carving, relaxation, Delaunay and
+//! carving again) around the same cube at about 25k, 50k, 100k and 200k tets.
 //! Run: `cargo bench -p kinegraph-nodes --bench fluid_step`.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -11,8 +14,10 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use glam::DVec3;
 use kinegraph_nodes::kernels::fluid::mesher::{BoxMeshSpec, Obstacle, Tetrahedralisation, mesh_box};
 use kinegraph_nodes::kernels::fluid::projection::{FaceCondition, PressureSolver, face_conditions};
+use kinegraph_nodes::kernels::fluid::remesh::{mesh_nodes, place_nodes};
 use kinegraph_nodes::kernels::fluid::rigid::{RigidBody, RigidShape};
 use kinegraph_nodes::kernels::fluid::velocity::{VelocityField, advect_velocity, sample_faces};
+use kinegraph_nodes::model::volume::Sizing;
 use std::hint::black_box;
 
 fn cube(centre: DVec3, half: f64) -> Obstacle {
@@ -75,5 +80,31 @@ fn bench(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench);
+/// The per-step remesh at a uniform edge length μ chosen for about `target` tets (measured:
+/// about 5.5 tets per μ³ of air).
+fn remesh(c: &mut Criterion) {
+    let (lo, hi) = (DVec3::ZERO, DVec3::ONE);
+    let obstacles = [cube(DVec3::splat(0.5), 0.15)];
+    let mut group = c.benchmark_group("fluid_remesh");
+    group.sample_size(10);
+    for target in [25_000usize, 50_000, 100_000, 200_000] {
+        let edge = (5.5 * (1.0 - 0.027) / target as f64).cbrt();
+        let sizing = Sizing { k0_m: edge, kd: 0.0, ks_m: 0.0, kw_m_s: 0.0, min_edge_m: edge, max_edge_m: edge };
+        let mu = |_: DVec3| edge;
+        let max_tets = 10 * target;
+        let mut nodes = place_nodes(lo, hi, &obstacles, &[], &sizing, &mu, max_tets).unwrap();
+        let mesh = mesh_nodes(&mut nodes, &obstacles, max_tets).unwrap();
+        eprintln!("fluid_remesh {target}: edge {edge:.4} m, {:?}", mesh.stats());
+        let previous = nodes.free;
+        group.bench_function(format!("{}k", target / 1000), |b| {
+            b.iter(|| {
+                let mut nodes = place_nodes(lo, hi, &obstacles, black_box(&previous), &sizing, &mu, max_tets).unwrap();
+                mesh_nodes(&mut nodes, &obstacles, max_tets).unwrap()
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench, remesh);
 criterion_main!(benches);
