@@ -14,7 +14,7 @@ use std::sync::atomic::AtomicBool;
 use glam::DVec3;
 use kinegraph_nodes::cancel::Cancel;
 use kinegraph_nodes::kernels::fluid::mesh::MeshError;
-use kinegraph_nodes::kernels::fluid::mesher::Obstacle;
+use kinegraph_nodes::kernels::fluid::mesher::{Obstacle, enclosed_volume_m3};
 use kinegraph_nodes::kernels::fluid::remesh::{mesh_nodes, place_nodes};
 use kinegraph_nodes::kernels::fluid::sim::{MovingObstacle, SimError, SimSettings, simulate};
 use kinegraph_nodes::kernels::fluid::smoke::{advect_per_tet, total};
@@ -130,15 +130,8 @@ fn a_remeshed_domain_has_walls_only_on_the_box_and_the_obstacles() {
             !on_box_face && !corners.iter().all(|p| on_ball(*p))
         });
         assert_eq!(walls.count(), 0, "step {step}: boundary faces inside the fluid");
-        // The ball's volume as the polyhedron's divergence sum, independent of the mesh.
-        let ball_volume: f64 = ball
-            .triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| ball.positions_m[i as usize]);
-                a.dot(b.cross(c)) / 6.0
-            })
-            .sum();
+        // The ball's volume from its own surface, independent of the mesh.
+        let ball_volume = enclosed_volume_m3(&ball);
         let box_volume = (hi - lo).x * (hi - lo).y * (hi - lo).z;
         let fluid: f64 = mesh.tet_volume_m3.iter().sum();
         // The carved ball is the polyhedron of its thinned surface nodes: within 1 % of it.

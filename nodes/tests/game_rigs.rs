@@ -104,6 +104,11 @@ const FAMILIES: &[(&str, &[(&str, &str)])] = &[
     ),
 ];
 
+/// The names of family `name`.
+fn family(name: &str) -> &'static [(&'static str, &'static str)] {
+    FAMILIES.iter().find(|(f, _)| *f == name).unwrap().1
+}
+
 /// The name of Mixamo joint `mixamo` (namespace included) in `family`.
 fn renamed(family: &[(&str, &str)], mixamo: &str) -> String {
     let bare = mixamo.rsplit(':').next().unwrap();
@@ -228,7 +233,7 @@ fn every_naming_family_maps_like_the_mixamo_original() {
 fn a_game_rig_with_feet_under_the_root_and_twist_bones_walks_like_the_original() {
     let Some(Setup { walk, xbot }) = setup() else { return };
     let (_, _, original_out) = carry(&walk, (*xbot).clone());
-    let game = FAMILIES.iter().find(|(f, _)| *f == "game").unwrap().1;
+    let game = family("game");
     let name = |n: &str| renamed(game, n);
     let renamed_xbot = rename(&xbot, name);
     let rig = game_rig(&renamed_xbot, ["FootL", "FootR"], &["UpperLegL", "UpperLegR", "UpperArmL", "UpperArmR"]);
@@ -316,7 +321,7 @@ fn named_feet_find_the_contacts_detection_cannot() {
     use kinegraph_nodes::kernels::contacts::{ContactThresholds, NamedFeet, contacts_of, contacts_with, joint_pair};
     let Some(Setup { walk, xbot }) = setup() else { return };
     let (_, _, original) = carry(&walk, (*xbot).clone());
-    let game = FAMILIES.iter().find(|(f, _)| *f == "game").unwrap().1;
+    let game = family("game");
     let rig = game_rig(&rename(&xbot, |n| renamed(game, n)), ["FootL", "FootR"], &["UpperLegL", "UpperLegR"]);
     let (_, _, on_rig) = carry(&walk, rig);
     let lost = anonymous(&on_rig.clip);
@@ -415,7 +420,7 @@ fn with_ik_bones(skeleton: &Skeleton, feet: [&str; 2], hands: [&str; 2]) -> Skel
 fn a_game_rig_with_ik_bones_walks_like_the_original() {
     let Some(Setup { walk, xbot }) = setup() else { return };
     let (_, _, original_out) = carry(&walk, (*xbot).clone());
-    let game = FAMILIES.iter().find(|(f, _)| *f == "game").unwrap().1;
+    let game = family("game");
     let name = |n: &str| renamed(game, n);
     let rig = game_rig(&rename(&xbot, name), ["FootL", "FootR"], &["UpperLegL", "UpperLegR"]);
     let rig = with_ik_bones(&rig, ["FootL", "FootR"], ["HandL", "HandR"]);
@@ -496,7 +501,7 @@ fn a_rig_with_split_leg_bones_maps_and_locks_like_the_original() {
     let Some(Setup { walk, xbot }) = setup() else { return };
     let (_, _, original) = carry(&walk, (*xbot).clone());
     let want = lock(&original.clip);
-    let rigify = FAMILIES.iter().find(|(f, _)| *f == "rigify").unwrap().1;
+    let rigify = family("rigify");
     let name = |n: &str| renamed(rigify, n);
     let rig = split_bones(&rename(&xbot, name), &["DEF-thigh.L", "DEF-thigh.R", "DEF-shin.L", "DEF-shin.R"]);
     let (_, map, out) = carry(&walk, rig);
@@ -519,7 +524,7 @@ fn a_game_rig_with_feet_under_the_root_locks_like_the_original() {
     let Some(Setup { walk, xbot }) = setup() else { return };
     let (_, _, original) = carry(&walk, (*xbot).clone());
     let want = lock(&original.clip);
-    let game = FAMILIES.iter().find(|(f, _)| *f == "game").unwrap().1;
+    let game = family("game");
     let name = |n: &str| renamed(game, n);
     let rig = game_rig(&rename(&xbot, name), ["FootL", "FootR"], &["UpperLegL", "UpperLegR"]);
     let rig = with_ik_bones(&rig, ["FootL", "FootR"], ["HandL", "HandR"]);

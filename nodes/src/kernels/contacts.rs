@@ -218,17 +218,16 @@ fn feet_contacts(
     thresholds: &ContactThresholds,
 ) -> Contacts {
     let skeleton = clip.skeleton();
-    let track = |j: usize| track(poses, j);
     let feet: Vec<FootContacts> = feet
         .iter()
         .enumerate()
         .map(|(k, &ankle)| {
             let toe = toes.map_or_else(|| limb_tip(skeleton, ankle), |t| t[k]);
-            let ankle_contacts = point_contacts(&track(ankle), clip.fps(), thresholds);
+            let ankle_contacts = point_contacts(&track(poses, ankle), clip.fps(), thresholds);
             let intervals = if toe == ankle {
                 ankle_contacts
             } else {
-                union_all(&ankle_contacts, &point_contacts(&track(toe), clip.fps(), thresholds))
+                union_all(&ankle_contacts, &point_contacts(&track(poses, toe), clip.fps(), thresholds))
             };
             let intervals = close_short_gaps(intervals, min_frames(thresholds, clip.fps()));
             FootContacts { foot: skeleton.joints()[ankle].name.clone(), intervals }
@@ -256,11 +255,10 @@ pub fn hand_contacts(
     thresholds: &ContactThresholds,
 ) -> Vec<FootContacts> {
     let skeleton = clip.skeleton();
-    let track = |j: usize| track(poses, j);
     let floor = feet
         .iter()
         .flat_map(|&ankle| [ankle, limb_tip(skeleton, ankle)])
-        .map(|j| ground_height(&track(j)))
+        .map(|j| ground_height(&track(poses, j)))
         .fold(f64::INFINITY, f64::min);
     // Height alone: a planted hand's palm still slides and rolls on capture skeletons' coarse
     // hands (CMU 90_02's left palm moves at 0.4-0.8 m/s through its support, above any
@@ -271,7 +269,7 @@ pub fn hand_contacts(
         .map(|&hand| {
             // The palm, half way from the wrist to the fingertip: what a planted hand turns
             // about (the wrist circles it as the body goes over the hand).
-            let (wrist, tip) = (track(hand), track(limb_tip(skeleton, hand)));
+            let (wrist, tip) = (track(poses, hand), track(poses, limb_tip(skeleton, hand)));
             let palm: Vec<DVec3> = wrist.iter().zip(&tip).map(|(w, t)| (*w + *t) * 0.5).collect();
             let down = height_quantile(&palm, 2);
             let reached = down - floor <= HAND_REACH_LIFTS * thresholds.leave_height_m;

@@ -149,6 +149,8 @@ impl Controller for Fall {
         let hip = HIP_RAD + BACK_HIP_RAD * back;
         let reach_down = REACH_DOWN_RAD + BACK_REACH_DOWN_RAD * back;
         let trunk_gain = 1.0 + BACK_TRUNK_GAIN * back;
+        // The head reflex: closing in on the ground, the neck lifts the head.
+        let head_reflex = state.head_clearance_m < HEAD_REFLEX_M && state.head_down_speed_m_s > HEAD_REFLEX_SPEED;
         // Stiffened over the crouch time: a fall from standing takes longer than that to
         // bring the hands to the ground.
         let arm_gain = 1.0 + (ARM_GAIN - 1.0) * crouch;
@@ -165,6 +167,11 @@ impl Controller for Fall {
                 BodyRole::Forearm => {
                     targets.angles[i] = [ELBOW_RAD, 0.0, 0.0];
                     targets.gain[i] = arm_gain;
+                }
+                BodyRole::Head if head_reflex => {
+                    targets.aim(fig, i, parent_rot, Vec3::Y);
+                    // At least: a backward fall's curl already stiffens the neck further.
+                    targets.gain[i] = trunk_gain.max(HEAD_REFLEX_GAIN);
                 }
                 BodyRole::Head | BodyRole::Chest | BodyRole::Abdomen => {
                     let share = if body.role == BodyRole::Head { 0.5 } else { 0.25 };
@@ -184,16 +191,6 @@ impl Controller for Fall {
                     *a = from[k] + (*a - from[k]) * crouch;
                 }
             }
-        }
-        // The head reflex: closing in on the ground, the neck lifts the head.
-        if state.head_clearance_m < HEAD_REFLEX_M
-            && state.head_down_speed_m_s > HEAD_REFLEX_SPEED
-            && let Some(head) = ctx.body(BodyRole::Head, None)
-        {
-            let parent_rot = fig.bodies[head].parent.map_or(glam::Quat::IDENTITY, |p| state.body_rot[p]);
-            targets.aim(fig, head, parent_rot, Vec3::Y);
-            // At least: a backward fall's curl already stiffens the neck further.
-            targets.gain[head] = targets.gain[head].max(HEAD_REFLEX_GAIN);
         }
         Status::Running
     }
