@@ -88,7 +88,7 @@ fn vdb_grids_read_back_by_openvdb_hold_the_written_values() {
 #[test]
 fn ply_points_parse_back_from_header_and_body() {
     let points = [[0.5f32, 1.25, -3.0], [1e-3, 2.0, 7.5], [0.0, 0.0, 0.0]];
-    let bytes = write_points_ply(&points);
+    let bytes = write_points_ply(&points, "Y");
     let end = b"end_header\n";
     let at = bytes.windows(end.len()).position(|w| w == end).unwrap() + end.len();
     let header = std::str::from_utf8(&bytes[..at]).unwrap();

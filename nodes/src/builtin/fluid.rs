@@ -14,7 +14,7 @@ use crate::kernels::fluid::mesher::{Obstacle, open_edge};
 use crate::kernels::fluid::rigid::{GRAVITY_M_S2, RigidBody, RigidShape};
 use crate::kernels::fluid::sim::{DynamicBodies, MovingObstacle, SimError, SimSettings, simulate_with_bodies};
 use crate::model::choice::choices;
-use crate::model::volume::{FluidDomain, Sizing, SmokeSource, VolumeFrame, VolumeSequence};
+use crate::model::volume::{FluidDomain, Sizing, SmokeSource, VolumeFrame, VolumeSequence, VoxelGrid, y_up_to_z_up};
 use crate::model::{Curves, Mesh, MeshSequence};
 use crate::node::{
     ChoiceParam, FloatParam, Input, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, OutputPathParam,
@@ -571,6 +571,15 @@ const PLY_FILE: OutputPathParam = OutputPathParam::new(
 );
 const LAST_FILE_OUT: Output<Arc<std::path::PathBuf>> =
     Output::new("file", "The last written file, relative to the output folder.");
+choices! {
+    /// The up axis of written volumes and particles.
+    enum FileUp { Y = "y", Z = "z" }
+}
+const FILE_UP: ChoiceParam<FileUp> = ChoiceParam::new(
+    "up_axis",
+    "The axis that points up in the files: \"y\" as simulated (Houdini and most renderers); \"z\" for Blender, turned as its glTF importer turns a GLB ((x, y, z) → (x, −z, y)), so the smoke lines up with a character exported by export.glb.",
+    "y",
+);
 
 /// Writes one file per frame of `volumes` (encoded by `encode`) beside the file named by
 /// `param`, with progress, and outputs the last one written.
@@ -600,7 +609,7 @@ static EXPORT_VDB: NodeSchema = NodeSchema {
     doc: "Writes smoke volumes as OpenVDB files, one per frame (NAME_0000.vdb, …): float grids `density` and `temperature` (kelvin above ambient) and a vec3 grid `velocity` (m/s), on a uniform grid in metres. Blender, Houdini and renderers load them as a sequence.",
     inputs: &[VOLUMES_IN.spec()],
     outputs: &[LAST_FILE_OUT.spec()],
-    params: &[VDB_FILE.0],
+    params: &[VDB_FILE.0, FILE_UP.0],
     writes_files: true,
     version: 1,
 };
@@ -611,16 +620,30 @@ impl Node for ExportVdb {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let volumes = ctx.input(&VOLUMES_IN)?;
-        write_frames(ctx, &VDB_FILE, &volumes, |frame| {
+        let encode = |grid: &VoxelGrid, density: &[f32], temperature: &[f32], velocity: &[[f32; 3]]| {
             write_vdb(
-                &volumes.grid,
+                grid,
                 &[
-                    VdbGrid { name: "density", values: GridValues::Float(&frame.density) },
-                    VdbGrid { name: "temperature", values: GridValues::Float(&frame.temperature_k) },
-                    VdbGrid { name: "velocity", values: GridValues::Vec3(&frame.velocity_m_s) },
+                    VdbGrid { name: "density", values: GridValues::Float(density) },
+                    VdbGrid { name: "temperature", values: GridValues::Float(temperature) },
+                    VdbGrid { name: "velocity", values: GridValues::Vec3(velocity) },
                 ],
             )
-        })
+        };
+        match ctx.choice(&FILE_UP)? {
+            FileUp::Y => write_frames(ctx, &VDB_FILE, &volumes, |frame| {
+                encode(&volumes.grid, &frame.density, &frame.temperature_k, &frame.velocity_m_s)
+            }),
+            FileUp::Z => {
+                let (grid, from) = volumes.grid.z_up();
+                write_frames(ctx, &VDB_FILE, &volumes, |frame| {
+                    let density: Vec<f32> = from.iter().map(|&n| frame.density[n]).collect();
+                    let temperature: Vec<f32> = from.iter().map(|&n| frame.temperature_k[n]).collect();
+                    let velocity: Vec<[f32; 3]> = from.iter().map(|&n| y_up_to_z_up(frame.velocity_m_s[n])).collect();
+                    encode(&grid, &density, &temperature, &velocity)
+                })
+            }
+        }
     }
 }
 
@@ -633,7 +656,7 @@ static EXPORT_POINTS: NodeSchema = NodeSchema {
     doc: "Writes the smoke's marker particles as binary PLY point clouds, one per frame (NAME_0000.ply, …), metres, Y up.",
     inputs: &[VOLUMES_IN.spec()],
     outputs: &[LAST_FILE_OUT.spec()],
-    params: &[PLY_FILE.0],
+    params: &[PLY_FILE.0, FILE_UP.0],
     writes_files: true,
     version: 1,
 };
@@ -644,6 +667,12 @@ impl Node for ExportPoints {
     }
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let volumes = ctx.input(&VOLUMES_IN)?;
-        write_frames(ctx, &PLY_FILE, &volumes, |frame| write_points_ply(&frame.particles_m))
+        match ctx.choice(&FILE_UP)? {
+            FileUp::Y => write_frames(ctx, &PLY_FILE, &volumes, |frame| write_points_ply(&frame.particles_m, "Y")),
+            FileUp::Z => write_frames(ctx, &PLY_FILE, &volumes, |frame| {
+                let turned: Vec<[f32; 3]> = frame.particles_m.iter().map(|&p| y_up_to_z_up(p)).collect();
+                write_points_ply(&turned, "Z")
+            }),
+        }
     }
 }

@@ -126,6 +126,38 @@ impl VoxelGrid {
     }
 }
 
+/// The axis change Blender's glTF importer makes, from Y up to Z up: (x, y, z) → (x, −z, y).
+/// Files written with it line up in Blender with characters exported as GLB.
+pub fn y_up_to_z_up(p: [f32; 3]) -> [f32; 3] {
+    [p[0], -p[2], p[1]]
+}
+
+impl VoxelGrid {
+    /// The same lattice turned by [`y_up_to_z_up`], and for each of its voxels (array
+    /// order) the index of the voxel of `self` that lands there. A rotation of the index
+    /// lattice, so values are moved, never interpolated.
+    pub fn z_up(&self) -> (VoxelGrid, Vec<usize>) {
+        let [nx, ny, nz] = self.dims;
+        let o = self.origin;
+        // Voxel (i, j, k) goes to (i, nz − 1 − k, j) of the new grid, whose first voxel is
+        // the turned corner (ox, −(oz + nz − 1), oy).
+        let turned = VoxelGrid {
+            origin: IVec3::new(o.x, -(o.z + nz as i32 - 1), o.y),
+            dims: [nx, nz, ny],
+            voxel_m: self.voxel_m,
+        };
+        let mut from = Vec::with_capacity(self.len());
+        for c in 0..ny {
+            for b in 0..nz {
+                for a in 0..nx {
+                    from.push(self.index(a, c, nz - 1 - b));
+                }
+            }
+        }
+        (turned, from)
+    }
+}
+
 /// One frame of a volume sequence: values per voxel of the sequence's grid (0 outside the
 /// fluid), the marker particles and the free bodies.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -200,6 +232,24 @@ impl VolumeSequence {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every voxel of the turned lattice is centred where the voxel it takes its value from
+    /// is, turned; the grid keeps its voxel count and size.
+    #[test]
+    fn a_turned_lattice_puts_each_voxel_at_its_turned_centre() {
+        let grid = VoxelGrid { origin: IVec3::new(-3, 1, 2), dims: [4, 3, 5], voxel_m: 0.1 };
+        let (turned, from) = grid.z_up();
+        assert_eq!(turned.dims, [4, 5, 3]);
+        let mut seen = vec![false; grid.len()];
+        for (n, &source) in from.iter().enumerate() {
+            let [x, y, z] = grid.centre_m(source).to_array();
+            // Blender's glTF axis change written out by hand: x stays, −z becomes y, y becomes z.
+            assert!((turned.centre_m(n) - Vec3::new(x, -z, y)).length() < 1e-6, "voxel {n}");
+            seen[source] = true;
+        }
+        assert!(seen.iter().all(|s| *s), "every voxel is carried over once");
+        assert_eq!(y_up_to_z_up([1.0, 2.0, 3.0]), [1.0, -3.0, 2.0]);
+    }
 
     #[test]
     fn a_point_near_a_voxel_centre_finds_that_voxel_and_points_off_the_grid_none() {
