@@ -1,17 +1,37 @@
-//! Exports open in Blender: runs Blender's own glTF importer headless on what `kg` writes.
-//! Opt-in (Blender is large): set `KG_BLENDER` to a Blender binary (and, for Blender 3.4
-//! with a system numpy ≥ 1.24, `PYTHONPATH` to a numpy < 1.24). Skips otherwise.
+//! Exports open in Blender: runs Blender's own glTF and volume importers headless on what
+//! `kg` writes. Needs `KG_BLENDER`, a Blender binary (CI installs Debian's Blender 3.4), and
+//! for Blender 3.4 beside a system numpy ≥ 1.24 `KG_BLENDER_PYTHONPATH`, a folder holding a
+//! numpy < 1.24 (its glTF importer uses `np.bool`). Skips without `KG_BLENDER`.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::process::Command;
 
+/// Headless Blender from `KG_BLENDER` running `script` (in tests/tools) on `args`, with
+/// `KG_BLENDER_PYTHONPATH` as its PYTHONPATH only (the system's own Python tools keep their
+/// numpy). None, after saying so, without `KG_BLENDER`.
+fn blender(script: &str) -> Option<Command> {
+    let Some(binary) = std::env::var_os("KG_BLENDER") else {
+        eprintln!("skipping: set KG_BLENDER to a Blender binary to run the import check");
+        return None;
+    };
+    let mut command = Command::new(binary);
+    command.args([
+        "-b",
+        "--factory-startup",
+        "--python",
+        &format!("{}/tests/tools/{script}", env!("CARGO_MANIFEST_DIR")),
+        "--",
+    ]);
+    if let Some(path) = std::env::var_os("KG_BLENDER_PYTHONPATH") {
+        command.env("PYTHONPATH", path);
+    }
+    Some(command)
+}
+
 #[test]
 fn exported_glbs_import_into_blender_as_armatures() {
-    let Some(blender) = std::env::var_os("KG_BLENDER") else {
-        eprintln!("skipping: set KG_BLENDER to a Blender binary to run the import check");
-        return;
-    };
+    let Some(mut blender) = blender("blender_import.py") else { return };
     let root = env!("CARGO_MANIFEST_DIR");
     let dir = tempfile::tempdir().unwrap();
     let kg = |args: &[&str]| {
@@ -25,15 +45,7 @@ fn exported_glbs_import_into_blender_as_armatures() {
         kg(&["convert", data.join("bvh/cmu/02_02.bvh").to_str().unwrap(), glb.to_str().unwrap()]);
         files.push((glb, 38, false));
     }
-    let mut args = vec![
-        "-b".to_string(),
-        "--factory-startup".into(),
-        "--python".into(),
-        format!("{root}/tests/tools/blender_import.py"),
-        "--".into(),
-    ];
-    args.extend(files.iter().map(|(f, _, _)| f.to_string_lossy().into_owned()));
-    let out = Command::new(blender).args(&args).output().unwrap();
+    let out = blender.args(files.iter().map(|(f, _, _)| f)).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
     for (file, bones, skinned) in files {
@@ -50,10 +62,7 @@ fn exported_glbs_import_into_blender_as_armatures() {
 /// Opt-in as above, and needs the shared corpus.
 #[test]
 fn exported_characters_import_into_blender_like_their_sources() {
-    let Some(blender) = std::env::var_os("KG_BLENDER") else {
-        eprintln!("skipping: set KG_BLENDER to a Blender binary to run the import check");
-        return;
-    };
+    let Some(mut blender) = blender("blender_import.py") else { return };
     let Some(data) = kinegraph::nodes::corpus::shared_data() else { return };
     let root = env!("CARGO_MANIFEST_DIR");
     let dir = tempfile::tempdir().unwrap();
@@ -72,12 +81,7 @@ fn exported_characters_import_into_blender_like_their_sources() {
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         pairs.push((data.join(source), dir.path().join(export)));
     }
-    let mut args: Vec<String> =
-        ["-b", "--factory-startup", "--python", &format!("{root}/tests/tools/blender_import.py"), "--"]
-            .map(String::from)
-            .to_vec();
-    args.extend(pairs.iter().flat_map(|(a, b)| [a, b]).map(|p| p.to_string_lossy().into_owned()));
-    let out = Command::new(blender).args(&args).output().unwrap();
+    let out = blender.args(pairs.iter().flat_map(|(a, b)| [a, b])).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
     let field = |file: &std::path::Path, key: &str| -> String {
@@ -110,10 +114,7 @@ fn exported_characters_import_into_blender_like_their_sources() {
 /// Opt-in as above, and needs the shared corpus (the kick).
 #[test]
 fn the_smoke_example_lines_up_with_its_character_in_blender() {
-    let Some(blender) = std::env::var_os("KG_BLENDER") else {
-        eprintln!("skipping: set KG_BLENDER to a Blender binary to run the import check");
-        return;
-    };
+    let Some(mut blender) = blender("blender_smoke.py") else { return };
     if kinegraph::nodes::corpus::shared_data().is_none() {
         return;
     }
@@ -126,13 +127,7 @@ fn the_smoke_example_lines_up_with_its_character_in_blender() {
         .unwrap();
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     let out_dir = dir.path().join("kick_through_smoke");
-    let out = Command::new(blender)
-        .args(["-b", "--factory-startup", "--python", &format!("{root}/tests/tools/blender_smoke.py"), "--"])
-        .arg(out_dir.join("character.glb"))
-        .arg(&out_dir)
-        .arg("12")
-        .output()
-        .unwrap();
+    let out = blender.arg(out_dir.join("character.glb")).arg(&out_dir).arg("12").output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
     let lines: Vec<serde_json::Value> =
