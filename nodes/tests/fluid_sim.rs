@@ -141,6 +141,86 @@ fn a_remeshed_domain_has_walls_only_on_the_box_and_the_obstacles() {
     }
 }
 
+/// A closed box surface around `centre` with `n` × `n` squares a face (two triangles each,
+/// outward), vertices shared along its edges.
+fn tessellated_box(centre: DVec3, half: f64, n: usize) -> Obstacle {
+    let mut index = std::collections::HashMap::new();
+    let mut positions_m = Vec::new();
+    let mut triangles = Vec::new();
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for side in [-1.0, 1.0] {
+            let mut vertex = |i: usize, j: usize| -> u32 {
+                let mut p = centre;
+                p[axis] += side * half;
+                p[u] += half * (2.0 * i as f64 / n as f64 - 1.0);
+                p[v] += half * (2.0 * j as f64 / n as f64 - 1.0);
+                let key = (p * 1e9).round().as_i64vec3().to_array();
+                *index.entry(key).or_insert_with(|| {
+                    positions_m.push(p);
+                    (positions_m.len() - 1) as u32
+                })
+            };
+            for i in 0..n {
+                for j in 0..n {
+                    let [a, b, c, d] = [vertex(i, j), vertex(i + 1, j), vertex(i + 1, j + 1), vertex(i, j + 1)];
+                    // u × v points along +axis: counter-clockwise seen from outside on the + side.
+                    if side > 0.0 {
+                        triangles.extend([[a, b, c], [a, c, d]]);
+                    } else {
+                        triangles.extend([[a, c, b], [a, d, c]]);
+                    }
+                }
+            }
+        }
+    }
+    Obstacle { positions_m, triangles }
+}
+
+/// A box standing on the floor (a character's foot), exactly or a hair under it as skinning
+/// leaves it, is meshed with the floor cutting it: the fluid fills the box less the cube
+/// (within the error of the same cube meshed away from the walls), and no boundary face
+/// off the box's planes rises above the cube.
+#[test]
+fn an_obstacle_standing_on_the_floor_is_cut_by_it() {
+    let s = Sizing { k0_m: 0.04, kd: 0.3, ks_m: 0.0, kw_m_s: 0.0, min_edge_m: 0.04, max_edge_m: 0.2 };
+    let (lo, hi) = (DVec3::ZERO, DVec3::ONE);
+    let cube_volume = 0.2f64.powi(3);
+    let missing = |bottom: f64| {
+        let centre = DVec3::new(0.5, bottom + 0.1, 0.5);
+        let cube = tessellated_box(centre, 0.1, 10);
+        assert!((enclosed_volume_m3(&cube) - cube_volume).abs() < 1e-12);
+        let mu = |p: DVec3| s.edge_m(((p - centre).abs().max_element() - 0.1).max(0.0), 0.0, 0.0);
+        let mut nodes = place_nodes(lo, hi, std::slice::from_ref(&cube), &[], &s, &mu, 1_000_000).unwrap();
+        let mesh = mesh_nodes(&mut nodes, std::slice::from_ref(&cube), 1_000_000).unwrap();
+        let fluid: f64 = mesh.tet_volume_m3.iter().sum();
+        // Boundary faces off the box's planes: the cube's.
+        let highest_wall = (0..mesh.faces.len())
+            .filter(|&f| mesh.is_boundary(f))
+            .map(|f| mesh.faces[f].map(|i| mesh.nodes_m[i as usize]))
+            .filter(|corners| {
+                !(0..3).any(|a| corners.iter().all(|p| p[a] == 0.0) || corners.iter().all(|p| p[a] == 1.0))
+            })
+            .flat_map(|corners| corners.map(|p| p.y))
+            .fold(0.0, f64::max);
+        let missing = 1.0 - cube_volume - fluid;
+        eprintln!(
+            "cube from {bottom} m: {} tets, {missing:+.2e} m³ missing against the cube's {cube_volume} m³, highest wall {highest_wall} m",
+            mesh.tet_count()
+        );
+        assert!(highest_wall <= bottom + 0.2 + 1e-9, "bottom {bottom}: a wall at {highest_wall} m inside the fluid");
+        missing
+    };
+    let floating = missing(0.3);
+    for bottom in [0.0, -1e-7] {
+        let standing = missing(bottom);
+        assert!(
+            (standing - floating).abs() < 0.02 * cube_volume,
+            "bottom {bottom}: {standing} m³ missing, floating {floating}"
+        );
+    }
+}
+
 #[test]
 fn uniformly_heated_air_in_a_closed_box_with_an_obstacle_stays_at_rest() {
     // A source covering the whole box keeps the air uniformly 10 K warm and smoke-free: the
@@ -284,11 +364,15 @@ fn cube_mesh(centre: DVec3, half: f64) -> Mesh {
 
 #[test]
 fn fluid_simulate_names_the_port_or_param_of_bad_input() {
-    let outside = run_simulate(domain(true, Vec::new()), Some(cube_mesh(DVec3::new(0.95, 0.5, 0.5), 0.1)), &[]);
+    // Through the wall by 0.08 m, more than half the smallest edge (0.05 m).
+    let outside = run_simulate(domain(true, Vec::new()), Some(cube_mesh(DVec3::new(0.98, 0.5, 0.5), 0.1)), &[]);
     assert!(
         matches!(&outside, Err(NodeError::Input { port: "static_obstacle", message }) if message.contains("outside the domain")),
         "{outside:?}"
     );
+    // On the floor, a hair under it: simulated.
+    let standing = run_simulate(domain(true, Vec::new()), Some(cube_mesh(DVec3::new(0.5, 0.1 - 1e-7, 0.5), 0.1)), &[]);
+    assert!(standing.is_ok(), "{standing:?}");
     let mut open = cube_mesh(DVec3::splat(0.5), 0.1);
     open.triangles.pop();
     let open = run_simulate(domain(true, Vec::new()), Some(open), &[]);

@@ -344,7 +344,10 @@ fn welded(rest: &[glam::Vec3], triangles: &[[u32; 3]]) -> Vec<[u32; 3]> {
     triangles.iter().map(|t| t.map(|i| representative.get(i as usize).copied().unwrap_or(i))).collect()
 }
 
-/// The closed-surface and inside-the-box checks of one obstacle input, naming the port.
+/// The closed-surface and inside-the-box checks of one obstacle input, naming the port. An
+/// obstacle may touch the walls or cross them by up to half the smallest edge (a character
+/// standing on the floor: its soles lie on it, a hair under it after skinning's rounding);
+/// the mesher leaves out what is beyond.
 fn check_surface(
     port: &'static str,
     triangles: &[[u32; 3]],
@@ -352,6 +355,7 @@ fn check_surface(
     domain: &FluidDomain,
 ) -> Result<(), NodeError> {
     let (lo, hi) = (DVec3::from(domain.min_m), DVec3::from(domain.max_m));
+    let tolerance = 0.5 * domain.sizing.min_edge_m;
     let surface = Obstacle { positions_m: Vec::new(), triangles: triangles.to_vec() };
     if let Some(edge) = open_edge(&surface) {
         return Err(NodeError::input(
@@ -362,13 +366,15 @@ fn check_surface(
         ));
     }
     for (frame, positions) in frames {
-        if let Some((v, p)) =
-            positions.iter().enumerate().find(|(_, p)| !(p.as_dvec3().cmpgt(lo).all() && p.as_dvec3().cmplt(hi).all()))
-        {
+        let inside = |p: &&glam::Vec3| {
+            let p = p.as_dvec3();
+            p.cmpge(lo - tolerance).all() && p.cmple(hi + tolerance).all()
+        };
+        if let Some((v, p)) = positions.iter().enumerate().find(|(_, p)| !inside(p)) {
             return Err(NodeError::input(
                 port,
                 format!(
-                    "reaches outside the domain box {lo} .. {hi} m at frame {frame} (vertex {v} at {p} m): enlarge the fluid.domain or move the obstacle"
+                    "reaches outside the domain box {lo} .. {hi} m (by more than half the smallest edge, {tolerance} m) at frame {frame} (vertex {v} at {p} m): enlarge the fluid.domain or move the obstacle"
                 ),
             ));
         }

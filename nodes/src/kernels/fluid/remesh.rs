@@ -8,7 +8,10 @@
 //!
 //! tritet exposes only TetGen's global volume bound, so the nodes are placed here:
 //! 1. box corners, then each box face on a square lattice at the smallest μ found on it;
-//! 2. obstacle surface vertices, thinned to spacing ≥ ½ μ;
+//! 2. obstacle surface vertices, thinned to spacing ≥ ½ μ; those within ½ μ of a wall (or
+//!    through it, as far as `fluid.simulate` allows) are put on it, so a character standing
+//!    on the floor is cut by the floor and leaves no air layer thinner than the mesh under
+//!    its soles;
 //! 3. the previous step's free nodes, then a fill lattice whose spacing follows μ (cells of
 //!    the largest edge, split into ⌈max/μ⌉³ sub-cells, at most 64 a side, each node offset
 //!    by a hashed quarter of its sub-cell so that no four are cocircular), each accepted when
@@ -206,10 +209,12 @@ pub fn place_nodes(
             }
         }
     }
-    // 2. Obstacle surfaces, thinned.
+    // 2. Obstacle surfaces, thinned, those near a wall put on it.
     for p in obstacles.iter().flat_map(|o| &o.positions_m) {
-        if !hash.any_within(*p, 0.5 * mu(*p)) {
-            accept(*p, true, &mut nodes, &mut hash)?;
+        let margin = 0.5 * mu(*p);
+        let on_walls = DVec3::select(p.cmplt(lo + margin), lo, DVec3::select(p.cmpgt(hi - margin), hi, *p));
+        if !hash.any_within(on_walls, margin) {
+            accept(on_walls, true, &mut nodes, &mut hash)?;
         }
     }
     // 3. Interior: previous nodes first, then the fill lattice.
