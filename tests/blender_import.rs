@@ -11,7 +11,7 @@ use std::process::Command;
 /// `KG_BLENDER_PYTHONPATH` as its PYTHONPATH only (the system's own Python tools keep their
 /// numpy). None, after saying so, without `KG_BLENDER`.
 fn blender(script: &str) -> Option<Command> {
-    let Some(binary) = std::env::var_os("KG_BLENDER") else {
+    let Some(binary) = std::env::var_os("KG_BLENDER").filter(|b| !b.is_empty()) else {
         eprintln!("skipping: set KG_BLENDER to a Blender binary to run the import check");
         return None;
     };

@@ -178,9 +178,10 @@ fn tessellated_box(centre: DVec3, half: f64, n: usize) -> Obstacle {
 }
 
 /// A box standing on the floor (a character's foot), exactly or a hair under it as skinning
-/// leaves it, is meshed with the floor cutting it: the fluid fills the box less the cube
-/// (within the error of the same cube meshed away from the walls), and no boundary face
-/// off the box's planes rises above the cube.
+/// leaves it, is meshed with the floor cutting it: every node lies in the box, the fluid
+/// fills the box less the cube (within the error of the same cube meshed away from the
+/// walls), no fluid is left under or in the cube, and no boundary face off the box's planes
+/// rises above the cube.
 #[test]
 fn an_obstacle_standing_on_the_floor_is_cut_by_it() {
     let s = Sizing { k0_m: 0.04, kd: 0.3, ks_m: 0.0, kw_m_s: 0.0, min_edge_m: 0.04, max_edge_m: 0.2 };
@@ -194,6 +195,17 @@ fn an_obstacle_standing_on_the_floor_is_cut_by_it() {
         let mut nodes = place_nodes(lo, hi, std::slice::from_ref(&cube), &[], &s, &mu, 1_000_000).unwrap();
         let mesh = mesh_nodes(&mut nodes, std::slice::from_ref(&cube), 1_000_000).unwrap();
         let fluid: f64 = mesh.tet_volume_m3.iter().sum();
+        assert!(
+            mesh.nodes_m.iter().all(|p| p.cmpge(lo).all() && p.cmple(hi).all()),
+            "bottom {bottom}: a node outside the box"
+        );
+        // Standing (checked only then): fluid tets centred over the cube's footprint, below
+        // its top (shrunk by a tenth of an edge: the carve follows the surface to its nodes).
+        let under = (0..mesh.tet_count())
+            .map(|t| mesh.tet_centroid(t))
+            .filter(|c| (c.x - 0.5).abs() < 0.096 && (c.z - 0.5).abs() < 0.096 && c.y < bottom + 0.196)
+            .count();
+        assert!(bottom > 0.1 || under == 0, "bottom {bottom}: {under} fluid tets under or inside the cube");
         // Boundary faces off the box's planes: the cube's.
         let highest_wall = (0..mesh.faces.len())
             .filter(|&f| mesh.is_boundary(f))
@@ -212,6 +224,7 @@ fn an_obstacle_standing_on_the_floor_is_cut_by_it() {
         missing
     };
     let floating = missing(0.3);
+    assert!(floating.abs() < 0.05 * cube_volume, "floating: {floating} m³ missing");
     for bottom in [0.0, -1e-7] {
         let standing = missing(bottom);
         assert!(

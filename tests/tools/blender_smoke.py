@@ -49,7 +49,9 @@ def surface(grid, threshold):
     modifier.resolution_mode = "GRID"
     evaluated = probe.evaluated_get(bpy.context.evaluated_depsgraph_get())
     points = [evaluated.matrix_world @ v.co for v in evaluated.to_mesh().vertices]
+    evaluated.to_mesh_clear()
     bpy.data.objects.remove(probe)
+    bpy.data.meshes.remove(mesh)
     return points
 
 
@@ -75,6 +77,7 @@ for frame in range(int(volume.data.frame_duration)):
     for c in characters:
         evaluated = c.evaluated_get(depsgraph)
         body += [evaluated.matrix_world @ v.co for v in evaluated.to_mesh().vertices]
+        evaluated.to_mesh_clear()
     print(
         json.dumps(
             {

@@ -192,9 +192,12 @@ impl Node for Domain {
 const DOMAIN_IN: Input<Arc<FluidDomain>> = Input::required("domain", "The box of air (fluid.domain).");
 const MOVING_IN: Input<Arc<MeshSequence>> = Input::optional(
     "obstacle",
-    "A moving obstacle: a closed mesh per frame (skin.deform), its vertex velocities the boundary condition.",
+    "A moving obstacle: a closed mesh per frame (skin.deform), its vertex velocities the boundary condition. It may touch the box's walls (a character standing on the floor) or cross them by up to half the smallest edge; what lies beyond is cut off.",
 );
-const STATIC_IN: Input<Arc<Mesh>> = Input::optional("static_obstacle", "A closed mesh that stays still.");
+const STATIC_IN: Input<Arc<Mesh>> = Input::optional(
+    "static_obstacle",
+    "A closed mesh that stays still; like the moving obstacle, it may touch the walls or cross them by up to half the smallest edge.",
+);
 const FRAMES: IntParam = IntParam::optional(
     "frames",
     "Frames to simulate (default: the obstacle sequence's frame count, else 48).",
@@ -612,7 +615,7 @@ pub struct ExportVdb;
 static EXPORT_VDB: NodeSchema = NodeSchema {
     kind: "export.vdb",
     category: "io",
-    doc: "Writes smoke volumes as OpenVDB files, one per frame (NAME_0000.vdb, …): float grids `density` and `temperature` (kelvin above ambient) and a vec3 grid `velocity` (m/s), on a uniform grid in metres. Blender, Houdini and renderers load them as a sequence.",
+    doc: "Writes smoke volumes as OpenVDB files, one per frame (NAME_0000.vdb, …): float grids `density` and `temperature` (kelvin above ambient) and a vec3 grid `velocity` (m/s), on a uniform grid in metres, Y up (or Z up for Blender, see up_axis). Blender, Houdini and renderers load them as a sequence; Blender puts NAME_0000 on its frame 1 unless the volume's start frame is set to 0, where its glTF import starts an animation.",
     inputs: &[VOLUMES_IN.spec()],
     outputs: &[LAST_FILE_OUT.spec()],
     params: &[VDB_FILE.0, FILE_UP.0],
@@ -659,7 +662,7 @@ pub struct ExportPoints;
 static EXPORT_POINTS: NodeSchema = NodeSchema {
     kind: "export.points",
     category: "io",
-    doc: "Writes the smoke's marker particles as binary PLY point clouds, one per frame (NAME_0000.ply, …), metres, Y up.",
+    doc: "Writes the smoke's marker particles as binary PLY point clouds, one per frame (NAME_0000.ply, …), metres, Y up (or Z up, see up_axis).",
     inputs: &[VOLUMES_IN.spec()],
     outputs: &[LAST_FILE_OUT.spec()],
     params: &[PLY_FILE.0, FILE_UP.0],

@@ -8,10 +8,9 @@
 //!
 //! tritet exposes only TetGen's global volume bound, so the nodes are placed here:
 //! 1. box corners, then each box face on a square lattice at the smallest μ found on it;
-//! 2. obstacle surface vertices, thinned to spacing ≥ ½ μ; those within ½ μ of a wall (or
-//!    through it, as far as `fluid.simulate` allows) are put on it, so a character standing
-//!    on the floor is cut by the floor and leaves no air layer thinner than the mesh under
-//!    its soles;
+//! 2. obstacle surface vertices, thinned to spacing ≥ ½ μ; those through a wall (as far as
+//!    `fluid.simulate` allows: a sole a hair under the floor) are put on it, so the box
+//!    stays the hull and the floor cuts a character standing on it;
 //! 3. the previous step's free nodes, then a fill lattice whose spacing follows μ (cells of
 //!    the largest edge, split into ⌈max/μ⌉³ sub-cells, at most 64 a side, each node offset
 //!    by a hashed quarter of its sub-cell so that no four are cocircular), each accepted when
@@ -209,12 +208,11 @@ pub fn place_nodes(
             }
         }
     }
-    // 2. Obstacle surfaces, thinned, those near a wall put on it.
+    // 2. Obstacle surfaces, thinned, those through a wall put on it.
     for p in obstacles.iter().flat_map(|o| &o.positions_m) {
-        let margin = 0.5 * mu(*p);
-        let on_walls = DVec3::select(p.cmplt(lo + margin), lo, DVec3::select(p.cmpgt(hi - margin), hi, *p));
-        if !hash.any_within(on_walls, margin) {
-            accept(on_walls, true, &mut nodes, &mut hash)?;
+        let inside = p.clamp(lo, hi);
+        if !hash.any_within(inside, 0.5 * mu(inside)) {
+            accept(inside, true, &mut nodes, &mut hash)?;
         }
     }
     // 3. Interior: previous nodes first, then the fill lattice.
