@@ -105,6 +105,11 @@ fn smoke_mass_is_kept_across_sizing_field_remeshes() {
     assert!(worst < 1e-9, "worst mass change per remesh {worst}");
 }
 
+/// Whether a face's corners all lie in one face plane of the box `lo..hi`.
+fn in_box_plane(corners: &[DVec3; 3], lo: DVec3, hi: DVec3) -> bool {
+    (0..3).any(|a| corners.iter().all(|p| p[a] == lo[a]) || corners.iter().all(|p| p[a] == hi[a]))
+}
+
 /// The fluid's only walls are the box and the obstacles: every boundary face of a remeshed
 /// domain lies in a face plane of the box or is a triangle of obstacle surface vertices,
 /// and the tets fill the box less the obstacle's volume (no large holes: a flat tet has no
@@ -125,9 +130,7 @@ fn a_remeshed_domain_has_walls_only_on_the_box_and_the_obstacles() {
         let on_ball = |p: DVec3| ball.positions_m.contains(&p);
         let walls = (0..mesh.faces.len()).filter(|&f| mesh.is_boundary(f)).filter(|&f| {
             let corners = mesh.faces[f].map(|i| mesh.nodes_m[i as usize]);
-            let on_box_face =
-                (0..3).any(|a| corners.iter().all(|p| p[a] == lo[a]) || corners.iter().all(|p| p[a] == hi[a]));
-            !on_box_face && !corners.iter().all(|p| on_ball(*p))
+            !in_box_plane(&corners, lo, hi) && !corners.iter().all(|p| on_ball(*p))
         });
         assert_eq!(walls.count(), 0, "step {step}: boundary faces inside the fluid");
         // The ball's volume from its own surface, independent of the mesh.
@@ -139,42 +142,6 @@ fn a_remeshed_domain_has_walls_only_on_the_box_and_the_obstacles() {
         assert!(missing.abs() < 0.01 * ball_volume, "step {step}: {missing} m³ missing, ball {ball_volume} m³");
         previous = nodes.free;
     }
-}
-
-/// A closed box surface around `centre` with `n` × `n` squares a face (two triangles each,
-/// outward), vertices shared along its edges.
-fn tessellated_box(centre: DVec3, half: f64, n: usize) -> Obstacle {
-    let mut index = std::collections::HashMap::new();
-    let mut positions_m = Vec::new();
-    let mut triangles = Vec::new();
-    for axis in 0..3 {
-        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-        for side in [-1.0, 1.0] {
-            let mut vertex = |i: usize, j: usize| -> u32 {
-                let mut p = centre;
-                p[axis] += side * half;
-                p[u] += half * (2.0 * i as f64 / n as f64 - 1.0);
-                p[v] += half * (2.0 * j as f64 / n as f64 - 1.0);
-                let key = (p * 1e9).round().as_i64vec3().to_array();
-                *index.entry(key).or_insert_with(|| {
-                    positions_m.push(p);
-                    (positions_m.len() - 1) as u32
-                })
-            };
-            for i in 0..n {
-                for j in 0..n {
-                    let [a, b, c, d] = [vertex(i, j), vertex(i + 1, j), vertex(i + 1, j + 1), vertex(i, j + 1)];
-                    // u × v points along +axis: counter-clockwise seen from outside on the + side.
-                    if side > 0.0 {
-                        triangles.extend([[a, b, c], [a, c, d]]);
-                    } else {
-                        triangles.extend([[a, c, b], [a, d, c]]);
-                    }
-                }
-            }
-        }
-    }
-    Obstacle { positions_m, triangles }
 }
 
 /// A box standing on the floor (a character's foot), exactly or a hair under it as skinning
@@ -189,7 +156,8 @@ fn an_obstacle_standing_on_the_floor_is_cut_by_it() {
     let cube_volume = 0.2f64.powi(3);
     let missing = |bottom: f64| {
         let centre = DVec3::new(0.5, bottom + 0.1, 0.5);
-        let cube = tessellated_box(centre, 0.1, 10);
+        // Split three times: vertices 0.025 m apart, finer than the mesh's 0.04 m there.
+        let cube = Obstacle::cuboid(centre, DVec3::splat(0.1)).subdivided().subdivided().subdivided();
         assert!((enclosed_volume_m3(&cube) - cube_volume).abs() < 1e-12);
         let mu = |p: DVec3| s.edge_m(((p - centre).abs().max_element() - 0.1).max(0.0), 0.0, 0.0);
         let mut nodes = place_nodes(lo, hi, std::slice::from_ref(&cube), &[], &s, &mu, 1_000_000).unwrap();
@@ -210,9 +178,7 @@ fn an_obstacle_standing_on_the_floor_is_cut_by_it() {
         let highest_wall = (0..mesh.faces.len())
             .filter(|&f| mesh.is_boundary(f))
             .map(|f| mesh.faces[f].map(|i| mesh.nodes_m[i as usize]))
-            .filter(|corners| {
-                !(0..3).any(|a| corners.iter().all(|p| p[a] == 0.0) || corners.iter().all(|p| p[a] == 1.0))
-            })
+            .filter(|corners| !in_box_plane(corners, lo, hi))
             .flat_map(|corners| corners.map(|p| p.y))
             .fold(0.0, f64::max);
         let missing = 1.0 - cube_volume - fluid;

@@ -20,10 +20,9 @@ import sys
 import bpy
 
 glb, vdb_dir, fps = sys.argv[sys.argv.index("--") + 1 :][:3]
+bpy.ops.wm.read_factory_settings(use_empty=True)
 scene = bpy.context.scene
 scene.render.fps = int(float(fps))
-for obj in list(scene.objects):
-    bpy.data.objects.remove(obj)
 bpy.ops.import_scene.gltf(filepath=glb)
 characters = [o for o in scene.objects if o.type == "MESH"]
 files = sorted(f for f in os.listdir(vdb_dir) if f.endswith(".vdb"))

@@ -368,11 +368,11 @@ fn check_surface(
             ),
         ));
     }
+    let inside = |p: &glam::Vec3| {
+        let p = p.as_dvec3();
+        p.cmpge(lo - tolerance).all() && p.cmple(hi + tolerance).all()
+    };
     for (frame, positions) in frames {
-        let inside = |p: &&glam::Vec3| {
-            let p = p.as_dvec3();
-            p.cmpge(lo - tolerance).all() && p.cmple(hi + tolerance).all()
-        };
         if let Some((v, p)) = positions.iter().enumerate().find(|(_, p)| !inside(p)) {
             return Err(NodeError::input(
                 port,
@@ -645,11 +645,11 @@ impl Node for ExportVdb {
             }),
             FileUp::Z => {
                 let (grid, from) = volumes.grid.z_up();
+                // Each turned voxel takes the value of the voxel `from` names.
+                let gather = |values: &[f32]| -> Vec<f32> { from.iter().map(|&n| values[n]).collect() };
                 write_frames(ctx, &VDB_FILE, &volumes, |frame| {
-                    let density: Vec<f32> = from.iter().map(|&n| frame.density[n]).collect();
-                    let temperature: Vec<f32> = from.iter().map(|&n| frame.temperature_k[n]).collect();
                     let velocity: Vec<[f32; 3]> = from.iter().map(|&n| y_up_to_z_up(frame.velocity_m_s[n])).collect();
-                    encode(&grid, &density, &temperature, &velocity)
+                    encode(&grid, &gather(&frame.density), &gather(&frame.temperature_k), &velocity)
                 })
             }
         }

@@ -124,15 +124,7 @@ impl VoxelGrid {
         let inside = (0..3).all(|a| local[a] >= 0 && (local[a] as usize) < self.dims[a]);
         inside.then(|| self.index(local.x as usize, local.y as usize, local.z as usize))
     }
-}
 
-/// The axis change Blender's glTF importer makes, from Y up to Z up: (x, y, z) → (x, −z, y).
-/// Files written with it line up in Blender with characters exported as GLB.
-pub fn y_up_to_z_up(p: [f32; 3]) -> [f32; 3] {
-    [p[0], -p[2], p[1]]
-}
-
-impl VoxelGrid {
     /// The same lattice turned by [`y_up_to_z_up`], and for each of its voxels (array
     /// order) the index of the voxel of `self` that lands there. A rotation of the index
     /// lattice, so values are moved, never interpolated.
@@ -156,6 +148,12 @@ impl VoxelGrid {
         }
         (turned, from)
     }
+}
+
+/// The axis change Blender's glTF importer makes, from Y up to Z up: (x, y, z) → (x, −z, y).
+/// Files written with it line up in Blender with characters exported as GLB.
+pub fn y_up_to_z_up(p: [f32; 3]) -> [f32; 3] {
+    [p[0], -p[2], p[1]]
 }
 
 /// One frame of a volume sequence: values per voxel of the sequence's grid (0 outside the
