@@ -75,6 +75,7 @@ fn simulate_push(c: &mut Criterion) {
             at_secs: 0.5,
             duration_secs: 0.1,
         }],
+        chair: None,
     };
     let params = SimParams::default();
     let run = || simulate(&skeleton, None, &script, &params, Cancel::NEVER).unwrap();

@@ -130,7 +130,7 @@ fn unit_context<'a>(
     figure: &'a kinegraph_nodes::kernels::physics::figure::Figure,
     stand: &'a Targets,
 ) -> ControlContext<'a> {
-    ControlContext { figure, gravity_m_s2: 9.80665, standing_com_height_m: 1.0, leg_length_m: 0.9, stand }
+    ControlContext { figure, gravity_m_s2: 9.80665, standing_com_height_m: 1.0, leg_length_m: 0.9, stand, seat: None }
 }
 
 #[test]
@@ -248,6 +248,7 @@ fn push_script(seconds: f32, body: &str, dir: [f32; 3], impulse: f32, controller
         controllers: controllers.map(|c| c.iter().map(|s| s.to_string()).collect()),
         requests: vec![],
         pushes: vec![Push { body: body.into(), direction: dir, impulse_ns: impulse, at_secs: 0.5, duration_secs: 0.1 }],
+        chair: None,
     }
 }
 
@@ -582,7 +583,7 @@ fn initial_pose_comes_from_the_clip_frame() {
     let Some(data) = shared_data() else { return };
     let (clip, _) = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value;
     let frame = 40;
-    let script = Script { duration_secs: 0.1, controllers: None, requests: vec![], pushes: vec![] };
+    let script = Script { duration_secs: 0.1, controllers: None, requests: vec![], pushes: vec![], chair: None };
     let pose = (clip.frame_rotations(frame), clip.frame_translations(frame));
     let r = simulate(clip.skeleton(), Some(pose), &script, &SimParams::default(), Cancel::NEVER).unwrap();
     let (a, b) = (forward_kinematics(&clip), forward_kinematics(&r.clip));

@@ -26,9 +26,11 @@ const CLIP: Input<Arc<Clip>> = Input::required(
 const SCRIPT: InputPathParam = InputPathParam::new(
     "script",
     "RON script: (duration_secs, controllers: Some([..]) to restrict the pool, requests: [(controller, at_secs)], \
-     pushes: [(body, direction: (x, y, z) in world axes, impulse_ns, at_secs, duration_secs)]). Controllers: \
-     balance, step, fall, relax; bodies: pelvis, abdomen, chest, head, left_/right_ thigh, shank, foot, \
-     upper_arm, forearm, hand.",
+     pushes: [(body, direction: (x, y, z) in world axes, impulse_ns, at_secs, duration_secs)], chair: \
+     Some((seat_height_m, behind_m, size_m: (width, depth))) for a stool whose front edge stands behind_m behind \
+     the figure's first centre of mass). Controllers: balance, step, fall, sit, rise, relax (sit and rise need \
+     the chair and a request); bodies: pelvis, abdomen, chest, head, left_/right_ thigh, shank, foot, upper_arm, \
+     forearm, hand.",
     &["ron"],
 );
 const FRAME: IntParam = IntParam::optional(
@@ -62,8 +64,9 @@ static SIMULATE: NodeSchema = NodeSchema {
     kind: "physics.simulate",
     category: "physics",
     doc: "Simulates the character as an articulated rigid-body figure on the ground (rapier3d) under a \
-          supervisor of composable controllers (balance, protective step, protective fall, relax; Faloutsos et \
-          al. 2001), with the scripted pushes and controller requests. A run that blows up is a failure, never \
+          supervisor of composable controllers (balance, protective step, protective fall, sit down on a stool \
+          and rise from it, relax; Faloutsos et al. 2001), with the scripted pushes, controller requests and \
+          stool. A run that blows up is a failure, never \
           a clip.",
     inputs: &[CLIP.spec()],
     outputs: &[OUT.spec(), CURVES.spec(), REPORT.spec()],

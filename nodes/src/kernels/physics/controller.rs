@@ -19,6 +19,7 @@ use rapier3d::prelude::*;
 
 use super::World;
 use super::figure::{BodyRole, Figure, JointKind, Spawned};
+use super::seat::Seat;
 use super::state::FigureState;
 
 /// Bid of a controller that can act sensibly in this state but not promise success.
@@ -51,12 +52,16 @@ pub struct Targets {
     pub angles: Vec<[f32; 3]>,
     /// Gain multiplier per body (1 = the figure's gains).
     pub gain: Vec<f32>,
+    /// Motor target velocities, rad/s, per body, in the units of `angles` (zero holds
+    /// still). A moving target with zero velocity is tracked a damping time behind.
+    pub velocity: Vec<[f32; 3]>,
 }
 
 impl Targets {
     /// The rest pose at the figure's gains.
     pub fn rest(figure: &Figure) -> Targets {
-        Targets { angles: vec![[0.0; 3]; figure.bodies.len()], gain: vec![1.0; figure.bodies.len()] }
+        let n = figure.bodies.len();
+        Targets { angles: vec![[0.0; 3]; n], gain: vec![1.0; n], velocity: vec![[0.0; 3]; n] }
     }
 
     /// The standing pose a figure takes when no initial pose is given: each leg turned so
@@ -133,7 +138,7 @@ impl Targets {
                 JointKind::Free => &[],
             };
             for (k, &axis) in axes.iter().enumerate() {
-                link.joint.data.set_motor_position(axis, self.angles[i][k], kp, kd);
+                link.joint.data.set_motor(axis, self.angles[i][k], self.velocity[i][k], kp, kd);
             }
         }
     }
@@ -157,6 +162,8 @@ pub struct ControlContext<'a> {
     pub leg_length_m: f32,
     /// Joint targets of the initial (standing) pose.
     pub stand: &'a Targets,
+    /// The seat behind the figure, when the script has a chair.
+    pub seat: Option<Seat>,
 }
 
 impl ControlContext<'_> {

@@ -15,14 +15,16 @@
 //! | skeleton → articulated figure | [`figure`] |
 //! | what the controllers sense (COM, support polygon, capture point) | [`state`] |
 //! | the controller contract and the supervisor (Faloutsos 2001) | [`controller`] |
-//! | the controllers: balance, protective step, protective fall, relax | [`controllers`] |
+//! | the controllers: balance, protective step, protective fall, sit, rise, relax | [`controllers`] |
 //! | a scripted run: pushes, requests, blow-up detection, clip out | [`simulate`] |
 //! | pre-conditions learned from trials (SVM) | [`learned`] |
+//! | a seat to sit on and rise from | [`seat`] |
 
 pub mod controller;
 pub mod controllers;
 pub mod figure;
 pub mod learned;
+pub mod seat;
 pub mod simulate;
 pub mod state;
 

@@ -14,6 +14,7 @@ use serde::Deserialize;
 use super::controller::{Activation, ControlContext, Supervisor, Targets};
 use super::controllers;
 use super::figure::{BodyRole, BodyShape, Figure, FigureError, FigureParams, Spawned, build_figure};
+use super::seat::Chair;
 use super::state::FigureState;
 use super::{PhysicsError, World, WorldParams, to_rapier};
 use crate::cancel::Cancel;
@@ -35,6 +36,9 @@ pub struct Script {
     /// External pushes.
     #[serde(default)]
     pub pushes: Vec<Push>,
+    /// A seat behind the figure, for the sit and rise controllers.
+    #[serde(default)]
+    pub chair: Option<Chair>,
 }
 
 /// A request for a controller at a time.
@@ -104,6 +108,9 @@ pub enum ScriptError {
         /// The run's length, seconds.
         run_secs: f32,
     },
+    /// The chair's numbers are out of range.
+    #[error("chair: {0}")]
+    BadChair(String),
     /// A push has no direction, a bad impulse or duration.
     #[error("push {index}: {message}")]
     BadPush {
@@ -220,6 +227,9 @@ pub fn check_script(script: &Script, figure: &Figure) -> Result<(), ScriptError>
                 run_secs: run,
             });
         }
+    }
+    if let Some(chair) = &script.chair {
+        chair.check().map_err(ScriptError::BadChair)?;
     }
     for (i, p) in script.pushes.iter().enumerate() {
         if figure.body_index(&p.body).is_none() {
@@ -408,7 +418,12 @@ pub fn simulate(
     };
     let mut supervisor = Supervisor::new(controllers::pool_of(&names));
     let state0 = FigureState::read(&figure, &world, &spawned, g, 0.0);
-    let ctx = context(&figure, &stand, &state0, g);
+    let mut ctx = context(&figure, &stand, &state0, g);
+    if let Some(chair) = &script.chair {
+        let seat = chair.place(state0.com_xz(), controllers::facing(&state0, &ctx).0);
+        seat.add_to(&mut world, figure.friction);
+        ctx.seat = Some(seat);
+    }
     let bound = energy_bound_j(&figure, &script.pushes, g);
     let dt = world.dt_secs();
     let steps = (script.duration_secs / dt).round() as usize;
@@ -477,7 +492,8 @@ pub fn simulate(
 }
 
 /// The controllers' context for a figure standing in `state0` (its initial state): the
-/// standing COM height is the initial one, the leg length the hip's height above its sole.
+/// standing COM height is the initial one, the leg length the hip's height above its sole;
+/// no seat.
 pub fn context<'a>(
     figure: &'a Figure,
     stand: &'a Targets,
@@ -492,7 +508,7 @@ pub fn context<'a>(
         (Some(t), Some(f)) => state0.body_pos[t].y - state0.sole_centre[figure.bodies[f].side.unwrap_or(0).min(1)].y,
         _ => 0.5 * figure.stature_m,
     };
-    ControlContext { figure, gravity_m_s2, standing_com_height_m: state0.com.y, leg_length_m, stand }
+    ControlContext { figure, gravity_m_s2, standing_com_height_m: state0.com.y, leg_length_m, stand, seat: None }
 }
 
 /// Sets the external forces for the step that starts at `t`: each push acting then puts

@@ -1,16 +1,26 @@
 //! The controller family of the paper's 3-D figure that is implemented so far: balance
-//! (ankle and hip strategy), protective step, protective fall, and the default controller
-//! that holds a relaxed pose when nothing else applies (the paper's "default").
+//! (ankle and hip strategy), protective step, protective fall, sit down on a seat and rise
+//! from it, and the default controller that holds a relaxed pose when nothing else applies
+//! (the paper's "default").
 //!
 //! | controller | pre-condition (bid) | post-condition | expected performance |
 //! |---|---|---|---|
 //! | [`balance`] | both feet down, trunk upright, capture point inside the support | none: holds until a request or failure | capture point stays inside the support, feet stay down |
 //! | [`step`] | a foot down, trunk upright, capture point outside the support, and predicted at landing within a step | swing foot down with the capture point inside the new support | predicted capture point within reach, foot down within 0.8 s, trunk upright |
 //! | [`fall`] | the figure is falling (capture point outside, or no foot down) and the head is up | at rest on the ground | the head never hits the ground (faster than 1 m/s) |
+//! | [`sit`] | standing balanced, a seat's front edge behind the heels, the seated hips within reach | none: sits and stays seated until a request | trunk within 75°, seated within 0.5 s of the descent's end |
+//! | [`rise`] | sitting on the seat, both feet down, trunk within 40° | COM at 90 % of standing, trunk within 15°, capture point 2 cm inside the support, COM nearly still | capture point over the feet within 1.5 s, trunk within 80°, feet down, standing within 4 s of leaving the seat |
+//!
+//! [`posture`] holds what sit and rise share: leg and trunk postures in the sagittal plane,
+//! the room the joint limits leave, the mass split that predicts the COM, and velocity
+//! feed-forward for moving targets.
 //! | [`Relax`] | always ([`BID_SENSIBLE`], lowest preference): holds the posture it found | none | none |
 
 pub mod balance;
 pub mod fall;
+pub mod posture;
+pub mod rise;
+pub mod sit;
 pub mod step;
 
 use glam::{Quat, Vec2, Vec3};
@@ -20,7 +30,7 @@ use super::figure::BodyRole;
 use super::state::FigureState;
 
 /// Names of every controller [`pool`] can build, in pool order.
-pub const NAMES: [&str; 4] = ["balance", "step", "fall", "relax"];
+pub const NAMES: [&str; 6] = ["balance", "step", "fall", "sit", "rise", "relax"];
 
 /// The full pool, in a fixed order (ties in the supervisor go to the first).
 pub fn pool() -> Vec<Box<dyn Controller>> {
@@ -28,6 +38,8 @@ pub fn pool() -> Vec<Box<dyn Controller>> {
         Box::new(balance::Balance::default()),
         Box::new(step::Step::default()),
         Box::new(fall::Fall::default()),
+        Box::new(sit::Sit::default()),
+        Box::new(rise::Rise::default()),
         Box::new(Relax::default()),
     ]
 }
@@ -51,7 +63,8 @@ const RELAX_GAIN: f32 = 0.3;
 
 /// The figure's current joint coordinates at [`RELAX_GAIN`].
 fn relaxed(state: &FigureState) -> Targets {
-    Targets { angles: state.joint_coords.clone(), gain: vec![RELAX_GAIN; state.joint_coords.len()] }
+    let n = state.joint_coords.len();
+    Targets { angles: state.joint_coords.clone(), gain: vec![RELAX_GAIN; n], velocity: vec![[0.0; 3]; n] }
 }
 
 impl Controller for Relax {
