@@ -11,8 +11,8 @@ use super::figure::{BodyRole, BodyShape, Figure, GROUND_GROUP};
 use super::state::FigureState;
 
 /// A body rests on the seat when its lowest point is this close to the seat's top, metres
-/// (the sole's [`CONTACT_HEIGHT_M`](super::state::CONTACT_HEIGHT_M) by another name).
-pub const SEAT_CONTACT_M: f32 = 0.02;
+/// (the same bar as a sole on the ground).
+pub const SEAT_CONTACT_M: f32 = super::state::CONTACT_HEIGHT_M;
 
 /// Points sampled along a capsule's axis (plus one) when asking whether it rests on the seat.
 const SEAT_SAMPLES: usize = 6;

@@ -421,6 +421,14 @@ pub fn simulate(
     let mut ctx = context(&figure, &stand, &state0, g);
     if let Some(chair) = &script.chair {
         let seat = chair.place(state0.com_xz(), controllers::facing(&state0, &ctx).0);
+        // A seat under a sole would stand the box through the foot.
+        if state0.support.iter().any(|c| seat.over(Vec3::new(c.x, 0.0, c.y), 0.0)) {
+            return Err(ScriptError::BadChair(format!(
+                "behind_m {} puts the seat under the feet; place its front edge behind the heels",
+                chair.behind_m
+            ))
+            .into());
+        }
         seat.add_to(&mut world, figure.friction);
         ctx.seat = Some(seat);
     }

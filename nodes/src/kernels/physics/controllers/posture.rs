@@ -11,8 +11,9 @@ use glam::{Quat, Vec2, Vec3};
 
 use super::leg;
 use crate::kernels::physics::controller::{ControlContext, Targets};
-use crate::kernels::physics::figure::{BodyRole, JointKind};
+use crate::kernels::physics::figure::{BodyRole, JointKind, MIN_BONE_M};
 use crate::kernels::physics::state::FigureState;
+use crate::math::smoothstep;
 
 /// The shank leans forward by at most this much when sitting or rising, radians (the
 /// ankle's dorsiflexion limit is 0.35 from standing; [`Room`] lowers it for a figure that
@@ -29,14 +30,14 @@ pub struct LegLengths {
 }
 
 impl LegLengths {
-    /// The lengths of `side`'s leg at rest, `None` without a full leg.
+    /// The lengths of `side`'s leg at rest, `None` without a full leg or with a bone shorter
+    /// than [`MIN_BONE_M`].
     pub fn of(ctx: &ControlContext<'_>, side: usize) -> Option<LegLengths> {
         let (_, shank, foot) = leg(ctx, side)?;
         let bodies = &ctx.figure.bodies;
-        Some(LegLengths {
-            thigh_m: bodies[shank].anchor_in_parent.length(),
-            shank_m: bodies[foot].anchor_in_parent.length(),
-        })
+        let (thigh_m, shank_m) = (bodies[shank].anchor_in_parent.length(), bodies[foot].anchor_in_parent.length());
+        // Bones too short to bend about would make the knee's cosine rule divide by zero.
+        (thigh_m >= MIN_BONE_M && shank_m >= MIN_BONE_M).then_some(LegLengths { thigh_m, shank_m })
     }
 
     /// The world angles (thigh φ₁, shank φ₂) that put the hip at `hip` = (forward, up)
@@ -318,10 +319,9 @@ pub fn reach_forward(targets: &mut Targets, ctx: &ControlContext<'_>, state: &Fi
     }
 }
 
-/// Smooth step from 0 to 1 over `x` in [0, 1] (zero slope at both ends).
+/// Smooth step from 0 to 1 over `x` in [0, 1] ([`smoothstep`] in f32).
 pub fn smooth(x: f32) -> f32 {
-    let x = x.clamp(0.0, 1.0);
-    x * x * (3.0 - 2.0 * x)
+    smoothstep(f64::from(x)) as f32
 }
 
 #[cfg(test)]

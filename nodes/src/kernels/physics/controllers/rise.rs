@@ -1,27 +1,25 @@
-//! Rise from the seat to standing (the paper's "rise from a chair"), by the momentum
-//! strategy most people use.
+//! Rise from the seat to standing (the paper's "rise from a chair"), leaning first as most
+//! people do.
 //!
-//! Seated, the hips are a thigh's length behind the feet, and the hips' flexion limit
-//! keeps the trunk from leaning far enough to bring the centre of mass over the feet at
-//! rest. So the rise has two phases: **lean**, the pelvis pitches forward at
-//! [`RISE_PITCH_RATE_RAD_S`] towards the hips' limit, with the hips on the seat, until the
-//! capture point (where the COM, moving as it does, would come to rest) is inside the feet's
-//! support; then **extend**, the hips leave the seat on a straight line to standing over the
-//! ankles over [`EXTEND_SECS`], the pelvis coming upright as the hips rise (the lean that
-//! keeps the COM over the feet, from the figure's mass split), and the feet stay where they
-//! are. Balance takes over from the post-condition.
-//!
-//! The arms reach forward with the lean (their weight in front helps the COM over the feet).
-//! While extending, the hips wait whenever the capture point nears the heels, and the lean
-//! eases off while the capture point runs ahead of the support's centre.
+//! Seated, the hips are a thigh's length behind the feet, and the hips' flexion limit lets
+//! the pelvis alone lean too little to bring the centre of mass over the feet. So the rise
+//! has two phases. **Lean**: the trunk leans forward at [`RISE_PITCH_RATE_RAD_S`] to
+//! [`RISE_LEAN_RAD`] (the pelvis up to the hips' limit, the spine for the rest; less if
+//! they allow less) and the arms reach forward, with the hips on the seat; seat-off comes
+//! once the lean is (nearly) complete, both feet are down and the capture point is
+//! [`SEAT_OFF_MARGIN_M`] inside the feet's support. **Extend**: the hips leave the seat on a
+//! straight line to standing over the ankles over [`EXTEND_SECS`], the shanks' lean capped
+//! by the ankles; the lean keeps the COM over the feet where the legs put the hips (from the
+//! figure's mass split), easing off while the capture point runs ahead of the support's
+//! centre; the extension waits whenever the capture point nears the heels. Balance takes
+//! over from the post-condition.
 //!
 //! Pre-condition: sitting on the seat, both feet down, trunk within 40° of vertical.
 //! Post-condition: the COM above 90 % of its standing height, the trunk within 15° of
 //! vertical, the capture point [`SETTLED_INSIDE_M`] inside the support and the COM nearly
-//! still. Expected performance: the capture point reaches the feet within
-//! [`LEAN_FAIL_SECS`], the trunk stays within 80° of vertical,
-//! no foot is off the ground for longer than [`FOOT_OFF_SECS`], and the figure stands within
-//! a second of the extension's end.
+//! still. Expected performance: seat-off within [`LEAN_FAIL_SECS`], the trunk within 80° of
+//! vertical, no foot off the ground for longer than [`FOOT_OFF_SECS`], and standing within
+//! `2·EXTEND_SECS + 1` s of seat-off.
 
 use glam::Vec2;
 
@@ -73,6 +71,9 @@ struct Plan {
     /// The pelvis pitch target and when it was set, seconds.
     pitch: f32,
     pitch_at: f32,
+    /// How far the trunk leans before seat-off: [`RISE_LEAN_RAD`], or less if hips and spine
+    /// allow less, radians.
+    lean_rad: f32,
     /// When the extension started, seconds, and the pitch then.
     extend_from: Option<(f32, f32)>,
     /// Progress of the extension in [0, 1] and when it was last advanced, seconds.
@@ -100,6 +101,7 @@ fn plan(state: &FigureState, ctx: &ControlContext<'_>) -> Option<Plan> {
         base: ctx.stand.clone(),
         pitch: super::posture::pelvis_pitch(state, forward),
         pitch_at: state.time_secs,
+        lean_rad: RISE_LEAN_RAD,
         extend_from: None,
         progress: 0.0,
         progress_at: state.time_secs,
@@ -139,7 +141,7 @@ impl Controller for Rise {
         let heel_f = state.support.iter().map(|v| v.dot(f2)).fold(f32::INFINITY, f32::min);
         let capture_f = state.capture_point.dot(f2);
         let extend = match plan.extend_from {
-            None if plan.pitch >= 0.95 * RISE_LEAN_RAD
+            None if plan.pitch >= 0.95 * plan.lean_rad
                 && state.capture_distance_m < -SEAT_OFF_MARGIN_M
                 && state.foot_down == [true, true] =>
             {
@@ -185,7 +187,10 @@ impl Controller for Rise {
         plan.pitch_at = state.time_secs;
         plan.pitch = match plan.extend_from {
             // Lean: towards RISE_LEAN_RAD, at the lean's rate.
-            None => plan.pitch + (RISE_LEAN_RAD.min(most + spine) - plan.pitch).clamp(0.0, RISE_PITCH_RATE_RAD_S * dt),
+            None => {
+                plan.lean_rad = RISE_LEAN_RAD.min(most + spine);
+                plan.pitch + (plan.lean_rad - plan.pitch).clamp(0.0, RISE_PITCH_RATE_RAD_S * dt)
+            }
             // Extend: the lean that keeps the COM over the feet where the capped legs put the
             // hips, no more than at seat-off; less while the capture point runs ahead of the
             // support's centre, more while it lags.
@@ -199,7 +204,7 @@ impl Controller for Rise {
         };
         targets.clone_from(&plan.base);
         let pelvis = set_trunk(targets, &plan.base, ctx, plan.pitch, most);
-        reach_forward(targets, ctx, state, forward, (plan.pitch / RISE_LEAN_RAD).min(1.0));
+        reach_forward(targets, ctx, state, forward, (plan.pitch / RISE_LEAN_RAD).clamp(0.0, 1.0));
         for (side, (_, angles)) in planned.into_iter().enumerate() {
             set_leg(targets, &plan.base, ctx, side, angles, pelvis);
         }

@@ -10,10 +10,10 @@
 //! it comes upright as the seat takes the weight. Seated, the controller holds the posture
 //! until a request (rise) takes over: it has no post-condition, like balance.
 //!
-//! Pre-condition: a seat facing the figure's way, its front edge behind both heels, the
-//! seated hips within the legs' reach, both feet down and standing balanced. Expected
-//! performance: the trunk within 75° of vertical, and seated within [`MISS_SECS`] of the
-//! descent's end.
+//! Pre-condition: a seat facing the figure's way, its front edge at least 2 cm behind both
+//! soles' centres, the seated hips within the legs' reach, both feet down and standing
+//! balanced. Expected performance: the trunk within 75° of vertical, seated within
+//! [`MISS_SECS`] of the descent's end and within [`MAX_SIT_SECS`] of starting.
 
 use glam::Vec2;
 
@@ -49,6 +49,8 @@ pub const K_TRACK: f32 = 3.0;
 pub const FADE_M: f32 = 0.12;
 /// Time after the descent's end within which the figure must sit, seconds.
 pub const MISS_SECS: f32 = 0.5;
+/// The descent may wait; seated the figure must be within this long of starting, seconds.
+pub const MAX_SIT_SECS: f32 = 3.0 * SIT_SECS;
 
 /// The sit controller.
 #[derive(Default)]
@@ -80,6 +82,8 @@ struct Plan {
     base: Targets,
     /// When the seat first carried the figure, seconds.
     seated_at: Option<f32>,
+    /// When the descent reached its end, seconds.
+    descended_at: Option<f32>,
 }
 
 /// Each side's hip from its ankle at the end of the descent: over the seat, behind its front
@@ -95,7 +99,7 @@ fn seated_hips(state: &FigureState, ctx: &ControlContext<'_>, seat: &Seat) -> [O
             crate::kernels::physics::figure::BodyShape::Box { half_extents, .. } => half_extents.min_element(),
         };
         let edge = (seat.front_edge() - ankle).dot(forward);
-        Some((lengths, Vec2::new(edge - HIP_BEHIND_EDGE_M, seat.top_centre.y + radius - HOVER_M - ankle.y)))
+        Some((lengths, Vec2::new(edge - HIP_BEHIND_EDGE_M, seat.top_centre.y + radius + HOVER_M - ankle.y)))
     })
 }
 
@@ -122,6 +126,7 @@ fn plan(state: &FigureState, ctx: &ControlContext<'_>) -> Option<Plan> {
         com_target_m: com_target(state, ctx, forward),
         base: ctx.stand.clone(),
         seated_at: None,
+        descended_at: None,
     })
 }
 
@@ -138,7 +143,7 @@ impl Controller for Sit {
         let standing = state.foot_down[0]
             && state.foot_down[1]
             && super::balance::balanced(state, ctx, 0.02, 30f32.to_radians().cos(), 0.8);
-        // Facing away from the seat, its front edge behind both heels.
+        // Facing away from the seat, its front edge behind both soles' centres.
         let behind = seat.forward.dot(forward) > 0.7
             && (0..2).all(|s| (seat.front_edge() - state.sole_centre[s]).dot(forward) < -0.02);
         let reach = seated_hips(state, ctx, &seat)
@@ -158,8 +163,16 @@ impl Controller for Sit {
         }
         let t = state.time_secs - plan.start_secs;
         let sitting = seat.sitting(ctx.figure, state);
-        if plan.progress >= 1.0 && t > SIT_SECS + MISS_SECS && !sitting {
+        let descended_for = if plan.progress >= 1.0 {
+            state.time_secs - *plan.descended_at.get_or_insert(state.time_secs)
+        } else {
+            0.0
+        };
+        if !sitting && descended_for > MISS_SECS {
             return Status::Failed("missed the seat".into());
+        }
+        if !sitting && t > MAX_SIT_SECS {
+            return Status::Failed(format!("not seated {MAX_SIT_SECS} s after starting to sit"));
         }
         let (forward, _) = facing(state, ctx);
         let f2 = Vec2::new(forward.x, forward.z);
