@@ -98,6 +98,12 @@ impl Targets {
         t
     }
 
+    /// The rotation body `b`'s motor angles stand for, relative to its parent (in world
+    /// axes of the rest pose): what [`set_relative`](Self::set_relative) sets, read back.
+    pub fn relative(&self, figure: &Figure, b: usize) -> Quat {
+        Quat::from_scaled_axis(figure.bodies[b].joint_frame * Vec3::from_array(self.angles[b]))
+    }
+
     /// Sets body `b`'s target so that it is rotated by `relative` (a rotation in world axes
     /// of the rest pose) with respect to its parent. Ball joints take the rotation vector in
     /// the joint frame (rapier's spherical multibody coordinates are the integrated joint

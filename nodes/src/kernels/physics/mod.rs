@@ -128,12 +128,20 @@ impl World {
 
     /// Adds the ground: a fixed half-space below `y = height_m` with Coulomb `friction`.
     pub fn add_ground(&mut self, height_m: f32, friction: f32) -> RigidBodyHandle {
-        let body = self.inner.bodies.insert(RigidBodyBuilder::fixed().translation(Vector::new(0.0, height_m, 0.0)));
-        let ground = ColliderBuilder::halfspace(nalgebra::Unit::new_unchecked(Vector::Y))
-            .friction(friction)
-            .restitution(0.0)
-            .collision_groups(InteractionGroups::new(figure::GROUND_GROUP, Group::ALL, InteractionTestMode::And));
-        self.inner.colliders.insert_with_parent(ground, body, &mut self.inner.bodies);
+        let ground = ColliderBuilder::halfspace(nalgebra::Unit::new_unchecked(Vector::Y));
+        self.add_fixed(ground, Pose::from_translation(Vector::new(0.0, height_m, 0.0)), friction)
+    }
+
+    /// Adds a fixed body at `pose` with `shape`, touching the figure as the ground does: its
+    /// collision group, Coulomb `friction`, no restitution.
+    pub fn add_fixed(&mut self, shape: ColliderBuilder, pose: Pose, friction: f32) -> RigidBodyHandle {
+        let body = self.inner.bodies.insert(RigidBodyBuilder::fixed().pose(pose));
+        let collider = shape.friction(friction).restitution(0.0).collision_groups(InteractionGroups::new(
+            figure::GROUND_GROUP,
+            Group::ALL,
+            InteractionTestMode::And,
+        ));
+        self.inner.colliders.insert_with_parent(collider, body, &mut self.inner.bodies);
         body
     }
 }

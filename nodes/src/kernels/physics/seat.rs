@@ -7,7 +7,7 @@ use rapier3d::prelude::*;
 use serde::Deserialize;
 
 use super::World;
-use super::figure::{BodyRole, BodyShape, Figure, GROUND_GROUP};
+use super::figure::{BodyRole, BodyShape, Figure};
 use super::state::FigureState;
 
 /// A body rests on the seat when its lowest point is this close to the seat's top, metres
@@ -103,20 +103,13 @@ impl Seat {
             && d.dot(self.forward).abs() <= self.half_size_m.y + margin_m
     }
 
-    /// Puts the seat in `world` as a fixed box from the ground to its top, with the
-    /// ground's friction and collision group.
+    /// Puts the seat in `world` as a fixed box from the ground to its top, touching the
+    /// figure as the ground does.
     pub fn add_to(&self, world: &mut World, friction: f32) -> RigidBodyHandle {
         let h = 0.5 * self.top_centre.y;
-        let centre = self.top_centre - Vec3::Y * h;
-        let turn = glam::Quat::from_rotation_arc(Vec3::Z, self.forward);
-        let w = &mut world.inner;
-        let body = w.bodies.insert(RigidBodyBuilder::fixed().pose(super::pose_to_rapier(turn, centre)));
-        let collider = ColliderBuilder::cuboid(self.half_size_m.x, h, self.half_size_m.y)
-            .friction(friction)
-            .restitution(0.0)
-            .collision_groups(InteractionGroups::new(GROUND_GROUP, Group::ALL, InteractionTestMode::And));
-        w.colliders.insert_with_parent(collider, body, &mut w.bodies);
-        body
+        let pose =
+            super::pose_to_rapier(glam::Quat::from_rotation_arc(Vec3::Z, self.forward), self.top_centre - Vec3::Y * h);
+        world.add_fixed(ColliderBuilder::cuboid(self.half_size_m.x, h, self.half_size_m.y), pose, friction)
     }
 
     /// Whether the figure sits on the seat: a point of the pelvis's or a thigh's capsule over

@@ -131,11 +131,9 @@ impl Controller for Balance {
             // `ankle · held⁻¹`, so the foot relative to it is `held · ankle⁻¹` (the other
             // order would lean each shank about its own turned axes, and two legs turned
             // apart would push against each other).
-            let held = ctx.figure.bodies[foot].joint_frame * glam::Vec3::from_array(hold.angles[foot]);
-            targets.set_relative(ctx.figure, foot, Quat::from_scaled_axis(held) * ankle.inverse());
+            targets.set_relative(ctx.figure, foot, hold.relative(ctx.figure, foot) * ankle.inverse());
             // Pelvis leant by the hip lean: the thigh relative to the pelvis is its inverse.
-            let held = ctx.figure.bodies[thigh].joint_frame * glam::Vec3::from_array(hold.angles[thigh]);
-            targets.set_relative(ctx.figure, thigh, hip.inverse() * Quat::from_scaled_axis(held));
+            targets.set_relative(ctx.figure, thigh, hip.inverse() * hold.relative(ctx.figure, thigh));
         }
         Status::Running
     }

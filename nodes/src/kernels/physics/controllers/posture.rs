@@ -64,8 +64,13 @@ impl LegLengths {
     pub fn hip_at(&self, (thigh_rad, shank_rad): (f32, f32)) -> Vec2 {
         // Up the shank to the knee, then up the thigh: a bone at angle φ points down along
         // (−sin φ, −cos φ).
+        self.knee_at(shank_rad) + Vec2::new(thigh_rad.sin(), thigh_rad.cos()) * self.thigh_m
+    }
+
+    /// The knee from the ankle, (forward, up) metres, with the shank leaning forward by
+    /// `shank_rad`.
+    pub fn knee_at(&self, shank_rad: f32) -> Vec2 {
         Vec2::new(shank_rad.sin(), shank_rad.cos()) * self.shank_m
-            + Vec2::new(thigh_rad.sin(), thigh_rad.cos()) * self.thigh_m
     }
 
     /// [`angles`](Self::angles) with the shank leaning forward (the ankle dorsiflexed) by
@@ -150,7 +155,8 @@ impl MassSplit {
     }
 
     /// The pelvis pitch that puts the COM `com_forward_m` ahead of the ankles for that hip and
-    /// knee, clamped to `[0, max_rad]` (a pitch that cannot get it there leans all the way).
+    /// knee, clamped to `[0, max_rad]` (a pitch that cannot get it there leans all the way;
+    /// a negative `max_rad`, hips already past their limit, allows none).
     pub fn pitch_for(&self, hip: Vec2, knee: Vec2, com_forward_m: f32, max_rad: f32) -> f32 {
         // com_forward is affine in sin(pitch + angle): solve for it.
         let at = |p: f32| self.com_forward(hip, knee, p);
@@ -159,13 +165,8 @@ impl MassSplit {
             return 0.0;
         }
         let sin = ((com_forward_m - at(-self.upper_angle_rad)) / slope).clamp(-1.0, 1.0);
-        (sin.asin() - self.upper_angle_rad).clamp(0.0, max_rad)
+        (sin.asin() - self.upper_angle_rad).clamp(0.0, max_rad.max(0.0))
     }
-}
-
-/// The knee of a leg whose shank leans forward by `shank_rad`, from the ankle, metres.
-pub fn knee_of(lengths: &LegLengths, shank_rad: f32) -> Vec2 {
-    Vec2::new(shank_rad.sin(), shank_rad.cos()) * lengths.shank_m
 }
 
 /// Where `side`'s hip is relative to its ankle, (forward, up) metres, facing `forward`.
@@ -195,7 +196,7 @@ pub fn set_leg(
 ) {
     let Some((thigh, shank, foot)) = leg(ctx, side) else { return };
     let figure = ctx.figure;
-    let rel = |b: usize| Quat::from_scaled_axis(figure.bodies[b].joint_frame * Vec3::from_array(base.angles[b]));
+    let rel = |b: usize| base.relative(figure, b);
     let turn = |a: f32| Quat::from_axis_angle(figure.left, a);
     let (st, ss, sf) = (rel(thigh), rel(shank), rel(foot));
     // World rotations: pelvis R(p), thigh R(φ₁)·St, shank R(φ₂)·St·Ss, foot St·Ss·Sf (as
@@ -205,20 +206,29 @@ pub fn set_leg(
     targets.set_relative(figure, foot, (st * ss).inverse() * turn(-shank_rad) * st * ss * sf);
 }
 
+/// The support polygon's rearmost point along `forward` (a world position projected on it,
+/// metres); `+∞` without support.
+pub fn heel_along(state: &FigureState, forward: Vec3) -> f32 {
+    state.support.iter().map(|v| v.dot(Vec2::new(forward.x, forward.z))).fold(f32::INFINITY, f32::min)
+}
+
 /// The support polygon's centre forward of the ankles' midpoint, metres.
 pub fn com_target(state: &FigureState, ctx: &ControlContext<'_>, forward: Vec3) -> f32 {
     let ankles: Vec3 = (0..2).filter_map(|side| Some(state.body_pos[leg(ctx, side)?.2])).sum::<Vec3>() * 0.5;
     state.support_centre().dot(Vec2::new(forward.x, forward.z)) - ankles.dot(forward)
 }
 
-/// How far the legs may bend from standing before a joint limit: the shank's forward lean
-/// (ankle dorsiflexion) and the hip's flexion, radians, less a margin of 0.05.
+/// How far the body may bend from standing before a joint limit: the shank's forward lean
+/// (ankle dorsiflexion) and the hip's flexion, radians, less a margin of 0.05; and how far
+/// the spine bends forward at most.
 #[derive(Clone, Copy, Debug)]
 pub struct Room {
     /// Forward lean of the shank, radians.
     pub shank_rad: f32,
     /// Hip flexion, radians.
     pub hip_flexion_rad: f32,
+    /// Forward bend of the whole spine, radians ([`MAX_SPINE_BEND_RAD`] per segment).
+    pub spine_rad: f32,
 }
 
 impl Room {
@@ -238,7 +248,11 @@ impl Room {
                 hip_flexion_rad = hip_flexion_rad.min(room(thigh));
             }
         }
-        Room { shank_rad: shank_rad.max(0.0), hip_flexion_rad }
+        Room {
+            shank_rad: shank_rad.max(0.0),
+            hip_flexion_rad,
+            spine_rad: spine(ctx).count() as f32 * MAX_SPINE_BEND_RAD,
+        }
     }
 }
 
@@ -280,6 +294,16 @@ impl FeedForward {
 /// Forward bend of each spine segment at most, radians (its limit is 0.8).
 pub const MAX_SPINE_BEND_RAD: f32 = 0.7;
 
+/// The spine's segments (abdomen, chest), the bodies that bend the trunk above the pelvis.
+fn spine<'a>(ctx: &'a ControlContext<'_>) -> impl Iterator<Item = usize> + 'a {
+    ctx.figure
+        .bodies
+        .iter()
+        .enumerate()
+        .filter(|(_, b)| matches!(b.role, BodyRole::Abdomen | BodyRole::Chest))
+        .map(|(i, _)| i)
+}
+
 /// Leans the trunk forward by `lean_rad` from `base`: the pelvis pitches by up to
 /// `pelvis_most_rad` (what the hips' flexion allows), the spine segments bend evenly for
 /// the rest, each by at most [`MAX_SPINE_BEND_RAD`]. Returns the pelvis pitch, for the legs.
@@ -291,18 +315,13 @@ pub fn set_trunk(
     pelvis_most_rad: f32,
 ) -> f32 {
     let pelvis = lean_rad.min(pelvis_most_rad.max(0.0));
-    let spine: Vec<usize> = ctx
-        .figure
-        .bodies
-        .iter()
-        .enumerate()
-        .filter(|(_, b)| matches!(b.role, BodyRole::Abdomen | BodyRole::Chest))
-        .map(|(i, _)| i)
-        .collect();
-    let bend = ((lean_rad - pelvis) / spine.len().max(1) as f32).clamp(0.0, MAX_SPINE_BEND_RAD);
-    for b in spine {
-        let rel = Quat::from_scaled_axis(ctx.figure.bodies[b].joint_frame * Vec3::from_array(base.angles[b]));
-        targets.set_relative(ctx.figure, b, Quat::from_axis_angle(ctx.figure.left, bend) * rel);
+    let bend = ((lean_rad - pelvis) / spine(ctx).count().max(1) as f32).clamp(0.0, MAX_SPINE_BEND_RAD);
+    for b in spine(ctx) {
+        targets.set_relative(
+            ctx.figure,
+            b,
+            Quat::from_axis_angle(ctx.figure.left, bend) * base.relative(ctx.figure, b),
+        );
     }
     pelvis
 }
@@ -363,7 +382,7 @@ mod tests {
             leg_kg: [21.0, 6.5, 2.1],
             feet_forward_m: 0.05,
         };
-        let (hip, knee) = (Vec2::new(-0.25, 0.6), knee_of(&l, 0.3));
+        let (hip, knee) = (Vec2::new(-0.25, 0.6), l.knee_at(0.3));
         let p = split.pitch_for(hip, knee, 0.0, 1.5);
         assert!(split.com_forward(hip, knee, p).abs() < 1e-5 && p > 0.3, "{p}");
         // Written out by hand: 45·(−0.25 + 0.33·sin(p + 0.05)) + 21·(−0.25 + kx)/2 + 6.5·kx/2 + 2.1·0.05 = 0.

@@ -25,8 +25,8 @@ use glam::Vec2;
 
 use super::facing;
 use super::posture::{
-    FeedForward, LegLengths, MAX_SPINE_BEND_RAD, MassSplit, Room, com_target, hip_from_ankle, knee_of, reach_forward,
-    set_leg, set_trunk, smooth,
+    FeedForward, LegLengths, MassSplit, Room, com_target, heel_along, hip_from_ankle, reach_forward, set_leg,
+    set_trunk, smooth,
 };
 use crate::kernels::physics::controller::{BID_CAN_REACH, ControlContext, Controller, Status, Targets};
 use crate::kernels::physics::state::FigureState;
@@ -138,7 +138,7 @@ impl Controller for Rise {
         }
         let (forward, _) = facing(state, ctx);
         let f2 = Vec2::new(forward.x, forward.z);
-        let heel_f = state.support.iter().map(|v| v.dot(f2)).fold(f32::INFINITY, f32::min);
+        let heel_f = heel_along(state, forward);
         let capture_f = state.capture_point.dot(f2);
         let extend = match plan.extend_from {
             None if plan.pitch >= 0.95 * plan.lean_rad
@@ -182,7 +182,7 @@ impl Controller for Rise {
         let (lengths, (thigh, shank)) = planned[0];
         let most = thigh + plan.room.hip_flexion_rad;
         // The whole trunk's lean: the pelvis up to the hips' limit, the spine for the rest.
-        let spine = 2.0 * MAX_SPINE_BEND_RAD;
+        let spine = plan.room.spine_rad;
         let dt = (state.time_secs - plan.pitch_at).max(0.0);
         plan.pitch_at = state.time_secs;
         plan.pitch = match plan.extend_from {
@@ -197,7 +197,7 @@ impl Controller for Rise {
             Some((_, lifted)) => {
                 let most_now = (most + spine).min(lifted);
                 let hip = lengths.hip_at((thigh, shank));
-                let balanced = plan.split.pitch_for(hip, knee_of(&lengths, shank), plan.com_target_m, most_now);
+                let balanced = plan.split.pitch_for(hip, lengths.knee_at(shank), plan.com_target_m, most_now);
                 let ahead = capture_f - state.support_centre().dot(f2);
                 (balanced - K_LEAN * ahead).clamp(0.0, most_now)
             }

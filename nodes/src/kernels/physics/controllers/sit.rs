@@ -18,7 +18,7 @@
 use glam::Vec2;
 
 use super::posture::{
-    FeedForward, LegLengths, MassSplit, Room, com_target, hip_from_ankle, knee_of, pelvis_pitch, set_leg, smooth,
+    FeedForward, LegLengths, MassSplit, Room, com_target, heel_along, hip_from_ankle, pelvis_pitch, set_leg, smooth,
 };
 use super::{facing, leg};
 use crate::kernels::physics::controller::{BID_CAN_REACH, ControlContext, Controller, Status, Targets};
@@ -178,7 +178,7 @@ impl Controller for Sit {
         let f2 = Vec2::new(forward.x, forward.z);
         // How far the capture point is ahead of the heels, and how much of the way down the
         // hips still have to go (1 up to FADE_M above the end, 0 at it).
-        let heel = state.support.iter().map(|v| v.dot(f2)).fold(f32::INFINITY, f32::min);
+        let heel = heel_along(state, forward);
         let ahead = if heel.is_finite() { state.capture_point.dot(f2) - heel } else { 0.0 };
         let above = hip_from_ankle(state, ctx, 0, forward).map_or(0.0, |hip| hip.y - plan.legs[0].2.y);
         let fade = (above / FADE_M).clamp(0.0, 1.0);
@@ -203,7 +203,7 @@ impl Controller for Sit {
         let (lengths, hip) = planned[0];
         let (thigh, shank) = lengths.angles_within(hip, plan.room.shank_rad);
         let most = SIT_PITCH_RAD.min(thigh + plan.room.hip_flexion_rad);
-        let knee = knee_of(&lengths, shank);
+        let knee = lengths.knee_at(shank);
         plan.out_of_lean = plan.split.pitch_for(hip, knee, plan.com_target_m, std::f32::consts::PI) > most;
         let balanced = plan.split.pitch_for(hip, knee, plan.com_target_m, most);
         // Rate-limited: a sudden lean throws the COM forward onto the toes, and the ankles'
