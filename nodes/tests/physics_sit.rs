@@ -77,6 +77,9 @@ struct Verdict {
     /// At the end: hips and head at 90 % of their first height, feet where they stood, the
     /// rise succeeded and balance holds.
     stood: bool,
+    /// The rise never lifted the hips 10 cm off the seat, and at the end the figure still
+    /// sits there (hips just above the seat, head up) with sit holding it.
+    kept_seated: Option<bool>,
     /// Hips' height above the seat's top when seated, and how far they moved back, metres.
     seated_hips: (f32, f32),
     /// Largest horizontal drift of an ankle at the run's end from where it stood, metres.
@@ -114,6 +117,14 @@ fn judge(r: &SimResult, chair: &Chair, rise_at: f32, secs: f32) -> Verdict {
     });
     let stood =
         balance_after && last.hips.y > 0.9 * first.hips.y && last.head.y > 0.9 * first.head.y && feet_still(&last);
+    // Hips never 10 cm above where they sat, sampled every 0.1 s after the rise request.
+    let steps = ((secs - rise_at) * 10.0) as usize;
+    let stayed_down = (0..=steps).all(|k| pose_at(r, rise_at + k as f32 * 0.1).hips.y < seated.hips.y + 0.1);
+    let kept_seated = stayed_down.then(|| {
+        (0.0..0.12).contains(&(last.hips.y - chair.seat_height_m))
+            && last.head.y - last.hips.y > 0.4
+            && r.timeline.last().is_some_and(|a| a.controller == "sit" && a.outcome == Outcome::Active)
+    });
     let timeline = r
         .timeline
         .iter()
@@ -123,6 +134,7 @@ fn judge(r: &SimResult, chair: &Chair, rise_at: f32, secs: f32) -> Verdict {
     Verdict {
         sat,
         stood,
+        kept_seated,
         seated_hips: (above_seat, moved_back),
         feet_drift_m: drift(&last),
         min_head_m: r.min_head_clearance_m,
@@ -149,9 +161,10 @@ fn run(skeleton: &Arc<Skeleton>, chair: Chair) -> Verdict {
 /// The Mixamo Xbot on stools 0.40, 0.45 and 0.50 m high, their front edges 0.10, 0.15 and
 /// 0.20 m behind where it stands: it sits on every one, and from the 0.40 and 0.45 m seats
 /// placed 0.15 m behind it stands up again with its feet within 12 cm of where they stood and
-/// keeps its balance. The rest of the table is printed: what the rise does not yet manage
-/// (from the other seats it runs out of time, falls back, or stands with its feet slid
-/// 14–31 cm).
+/// keeps its balance. Where the rise does not bid or does not get the hips off the seat, the
+/// figure stays seated (sit holds it; the fall controller once threw it off the stool). The
+/// rest of the table is printed: what the rise does not yet manage (from the other seats it
+/// runs out of time, or stands with its feet slid 14–31 cm, or stands and topples forward).
 #[test]
 fn xbot_sits_on_stools_of_three_heights_and_stands_up_from_two() {
     let Some(data) = shared_data() else { return };
@@ -162,11 +175,18 @@ fn xbot_sits_on_stools_of_three_heights_and_stands_up_from_two() {
             let chair = Chair { seat_height_m, behind_m, ..Chair::default() };
             let v = run(&skeleton, chair);
             println!(
-                "seat {seat_height_m:.2} m, edge {behind_m:.2} m behind: sat {} (hips {:.3} m above the seat, {:.3} m back), stood {}, feet drift {:.3} m, lowest head {:.2} m: {}",
-                v.sat, v.seated_hips.0, v.seated_hips.1, v.stood, v.feet_drift_m, v.min_head_m, v.timeline
+                "seat {seat_height_m:.2} m, edge {behind_m:.2} m behind: sat {} (hips {:.3} m above the seat, {:.3} m back), stood {}, kept seated {:?}, feet drift {:.3} m, lowest head {:.2} m: {}",
+                v.sat,
+                v.seated_hips.0,
+                v.seated_hips.1,
+                v.stood,
+                v.kept_seated,
+                v.feet_drift_m,
+                v.min_head_m,
+                v.timeline
             );
             let must_stand = seat_height_m <= 0.45 && behind_m == 0.15;
-            if !v.sat || (must_stand && !v.stood) {
+            if !v.sat || (must_stand && !v.stood) || v.kept_seated == Some(false) {
                 failures.push(format!("seat {seat_height_m} behind {behind_m}: {v:?}"));
             }
         }

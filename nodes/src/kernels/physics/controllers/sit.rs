@@ -12,7 +12,9 @@
 //!
 //! Pre-condition: a seat facing the figure's way, its front edge at least 2 cm behind both
 //! soles' centres, the seated hips within the legs' reach, both feet down and standing
-//! balanced. Expected performance: the trunk within 75° of vertical, seated within
+//! balanced ([`BID_CAN_REACH`]); or already sitting on the seat with the trunk within 70° ([`BID_SENSIBLE`]: the
+//! descent is then the few centimetres to the seated posture, which it holds, so a figure a
+//! rise left on the seat stays seated instead of going to the fall controller). Expected performance: the trunk within 75° of vertical, seated within
 //! [`MISS_SECS`] of the descent's end and within [`MAX_SIT_SECS`] of starting.
 
 use glam::Vec2;
@@ -21,7 +23,7 @@ use super::posture::{
     FeedForward, LegLengths, MassSplit, Room, com_target, heel_along, hip_from_ankle, pelvis_pitch, set_leg, smooth,
 };
 use super::{facing, leg};
-use crate::kernels::physics::controller::{BID_CAN_REACH, ControlContext, Controller, Status, Targets};
+use crate::kernels::physics::controller::{BID_CAN_REACH, BID_SENSIBLE, ControlContext, Controller, Status, Targets};
 use crate::kernels::physics::seat::Seat;
 use crate::kernels::physics::state::FigureState;
 
@@ -49,6 +51,9 @@ pub const K_TRACK: f32 = 3.0;
 pub const FADE_M: f32 = 0.12;
 /// Time after the descent's end within which the figure must sit, seconds.
 pub const MISS_SECS: f32 = 0.5;
+/// A seated figure is held when its trunk is within this of vertical, radians (within the
+/// 75° the controller fails at, so holding it does not fail at once).
+pub const HOLD_TRUNK_RAD: f32 = 1.22;
 /// The descent may wait; seated the figure must be within this long of starting, seconds.
 pub const MAX_SIT_SECS: f32 = 3.0 * SIT_SECS;
 
@@ -139,6 +144,11 @@ impl Controller for Sit {
     }
     fn bid(&self, state: &FigureState, ctx: &ControlContext<'_>) -> u32 {
         let Some(seat) = ctx.seat else { return 0 };
+        // Already on the seat (a rise that was refused or gave up): hold the figure seated,
+        // if the trunk is well within what the controller keeps (else it would fail at once).
+        if seat.sitting(ctx.figure, state) {
+            return if state.trunk_upright > HOLD_TRUNK_RAD.cos() { BID_SENSIBLE } else { 0 };
+        }
         let (forward, _) = facing(state, ctx);
         let standing = state.foot_down[0]
             && state.foot_down[1]
