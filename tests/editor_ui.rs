@@ -810,6 +810,19 @@ fn the_controller_timeline_is_shown_as_labelled_ranges() {
     harness.get_by_label_contains(&format!("{}: 0.000 – ", controllers[0]));
 }
 
+/// The stool a simulated character sits on is drawn with the clip, whether the simulation
+/// or the export that writes it is on show; not for a node without props.
+#[test]
+fn the_stool_is_drawn_with_the_sitting_character() {
+    let Some(path) = corpus_graph("sit_and_rise.ron") else { return };
+    let mut harness = harness(Some(&path));
+    for (node, triangles) in [("simulate", 12), ("glb", 12), ("character", 0)] {
+        harness.state_mut().select(Some(node));
+        harness.run_steps(3);
+        assert_eq!(harness.state().viewport_props(), triangles, "{node}");
+    }
+}
+
 /// Home fits the graph again after zooming, as when it was opened.
 #[test]
 fn home_frames_the_whole_graph_again() {

@@ -119,6 +119,52 @@ fn synthetic_skinned_box_passes_the_validator_and_reads_back() {
     }
 }
 
+/// Issue 16: a scene's props (the stool a simulated character sits on) go into the file
+/// beside the skinned mesh as their own unskinned object where they stand. Read back with
+/// the `gltf` crate: a root node "stool" with no skin whose box spans what the chair's
+/// numbers give by hand (0.5 m wide, from the ground to the 0.45 m seat, its front edge
+/// 0.15 m behind the origin, 0.45 m deep, for a figure facing +Z), every face pointing
+/// out of the box; the character keeps its skin; the validator passes.
+#[test]
+fn props_are_written_where_they_stand_beside_the_skinned_mesh() {
+    use kinegraph_nodes::formats::gltf::{GlbAnimation, build_glb_animations};
+    use kinegraph_nodes::kernels::physics::seat::Chair;
+    let (clip, mesh) = synthetic();
+    let stool = Chair::default().place(glam::Vec2::ZERO, Vec3::Z).mesh();
+    let animations = [GlbAnimation { name: "clip", clip: &clip }];
+    let built = build_glb_animations(&animations, Some(&mesh), Some(&stool)).unwrap();
+    assert!(built.warnings.is_empty(), "{:?}", built.warnings);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("with_stool.glb");
+    std::fs::write(&path, built.value.into_bytes()).unwrap();
+    gltf_validator::validate_gltf(std::slice::from_ref(&path));
+
+    let (doc, buffers, _) = gltf::import(&path).unwrap();
+    let scene = doc.default_scene().unwrap();
+    let node = scene.nodes().find(|n| n.name() == Some("stool")).expect("a root node named stool");
+    assert!(node.skin().is_none());
+    assert_eq!(Mat4::from_cols_array_2d(&node.transform().matrix()), Mat4::IDENTITY);
+    let primitive = node.mesh().unwrap().primitives().next().unwrap();
+    let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+    let positions: Vec<Vec3> = reader.read_positions().unwrap().map(Vec3::from).collect();
+    let normals: Vec<Vec3> = reader.read_normals().unwrap().map(Vec3::from).collect();
+    let lo = positions.iter().copied().fold(Vec3::INFINITY, Vec3::min);
+    let hi = positions.iter().copied().fold(Vec3::NEG_INFINITY, Vec3::max);
+    assert!(lo.distance(Vec3::new(-0.25, 0.0, -0.6)) < 1e-6, "{lo}");
+    assert!(hi.distance(Vec3::new(0.25, 0.45, -0.15)) < 1e-6, "{hi}");
+    let centre = 0.5 * (lo + hi);
+    let indices: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+    assert_eq!(indices.len(), 36);
+    for t in indices.chunks(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| positions[t[k] as usize]);
+        let outward = ((a + b + c) / 3.0 - centre).normalize_or_zero();
+        assert!((b - a).cross(c - a).normalize_or_zero().dot(outward) > 0.4, "winding of {t:?}");
+        assert!(normals[t[0] as usize].dot(outward) > 0.4, "normal of {t:?}");
+    }
+    let skinned = doc.nodes().filter(|n| n.skin().is_some() && n.mesh().is_some()).count();
+    assert_eq!(skinned, 1, "the character keeps its skin");
+}
+
 #[test]
 fn empty_clip_writes_a_valid_file_without_animation() {
     let (clip, _) = synthetic();
@@ -398,7 +444,7 @@ fn several_named_animations_go_into_one_file() {
     assert_eq!(asset.clips.len(), 3);
     let animations: Vec<GlbAnimation<'_>> =
         asset.clips.iter().map(|c| GlbAnimation { name: &c.name, clip: &c.clip }).collect();
-    let built = build_glb_animations(&animations, asset.meshes.first()).unwrap();
+    let built = build_glb_animations(&animations, asset.meshes.first(), None).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("fox_three.glb");
     std::fs::write(&path, built.value.into_bytes()).unwrap();

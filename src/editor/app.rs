@@ -33,6 +33,9 @@ enum Prompt {
 
 /// How often unsaved edits are autosaved (seconds).
 const AUTOSAVE_SECS: f64 = 30.0;
+/// The port that carries a scene's fixed objects (physics.simulate's output, export.glb's
+/// input): the viewport draws the mesh there with the clip.
+const PROPS_PORT: &str = "props";
 
 /// The editor: one document, its history, views and the evaluation worker.
 pub struct EditorApp {
@@ -252,6 +255,11 @@ impl EditorApp {
     /// The smoke frame the viewport drew last and its particles on screen, if it drew smoke.
     pub fn viewport_smoke(&self) -> Option<SmokeDrawn> {
         self.viewport.smoke_drawn()
+    }
+
+    /// How many triangles of props (a stool) the viewport filled in its last draw.
+    pub fn viewport_props(&self) -> usize {
+        self.viewport.props_drawn()
     }
 
     /// Where the viewport last drew the centre of mass at its time (screen), if it did.
@@ -896,7 +904,7 @@ impl EditorApp {
     /// What the viewport plays for the selected node: its clip (or its mesh sequence's
     /// clip), or, for a node that outputs neither (an export, a smoke simulation), the clip
     /// it takes; with the mesh sequence it outputs, or a skinned mesh it outputs or takes;
-    /// and the smoke it outputs or takes.
+    /// the smoke it outputs or takes; and the props it outputs or takes.
     fn selected_motion(&self) -> Motion {
         let Some(id) = self.viewed() else { return Motion::default() };
         let outputs: Vec<&Value> = self.output_values(id).into_iter().filter_map(|(_, v)| v).collect();
@@ -928,7 +936,16 @@ impl EditorApp {
             _ => None,
         });
         let mesh = sequence.map(ShownMesh::Baked).or(skinned.map(ShownMesh::Skinned));
-        Motion { clip, mesh, smoke, bands, com }
+        // Props by port name: other unskinned meshes (a rest mesh being bound, a control
+        // mesh) are not part of the scene.
+        let props_in = self.graph.edges().filter(|e| e.to.node.as_str() == id && e.to.port.as_str() == PROPS_PORT);
+        let props = (self.output_values(id).into_iter().filter(|(name, _)| *name == PROPS_PORT).find_map(|(_, v)| v))
+            .or_else(|| props_in.filter_map(|e| self.output_value(&e.from)).next())
+            .and_then(|v| match v {
+                Value::Mesh(m) => Some(m.clone()),
+                _ => None,
+            });
+        Motion { clip, mesh, smoke, bands, com, props }
     }
 
     /// The time ranges marked under the viewport's timeline for the node it plays.

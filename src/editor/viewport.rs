@@ -33,6 +33,8 @@ const JOINT: Color32 = Color32::from_rgb(80, 170, 255);
 const COMPARED: Color32 = Color32::from_rgb(255, 150, 60);
 const CONTACT: Color32 = Color32::from_rgb(90, 220, 120);
 const SKIN: Color32 = Color32::from_rgb(150, 140, 130);
+/// Fixed objects of the scene (props).
+const PROP: Color32 = Color32::from_rgb(140, 105, 70);
 /// Half the side of a smoke particle's square, points.
 const PARTICLE_HALF: f32 = 1.2;
 /// The centre of mass's path on the ground and in flight.
@@ -53,6 +55,8 @@ pub(crate) struct Motion {
     pub(crate) bands: Vec<super::results::Band>,
     /// Curves with the centre of mass's path (`com.x/y/z`, metres), drawn over the clip.
     pub(crate) com: Option<Arc<Curves>>,
+    /// Fixed objects of the scene (a stool), drawn where they stand with the clip.
+    pub(crate) props: Option<Arc<Mesh>>,
 }
 
 impl Motion {
@@ -345,6 +349,8 @@ pub(crate) struct Viewport {
     smoke_drawn: Option<SmokeDrawn>,
     /// Where the last draw put the centre of mass at the time shown (screen), if it drew one.
     com_drawn: Option<Pos2>,
+    /// How many triangles of props the last draw filled.
+    props_drawn: usize,
 }
 
 impl Default for Viewport {
@@ -362,6 +368,7 @@ impl Default for Viewport {
             smoke: None,
             smoke_drawn: None,
             com_drawn: None,
+            props_drawn: 0,
         }
     }
 }
@@ -393,6 +400,11 @@ impl Viewport {
         self.smoke_drawn.clone()
     }
 
+    /// How many triangles of props the last draw filled.
+    pub(crate) fn props_drawn(&self) -> usize {
+        self.props_drawn
+    }
+
     /// Where the centre of mass was drawn last at the time shown (screen), if it was.
     pub(crate) fn com_drawn(&self) -> Option<Pos2> {
         self.com_drawn
@@ -401,8 +413,9 @@ impl Viewport {
     /// Draws the `motion`'s clip and mesh and its smoke (or a hint when there is none), with
     /// the timeline above; `contacts` are the graph's own for this clip, if it computed them.
     pub(crate) fn show(&mut self, ui: &mut Ui, title: &str, motion: Motion, contacts: Option<&Arc<Contacts>>) {
-        let Motion { clip, mesh, smoke, bands: motion_bands, com } = motion;
+        let Motion { clip, mesh, smoke, bands: motion_bands, com, props } = motion;
         self.com_drawn = None;
+        self.props_drawn = 0;
         match &smoke {
             Some(v) if !self.smoke.as_ref().is_some_and(|s| Arc::ptr_eq(&s.volumes, v)) => {
                 self.reframe |= self.smoke.is_none();
@@ -462,6 +475,9 @@ impl Viewport {
         let floor = self.bounds().0.y;
         if self.overlays.grid {
             draw_grid(&painter, &project, self.bounds(), floor);
+        }
+        if let Some(props) = props.as_ref().filter(|_| self.overlays.mesh && self.shown.is_some()) {
+            self.props_drawn = draw_triangles(&painter, &project, self.camera.eye(), &props.positions, props, PROP);
         }
         for (shown, colour) in self.shown.iter().map(|s| (s, BONE)).chain(self.compared.iter().map(|s| (s, COMPARED))) {
             if self.overlays.mesh {
@@ -751,8 +767,21 @@ fn draw_mesh(painter: &egui::Painter, project: &impl Fn(Vec3) -> Option<Pos2>, e
         return;
     }
     let (positions, rest) = mesh.positions(&shown.poses, frame);
+    draw_triangles(painter, project, eye, &positions, rest, SKIN);
+}
+
+/// Fills `mesh`'s triangles at `positions` (metres) in `colour`, each shaded by how squarely
+/// it faces the camera at `eye`, far to near; returns how many were in front of the camera.
+fn draw_triangles(
+    painter: &egui::Painter,
+    project: &impl Fn(Vec3) -> Option<Pos2>,
+    eye: Vec3,
+    positions: &[Vec3],
+    mesh: &Mesh,
+    colour: Color32,
+) -> usize {
     let screen: Vec<Option<Pos2>> = positions.iter().map(|p| project(*p)).collect();
-    let mut faces: Vec<(f32, [usize; 3], f32)> = rest
+    let mut faces: Vec<(f32, [usize; 3], f32)> = mesh
         .triangles
         .iter()
         .filter_map(|t| {
@@ -766,20 +795,20 @@ fn draw_mesh(painter: &egui::Painter, project: &impl Fn(Vec3) -> Option<Pos2>, e
         .collect();
     faces.sort_by(|x, y| y.0.total_cmp(&x.0));
     let mut out = egui::epaint::Mesh::default();
-    for (_, corners, facing) in faces {
+    for &(_, corners, facing) in &faces {
         let light = 0.35 + 0.65 * facing;
-        let colour = Color32::from_rgb(
-            (f32::from(SKIN.r()) * light) as u8,
-            (f32::from(SKIN.g()) * light) as u8,
-            (f32::from(SKIN.b()) * light) as u8,
-        );
+        let shade = |c: u8| (f32::from(c) * light) as u8;
         let base = out.vertices.len() as u32;
         for v in corners {
-            out.colored_vertex(screen[v].unwrap_or_default(), colour);
+            out.colored_vertex(
+                screen[v].unwrap_or_default(),
+                Color32::from_rgb(shade(colour.r()), shade(colour.g()), shade(colour.b())),
+            );
         }
         out.add_triangle(base, base + 1, base + 2);
     }
     painter.add(egui::Shape::mesh(out));
+    faces.len()
 }
 
 /// The smoke's marker particles at `frame` as small squares, grey where the smoke is thin

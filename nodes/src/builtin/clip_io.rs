@@ -155,6 +155,10 @@ const MESH_IN: Input<Arc<Mesh>> = Input::optional(
     "mesh",
     "A mesh skinned to the clip's skeleton, written with the animation and its materials and textures (optional).",
 );
+const PROPS_IN: Input<Arc<Mesh>> = Input::optional(
+    "props",
+    "Fixed objects of the scene, written where they stand (world metres): e.g. physics.simulate's stool (optional).",
+);
 const MORE_CLIPS: [Input<Arc<Clip>>; 3] = [
     Input::optional("clip_2", "A second animation of the same skeleton, written beside the first (optional)."),
     Input::optional("clip_3", "A third animation of the same skeleton (optional)."),
@@ -175,14 +179,22 @@ pub struct ExportGlb;
 static EXPORT_GLB: NodeSchema = NodeSchema {
     kind: "export.glb",
     category: "io",
-    doc: "Writes a clip as a binary glTF (.glb): the skeleton as a node hierarchy with its animation, up to three more clips of the same skeleton as further named animations, plus a skinned mesh when one is connected, each of its parts (a character's source meshes) its own named object on the one skin, one primitive per material with its textures embedded.",
-    inputs: &[CLIP_IN.spec(), MESH_IN.spec(), MORE_CLIPS[0].spec(), MORE_CLIPS[1].spec(), MORE_CLIPS[2].spec()],
+    doc: "Writes a clip as a binary glTF (.glb): the skeleton as a node hierarchy with its animation, up to three more clips of the same skeleton as further named animations, plus a skinned mesh when one is connected, each of its parts (a character's source meshes) its own named object on the one skin, one primitive per material with its textures embedded, and the scene's fixed objects (props) where they stand.",
+    inputs: &[
+        CLIP_IN.spec(),
+        MESH_IN.spec(),
+        MORE_CLIPS[0].spec(),
+        MORE_CLIPS[1].spec(),
+        MORE_CLIPS[2].spec(),
+        PROPS_IN.spec(),
+    ],
     outputs: &[FILE_OUT.spec()],
     params: &[GLB_FILE.0, NAME.0, MORE_NAMES[0].0, MORE_NAMES[1].0, MORE_NAMES[2].0],
     writes_files: true,
     // 2: materials and textures, several named animations.
     // 3: each part of the mesh (a character's source meshes) its own mesh and node.
-    version: 3,
+    // 4: the props input.
+    version: 4,
 };
 
 impl Node for ExportGlb {
@@ -192,6 +204,7 @@ impl Node for ExportGlb {
     fn eval(&self, ctx: &mut NodeContext<'_>) -> Result<(), NodeError> {
         let clip = ctx.input(&CLIP_IN)?;
         let mesh = ctx.optional_input(&MESH_IN)?;
+        let props = ctx.optional_input(&PROPS_IN)?;
         let mut clips = vec![(ctx.text_param(&NAME)?.to_owned(), clip)];
         for (input, param) in MORE_CLIPS.iter().zip(&MORE_NAMES) {
             if let Some(more) = ctx.optional_input(input)? {
@@ -212,7 +225,7 @@ impl Node for ExportGlb {
             }
         }
         let animations: Vec<GlbAnimation<'_>> = clips.iter().map(|(name, clip)| GlbAnimation { name, clip }).collect();
-        let built = build_glb_animations(&animations, mesh.as_deref())?;
+        let built = build_glb_animations(&animations, mesh.as_deref(), props.as_deref())?;
         ctx.warn_all(built.warnings);
         let relative = ctx.write_output_with(&GLB_FILE, |out| built.value.write_to(out))?;
         ctx.set_output(&FILE_OUT, Arc::new(relative));

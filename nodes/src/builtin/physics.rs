@@ -7,7 +7,7 @@ use serde_json::json;
 
 use crate::kernels::physics::simulate::{Script, SimError, SimParams, simulate};
 use crate::kernels::physics::{PhysicsError, WorldParams};
-use crate::model::{Clip, Curves};
+use crate::model::{Clip, Curves, Mesh};
 use crate::node::{
     FloatParam, Input, InputPathParam, IntParam, Node, NodeContext, NodeError, NodeSchema, Output, Registry, Report,
     report_of,
@@ -57,6 +57,12 @@ const REPORT: Output<Arc<Report>> = Output::new(
      head clearance and the number of physics steps.",
 );
 
+const PROPS: Output<Arc<Mesh>> = Output::new(
+    "props",
+    "The script's fixed objects as one unskinned mesh in world metres (the stool; empty without one), for \
+     export.glb's props and the viewport.",
+);
+
 /// `physics.simulate`.
 pub struct Simulate;
 
@@ -69,10 +75,11 @@ static SIMULATE: NodeSchema = NodeSchema {
           stool. A run that blows up is a failure, never \
           a clip.",
     inputs: &[CLIP.spec()],
-    outputs: &[OUT.spec(), CURVES.spec(), REPORT.spec()],
+    outputs: &[OUT.spec(), CURVES.spec(), REPORT.spec(), PROPS.spec()],
     params: &[SCRIPT.0, FRAME.0, FPS.0, DT.0, MASS.0],
     writes_files: false,
-    version: 2,
+    // 3: the props output; a seated figure is held by sit, not thrown by fall.
+    version: 3,
 };
 
 /// Reads and parses the script file, errors located at the `script` param with file, line
@@ -159,6 +166,8 @@ impl Node for Simulate {
                 },
             })),
         );
+        let props = result.seat.map_or_else(|| Mesh { name: "props".into(), ..Mesh::default() }, |seat| seat.mesh());
+        ctx.set_output(&PROPS, Arc::new(props));
         ctx.set_output(&OUT, Arc::new(result.clip));
         Ok(())
     }

@@ -8,7 +8,7 @@
 use std::f32::consts::TAU;
 use std::sync::Arc;
 
-use glam::{Mat4, Quat, Vec2, Vec3};
+use glam::{Mat4, Quat, Vec3};
 
 use crate::model::{Clip, ClipError, ImportScale, Joint, Mesh, Skeleton, Skin};
 
@@ -99,20 +99,8 @@ pub fn mannequin_mesh(skeleton: Arc<Skeleton>, radius: f32) -> Mesh {
             let end = if i & 4 == 0 { a } else { b };
             end + if i & 1 == 0 { -side } else { side } + if i & 2 == 0 { -up } else { up }
         };
-        const FACES: [[usize; 4]; 6] =
-            [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
-        for face in FACES {
-            let base = mesh.positions.len() as u32;
-            let p = face.map(corner);
-            let normal = (p[1] - p[0]).cross(p[2] - p[0]).try_normalize().unwrap_or(Vec3::Y);
-            mesh.positions.extend(p);
-            mesh.normals.extend([normal; 4]);
-            if let Some(uvs) = &mut mesh.uvs {
-                uvs.extend([Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 1.0)]);
-            }
-            mesh.triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
-            joints.extend([[parent as u16, 0, 0, 0]; 4]);
-        }
+        mesh.push_box(corner);
+        joints.extend([[parent as u16, 0, 0, 0]; 24]);
     }
     let inverse_bind_matrices = rest.iter().map(|p| Mat4::from_translation(-*p)).collect();
     let weights = vec![[1.0, 0.0, 0.0, 0.0]; joints.len()];

@@ -94,6 +94,26 @@ impl Mesh {
         normals.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Y)).collect()
     }
 
+    /// Appends a box given by its eight corners (`corner(i)`: bit 0, 1 and 2 of `i` pick
+    /// the far end along the box's first, second and third edge; the edges right-handed)
+    /// as six faces of four vertices each, so every face keeps its own normal and, when the
+    /// mesh has UVs, the unit square.
+    pub fn push_box(&mut self, corner: impl Fn(usize) -> Vec3) {
+        const FACES: [[usize; 4]; 6] =
+            [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        for face in FACES {
+            let base = self.positions.len() as u32;
+            let p = face.map(&corner);
+            let normal = (p[1] - p[0]).cross(p[2] - p[0]).try_normalize().unwrap_or(Vec3::Y);
+            self.positions.extend(p);
+            self.normals.extend([normal; 4]);
+            if let Some(uvs) = &mut self.uvs {
+                uvs.extend([Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 1.0)]);
+            }
+            self.triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+        }
+    }
+
     /// Index of `material` in the mesh's materials, adding it when no equal one is there
     /// (merged meshes that share a source material share one entry).
     pub fn material_index(&mut self, material: &Material) -> usize {

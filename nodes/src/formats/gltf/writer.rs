@@ -63,7 +63,7 @@ pub fn write_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<Vec<u8>>, Fo
 /// [`write_glb`]'s document, finished but not yet serialised: stream it into a file with
 /// [`GlbChunks::write_to`].
 pub fn build_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<GlbChunks>, FormatError> {
-    build_glb_animations(&[GlbAnimation { name: DEFAULT_ANIMATION_NAME, clip }], mesh)
+    build_glb_animations(&[GlbAnimation { name: DEFAULT_ANIMATION_NAME, clip }], mesh, None)
 }
 
 /// Like [`build_glb`] with several named animations of one skeleton in one file. Each
@@ -71,11 +71,15 @@ pub fn build_glb(clip: &Clip, mesh: Option<&Mesh>) -> Result<Loaded<GlbChunks>, 
 /// whose translation moves in any of them gets a translation channel in all of them, so a
 /// viewer switching animations never keeps a position left over from another.
 ///
+/// `props` are the scene's fixed objects (a stool the character sits on), written as they
+/// stand, each part its own object; an empty one writes nothing.
+///
 /// Errors: no animations, two with one name, an animation on another skeleton, and
-/// everything [`build_glb`] refuses.
+/// everything [`build_glb`] refuses, for the props as for the mesh.
 pub fn build_glb_animations(
     animations: &[GlbAnimation<'_>],
     mesh: Option<&Mesh>,
+    props: Option<&Mesh>,
 ) -> Result<Loaded<GlbChunks>, FormatError> {
     let path = Path::new(IN_MEMORY);
     let err = |kind: Kind, message: String| FormatError::file(path, kind, message);
@@ -163,6 +167,9 @@ pub fn build_glb_animations(
             Ok(_) => {}
             Err((kind, message)) => return Err(err(kind, message)),
         }
+    }
+    if let Some(props) = props.filter(|p| !p.triangles.is_empty()) {
+        scene_nodes.extend(write_mesh(&mut b, skeleton, props, &mut warnings).map_err(|(kind, m)| err(kind, m))?);
     }
     if !skinned {
         // A skin with no mesh marks the joints as a skeleton, so DCCs (Blender) import an

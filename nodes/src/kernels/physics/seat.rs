@@ -9,6 +9,7 @@ use serde::Deserialize;
 use super::World;
 use super::figure::{BodyRole, BodyShape, Figure};
 use super::state::FigureState;
+use crate::model::{Material, Mesh};
 
 /// A body rests on the seat when its lowest point is this close to the seat's top, metres
 /// (the same bar as a sole on the ground).
@@ -101,6 +102,31 @@ impl Seat {
         let d = p - self.top_centre;
         d.dot(self.left()).abs() <= self.half_size_m.x + margin_m
             && d.dot(self.forward).abs() <= self.half_size_m.y + margin_m
+    }
+
+    /// The seat as a box from the ground to its top (world metres, unskinned), with a
+    /// matt wood-coloured material: what an export or a viewer draws where the figure sits.
+    pub fn mesh(&self) -> Mesh {
+        let mut mesh = Mesh { name: "stool".into(), ..Mesh::default() };
+        let (left, ground) = (self.left(), self.top_centre.with_y(0.0));
+        let half = self.half_size_m;
+        // Edges left, up, forward: a right-handed box, so its faces point outwards.
+        mesh.push_box(|i| {
+            ground
+                + left * if i & 1 == 0 { -half.x } else { half.x }
+                + Vec3::Y * if i & 2 == 0 { 0.0 } else { self.top_centre.y }
+                + self.forward * if i & 4 == 0 { -half.y } else { half.y }
+        });
+        let wood = Material {
+            name: Some("stool".into()),
+            base_color_factor: [0.55, 0.4, 0.26, 1.0],
+            metallic_factor: 0.0,
+            roughness_factor: 0.8,
+            ..Material::default()
+        };
+        let material = mesh.material_index(&wood);
+        mesh.push_material_range(Some(material), mesh.triangles.len());
+        mesh
     }
 
     /// Puts the seat in `world` as a fixed box from the ground to its top, touching the

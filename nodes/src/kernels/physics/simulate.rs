@@ -14,7 +14,7 @@ use serde::Deserialize;
 use super::controller::{Activation, ControlContext, Supervisor, Targets};
 use super::controllers;
 use super::figure::{BodyRole, BodyShape, Figure, FigureError, FigureParams, Spawned, build_figure};
-use super::seat::Chair;
+use super::seat::{Chair, Seat};
 use super::state::FigureState;
 use super::{PhysicsError, World, WorldParams, to_rapier};
 use crate::cancel::Cancel;
@@ -203,6 +203,8 @@ pub struct SimResult {
     pub head_impact_speed_m_s: f32,
     /// Steps simulated.
     pub steps: usize,
+    /// The script's seat as placed in the world, if it had one.
+    pub seat: Option<Seat>,
 }
 
 /// Checks a script against the pool and the figure.
@@ -488,6 +490,7 @@ pub fn simulate(
         }));
     }
     let clip = clip_of(&figure, skeleton, &body_frames, params.fps).map_err(|e| SimError::Pose(e.to_string()))?;
+    let seat = ctx.seat;
     Ok(SimResult {
         clip,
         timeline: supervisor.timeline,
@@ -496,6 +499,7 @@ pub fn simulate(
         min_head_clearance_m: min_head,
         head_impact_speed_m_s: head_impact,
         steps,
+        seat,
     })
 }
 
