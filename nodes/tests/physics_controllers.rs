@@ -116,12 +116,41 @@ impl Controller for Mock {
         if self.fails_at.is_some_and(|t| state.time_secs >= t) { 0 } else { self.bid }
     }
     fn activate(&mut self, _: &FigureState, _: &ControlContext<'_>) {}
-    fn control(&mut self, state: &FigureState, _: &ControlContext<'_>, _: &mut Targets) -> Status {
+    fn control(&mut self, state: &FigureState, _: &ControlContext<'_>, targets: &mut Targets) -> Status {
         match self.fails_at {
             Some(t) if state.time_secs >= t => Status::Failed("scripted".into()),
-            _ => Status::Running,
+            _ => {
+                // Moving targets, as sit and rise give them.
+                targets.velocity.fill([MOCK_RATE_RAD_S; 3]);
+                Status::Running
+            }
         }
     }
+}
+
+/// The feed-forward rate a running [`Mock`] gives every motor, rad/s.
+const MOCK_RATE_RAD_S: f32 = 1.5;
+
+/// When no controller takes over from one that gave its motors a feed-forward velocity,
+/// the motors hold the last targets without it: a stale rate would keep driving every joint.
+#[test]
+fn no_controller_active_means_no_feed_forward() {
+    let Some(data) = shared_data() else { return };
+    let figure = build_figure(&cmu(&data), &FigureParams::default()).unwrap();
+    let stand = Targets::rest(&figure);
+    let ctx = unit_context(&figure, &stand);
+    let pool: Vec<Box<dyn Controller>> =
+        vec![Box::new(Mock { name: "a", preference: 1, bid: BID_CAN_REACH, fails_at: Some(1.0) })];
+    let mut sup = Supervisor::new(pool);
+    let mut targets = stand.clone();
+    let mut state = blank_state(&figure);
+    sup.step(&state, &ctx, &mut targets);
+    assert!(targets.velocity.iter().all(|v| *v == [MOCK_RATE_RAD_S; 3]));
+    state.time_secs = 1.0;
+    sup.step(&state, &ctx, &mut targets);
+    assert_eq!(sup.active(), None);
+    assert!(targets.velocity.iter().all(|v| *v == [0.0; 3]), "{:?}", targets.velocity);
+    assert_eq!(targets.angles, stand.angles, "the last targets are held");
 }
 
 /// A control context with round figures (standing COM 1 m, legs 0.9 m, standard gravity),

@@ -307,7 +307,12 @@ impl Supervisor {
                 Some((_, bs)) if bs >= s => best,
                 _ => Some((i, s)),
             });
-        let Some((i, score)) = best else { return };
+        let Some((i, score)) = best else {
+            // Nothing takes over: the motors hold the last targets, without the finished
+            // controller's feed-forward rates.
+            targets.velocity.fill([0.0; 3]);
+            return;
+        };
         let reason =
             if requested == Some(i) && score >= REQUEST_BOOST { Reason::Requested } else { Reason::BestBid { score } };
         self.pool[i].activate(state, ctx);
