@@ -33,11 +33,17 @@ const MESH: Input<Arc<Mesh>> = Input::optional(
     "mesh",
     "A mesh skinned to the clip's skeleton: its soles are checked against the floor too (joints alone sit above the skin).",
 );
+const PROPS: Input<Arc<Mesh>> = Input::optional(
+    "props",
+    "The scene's fixed objects as closed surfaces (physics.simulate's stool): how deep the skinned mesh goes into \
+     them is measured too (needs mesh).",
+);
 const REPORT: Output<Arc<Report>> = Output::new(
     "report",
     "Foot skate (cm per frame), feet under or above the floor (cm), acceleration spikes (m/s², ratios), \
      one-frame root velocity changes (m/s), bone-length drift (cm), pops, stride (step length m and ÷ leg length, \
-     pelvis horizontal speed 5th–95th percentile m/s; against the source's) and findings.",
+     pelvis horizontal speed 5th–95th percentile m/s; against the source's), how deep the skinned mesh goes into the \
+     props (cm) and findings.",
 );
 const FLOOR: FloatParam = FloatParam::new(
     "floor_height_m",
@@ -79,15 +85,24 @@ static MEASURE_QUALITY: NodeSchema = NodeSchema {
     category: "motion",
     doc: "Checks a motion the way an animator does: planted feet that slide, feet through or above the floor, \
           jerky joints against the source clips, sudden root speed changes, stretching bones and pops, \
-          over the whole clip or a window of it, and the stride (step length ÷ leg length, pelvis speed) \
+          a body sinking into the scene's props, over the whole clip or a window of it, and the stride (step length ÷ leg length, pelvis speed) \
           against the source's. Expectation files can gate on its report.",
-    inputs: &[CLIP.spec(), SOURCE.spec(), OTHER_SOURCE.spec(), SOURCE_SET.spec(), CONTACTS.spec(), MESH.spec()],
+    inputs: &[
+        CLIP.spec(),
+        SOURCE.spec(),
+        OTHER_SOURCE.spec(),
+        SOURCE_SET.spec(),
+        CONTACTS.spec(),
+        MESH.spec(),
+        PROPS.spec(),
+    ],
     outputs: &[REPORT.spec()],
     params: &[FLOOR.0, NEIGHBOURHOOD.0, WINDOW_START.0, WINDOW_END.0],
     writes_files: false,
     // 2: stride (step length ÷ leg length, pelvis speed range) and its comparison with the source.
     // 3: contacts detected for the clip's legs.
-    version: 3,
+    // 4: the props input.
+    version: 4,
 };
 
 impl Node for MeasureQuality {
@@ -115,7 +130,10 @@ impl Node for MeasureQuality {
             ..QualityOptions::default()
         };
         let sources: Vec<&Clip> = sources.iter().map(|c| c.as_ref()).collect();
-        let report = measure_quality(&clip, contacts.as_deref(), &sources, mesh.as_deref(), &options);
+        let mut report = measure_quality(&clip, contacts.as_deref(), &sources, mesh.as_deref(), &options);
+        if let Some(props) = ctx.optional_input(&PROPS)? {
+            report.measure_props(&clip, mesh.as_deref(), &props);
+        }
         let json = serde_json::to_value(&report).map_err(|e| NodeError::Failed(e.to_string()))?;
         ctx.set_output(&REPORT, Arc::new(crate::model::into_report(json)));
         Ok(())

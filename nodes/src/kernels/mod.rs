@@ -57,6 +57,7 @@ pub mod momentum_splines;
 pub mod phases;
 pub mod physics;
 pub mod pose_vector;
+pub mod props;
 pub mod quality;
 pub mod resample;
 pub mod roles;

@@ -56,6 +56,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 use super::contacts::{ContactThresholds, contacts_of};
+use super::props::{PropsPenetration, props_penetration};
 use super::roles::{BodyRoles, RolesError};
 use super::skinning::SkinError;
 use super::soles::{foot_joints, lowest_sole_heights};
@@ -153,6 +154,10 @@ pub struct QualitySummary {
     /// span's top.
     #[serde(default)]
     pub pelvis_speed_outside_source_pct: Option<f64>,
+    /// Deepest the skinned mesh goes into the scene's props, cm ([`super::props`]); `None`
+    /// without props (and then left out of the report).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub props_penetration_max_cm: Option<f64>,
 }
 
 /// One foot's measures.
@@ -230,6 +235,9 @@ pub struct QualityReport {
     pub source_strides: Vec<Stride>,
     /// The clip's stride against the sources', scaled by leg length.
     pub stride_against_source: Option<StrideComparison>,
+    /// How deep the skinned mesh goes into the props, when props were given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub props: Option<PropsPenetration>,
     /// What an animator would be told, one line each.
     pub findings: Vec<String>,
 }
@@ -738,6 +746,7 @@ pub fn measure_quality(
         step_over_leg: stride.as_ref().and_then(|s| s.step_over_leg),
         step_over_leg_change_pct: stride_against_source.as_ref().and_then(|c| c.step_over_leg_change_pct),
         pelvis_speed_outside_source_pct: stride_against_source.as_ref().and_then(|c| c.pelvis_speed_outside_source_pct),
+        props_penetration_max_cm: None,
     };
     QualityReport {
         units: "lengths cm, speeds m/s, accelerations m/s²; per frame = between consecutive frames at fps",
@@ -759,7 +768,35 @@ pub fn measure_quality(
         stride,
         source_strides,
         stride_against_source,
+        props: None,
         findings,
+    }
+}
+
+impl QualityReport {
+    /// Adds how deep `mesh` (skinned to `clip`, the clip this report measured) goes into
+    /// `props` over the report's window; without a usable mesh it says so in the findings.
+    pub fn measure_props(&mut self, clip: &Clip, mesh: Option<&Mesh>, props: &Mesh) {
+        let Some(mesh) = mesh else {
+            self.findings.push("props need the skinned mesh: how deep the body goes into them is not measured".into());
+            return;
+        };
+        let window = FrameRange { start: self.window_frames.0, end: self.window_frames.1 };
+        match props_penetration(clip, mesh, props, window) {
+            Ok(p) => {
+                if p.frames_inside > 0 {
+                    self.findings.push(format!(
+                        "the body goes {:.1} cm into a prop (frame {}; {} frames inside)",
+                        p.max_cm,
+                        p.max_frame.unwrap_or(0),
+                        p.frames_inside
+                    ));
+                }
+                self.summary.props_penetration_max_cm = Some(p.max_cm);
+                self.props = Some(p);
+            }
+            Err(why) => self.findings.push(format!("how deep the body goes into the props is not measured: {why}")),
+        }
     }
 }
 
@@ -804,6 +841,9 @@ pub struct QualityGate {
     /// Limit on `pelvis_speed_outside_source_pct`, percent.
     #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
     pub max_pelvis_speed_outside_source_pct: Option<f64>,
+    /// Limit on `props_penetration_max_cm`, cm.
+    #[serde(default, skip_serializing_if = "Option::is_none", with = "bare_number")]
+    pub max_props_penetration_cm: Option<f64>,
 }
 
 impl QualityGate {
@@ -872,6 +912,13 @@ impl QualityGate {
                 "pelvis_speed_outside_source_pct",
                 summary.pelvis_speed_outside_source_pct,
                 " %",
+            ),
+            (
+                "max_props_penetration_cm",
+                self.max_props_penetration_cm,
+                "props_penetration_max_cm",
+                summary.props_penetration_max_cm,
+                " cm",
             ),
         ];
         checks

@@ -19,6 +19,7 @@
 
 pub mod euler;
 pub mod nnls;
+pub mod solid;
 
 use glam::Quat;
 

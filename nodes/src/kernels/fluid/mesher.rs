@@ -174,18 +174,9 @@ pub fn enclosed_volume_m3(obstacle: &Obstacle) -> f64 {
         .sum()
 }
 
-/// Winding number of the closed surface around `p` (≈ 1 inside, ≈ 0 outside), by the
-/// van Oosterom–Strackee solid angle of each triangle.
+/// Winding number of the closed surface around `p` (≈ 1 inside, ≈ 0 outside).
 pub fn winding_number(obstacle: &Obstacle, p: DVec3) -> f64 {
-    let mut total = 0.0;
-    for t in &obstacle.triangles {
-        let [a, b, c] = t.map(|i| obstacle.positions_m.get(i as usize).copied().unwrap_or(DVec3::ZERO) - p);
-        let (la, lb, lc) = (a.length(), b.length(), c.length());
-        let numerator = a.dot(b.cross(c));
-        let denominator = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
-        total += 2.0 * numerator.atan2(denominator);
-    }
-    total / (4.0 * std::f64::consts::PI)
+    crate::math::solid::winding_number(&obstacle.positions_m, &obstacle.triangles, p)
 }
 
 /// Edges used by exactly two triangles in opposite directions: the surface is closed and
