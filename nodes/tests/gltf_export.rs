@@ -505,7 +505,7 @@ fn several_named_animations_go_into_one_file() {
 
 /// `export.glb` with a second clip: the file holds both animations under the given names;
 /// a name used twice is refused naming the parameter, a clip of another skeleton naming
-/// the input.
+/// the input; a skinned mesh connected as props is refused naming that input.
 #[test]
 fn export_glb_node_writes_extra_clips_and_refuses_clashes() {
     use kinegraph_nodes::node::{NodeContext, NodeError, ParamValue, RunServices, Value};
@@ -516,7 +516,7 @@ fn export_glb_node_writes_extra_clips_and_refuses_clashes() {
     let registry = kinegraph_nodes::builtin::registry();
     let node = registry.get("export.glb").unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let run = |name_2: &str, other: Clip| -> Result<(), NodeError> {
+    let run = |name_2: &str, other: Clip, props: Option<Mesh>| -> Result<(), NodeError> {
         let params: BTreeMap<String, ParamValue> =
             [("file", "both.glb"), ("name", "bend"), ("name_2", name_2), ("name_3", "clip_3"), ("name_4", "clip_4")]
                 .into_iter()
@@ -536,22 +536,26 @@ fn export_glb_node_writes_extra_clips_and_refuses_clashes() {
             Some(Value::Clip(Arc::new(other))),
             None,
             None,
+            props.map(|p| Value::Mesh(Arc::new(p))),
         ];
         let mut ctx = NodeContext::new(node.schema(), inputs, &params, &services, &progress);
         node.eval(&mut ctx)
     };
-    run("bend_again", second.clone()).unwrap();
+    run("bend_again", second.clone(), None).unwrap();
     let (doc, _, _) = gltf::import(dir.path().join("both.glb")).unwrap();
     let animations: Vec<(String, usize)> = doc
         .animations()
         .map(|a| (a.name().unwrap().to_owned(), a.samplers().next().unwrap().input().count()))
         .collect();
     assert_eq!(animations, [("bend".to_owned(), 20), ("bend_again".to_owned(), 10)]);
-    let err = run("bend", second).unwrap_err();
+    let err = run("bend", second.clone(), None).unwrap_err();
     assert!(matches!(&err, NodeError::Param { param: "name_2", .. }), "{err}");
     let other = Arc::new(Skeleton::new(vec![Joint::new("x", None, Vec3::ZERO)]).unwrap());
-    let err = run("other", Clip::rest_pose(other, 30.0, 2).unwrap()).unwrap_err();
+    let err = run("other", Clip::rest_pose(other, 30.0, 2).unwrap(), None).unwrap_err();
     assert!(matches!(&err, NodeError::Input { port: "clip_2", .. }), "{err}");
+    // Props stand still: a skinned mesh there is refused, naming the port.
+    let err = run("bend_again", second, Some(mesh.clone())).unwrap_err();
+    assert!(matches!(&err, NodeError::Input { port: "props", .. }), "{err}");
 }
 
 /// Issue 18: a character whose rest pose is its skin's bind pose keeps the file's own

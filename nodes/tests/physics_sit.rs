@@ -169,7 +169,7 @@ fn run(skeleton: &Arc<Skeleton>, chair: Chair) -> Verdict {
 fn xbot_sits_on_stools_of_three_heights_and_stands_up_from_two() {
     let Some(data) = shared_data() else { return };
     let skeleton = xbot(&data);
-    let mut failures = Vec::new();
+    let (mut failures, mut held_runs) = (Vec::new(), 0);
     for seat_height_m in [0.40f32, 0.45, 0.50] {
         for behind_m in [0.10f32, 0.15, 0.20] {
             let chair = Chair { seat_height_m, behind_m, ..Chair::default() };
@@ -185,6 +185,7 @@ fn xbot_sits_on_stools_of_three_heights_and_stands_up_from_two() {
                 v.min_head_m,
                 v.timeline
             );
+            held_runs += usize::from(v.kept_seated.is_some());
             let must_stand = seat_height_m <= 0.45 && behind_m == 0.15;
             if !v.sat || (must_stand && !v.stood) || v.kept_seated == Some(false) {
                 failures.push(format!("seat {seat_height_m} behind {behind_m}: {v:?}"));
@@ -192,6 +193,8 @@ fn xbot_sits_on_stools_of_three_heights_and_stands_up_from_two() {
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
+    // The hold is exercised: four rises leave the hips on the seat (three stall, one is refused).
+    assert!(held_runs >= 1, "no rise left the hips on the seat, so the hold was not tested");
 }
 
 /// The same script run twice gives the same clip bit for bit.

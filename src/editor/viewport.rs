@@ -476,12 +476,17 @@ impl Viewport {
         if self.overlays.grid {
             draw_grid(&painter, &project, self.bounds(), floor);
         }
-        if let Some(props) = props.as_ref().filter(|_| self.overlays.mesh && self.shown.is_some()) {
-            self.props_drawn = draw_triangles(&painter, &project, self.camera.eye(), &props.positions, props, PROP);
-        }
-        for (shown, colour) in self.shown.iter().map(|s| (s, BONE)).chain(self.compared.iter().map(|s| (s, COMPARED))) {
+        for (k, (shown, colour)) in
+            self.shown.iter().map(|s| (s, BONE)).chain(self.compared.iter().map(|s| (s, COMPARED))).enumerate()
+        {
             if self.overlays.mesh {
-                draw_mesh(&painter, &project, self.camera.eye(), shown, shown.frame_at(self.time_secs));
+                // The props stand with the clip on show (not with one pinned for comparison).
+                let props = props.as_deref().filter(|_| k == 0 && self.shown.is_some());
+                let drawn =
+                    draw_mesh(&painter, &project, self.camera.eye(), shown, shown.frame_at(self.time_secs), props);
+                if props.is_some() {
+                    self.props_drawn = drawn;
+                }
             }
             if self.overlays.trajectories {
                 draw_trajectories(&painter, &project, shown, floor, colour);
@@ -759,56 +764,70 @@ fn draw_com_path(
     Some(now)
 }
 
-/// The shown clip's mesh at `frame`: triangles drawn far to near (painter's order), each
-/// shaded by how squarely it faces the camera at `eye`.
-fn draw_mesh(painter: &egui::Painter, project: &impl Fn(Vec3) -> Option<Pos2>, eye: Vec3, shown: &Shown, frame: usize) {
-    let Some(mesh) = shown.mesh.as_ref().filter(|_| shown.mesh_fits) else { return };
-    if shown.poses.frame_count() == 0 {
-        return;
+/// The shown clip's mesh at `frame` and the scene's `props`, sorted together far to near
+/// (painter's order, so a stool hides the hips seen from behind), each triangle shaded by
+/// how squarely it faces the camera at `eye`; returns how many props triangles were drawn.
+fn draw_mesh(
+    painter: &egui::Painter,
+    project: &impl Fn(Vec3) -> Option<Pos2>,
+    eye: Vec3,
+    shown: &Shown,
+    frame: usize,
+    props: Option<&Mesh>,
+) -> usize {
+    let mut parts: Vec<(Cow<'_, [Vec3]>, &Mesh, Color32)> = Vec::new();
+    if let Some(mesh) = shown.mesh.as_ref().filter(|_| shown.mesh_fits && shown.poses.frame_count() > 0) {
+        let (positions, rest) = mesh.positions(&shown.poses, frame);
+        parts.push((positions, rest, SKIN));
     }
-    let (positions, rest) = mesh.positions(&shown.poses, frame);
-    draw_triangles(painter, project, eye, &positions, rest, SKIN);
+    if let Some(props) = props {
+        parts.push((Cow::Borrowed(&props.positions), props, PROP));
+    }
+    let drawn = draw_triangles(painter, project, eye, &parts);
+    if props.is_some() { drawn.last().copied().unwrap_or(0) } else { 0 }
 }
 
-/// Fills `mesh`'s triangles at `positions` (metres) in `colour`, each shaded by how squarely
-/// it faces the camera at `eye`, far to near; returns how many were in front of the camera.
+/// Fills the triangles of each part (positions in metres, the mesh whose triangles index
+/// them, a colour) in one far-to-near order, each shaded by how squarely it faces the
+/// camera at `eye`; returns per part how many were in front of the camera.
 fn draw_triangles(
     painter: &egui::Painter,
     project: &impl Fn(Vec3) -> Option<Pos2>,
     eye: Vec3,
-    positions: &[Vec3],
-    mesh: &Mesh,
-    colour: Color32,
-) -> usize {
-    let screen: Vec<Option<Pos2>> = positions.iter().map(|p| project(*p)).collect();
-    let mut faces: Vec<(f32, [usize; 3], f32)> = mesh
-        .triangles
-        .iter()
-        .filter_map(|t| {
+    parts: &[(Cow<'_, [Vec3]>, &Mesh, Color32)],
+) -> Vec<usize> {
+    let screens: Vec<Vec<Option<Pos2>>> =
+        parts.iter().map(|(positions, _, _)| positions.iter().map(|p| project(*p)).collect()).collect();
+    let mut faces: Vec<(f32, usize, [usize; 3], f32)> = Vec::new();
+    for (part, ((positions, mesh, _), screen)) in parts.iter().zip(&screens).enumerate() {
+        faces.extend(mesh.triangles.iter().filter_map(|t| {
             let [a, b, c] = t.map(|i| i as usize);
             let (pa, pb, pc) = (*positions.get(a)?, *positions.get(b)?, *positions.get(c)?);
             screen[a].and(screen[b]).and(screen[c])?;
             let centre = (pa + pb + pc) / 3.0;
             let facing = (pb - pa).cross(pc - pa).normalize_or_zero().dot((eye - centre).normalize_or_zero()).abs();
-            Some((centre.distance_squared(eye), [a, b, c], facing))
-        })
-        .collect();
+            Some((centre.distance_squared(eye), part, [a, b, c], facing))
+        }));
+    }
     faces.sort_by(|x, y| y.0.total_cmp(&x.0));
+    let mut drawn = vec![0; parts.len()];
     let mut out = egui::epaint::Mesh::default();
-    for &(_, corners, facing) in &faces {
+    for &(_, part, corners, facing) in &faces {
+        drawn[part] += 1;
+        let colour = parts[part].2;
         let light = 0.35 + 0.65 * facing;
         let shade = |c: u8| (f32::from(c) * light) as u8;
         let base = out.vertices.len() as u32;
         for v in corners {
             out.colored_vertex(
-                screen[v].unwrap_or_default(),
+                screens[part][v].unwrap_or_default(),
                 Color32::from_rgb(shade(colour.r()), shade(colour.g()), shade(colour.b())),
             );
         }
         out.add_triangle(base, base + 1, base + 2);
     }
     painter.add(egui::Shape::mesh(out));
-    faces.len()
+    drawn
 }
 
 /// The smoke's marker particles at `frame` as small squares, grey where the smoke is thin

@@ -205,6 +205,13 @@ impl Node for ExportGlb {
         let clip = ctx.input(&CLIP_IN)?;
         let mesh = ctx.optional_input(&MESH_IN)?;
         let props = ctx.optional_input(&PROPS_IN)?;
+        if props.as_ref().is_some_and(|p| p.skin.is_some()) {
+            return Err(NodeError::input(
+                "props",
+                "is skinned: props are written where they stand; connect an unskinned mesh (a skinned one goes to mesh)"
+                    .to_owned(),
+            ));
+        }
         let mut clips = vec![(ctx.text_param(&NAME)?.to_owned(), clip)];
         for (input, param) in MORE_CLIPS.iter().zip(&MORE_NAMES) {
             if let Some(more) = ctx.optional_input(input)? {

@@ -24,9 +24,9 @@ pub const INSIDE_SLACK_M: f64 = 0.001;
 /// The deepest the mesh goes into the props over a window of frames.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct PropsPenetration {
-    /// Deepest vertex inside a prop, cm (0 when none is).
+    /// Deepest vertex inside a prop, cm (0 when none is more than [`INSIDE_SLACK_M`] in).
     pub max_cm: f64,
-    /// The frame of the deepest, if any vertex went in.
+    /// The frame of the deepest, if any vertex went in further than the slack.
     pub max_frame: Option<usize>,
     /// Frames with a vertex more than [`INSIDE_SLACK_M`] inside a prop.
     pub frames_inside: usize,
@@ -49,7 +49,7 @@ fn distance_to_surface(props: &Mesh, p: Vec3) -> f32 {
 /// surfaces) over the frames of `window`.
 ///
 /// Errors: the mesh is not skinned to the clip's skeleton; the props index past their
-/// vertices.
+/// vertices or have a non-finite one.
 pub fn props_penetration(
     clip: &Clip,
     mesh: &Mesh,
@@ -62,6 +62,9 @@ pub fn props_penetration(
     if props.triangles.iter().flatten().any(|&i| i as usize >= n) {
         return Err(SkinError::Inconsistent(format!("the props' triangles index past their {n} vertices")));
     }
+    if props.positions.iter().any(|p| !p.is_finite()) {
+        return Err(SkinError::Inconsistent("the props have a non-finite vertex".into()));
+    }
     let corners: Vec<DVec3> = props.positions.iter().map(|p| p.as_dvec3()).collect();
     let lo = props.positions.iter().copied().fold(Vec3::INFINITY, Vec3::min);
     let hi = props.positions.iter().copied().fold(Vec3::NEG_INFINITY, Vec3::max);
@@ -73,16 +76,20 @@ pub fn props_penetration(
         let mut deepest_m = 0.0f64;
         for (v, rest) in mesh.positions.iter().enumerate() {
             let p = blend_matrices(&matrices, &skin.joints[v], &skin.weights[v]).transform_point3(*rest);
-            if p.cmplt(lo).any() || p.cmpgt(hi).any() || winding_number(&corners, &props.triangles, p.as_dvec3()) < 0.5
-            {
+            if p.cmplt(lo).any() || p.cmpgt(hi).any() {
+                continue;
+            }
+            // Either orientation: a prop whose triangles wind clockwise is just as solid.
+            if winding_number(&corners, &props.triangles, p.as_dvec3()).abs() < 0.5 {
                 continue;
             }
             deepest_m = deepest_m.max(f64::from(distance_to_surface(props, p)));
         }
-        if deepest_m > INSIDE_SLACK_M {
-            out.frames_inside += 1;
+        if deepest_m <= INSIDE_SLACK_M {
+            continue;
         }
-        if deepest_m > 0.0 && 100.0 * deepest_m > out.max_cm {
+        out.frames_inside += 1;
+        if 100.0 * deepest_m > out.max_cm {
             out.max_cm = 100.0 * deepest_m;
             out.max_frame = Some(f);
         }
@@ -130,6 +137,15 @@ mod tests {
         assert_eq!((got.max_frame, got.frames_inside), (Some(4), 2));
         let above = props_penetration(&clip, &mesh, &cube, FrameRange { start: 0, end: 3 }).unwrap();
         assert_eq!(above, PropsPenetration { max_cm: 0.0, max_frame: None, frames_inside: 0 });
+    }
+
+    /// The same cube with every triangle turned clockwise measures the same.
+    #[test]
+    fn an_inside_out_box_is_as_solid() {
+        let (clip, mesh, mut cube) = sinking();
+        cube.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+        let got = props_penetration(&clip, &mesh, &cube, FrameRange { start: 0, end: 5 }).unwrap();
+        assert!((got.max_cm - 15.0).abs() < 1e-3, "{got:?}");
     }
 
     #[test]

@@ -776,7 +776,11 @@ pub fn measure_quality(
 impl QualityReport {
     /// Adds how deep `mesh` (skinned to `clip`, the clip this report measured) goes into
     /// `props` over the report's window; without a usable mesh it says so in the findings.
+    /// Props without triangles (a simulation without a stool) are no props: nothing is added.
     pub fn measure_props(&mut self, clip: &Clip, mesh: Option<&Mesh>, props: &Mesh) {
+        if props.triangles.is_empty() {
+            return;
+        }
         let Some(mesh) = mesh else {
             self.findings.push("props need the skinned mesh: how deep the body goes into them is not measured".into());
             return;

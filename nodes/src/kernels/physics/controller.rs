@@ -291,6 +291,10 @@ impl Supervisor {
                 Status::Failed(why) => self.close(state.time_secs, Outcome::Failed(why)),
             }
         }
+        // No controller, or the active one just finished: its feed-forward rates end with
+        // it (a newly activated controller sets its own below; with none, the motors hold
+        // the last targets still).
+        targets.velocity.fill([0.0; 3]);
         let requested = self.requested.take();
         let best = self
             .pool
@@ -307,12 +311,7 @@ impl Supervisor {
                 Some((_, bs)) if bs >= s => best,
                 _ => Some((i, s)),
             });
-        let Some((i, score)) = best else {
-            // Nothing takes over: the motors hold the last targets, without the finished
-            // controller's feed-forward rates.
-            targets.velocity.fill([0.0; 3]);
-            return;
-        };
+        let Some((i, score)) = best else { return };
         let reason =
             if requested == Some(i) && score >= REQUEST_BOOST { Reason::Requested } else { Reason::BestBid { score } };
         self.pool[i].activate(state, ctx);

@@ -28,8 +28,9 @@
 //! 48 pushes it halved the falls whose head struck faster than 1 m/s (15 to 8).
 //!
 //! Pre-condition: the figure is falling (no foot down, or the capture point outside the
-//! support), not sitting on a seat, not lying still on the ground (COM slower than [`REST_SPEED`] and below
-//! [`LYING_COM_SHARE`] of its standing height) and the head still above [`MIN_HEAD_M`].
+//! support), not sitting upright on a seat ([`super::sit::held_on_seat`]), not lying still
+//! on the ground (COM slower than [`REST_SPEED`] and below [`LYING_COM_SHARE`] of its
+//! standing height) and the head still above [`MIN_HEAD_M`].
 //! Post-condition: at rest on the ground (COM slower than [`REST_SPEED`] for
 //! [`REST_SECS`]). Expected performance: the head never hits the ground (touches it coming
 //! down faster than [`HEAD_HIT_M_S`]); a head laid on the ground slower than that is not a
@@ -112,8 +113,8 @@ impl Controller for Fall {
         let falling = !(state.foot_down[0] || state.foot_down[1]) || state.capture_distance_m > 0.0;
         // Lying still on the ground is where a fall ends, not where one starts.
         let lying = state.com_vel.length() < REST_SPEED && state.com.y < LYING_COM_SHARE * ctx.standing_com_height_m;
-        // A figure on a seat is carried by it, wherever its capture point is.
-        let seated = ctx.seat.is_some_and(|seat| seat.sitting(ctx.figure, state));
+        // A figure upright on a seat is carried by it, wherever its capture point is.
+        let seated = super::sit::held_on_seat(state, ctx);
         if falling && !lying && !seated && state.head_clearance_m > MIN_HEAD_M { BID_SENSIBLE } else { 0 }
     }
     fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {

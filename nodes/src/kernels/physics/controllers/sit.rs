@@ -51,9 +51,18 @@ pub const K_TRACK: f32 = 3.0;
 pub const FADE_M: f32 = 0.12;
 /// Time after the descent's end within which the figure must sit, seconds.
 pub const MISS_SECS: f32 = 0.5;
-/// A seated figure is held when its trunk is within this of vertical, radians (within the
-/// 75° the controller fails at, so holding it does not fail at once).
-pub const HOLD_TRUNK_RAD: f32 = 1.22;
+/// Sit fails when the trunk tilts further than this from vertical, radians (75°).
+pub const FAIL_TRUNK_RAD: f32 = 1.309;
+/// A seated figure is held when its trunk is within this of vertical, radians: 5° inside
+/// [`FAIL_TRUNK_RAD`], so holding it does not fail at once (which would make sit bid and
+/// fail at every step); a rise's lean ([`super::rise::RISE_LEAN_RAD`], 69°) stays within it.
+pub const HOLD_TRUNK_RAD: f32 = FAIL_TRUNK_RAD - 0.087;
+
+/// Whether the figure sits on the seat with its trunk within [`HOLD_TRUNK_RAD`]: what sit
+/// holds, and what the fall controller leaves alone.
+pub fn held_on_seat(state: &FigureState, ctx: &ControlContext<'_>) -> bool {
+    ctx.seat.is_some_and(|seat| seat.sitting(ctx.figure, state)) && state.trunk_upright > HOLD_TRUNK_RAD.cos()
+}
 /// The descent may wait; seated the figure must be within this long of starting, seconds.
 pub const MAX_SIT_SECS: f32 = 3.0 * SIT_SECS;
 
@@ -145,9 +154,10 @@ impl Controller for Sit {
     fn bid(&self, state: &FigureState, ctx: &ControlContext<'_>) -> u32 {
         let Some(seat) = ctx.seat else { return 0 };
         // Already on the seat (a rise that was refused or gave up): hold the figure seated,
-        // if the trunk is well within what the controller keeps (else it would fail at once).
+        // if the trunk is well within what the controller keeps and the figure has the legs
+        // a plan needs (else it would fail at once).
         if seat.sitting(ctx.figure, state) {
-            return if state.trunk_upright > HOLD_TRUNK_RAD.cos() { BID_SENSIBLE } else { 0 };
+            return if held_on_seat(state, ctx) && plan(state, ctx).is_some() { BID_SENSIBLE } else { 0 };
         }
         let (forward, _) = facing(state, ctx);
         let standing = state.foot_down[0]
@@ -168,7 +178,7 @@ impl Controller for Sit {
         let (Some(plan), Some(seat)) = (&mut self.plan, ctx.seat) else {
             return Status::Failed("no seat, or the figure lacks a full pair of legs".into());
         };
-        if state.trunk_upright < 75f32.to_radians().cos() {
+        if state.trunk_upright < FAIL_TRUNK_RAD.cos() {
             return Status::Failed("the trunk tilted past 75°".into());
         }
         let t = state.time_secs - plan.start_secs;
