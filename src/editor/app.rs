@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use egui::{Key, Modifiers, RichText, Ui};
+use kinegraph_nodes::builtin::PROPS_PORT;
 use kinegraph_nodes::model::{Clip, Contacts};
 use kinegraph_nodes::node::{Registry, Value};
 
@@ -33,9 +34,6 @@ enum Prompt {
 
 /// How often unsaved edits are autosaved (seconds).
 const AUTOSAVE_SECS: f64 = 30.0;
-/// The port that carries a scene's fixed objects (physics.simulate's output, export.glb's
-/// input): the viewport draws the mesh there with the clip.
-const PROPS_PORT: &str = "props";
 
 /// The editor: one document, its history, views and the evaluation worker.
 pub struct EditorApp {

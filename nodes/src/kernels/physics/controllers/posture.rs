@@ -81,7 +81,7 @@ impl LegLengths {
         if shank <= max_shank_rad {
             return (thigh, shank);
         }
-        let knee = Vec2::new(max_shank_rad.sin(), max_shank_rad.cos()) * self.shank_m;
+        let knee = self.knee_at(max_shank_rad);
         let rise = (hip.y - knee.y).clamp(-self.thigh_m, self.thigh_m);
         let back = (self.thigh_m * self.thigh_m - rise * rise).sqrt();
         // The thigh from the hip, `back` behind and `rise` above the knee, down to it.
@@ -287,7 +287,14 @@ impl FeedForward {
                 self.rate.clone_from(&targets.velocity);
             }
         }
-        self.last = Some((targets.angles.clone(), time_secs));
+        // The previous targets kept in place: no allocation per control step.
+        match &mut self.last {
+            Some((was, at)) => {
+                was.clone_from(&targets.angles);
+                *at = time_secs;
+            }
+            None => self.last = Some((targets.angles.clone(), time_secs)),
+        }
     }
 }
 

@@ -24,6 +24,7 @@ use super::posture::{
 };
 use super::{facing, leg};
 use crate::kernels::physics::controller::{BID_CAN_REACH, BID_SENSIBLE, ControlContext, Controller, Status, Targets};
+use crate::kernels::physics::figure::BodyShape;
 use crate::kernels::physics::seat::Seat;
 use crate::kernels::physics::state::FigureState;
 
@@ -61,8 +62,9 @@ pub const HOLD_TRUNK_RAD: f32 = FAIL_TRUNK_RAD - 0.087;
 /// Whether the figure sits on the seat with its trunk within [`HOLD_TRUNK_RAD`]: what sit
 /// holds, and what the fall controller leaves alone.
 pub fn held_on_seat(state: &FigureState, ctx: &ControlContext<'_>) -> bool {
-    ctx.seat.is_some_and(|seat| seat.sitting(ctx.figure, state)) && state.trunk_upright > HOLD_TRUNK_RAD.cos()
+    state.trunk_upright > HOLD_TRUNK_RAD.cos() && ctx.seat.is_some_and(|seat| seat.sitting(ctx.figure, state))
 }
+
 /// The descent may wait; seated the figure must be within this long of starting, seconds.
 pub const MAX_SIT_SECS: f32 = 3.0 * SIT_SECS;
 
@@ -109,8 +111,8 @@ fn seated_hips(state: &FigureState, ctx: &ControlContext<'_>, seat: &Seat) -> [O
         let (thigh, _, foot) = leg(ctx, side)?;
         let ankle = state.body_pos[foot];
         let radius = match ctx.figure.bodies[thigh].shape {
-            crate::kernels::physics::figure::BodyShape::Capsule { radius_m, .. } => radius_m,
-            crate::kernels::physics::figure::BodyShape::Box { half_extents, .. } => half_extents.min_element(),
+            BodyShape::Capsule { radius_m, .. } => radius_m,
+            BodyShape::Box { half_extents, .. } => half_extents.min_element(),
         };
         let edge = (seat.front_edge() - ankle).dot(forward);
         Some((lengths, Vec2::new(edge - HIP_BEHIND_EDGE_M, seat.top_centre.y + radius + HOVER_M - ankle.y)))
@@ -153,11 +155,12 @@ impl Controller for Sit {
     }
     fn bid(&self, state: &FigureState, ctx: &ControlContext<'_>) -> u32 {
         let Some(seat) = ctx.seat else { return 0 };
-        // Already on the seat (a rise that was refused or gave up): hold the figure seated,
-        // if the trunk is well within what the controller keeps and the figure has the legs
-        // a plan needs (else it would fail at once).
-        if seat.sitting(ctx.figure, state) {
-            return if held_on_seat(state, ctx) && plan(state, ctx).is_some() { BID_SENSIBLE } else { 0 };
+        // Already on the seat (a rise that was refused or gave up): hold the figure seated
+        // if it has the legs a plan needs (else it would fail at once). Sitting tilted past
+        // the hold, it is not standing balanced either, so it gets no bid below.
+        let ends = seated_hips(state, ctx, &seat);
+        if held_on_seat(state, ctx) {
+            return if ends.iter().all(Option::is_some) { BID_SENSIBLE } else { 0 };
         }
         let (forward, _) = facing(state, ctx);
         let standing = state.foot_down[0]
@@ -166,9 +169,8 @@ impl Controller for Sit {
         // Facing away from the seat, its front edge behind both soles' centres.
         let behind = seat.forward.dot(forward) > 0.7
             && (0..2).all(|s| (seat.front_edge() - state.sole_centre[s]).dot(forward) < -0.02);
-        let reach = seated_hips(state, ctx, &seat)
-            .iter()
-            .all(|h| h.is_some_and(|(l, hip)| hip.length() < 0.98 * (l.thigh_m + l.shank_m) && hip.y > 0.0));
+        let reach =
+            ends.iter().all(|h| h.is_some_and(|(l, hip)| hip.length() < 0.98 * (l.thigh_m + l.shank_m) && hip.y > 0.0));
         if standing && behind && reach { BID_CAN_REACH } else { 0 }
     }
     fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
