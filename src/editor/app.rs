@@ -7,8 +7,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use egui::{Key, Modifiers, RichText, Ui};
-use kinegraph_nodes::builtin::PROPS_PORT;
 use kinegraph_nodes::model::{Clip, Contacts};
+use kinegraph_nodes::node::PROPS_PORT;
 use kinegraph_nodes::node::{Registry, Value};
 
 use super::canvas::{Badge, Canvas, Face, Faces, Marks};

@@ -156,7 +156,7 @@ const MESH_IN: Input<Arc<Mesh>> = Input::optional(
     "A mesh skinned to the clip's skeleton, written with the animation and its materials and textures (optional).",
 );
 const PROPS_IN: Input<Arc<Mesh>> = Input::optional(
-    super::PROPS_PORT,
+    crate::node::PROPS_PORT,
     "Fixed objects of the scene, written where they stand (world metres): e.g. physics.simulate's stool (optional).",
 );
 const MORE_CLIPS: [Input<Arc<Clip>>; 3] = [
@@ -207,7 +207,7 @@ impl Node for ExportGlb {
         let props = ctx.optional_input(&PROPS_IN)?;
         if props.as_ref().is_some_and(|p| p.skin.is_some()) {
             return Err(NodeError::input(
-                super::PROPS_PORT,
+                PROPS_IN.name(),
                 "is skinned: props are written where they stand; connect an unskinned mesh (a skinned one goes to mesh)"
                     .to_owned(),
             ));

@@ -3,10 +3,6 @@
 //! [`crate::kernels`]: a family imports kernels, the model, the formats and the contract,
 //! never another family. Adding a family is one file here, registered in [`register`].
 
-/// The port that carries a scene's fixed objects (physics.simulate's output; export.glb's
-/// and motion.quality's input); the editor's viewport draws the mesh found there.
-pub const PROPS_PORT: &str = "props";
-
 pub mod arm;
 pub mod barnet;
 pub mod clip_edit;

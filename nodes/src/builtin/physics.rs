@@ -58,7 +58,7 @@ const REPORT: Output<Arc<Report>> = Output::new(
 );
 
 const PROPS: Output<Arc<Mesh>> = Output::new(
-    super::PROPS_PORT,
+    crate::node::PROPS_PORT,
     "The script's fixed objects as one unskinned mesh in world metres (the stool; empty without one), for \
      export.glb's props and the viewport.",
 );

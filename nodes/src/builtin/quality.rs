@@ -34,7 +34,7 @@ const MESH: Input<Arc<Mesh>> = Input::optional(
     "A mesh skinned to the clip's skeleton: its soles are checked against the floor too (joints alone sit above the skin).",
 );
 const PROPS: Input<Arc<Mesh>> = Input::optional(
-    super::PROPS_PORT,
+    crate::node::PROPS_PORT,
     "The scene's fixed objects as closed surfaces (physics.simulate's stool): how deep the skinned mesh goes into \
      them is measured too (needs mesh).",
 );

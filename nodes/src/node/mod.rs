@@ -15,7 +15,7 @@ pub use param::{
     ChoiceParam, FloatParam, InputFolderParam, InputPathParam, IntParam, OutputPathParam, ParamKind, ParamSpec,
     ParamValue, TextParam,
 };
-pub use port::{Input, Output, PortSpec};
+pub use port::{Input, Output, PROPS_PORT, PortSpec};
 pub use value::{PortType, PortValue, Report, Value, into_report, report_of};
 
 pub use crate::model::choice::{Choice, OnOff};

@@ -4,6 +4,11 @@ use std::marker::PhantomData;
 
 use super::value::{PortType, PortValue};
 
+/// The port that carries a scene's fixed objects (physics.simulate's output; export.glb's
+/// and motion.quality's input); the editor's viewport draws the mesh found there. It lives
+/// with the contract so the families that share it need not import each other or the registry.
+pub const PROPS_PORT: &str = "props";
+
 /// What the schema (catalogue, validator, editor) knows of a port.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct PortSpec {
