@@ -23,7 +23,7 @@ fn figure_step(c: &mut Criterion) {
     let Some(data) = shared_data() else { return };
     let (clip, _) = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value;
     let skeleton = clip.skeleton().clone();
-    let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+    let figure = build_figure(&skeleton, &FigureParams::default(), None).unwrap();
     let mut world = World::new(WorldParams::default()).unwrap();
     world.add_ground(0.0, 0.9);
     figure.spawn(&mut world, &skeleton, Vec3::new(0.0, -figure.rest_sole_y_m, 0.0));
@@ -63,7 +63,7 @@ fn simulate_push(c: &mut Criterion) {
     let Some(data) = shared_data() else { return };
     let (clip, _) = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value;
     let skeleton = clip.skeleton().clone();
-    let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+    let figure = build_figure(&skeleton, &FigureParams::default(), None).unwrap();
     let script = Script {
         duration_secs: 3.0,
         controllers: None,

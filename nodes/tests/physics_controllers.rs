@@ -139,7 +139,7 @@ const MOCK_ANGLE_RAD: f32 = 0.25;
 #[test]
 fn no_controller_active_means_no_feed_forward() {
     let Some(data) = shared_data() else { return };
-    let figure = build_figure(&cmu(&data), &FigureParams::default()).unwrap();
+    let figure = build_figure(&cmu(&data), &FigureParams::default(), None).unwrap();
     let stand = Targets::rest(&figure);
     let ctx = unit_context(&figure, &stand);
     let pool: Vec<Box<dyn Controller>> =
@@ -169,7 +169,7 @@ fn unit_context<'a>(
 fn supervisor_activates_the_best_bid_times_preference_and_reacts_to_failure_and_requests() {
     let Some(data) = shared_data() else { return };
     let skeleton = cmu(&data);
-    let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+    let figure = build_figure(&skeleton, &FigureParams::default(), None).unwrap();
     let stand = Targets::rest(&figure);
     let ctx = unit_context(&figure, &stand);
     // a: 2 × 5 = 10 wins over b: 1 × 8 = 8 and c: 0 × 100; a fails at 1 s, then b;
@@ -218,7 +218,7 @@ fn balance_leans_turned_legs_about_the_same_world_axis() {
     use kinegraph_nodes::kernels::physics::figure::BodyRole;
     let Some(data) = shared_data() else { return };
     let skeleton = cmu(&data);
-    let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+    let figure = build_figure(&skeleton, &FigureParams::default(), None).unwrap();
     let stand = Targets::rest(&figure);
     let ctx = unit_context(&figure, &stand);
     let body = |role, side| figure.bodies.iter().position(|b| b.role == role && b.side == Some(side)).unwrap();
@@ -294,7 +294,7 @@ fn controllers_used(r: &SimResult) -> Vec<(&'static str, f32, String)> {
 
 /// Forward of the figure in world axes.
 fn forward(skeleton: &Skeleton) -> [f32; 3] {
-    build_figure(skeleton, &FigureParams::default()).unwrap().forward.to_array()
+    build_figure(skeleton, &FigureParams::default(), None).unwrap().forward.to_array()
 }
 
 /// Without an initial pose the figure stands with its soles under its hips, whatever its
@@ -333,7 +333,7 @@ fn standing_pose_puts_the_soles_under_the_hips() {
 fn small_push_is_absorbed_by_balance() {
     let Some(data) = shared_data() else { return };
     let runs = [("cmu", cmu(&data)), ("xbot", xbot(&data))].into_iter().flat_map(|(label, skeleton)| {
-        let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+        let figure = build_figure(&skeleton, &FigureParams::default(), None).unwrap();
         [0.0f32, 90.0, 180.0, 270.0].map(|deg| {
             let a = deg.to_radians();
             (label, deg, skeleton.clone(), (figure.forward * a.cos() + figure.left * a.sin()).to_array())
@@ -475,7 +475,7 @@ fn protective_fall_table_halves_the_head_impact_speed() {
     let (mut protected, mut limp) = (Vec::new(), Vec::new());
     println!("head impact speed, m/s: protected (fall in the pool) / limp (balance, step, relax)");
     for (label, skeleton) in [("cmu", cmu(&data)), ("xbot", xbot(&data))] {
-        let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+        let figure = build_figure(&skeleton, &FigureParams::default(), None).unwrap();
         for d in 0..8 {
             let angle = d as f32 * std::f32::consts::FRAC_PI_4;
             let dir = (figure.forward * angle.cos() + figure.left * angle.sin()).to_array();
@@ -539,7 +539,7 @@ fn same_script_gives_the_same_clip_bit_for_bit() {
 fn push_table_over_eight_directions() {
     let Some(data) = shared_data() else { return };
     let skeleton = cmu(&data);
-    let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+    let figure = build_figure(&skeleton, &FigureParams::default(), None).unwrap();
     let impulses = [10.0f32, 20.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0];
     let pools: [(&str, &[&str]); 2] =
         [("balance", &["balance", "fall", "relax"]), ("balance+step", &["balance", "step", "fall", "relax"])];
@@ -595,7 +595,7 @@ fn bad_scripts_and_steps_are_typed_errors() {
     s = push_script(1.0, "chest", fwd, 10.0, None);
     assert!(matches!(sim(&s, &unstable), Err(SimError::World(PhysicsError::UnstableTimeStep { .. }))));
     // Blow-up detection on hand-made states: a NaN pose, and an energy past the bound.
-    let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+    let figure = build_figure(&skeleton, &FigureParams::default(), None).unwrap();
     let bound = energy_bound_j(&figure, &s.pushes, 9.80665);
     let mut state = blank_state(&figure);
     assert_eq!(blown_up(&state, bound), None);

@@ -71,7 +71,7 @@ fn cmu_and_xbot_figures_have_de_leva_limb_masses_and_bone_lengths() {
     for (label, skeleton, height) in
         [("cmu 02_01", cmu(&data, "cmu/02_01.bvh"), cmu_height), ("xbot", xbot, xbot_height)]
     {
-        let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+        let figure = build_figure(&skeleton, &FigureParams::default(), None).unwrap();
         println!(
             "{label}: {} bodies, stature {:.3} m, mass {:.2} kg ({}), forward {:?}",
             figure.bodies.len(),
@@ -113,9 +113,9 @@ fn cmu_and_xbot_figures_have_de_leva_limb_masses_and_bone_lengths() {
 #[test]
 fn skeletons_that_cannot_become_figures_are_refused() {
     let one = Skeleton::new(vec![Joint::new("Hips", None, Vec3::ZERO)]).unwrap();
-    assert_eq!(build_figure(&one, &FigureParams::default()), Err(FigureError::TooFewJoints { joints: 1 }));
+    assert_eq!(build_figure(&one, &FigureParams::default(), None), Err(FigureError::TooFewJoints { joints: 1 }));
     let two = Skeleton::new(vec![Joint::new("a", None, Vec3::ZERO), Joint::new("b", Some(0), Vec3::Y)]).unwrap();
-    assert!(matches!(build_figure(&two, &FigureParams::default()), Err(FigureError::NotHumanoid { .. })));
+    assert!(matches!(build_figure(&two, &FigureParams::default(), None), Err(FigureError::NotHumanoid { .. })));
     let Some(data) = shared_data() else { return };
     // Collapse the left shank: the knee sits on the ankle.
     let skeleton = cmu(&data, "cmu/02_01.bvh");
@@ -123,7 +123,7 @@ fn skeletons_that_cannot_become_figures_are_refused() {
     let foot = skeleton.index_of("LeftFoot").unwrap();
     joints[foot].rest_offset = Vec3::ZERO;
     let broken = Skeleton::new(joints).unwrap();
-    match build_figure(&broken, &FigureParams::default()) {
+    match build_figure(&broken, &FigureParams::default(), None) {
         Err(FigureError::ZeroLengthBone { from, to, .. }) => {
             assert_eq!((from.as_str(), to.as_str()), ("LeftLeg", "LeftFoot"))
         }
@@ -134,7 +134,7 @@ fn skeletons_that_cannot_become_figures_are_refused() {
 /// Stands the rest-pose figure on the ground and holds the pose with the PD motors alone;
 /// returns the pelvis height per step and the head body's first and last heights.
 fn stand(skeleton: &Skeleton, seconds: f32) -> (Vec<f32>, f32, f32) {
-    let figure = build_figure(skeleton, &FigureParams::default()).unwrap();
+    let figure = build_figure(skeleton, &FigureParams::default(), None).unwrap();
     let mut world = World::new(WorldParams::default()).unwrap();
     world.add_ground(0.0, 0.9);
     let spawned = figure.spawn(&mut world, skeleton, Vec3::new(0.0, -figure.rest_sole_y_m, 0.0));
@@ -155,7 +155,7 @@ fn stand(skeleton: &Skeleton, seconds: f32) -> (Vec<f32>, f32, f32) {
 fn a_pd_held_figure_stands_unpushed_for_five_seconds() {
     let Some(data) = shared_data() else { return };
     for (label, skeleton) in [("cmu 02_01", cmu(&data, "cmu/02_01.bvh")), ("xbot", xbot(&data))] {
-        let figure = build_figure(&skeleton, &FigureParams::default()).unwrap();
+        let figure = build_figure(&skeleton, &FigureParams::default(), None).unwrap();
         // Spawned with its soles on the ground: the pelvis starts at its height above the soles.
         let rest_pelvis = skeleton.rest_positions()[0].y - figure.rest_sole_y_m;
         let (pelvis, head_start, head_end) = stand(&skeleton, 5.0);

@@ -8,8 +8,10 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 
 use glam::Vec3;
 use kinegraph_nodes::cancel::Cancel;
@@ -17,14 +19,24 @@ use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
 use kinegraph_nodes::formats::gltf::{GltfReadOptions, read_gltf_file};
 use kinegraph_nodes::kernels::body::find_landmarks;
+use kinegraph_nodes::kernels::load::load_character;
 use kinegraph_nodes::kernels::physics::controller::Outcome;
+use kinegraph_nodes::kernels::physics::figure::{BodyRole, Figure, FigureParams, build_figure};
 use kinegraph_nodes::kernels::physics::seat::Chair;
 use kinegraph_nodes::kernels::physics::simulate::{Request, Script, SimParams, SimResult, simulate};
-use kinegraph_nodes::model::Skeleton;
+use kinegraph_nodes::kernels::props::props_penetration;
 use kinegraph_nodes::model::fk::{Transform, pose_world};
+use kinegraph_nodes::model::{Clip, FrameRange, Mesh, Skeleton, Skin};
+use kinegraph_nodes::node::{NodeContext, NodeError, ParamValue, RunServices, Value};
 
 fn xbot(data: &Path) -> Arc<Skeleton> {
     read_gltf_file(&data.join("gltf/Xbot.glb"), &GltfReadOptions::default()).unwrap().value.skeleton.unwrap()
+}
+
+/// The Xbot as `character.load` gives it: skeleton and every mesh merged, skinned to it.
+fn xbot_with_mesh(data: &Path) -> (Arc<Skeleton>, Arc<Mesh>) {
+    let character = load_character(&data.join("gltf/Xbot.glb"), 0).unwrap().value;
+    (character.clip.skeleton().clone(), Arc::new(character.mesh))
 }
 
 fn cmu(data: &Path) -> Arc<Skeleton> {
@@ -84,11 +96,14 @@ struct Verdict {
     seated_hips: (f32, f32),
     /// Largest horizontal drift of an ankle at the run's end from where it stood, metres.
     feet_drift_m: f32,
+    /// With a mesh: how deep the skinned body went into the stool over the last second
+    /// before the rise request (seated), cm, by [`props_penetration`].
+    sunk_cm: Option<f64>,
     min_head_m: f32,
     timeline: String,
 }
 
-fn judge(r: &SimResult, chair: &Chair, rise_at: f32, secs: f32) -> Verdict {
+fn judge(r: &SimResult, mesh: Option<&Mesh>, chair: &Chair, rise_at: f32, secs: f32) -> Verdict {
     let first = pose_at(r, 0.0);
     let seated = pose_at(r, rise_at - 0.1);
     let last = pose_at(r, secs);
@@ -131,12 +146,21 @@ fn judge(r: &SimResult, chair: &Chair, rise_at: f32, secs: f32) -> Verdict {
         .map(|a| format!("{} {:.2}–{:.2} {:?}", a.controller, a.start_secs, a.end_secs, a.outcome))
         .collect::<Vec<_>>()
         .join(" | ");
+    let seated_frames = FrameRange {
+        start: ((rise_at - 1.0) as f64 * r.clip.fps()) as usize,
+        end: (rise_at as f64 * r.clip.fps()) as usize,
+    };
+    let sunk_cm = mesh.map(|mesh| {
+        let stool = r.seat.expect("the script has a chair").mesh();
+        props_penetration(&r.clip, mesh, &stool, seated_frames).unwrap().max_cm
+    });
     Verdict {
         sat,
         stood,
         kept_seated,
         seated_hips: (above_seat, moved_back),
         feet_drift_m: drift(&last),
+        sunk_cm,
         min_head_m: r.min_head_clearance_m,
         timeline,
     }
@@ -152,10 +176,12 @@ const ANKLE_RISE_M: f32 = 0.06;
 const RISE_AT: f32 = 4.5;
 const RUN_SECS: f32 = 10.0;
 
-fn run(skeleton: &Arc<Skeleton>, chair: Chair) -> Verdict {
-    let r = simulate(skeleton, None, &sit_and_rise(chair, RISE_AT, RUN_SECS), &SimParams::default(), Cancel::NEVER)
-        .unwrap();
-    judge(&r, &chair, RISE_AT, RUN_SECS)
+/// Sits and rises on `chair`, the figure's shapes sized from `sized_from` if given, and
+/// measures how deep `measured` (skinned to the skeleton) goes into the stool.
+fn run(skeleton: &Arc<Skeleton>, chair: Chair, sized_from: Option<&Arc<Mesh>>, measured: Option<&Mesh>) -> Verdict {
+    let params = SimParams { mesh: sized_from.cloned(), ..SimParams::default() };
+    let r = simulate(skeleton, None, &sit_and_rise(chair, RISE_AT, RUN_SECS), &params, Cancel::NEVER).unwrap();
+    judge(&r, measured, &chair, RISE_AT, RUN_SECS)
 }
 
 /// The Mixamo Xbot on stools 0.40, 0.45 and 0.50 m high, their front edges 0.10, 0.15 and
@@ -173,7 +199,7 @@ fn xbot_sits_on_stools_of_three_heights_and_stands_up_from_two() {
     for seat_height_m in [0.40f32, 0.45, 0.50] {
         for behind_m in [0.10f32, 0.15, 0.20] {
             let chair = Chair { seat_height_m, behind_m, ..Chair::default() };
-            let v = run(&skeleton, chair);
+            let v = run(&skeleton, chair, None, None);
             println!(
                 "seat {seat_height_m:.2} m, edge {behind_m:.2} m behind: sat {} (hips {:.3} m above the seat, {:.3} m back), stood {}, kept seated {:?}, feet drift {:.3} m, lowest head {:.2} m: {}",
                 v.sat,
@@ -195,6 +221,60 @@ fn xbot_sits_on_stools_of_three_heights_and_stands_up_from_two() {
     assert!(failures.is_empty(), "{failures:#?}");
     // The hold is exercised: four rises leave the hips on the seat (three stall, one is refused).
     assert!(held_runs >= 1, "no rise left the hips on the seat, so the hold was not tested");
+}
+
+/// The skin that rests on a seat: the vertices of `mesh` whose heaviest joint rides on the
+/// pelvis or a thigh of `figure` (no triangles: the props measure needs only vertices).
+fn seat_skin(mesh: &Mesh, figure: &Figure) -> Mesh {
+    let skin = mesh.skin.as_ref().unwrap();
+    let keep: Vec<usize> = (0..mesh.positions.len())
+        .filter(|&v| {
+            let w = &skin.weights[v];
+            let heaviest = (0..4).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap();
+            let body = &figure.bodies[figure.owner[usize::from(skin.joints[v][heaviest])]];
+            matches!(body.role, BodyRole::Pelvis | BodyRole::Thigh)
+        })
+        .collect();
+    Mesh {
+        positions: keep.iter().map(|&v| mesh.positions[v]).collect(),
+        normals: keep.iter().map(|&v| mesh.normals[v]).collect(),
+        skin: Some(Skin {
+            skeleton: skin.skeleton.clone(),
+            joints: keep.iter().map(|&v| skin.joints[v]).collect(),
+            weights: keep.iter().map(|&v| skin.weights[v]).collect(),
+            inverse_bind_matrices: skin.inverse_bind_matrices.clone(),
+        }),
+        ..Mesh::default()
+    }
+}
+
+/// Given its mesh, the figure's shapes are sized from the skin, and the Xbot's seated body
+/// (the skin on its pelvis and thighs, posed by linear blend skinning from the simulated
+/// clip) rests on the stool instead of sinking into it; the figure sized from the skeleton
+/// alone sinks several centimetres on the same stools, by the same measure. What happens
+/// after the rise request is printed, not asserted: the sized figure stands up from the
+/// 0.40 and 0.45 m stools, and on the 0.50 m one (no rise bid) tips off the seat.
+#[test]
+fn sized_from_its_mesh_the_seated_xbot_rests_on_the_stool() {
+    let Some(data) = shared_data() else { return };
+    let (skeleton, mesh) = xbot_with_mesh(&data);
+    let figure = build_figure(&skeleton, &FigureParams::default(), Some(&mesh)).unwrap();
+    let seat_skin = seat_skin(&mesh, &figure);
+    for seat_height_m in [0.40f32, 0.45, 0.50] {
+        let chair = Chair { seat_height_m, ..Chair::default() };
+        let sized = run(&skeleton, chair, Some(&mesh), Some(&seat_skin));
+        let from_skeleton = run(&skeleton, chair, None, Some(&seat_skin));
+        println!("seat {seat_height_m:.2} m: sized {sized:?}\n  from the skeleton {from_skeleton:?}");
+        let (above, back) = sized.seated_hips;
+        // Seated over the seat: the hips a buttock's depth above its top (11–13 cm on the
+        // Xbot's mesh), moved back past its front edge.
+        assert!((0.0..0.15).contains(&above) && back > chair.behind_m - 0.05, "{sized:?}");
+        let (sized_cm, skeleton_cm) = (sized.sunk_cm.unwrap(), from_skeleton.sunk_cm.unwrap());
+        assert!(sized_cm < 1.0, "sized from the mesh, the seated skin goes {sized_cm:.2} cm into the stool");
+        // The measure sees the defect the sizing removes (5.0–5.2 cm on the 0.40 and 0.45 m
+        // stools, 3.5 cm on the 0.50 m one).
+        assert!(skeleton_cm > 3.0, "sized from the skeleton, the skin goes only {skeleton_cm:.2} cm in");
+    }
 }
 
 /// The same script run twice gives the same clip bit for bit.
@@ -234,7 +314,7 @@ fn no_seat_no_sitting() {
 #[ignore = "the CMU figure tips backward on the way down (its splayed rest pose twists the ankles)"]
 fn cmu_sits_on_a_standard_stool() {
     let Some(data) = shared_data() else { return };
-    let v = run(&cmu(&data), Chair::default());
+    let v = run(&cmu(&data), Chair::default(), None, None);
     assert!(v.sat, "{v:?}");
 }
 
@@ -256,4 +336,44 @@ fn a_bad_chair_is_a_script_error() {
             other => panic!("{chair:?}: {:?}", other.map(|r| r.timeline)),
         }
     }
+}
+
+/// Runs `physics.simulate` on `clip` with `mesh` on its mesh input and the graph's own
+/// sit-and-rise script, for one second.
+fn run_simulate_node(clip: Arc<Clip>, mesh: Mesh) -> Result<(), NodeError> {
+    let registry = kinegraph_nodes::builtin::registry();
+    let node = registry.get("physics.simulate").unwrap();
+    let mut params: BTreeMap<String, ParamValue> =
+        node.schema().params.iter().filter_map(|p| Some((p.name.to_string(), p.default_value()?))).collect();
+    let dir = std::env::temp_dir().join(format!("kg-physics-mesh-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("script.ron"), "(duration_secs: 1.0)").unwrap();
+    params.insert("script".into(), ParamValue::Text("script.ron".into()));
+    let cancel = AtomicBool::new(false);
+    let services = RunServices { base_dir: &dir, out_dir: None, cancel: &cancel, memory_limit_bytes: 1 << 32 };
+    let progress = |_: f32| {};
+    let inputs = vec![Some(Value::Clip(clip)), Some(Value::Mesh(Arc::new(mesh)))];
+    let mut ctx = NodeContext::new(node.schema(), inputs, &params, &services, &progress);
+    let result = node.eval(&mut ctx);
+    std::fs::remove_dir_all(&dir).ok();
+    result
+}
+
+/// A mesh that cannot size the figure is an error on the node's mesh input, saying why.
+#[test]
+fn a_mesh_that_cannot_size_the_figure_names_the_mesh_input() {
+    let Some(data) = shared_data() else { return };
+    let character = load_character(&data.join("gltf/Xbot.glb"), 0).unwrap().value;
+    let xbot_clip = Arc::new(character.clip.clone());
+    let unskinned = Mesh { skin: None, ..character.mesh.clone() };
+    let err = run_simulate_node(xbot_clip.clone(), unskinned).unwrap_err();
+    assert!(matches!(&err, NodeError::Input { port: "mesh", message } if message.contains("not skinned")), "{err:?}");
+    let (cmu_clip, _) = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value;
+    let err = run_simulate_node(Arc::new(cmu_clip), character.mesh.clone()).unwrap_err();
+    assert!(
+        matches!(&err, NodeError::Input { port: "mesh", message } if message.contains("different skeleton")),
+        "{err:?}"
+    );
+    // The Xbot's own mesh sizes its figure.
+    run_simulate_node(xbot_clip, character.mesh).unwrap();
 }

@@ -5,6 +5,7 @@ use std::sync::Arc;
 
 use serde_json::json;
 
+use crate::kernels::physics::figure::FigureError;
 use crate::kernels::physics::simulate::{Script, SimError, SimParams, simulate};
 use crate::kernels::physics::{PhysicsError, WorldParams};
 use crate::model::{Clip, Curves, Mesh};
@@ -22,6 +23,12 @@ const CLIP: Input<Arc<Clip>> = Input::required(
     "clip",
     "The character: its skeleton becomes the articulated figure (16 bodies, de Leva masses); with `frame` set, \
      that frame is the initial pose.",
+);
+const MESH: Input<Arc<Mesh>> = Input::optional(
+    "mesh",
+    "The character's mesh, skinned to the clip's skeleton (optional): each capsule's radius is measured from the \
+     skin its body carries and the pelvis becomes a pad down to the buttocks, so a seated body rests on the \
+     stool instead of sinking into it.",
 );
 const SCRIPT: InputPathParam = InputPathParam::new(
     "script",
@@ -74,12 +81,12 @@ static SIMULATE: NodeSchema = NodeSchema {
           and rise from it, relax; Faloutsos et al. 2001), with the scripted pushes, controller requests and \
           stool. A run that blows up is a failure, never \
           a clip.",
-    inputs: &[CLIP.spec()],
+    inputs: &[CLIP.spec(), MESH.spec()],
     outputs: &[OUT.spec(), CURVES.spec(), REPORT.spec(), PROPS.spec()],
     params: &[SCRIPT.0, FRAME.0, FPS.0, DT.0, MASS.0],
     writes_files: false,
-    // 3: the props output; a seated figure is held by sit, not thrown by fall.
-    version: 3,
+    // 4: the optional mesh sizes the bodies.
+    version: 4,
 };
 
 /// Reads and parses the script file, errors located at the `script` param with file, line
@@ -95,6 +102,7 @@ fn located(e: SimError, script: &std::path::Path) -> NodeError {
     match e {
         SimError::World(PhysicsError::UnstableTimeStep { .. }) => NodeError::param("dt_secs", e.to_string()),
         SimError::World(PhysicsError::BadParams(_)) => NodeError::kernel(e),
+        SimError::Figure(FigureError::Skin(_)) => NodeError::input("mesh", e.to_string()),
         SimError::Figure(_) => NodeError::input("clip", format!("cannot become a figure: {e}")),
         SimError::Script(_) => NodeError::param("script", format!("{}: {e}", script.display())),
         SimError::Pose(_) => NodeError::param("frame", e.to_string()),
@@ -125,6 +133,7 @@ impl Node for Simulate {
         };
         let mut params = SimParams {
             world: WorldParams { dt_secs: ctx.float(&DT)? as f32, ..WorldParams::default() },
+            mesh: ctx.optional_input(&MESH)?,
             fps,
             ..SimParams::default()
         };

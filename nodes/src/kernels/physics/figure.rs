@@ -9,8 +9,10 @@
 //! 2. Every skeleton joint belongs to the body of its nearest driving ancestor (a clavicle
 //!    rides on the chest, fingers on the hand) and keeps its rest-relative rotation.
 //! 3. Shapes from the rest pose: a capsule along each bone (radius a fixed share of the
-//!    bone's length by role, trunk radii from the hip and shoulder widths), a box per foot
-//!    from the ankle to the toe tip with its sole at the lowest point of the foot.
+//!    bone's length by role, trunk radii from the hip and shoulder widths; with the
+//!    character's skinned mesh, measured from the vertices each body carries, see
+//!    [`super::skin_fit`]), a box per foot from the ankle to the toe tip with its sole at
+//!    the lowest point of the foot.
 //! 4. Masses from [`body_model`] (de Leva 1996, the table the momentum nodes use): each
 //!    limb segment and the head to the body of that name, the upper, middle and lower trunk
 //!    to the chest, abdomen and pelvis (other models: to the body whose bone passes nearest
@@ -30,12 +32,14 @@
 use glam::{Mat3, Quat, Vec3};
 use rapier3d::prelude::*;
 
+use super::skin_fit::{HAND_QUANTILE, RADIUS_QUANTILE, capsule_radius, rest_vertices_by_body, seat_pad};
 use super::{World, pose_to_rapier, rot_from_rapier, rot_to_rapier, to_rapier};
 use crate::kernels::body::{BodyError, MassTable, body_model, find_landmarks, limb_tip};
+use crate::kernels::skinning::SkinError;
 use crate::math::quat_normalize_or_identity;
-use crate::model::Skeleton;
 use crate::model::choice::Choice;
 use crate::model::fk::{Transform, pose_world, rest_world};
+use crate::model::{Mesh, Skeleton};
 
 /// The shortest bone that can carry a body, metres.
 pub const MIN_BONE_M: f32 = 0.01;
@@ -221,6 +225,9 @@ pub enum FigureError {
     /// The mass model failed.
     #[error(transparent)]
     Mass(#[from] BodyError),
+    /// The mesh the shapes were to be sized from cannot be posed on the skeleton.
+    #[error("the mesh cannot size the bodies: {0}")]
+    Skin(#[from] SkinError),
     /// A set-up value is out of range.
     #[error("{0}")]
     BadParams(String),
@@ -251,8 +258,9 @@ fn ball_limits(role: BodyRole, side: Option<usize>) -> [[f32; 2]; 3] {
     if side == Some(1) { [l[0], [-l[1][1], -l[1][0]], [-l[2][1], -l[2][0]]] } else { l }
 }
 
-/// Builds the figure of `skeleton` from its rest pose.
-pub fn build_figure(skeleton: &Skeleton, params: &FigureParams) -> Result<Figure, FigureError> {
+/// Builds the figure of `skeleton` from its rest pose; with `mesh` (skinned to `skeleton`),
+/// the capsules' radii are measured from it.
+pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Mesh>) -> Result<Figure, FigureError> {
     if skeleton.len() < 2 {
         return Err(FigureError::TooFewJoints { joints: skeleton.len() });
     }
@@ -377,8 +385,9 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams) -> Result<Figure
     let owner: Vec<usize> =
         (0..skeleton.len()).map(|j| ancestors(j).into_iter().find_map(|a| driver_of[a]).unwrap_or(0)).collect();
 
+    let skin_points = mesh.map(|m| rest_vertices_by_body(skeleton, m, &owner, plans.len())).transpose()?;
     let mut bodies: Vec<FigureBody> = Vec::with_capacity(plans.len());
-    for plan in &plans {
+    for (i, plan) in plans.iter().enumerate() {
         let origin = rest[plan.joint];
         let mut end = rest[plan.end];
         let bone = end - origin;
@@ -400,18 +409,35 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams) -> Result<Figure
                 length_m: length,
             });
         }
-        let radius = match plan.role {
-            BodyRole::Pelvis | BodyRole::Abdomen => 0.5 * hip_width.max(0.5 * shoulder_width) * 0.9,
-            BodyRole::Chest => 0.3 * shoulder_width,
-            BodyRole::Head => 0.055 * stature,
-            BodyRole::Thigh => 0.15 * length,
-            BodyRole::Shank => 0.11 * length,
-            BodyRole::UpperArm => 0.15 * length,
-            BodyRole::Forearm => 0.13 * length,
-            BodyRole::Hand | BodyRole::Foot => 0.2 * length,
-        }
-        .clamp(0.005, 0.5 * length.max(0.02));
-        let shape = if plan.role == BodyRole::Foot {
+        let points = skin_points.as_ref().map(|points| points[i].as_slice());
+        let quantile = if plan.role == BodyRole::Hand { HAND_QUANTILE } else { RADIUS_QUANTILE };
+        let measured = points.and_then(|points| capsule_radius(points, origin, end, quantile));
+        let seated_body = |j: usize| matches!(plans[owner[j]].role, BodyRole::Pelvis | BodyRole::Thigh);
+        let pad = mesh
+            .filter(|_| plan.role == BodyRole::Pelvis)
+            .and_then(|mesh| seat_pad(skeleton, mesh, [lm.limbs[0][0], lm.limbs[1][0]], seated_body, left));
+        let radius = match (measured, plan.role) {
+            // A trunk body can be fatter than it is long (the pelvis); a limb's end caps
+            // must not reach past its neighbours' joints.
+            (Some(r), BodyRole::Pelvis | BodyRole::Abdomen | BodyRole::Chest | BodyRole::Head) => {
+                r.clamp(0.005, 0.15 * stature)
+            }
+            (Some(r), _) => r.clamp(0.005, 0.5 * length.max(0.02)),
+            (None, role) => match role {
+                BodyRole::Pelvis | BodyRole::Abdomen => 0.5 * hip_width.max(0.5 * shoulder_width) * 0.9,
+                BodyRole::Chest => 0.3 * shoulder_width,
+                BodyRole::Head => 0.055 * stature,
+                BodyRole::Thigh => 0.15 * length,
+                BodyRole::Shank => 0.11 * length,
+                BodyRole::UpperArm => 0.15 * length,
+                BodyRole::Forearm => 0.13 * length,
+                BodyRole::Hand | BodyRole::Foot => 0.2 * length,
+            }
+            .clamp(0.005, 0.5 * length.max(0.02)),
+        };
+        let shape = if let Some(([a, b], radius_m)) = pad {
+            BodyShape::Capsule { a: a - origin, b: b - origin, radius_m }
+        } else if plan.role == BodyRole::Foot {
             // Sole at the foot's lowest point, from behind the ankle to the toe tip.
             let toe = rest[plan.end];
             let along = (toe - origin).reject_from(up);

@@ -19,6 +19,7 @@
 //! | a scripted run: pushes, requests, blow-up detection, clip out | [`simulate`] |
 //! | pre-conditions learned from trials (SVM) | [`learned`] |
 //! | a seat to sit on and rise from | [`seat`] |
+//! | body shapes sized from the skinned mesh | [`skin_fit`] |
 
 pub mod controller;
 pub mod controllers;
@@ -26,6 +27,7 @@ pub mod figure;
 pub mod learned;
 pub mod seat;
 pub mod simulate;
+pub mod skin_fit;
 pub mod state;
 
 use rapier3d::prelude::*;

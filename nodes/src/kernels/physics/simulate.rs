@@ -150,19 +150,22 @@ pub enum SimError {
 }
 
 /// Run settings.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct SimParams {
     /// World stepping.
     pub world: WorldParams,
     /// Figure set-up.
     pub figure: FigureParams,
+    /// The character's mesh, skinned to the skeleton: when given, the bodies' capsules are
+    /// sized from it ([`super::skin_fit`]).
+    pub mesh: Option<std::sync::Arc<crate::model::Mesh>>,
     /// Output frame rate, frames per second.
     pub fps: f64,
 }
 
 impl Default for SimParams {
     fn default() -> Self {
-        SimParams { world: WorldParams::default(), figure: FigureParams::default(), fps: 30.0 }
+        SimParams { world: WorldParams::default(), figure: FigureParams::default(), mesh: None, fps: 30.0 }
     }
 }
 
@@ -294,7 +297,7 @@ pub struct Stage {
 /// [`Targets::standing`]), its lowest sole corner on the ground. The pose's root position
 /// sets where it stands.
 pub fn stage(skeleton: &Skeleton, pose: Option<(&[Quat], &[Vec3])>, params: &SimParams) -> Result<Stage, SimError> {
-    let figure = build_figure(skeleton, &params.figure)?;
+    let figure = build_figure(skeleton, &params.figure, params.mesh.as_deref())?;
     let mut world = World::new(params.world)?;
     world.add_ground(0.0, figure.friction);
     let spawned = figure.spawn(&mut world, skeleton, Vec3::new(0.0, -figure.rest_sole_y_m, 0.0));

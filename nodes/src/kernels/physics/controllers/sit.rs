@@ -110,13 +110,26 @@ fn seated_hips(state: &FigureState, ctx: &ControlContext<'_>, seat: &Seat) -> [O
         let lengths = LegLengths::of(ctx, side)?;
         let (thigh, _, foot) = leg(ctx, side)?;
         let ankle = state.body_pos[foot];
-        let radius = match ctx.figure.bodies[thigh].shape {
-            BodyShape::Capsule { radius_m, .. } => radius_m,
-            BodyShape::Box { half_extents, .. } => half_extents.min_element(),
-        };
         let edge = (seat.front_edge() - ankle).dot(forward);
-        Some((lengths, Vec2::new(edge - HIP_BEHIND_EDGE_M, seat.top_centre.y + radius + HOVER_M - ankle.y)))
+        let depth = seat_depth_m(ctx, thigh);
+        Some((lengths, Vec2::new(edge - HIP_BEHIND_EDGE_M, seat.top_centre.y + depth + HOVER_M - ankle.y)))
     })
+}
+
+/// How far below the hip joint the seated body reaches, metres: the thigh's radius, or the
+/// upright pelvis's lowest point when that is deeper (a figure sized from its mesh rests on
+/// the pelvis's seat pad, [`crate::kernels::physics::skin_fit::seat_pad`]).
+fn seat_depth_m(ctx: &ControlContext<'_>, thigh: usize) -> f32 {
+    let capsule = |b: usize| match ctx.figure.bodies[b].shape {
+        BodyShape::Capsule { a, b, radius_m } => Some((a, b, radius_m)),
+        BodyShape::Box { .. } => None,
+    };
+    let body = &ctx.figure.bodies[thigh];
+    let thigh_radius = capsule(thigh).map_or(0.0, |(_, _, r)| r);
+    // The pelvis's lowest point below its origin, less the hip joint's depth below it.
+    let pelvis_below_hip =
+        body.parent.and_then(capsule).map_or(f32::NEG_INFINITY, |(a, b, r)| r - a.y.min(b.y) + body.anchor_in_parent.y);
+    thigh_radius.max(pelvis_below_hip)
 }
 
 /// The descent planned from the standing state; `None` without a seat or two full legs.

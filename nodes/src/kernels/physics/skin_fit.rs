@@ -1,0 +1,269 @@
+//! Body shapes sized from the character's skinned mesh.
+//!
+//! A figure's capsules sized from the skeleton alone are guesses (a share of the bone's
+//! length): on the Mixamo Xbot the pelvis capsule had a 5 cm radius where the mesh reaches
+//! 15 cm from the bone, so the seated body sank 5 cm into the stool. With the mesh, each
+//! body's radius is measured: the mesh is posed by linear blend skinning in the skeleton's
+//! rest pose (the pose the figure is built in, which need not be the bind pose), every
+//! vertex goes to the body that carries its most weighted joint, and the radius is the
+//! median of those vertices' distances to the body's bone ([`RADIUS_QUANTILE`]): as much
+//! skin outside the capsule as inside. Not the largest distance: limbs are not round (a
+//! thigh's vertices near the buttock lie far off the bone), and a capsule as fat as the
+//! farthest vertex would hold the body off the ground and the seat.
+//!
+//! The pelvis is the exception ([`seat_pad`]): what a seated body rests on is the buttocks,
+//! below and behind the hip joints, not a ball about the pelvis's bone. A capsule round that
+//! bone, as fat as the hips are wide, rolled forward on the seat like a wheel as the trunk
+//! leant to rise (a 17 cm radius carries the hips 20 cm forward for a 1.2 rad lean) and the
+//! figure fell off the stool. So with a mesh the pelvis's shape is a pad across the hips,
+//! from the hip joints' height down to the lowest skin of the mesh posed seated.
+
+use std::f32::consts::FRAC_PI_2;
+
+use glam::{Quat, Vec3};
+
+use crate::kernels::skinning::{SkinError, blend_matrices, check_skin, skinning_matrices};
+use crate::model::fk::{Transform, pose_world, rest_world};
+use crate::model::{Mesh, Skeleton};
+
+/// Share of a body's vertices its capsule holds (the quantile of their distances to the
+/// bone): the median.
+pub const RADIUS_QUANTILE: f32 = 0.5;
+
+/// The share for a hand: its fingers and thumb splay off the bone, and with the median the
+/// thumbs stayed outside the capsule and went into the stool beside the seated hips.
+pub const HAND_QUANTILE: f32 = 0.75;
+
+/// A seat pad needs the buttocks at least this far below the hip joints, metres.
+pub const MIN_PAD_DEPTH_M: f32 = 0.02;
+
+/// A body carrying fewer vertices than this keeps the radius sized from the skeleton (a
+/// few vertices say little about a body's girth).
+pub const MIN_VERTICES: usize = 20;
+
+/// The vertices of `mesh`, skinned to `skeleton` and posed in its rest pose (world metres),
+/// grouped by body: `owner[j]` is the body that carries joint `j`, `bodies` their number.
+pub fn rest_vertices_by_body(
+    skeleton: &Skeleton,
+    mesh: &Mesh,
+    owner: &[usize],
+    bodies: usize,
+) -> Result<Vec<Vec<Vec3>>, SkinError> {
+    let skin = mesh.skin.as_ref().ok_or(SkinError::NotSkinned)?;
+    check_skin(skin, skeleton, mesh.positions.len())?;
+    let matrices = skinning_matrices(&rest_world(skeleton), &skin.inverse_bind_matrices);
+    let mut by_body = vec![Vec::new(); bodies];
+    for (v, position) in mesh.positions.iter().enumerate() {
+        let (joints, weights) = (&skin.joints[v], &skin.weights[v]);
+        let heaviest = (0..4).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).unwrap_or(0);
+        let p = blend_matrices(&matrices, joints, weights).transform_point3(*position);
+        let list = owner.get(usize::from(joints[heaviest])).and_then(|&body| by_body.get_mut(body));
+        if let (Some(list), true) = (list, p.is_finite()) {
+            list.push(p);
+        }
+    }
+    Ok(by_body)
+}
+
+/// Distance from `p` to the segment `a`–`b`.
+fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
+    let ab = b - a;
+    let t = if ab.length_squared() > 0.0 { ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
+    p.distance(a + ab * t)
+}
+
+/// The radius of a capsule on the bone `a`–`b` that holds the share `quantile` of `points`
+/// ([`RADIUS_QUANTILE`], [`HAND_QUANTILE`]); `None` for fewer than [`MIN_VERTICES`] points.
+pub fn capsule_radius(points: &[Vec3], a: Vec3, b: Vec3, quantile: f32) -> Option<f32> {
+    if points.len() < MIN_VERTICES {
+        return None;
+    }
+    let mut distances: Vec<f32> = points.iter().map(|&p| segment_distance(p, a, b)).collect();
+    let k = ((distances.len() - 1) as f32 * quantile.clamp(0.0, 1.0)).round() as usize;
+    let (_, kth, _) = distances.select_nth_unstable_by(k, f32::total_cmp);
+    Some(*kth)
+}
+
+/// The pelvis's seat pad: the mesh posed seated (the skeleton's rest pose with both thighs
+/// turned forward by 90° about the figure's `left`), the vertices carried by the pelvis or
+/// a thigh (`seated_body(joint)`), and their lowest point below the hip joints `hips`: a
+/// capsule from under one hip to under the other, its top at the hips' height and its
+/// bottom at that lowest skin, as far back as the lowest tenth of those vertices lie on
+/// average. Seated, not at rest: linear blend skinning of a bent hip pulls the buttocks and
+/// the crotch down by a few centimetres more than they hang standing. Returns the two ends
+/// (world, rest pose) and the radius; `None` with fewer than [`MIN_VERTICES`] vertices or
+/// skin less than [`MIN_PAD_DEPTH_M`] below the hips. The mesh must fit the skeleton
+/// ([`check_skin`]).
+pub fn seat_pad(
+    skeleton: &Skeleton,
+    mesh: &Mesh,
+    hips: [usize; 2],
+    seated_body: impl Fn(usize) -> bool,
+    left: Vec3,
+) -> Option<([Vec3; 2], f32)> {
+    let skin = mesh.skin.as_ref()?;
+    let rest = rest_world(skeleton);
+    let joints = skeleton.joints();
+    let mut rotations: Vec<Quat> = joints.iter().map(|j| j.rest_rotation).collect();
+    let translations: Vec<Vec3> = joints.iter().map(|j| j.rest_offset).collect();
+    let flex = Quat::from_axis_angle(left, -FRAC_PI_2);
+    for &hip in &hips {
+        let parent = joints[hip].parent.map_or(Quat::IDENTITY, |p| rest[p].rotation);
+        rotations[hip] = parent.inverse() * flex * rest[hip].rotation;
+    }
+    let mut world = vec![Transform::IDENTITY; skeleton.len()];
+    pose_world(skeleton, &rotations, &translations, &mut world);
+    let matrices = skinning_matrices(&world, &skin.inverse_bind_matrices);
+    let seated: Vec<Vec3> = mesh
+        .positions
+        .iter()
+        .enumerate()
+        .filter(|(v, _)| {
+            let (joints, weights) = (&skin.joints[*v], &skin.weights[*v]);
+            let heaviest = (0..4).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).unwrap_or(0);
+            seated_body(usize::from(joints[heaviest]))
+        })
+        .map(|(v, p)| blend_matrices(&matrices, &skin.joints[v], &skin.weights[v]).transform_point3(*p))
+        .filter(|p| p.is_finite())
+        .collect();
+    if seated.len() < MIN_VERTICES {
+        return None;
+    }
+    let (hip_l, hip_r) = (rest[hips[0]].translation, rest[hips[1]].translation);
+    let mid = (hip_l + hip_r) * 0.5;
+    let mut heights: Vec<f32> = seated.iter().map(|p| p.y).collect();
+    heights.sort_unstable_by(f32::total_cmp);
+    let depth = mid.y - heights[0];
+    if depth.is_nan() || depth < MIN_PAD_DEPTH_M {
+        return None;
+    }
+    let forward = left.cross(Vec3::Y);
+    let low = heights[(heights.len() - 1) / 10];
+    let lowest: Vec<f32> = seated.iter().filter(|p| p.y <= low).map(|p| (*p - mid).dot(forward)).collect();
+    let back = lowest.iter().sum::<f32>() / lowest.len().max(1) as f32;
+    let radius = 0.5 * depth;
+    let end = |hip: Vec3| hip.with_y(mid.y) - Vec3::Y * radius + forward * back;
+    Some(([end(hip_l), end(hip_r)], radius))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    use std::f32::consts::TAU;
+    use std::sync::Arc;
+
+    use glam::{Mat4, Quat};
+
+    use super::*;
+    use crate::model::{Joint, Skin};
+
+    /// `n` points on a ring of radius `r` about the Y axis at height `y`.
+    fn ring(n: usize, r: f32, y: f32) -> Vec<Vec3> {
+        (0..n)
+            .map(|i| Vec3::new(r * (TAU * i as f32 / n as f32).cos(), y, r * (TAU * i as f32 / n as f32).sin()))
+            .collect()
+    }
+
+    #[test]
+    fn a_round_limb_gives_its_radius() {
+        let points: Vec<Vec3> = (0..5).flat_map(|k| ring(12, 0.06, 0.1 * k as f32)).collect();
+        for quantile in [RADIUS_QUANTILE, HAND_QUANTILE, 1.0] {
+            let r = capsule_radius(&points, Vec3::ZERO, Vec3::Y * 0.4, quantile).unwrap();
+            assert!((r - 0.06).abs() < 1e-6, "{quantile}: {r}");
+        }
+    }
+
+    #[test]
+    fn the_quantile_sets_how_much_of_the_skin_the_capsule_holds() {
+        // 30 points 5 cm off the bone and 10 at 20 cm (a splayed thumb): the median and the
+        // 75 % quantile (the 30th of 40) are 5 cm, the 90 % one (the 36th) is 20 cm.
+        let mut points = ring(30, 0.05, 0.2);
+        points.extend(ring(10, 0.2, 0.2));
+        let radius = |q: f32| capsule_radius(&points, Vec3::ZERO, Vec3::Y * 0.4, q).unwrap();
+        assert!((radius(RADIUS_QUANTILE) - 0.05).abs() < 1e-6);
+        assert!((radius(HAND_QUANTILE) - 0.05).abs() < 1e-6);
+        assert!((radius(0.9) - 0.2).abs() < 1e-6);
+        // Below the bone's end, the distance is to the end point (the capsule's cap).
+        let cap: Vec<Vec3> = (0..MIN_VERTICES).map(|_| Vec3::new(0.0, -0.07, 0.0)).collect();
+        assert!((capsule_radius(&cap, Vec3::ZERO, Vec3::Y * 0.4, 0.5).unwrap() - 0.07).abs() < 1e-6);
+        assert_eq!(capsule_radius(&cap[..MIN_VERTICES - 1], Vec3::ZERO, Vec3::Y, 0.5), None);
+    }
+
+    /// A two-joint skeleton whose rest pose bends the child 90° from the bind pose the mesh
+    /// was modelled in: the vertices must be grouped where the rest pose puts them.
+    #[test]
+    fn vertices_are_posed_at_rest_and_grouped_by_their_heaviest_joint() {
+        let bend = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
+        let child = Joint { rest_rotation: bend, ..Joint::new("child", Some(0), Vec3::Y) };
+        let skeleton = Arc::new(Skeleton::new(vec![Joint::new("root", None, Vec3::ZERO), child]).unwrap());
+        // Bind pose: both joints unrotated, the child 1 m up; one vertex 0.5 m above the
+        // child, one beside the root.
+        let inverse_bind_matrices = vec![Mat4::IDENTITY, Mat4::from_translation(-Vec3::Y)];
+        let mesh = Mesh {
+            positions: vec![Vec3::new(0.0, 1.5, 0.0), Vec3::new(0.1, 0.0, 0.0)],
+            normals: vec![Vec3::Y; 2],
+            skin: Some(Skin {
+                skeleton: skeleton.clone(),
+                joints: vec![[1, 0, 0, 0], [0, 1, 0, 0]],
+                weights: vec![[0.8, 0.2, 0.0, 0.0], [0.9, 0.1, 0.0, 0.0]],
+                inverse_bind_matrices,
+            }),
+            ..Mesh::default()
+        };
+        let by_body = rest_vertices_by_body(&skeleton, &mesh, &[0, 1], 2).unwrap();
+        // The first vertex: 0.8 of the child's bend (0.5 m along its +Y, turned 90° about Z
+        // to −X: (−0.5, 1, 0)) and 0.2 of the root's (its bind position): by hand.
+        let want = Vec3::new(-0.5, 1.0, 0.0) * 0.8 + Vec3::new(0.0, 1.5, 0.0) * 0.2;
+        assert_eq!(by_body[1].len(), 1);
+        assert!(by_body[1][0].distance(want) < 1e-6, "{:?}", by_body[1][0]);
+        // The second: 0.9 of the root (unmoved) and 0.1 of the child, whose rest transform
+        // (up 1 m, turned 90° about Z) takes the vertex's (0.1, −1, 0) in the child's bind
+        // frame to (1, 1.1, 0).
+        let want = Vec3::new(0.1, 0.0, 0.0) * 0.9 + Vec3::new(1.0, 1.1, 0.0) * 0.1;
+        assert!(by_body[0][0].distance(want) < 1e-6, "{:?}", by_body[0][0]);
+        let unskinned = Mesh { skin: None, ..mesh };
+        assert_eq!(rest_vertices_by_body(&skeleton, &unskinned, &[0, 1], 2), Err(SkinError::NotSkinned));
+    }
+
+    /// A pelvis 1 m up with hips 10 cm to either side and 10 cm down; ten vertices on the
+    /// pelvis 18 cm below it and 5 cm back (the buttocks), ten on the left thigh 20 cm below
+    /// its hip. Standing, the thigh's are the lowest (0.70 m); seated, the thigh turns forward
+    /// and carries them up to the hips' height, 20 cm ahead, so the lowest skin is the
+    /// buttocks' 0.82 m, 8 cm under the hips: a pad of radius 4 cm, its ends 4 cm under each
+    /// hip and 5 cm back. By hand.
+    #[test]
+    fn the_seat_pad_reaches_the_lowest_skin_of_the_seated_pose() {
+        let skeleton = Arc::new(
+            Skeleton::new(vec![
+                Joint::new("pelvis", None, Vec3::Y),
+                Joint::new("hip_l", Some(0), Vec3::new(0.1, -0.1, 0.0)),
+                Joint::new("hip_r", Some(0), Vec3::new(-0.1, -0.1, 0.0)),
+            ])
+            .unwrap(),
+        );
+        let inverse_bind_matrices = rest_world(&skeleton).iter().map(|t| t.to_mat4().inverse()).collect();
+        let buttocks = (0..10).map(|i| Vec3::new(-0.05 + 0.01 * i as f32, 0.82, -0.05));
+        let thigh = (0..10).map(|i| Vec3::new(0.1, 0.7, -0.02 + 0.004 * i as f32));
+        let positions: Vec<Vec3> = buttocks.chain(thigh).collect();
+        let joints: Vec<[u16; 4]> = (0..20).map(|v| [if v < 10 { 0 } else { 1 }, 0, 0, 0]).collect();
+        let mesh = Mesh {
+            normals: vec![Vec3::Y; positions.len()],
+            positions,
+            skin: Some(Skin {
+                skeleton: skeleton.clone(),
+                joints,
+                weights: vec![[1.0, 0.0, 0.0, 0.0]; 20],
+                inverse_bind_matrices,
+            }),
+            ..Mesh::default()
+        };
+        let ([a, b], radius) = seat_pad(&skeleton, &mesh, [1, 2], |_| true, Vec3::X).unwrap();
+        assert!((radius - 0.04).abs() < 1e-5, "{radius}");
+        assert!(a.distance(Vec3::new(0.1, 0.86, -0.05)) < 1e-5, "{a:?}");
+        assert!(b.distance(Vec3::new(-0.1, 0.86, -0.05)) < 1e-5, "{b:?}");
+        // Fewer than MIN_VERTICES counted (the pelvis's ten alone, or none): no pad.
+        assert_eq!(seat_pad(&skeleton, &mesh, [1, 2], |j| j == 0, Vec3::X), None);
+        assert!(seat_pad(&skeleton, &mesh, [1, 2], |_| false, Vec3::X).is_none());
+    }
+}
