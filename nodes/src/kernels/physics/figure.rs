@@ -32,7 +32,9 @@
 use glam::{Mat3, Quat, Vec3};
 use rapier3d::prelude::*;
 
-use super::skin_fit::{HAND_QUANTILE, RADIUS_QUANTILE, capsule_radius, rest_vertices_by_body, seat_pad};
+use super::skin_fit::{
+    HAND_QUANTILE, RADIUS_QUANTILE, capsule_radius, rest_vertices_by_body, seat_pad, segment_distance,
+};
 use super::{World, pose_to_rapier, rot_from_rapier, rot_to_rapier, to_rapier};
 use crate::kernels::body::{BodyError, MassTable, body_model, find_landmarks, limb_tip};
 use crate::kernels::skinning::SkinError;
@@ -624,9 +626,7 @@ fn bone_distance(body: &FigureBody, rest: &[Vec3], p: Vec3) -> f32 {
             (origin + centre - axis, origin + centre + axis)
         }
     };
-    let ab = b - a;
-    let t = if ab.length_squared() > 0.0 { ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
-    p.distance(a + ab * t)
+    segment_distance(p, a, b)
 }
 
 fn is_body_ancestor(bodies: &[FigureBody], ancestor: usize, body: usize) -> bool {

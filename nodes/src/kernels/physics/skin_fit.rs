@@ -55,9 +55,8 @@ pub fn rest_vertices_by_body(
     let mut by_body = vec![Vec::new(); bodies];
     for (v, position) in mesh.positions.iter().enumerate() {
         let (joints, weights) = (&skin.joints[v], &skin.weights[v]);
-        let heaviest = (0..4).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).unwrap_or(0);
         let p = blend_matrices(&matrices, joints, weights).transform_point3(*position);
-        let list = owner.get(usize::from(joints[heaviest])).and_then(|&body| by_body.get_mut(body));
+        let list = owner.get(heaviest_joint(joints, weights)).and_then(|&body| by_body.get_mut(body));
         if let (Some(list), true) = (list, p.is_finite()) {
             list.push(p);
         }
@@ -65,8 +64,14 @@ pub fn rest_vertices_by_body(
     Ok(by_body)
 }
 
-/// Distance from `p` to the segment `a`–`b`.
-fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
+/// The joint of a vertex's four that weighs most.
+fn heaviest_joint(joints: &[u16; 4], weights: &[f32; 4]) -> usize {
+    let k = (0..4).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).unwrap_or(0);
+    usize::from(joints[k])
+}
+
+/// Distance from `p` to the segment `a`–`b` (a point when they coincide).
+pub fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
     let ab = b - a;
     let t = if ab.length_squared() > 0.0 { ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
     p.distance(a + ab * t)
@@ -118,11 +123,7 @@ pub fn seat_pad(
         .positions
         .iter()
         .enumerate()
-        .filter(|(v, _)| {
-            let (joints, weights) = (&skin.joints[*v], &skin.weights[*v]);
-            let heaviest = (0..4).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).unwrap_or(0);
-            seated_body(usize::from(joints[heaviest]))
-        })
+        .filter(|(v, _)| seated_body(heaviest_joint(&skin.joints[*v], &skin.weights[*v])))
         .map(|(v, p)| blend_matrices(&matrices, &skin.joints[v], &skin.weights[v]).transform_point3(*p))
         .filter(|p| p.is_finite())
         .collect();
