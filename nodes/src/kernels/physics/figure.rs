@@ -168,6 +168,9 @@ pub struct Figure {
     /// Height of the soles in the rest pose, metres: spawn the figure `−rest_sole_y_m` up to
     /// stand it on a ground at 0.
     pub rest_sole_y_m: f32,
+    /// With a seat pad (a figure sized from its mesh, [`super::skin_fit::seat_pad`]): how far
+    /// below the hip joints the seated skin reaches, metres.
+    pub seat_depth_m: Option<f32>,
 }
 
 /// Figure set-up values.
@@ -389,6 +392,7 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
 
     let skin_points = mesh.map(|m| rest_vertices_by_body(skeleton, m, &owner, plans.len())).transpose()?;
     let mut bodies: Vec<FigureBody> = Vec::with_capacity(plans.len());
+    let mut seat_depth_m = None;
     for (i, plan) in plans.iter().enumerate() {
         let origin = rest[plan.joint];
         let mut end = rest[plan.end];
@@ -413,17 +417,22 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
         }
         let points = skin_points.as_ref().map(|points| points[i].as_slice());
         let quantile = if plan.role == BodyRole::Hand { HAND_QUANTILE } else { RADIUS_QUANTILE };
-        let measured = points.and_then(|points| capsule_radius(points, origin, end, quantile));
+        // The pelvis is a seat pad or keeps its skeleton-sized capsule: a capsule round its
+        // short bone as fat as its skin rolls on a seat like a wheel (see skin_fit).
+        let measured = points
+            .filter(|_| plan.role != BodyRole::Pelvis)
+            .and_then(|points| capsule_radius(points, origin, end, quantile));
         let seated_body = |j: usize| matches!(plans[owner[j]].role, BodyRole::Pelvis | BodyRole::Thigh);
+        // A pad deeper than a tenth of stature below the hips is not buttocks (a garment or
+        // a tail hanging from the pelvis).
         let pad = mesh
             .filter(|_| plan.role == BodyRole::Pelvis)
-            .and_then(|mesh| seat_pad(skeleton, mesh, [lm.limbs[0][0], lm.limbs[1][0]], seated_body, left));
+            .and_then(|mesh| seat_pad(skeleton, mesh, [lm.limbs[0][0], lm.limbs[1][0]], seated_body, left))
+            .filter(|&(_, radius)| radius <= 0.05 * stature);
         let radius = match (measured, plan.role) {
-            // A trunk body can be fatter than it is long (the pelvis); a limb's end caps
-            // must not reach past its neighbours' joints.
-            (Some(r), BodyRole::Pelvis | BodyRole::Abdomen | BodyRole::Chest | BodyRole::Head) => {
-                r.clamp(0.005, 0.15 * stature)
-            }
+            // A trunk body can be fatter than it is long; a limb's end caps must not reach
+            // past its neighbours' joints.
+            (Some(r), BodyRole::Abdomen | BodyRole::Chest | BodyRole::Head) => r.clamp(0.005, 0.15 * stature),
             (Some(r), _) => r.clamp(0.005, 0.5 * length.max(0.02)),
             (None, role) => match role {
                 BodyRole::Pelvis | BodyRole::Abdomen => 0.5 * hip_width.max(0.5 * shoulder_width) * 0.9,
@@ -438,6 +447,7 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
             .clamp(0.005, 0.5 * length.max(0.02)),
         };
         let shape = if let Some(([a, b], radius_m)) = pad {
+            seat_depth_m = Some(2.0 * radius_m);
             BodyShape::Capsule { a: a - origin, b: b - origin, radius_m }
         } else if plan.role == BodyRole::Foot {
             // Sole at the foot's lowest point, from behind the ankle to the toe tip.
@@ -575,6 +585,7 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
         mass_method: model.method,
         friction: params.friction,
         rest_sole_y_m: lowest - 0.01 * stature,
+        seat_depth_m,
     })
 }
 

@@ -96,9 +96,11 @@ pub fn capsule_radius(points: &[Vec3], a: Vec3, b: Vec3, quantile: f32) -> Optio
 /// bottom at that lowest skin, as far back as the lowest tenth of those vertices lie on
 /// average. Seated, not at rest: linear blend skinning of a bent hip pulls the buttocks and
 /// the crotch down by a few centimetres more than they hang standing. Returns the two ends
-/// (world, rest pose) and the radius; `None` with fewer than [`MIN_VERTICES`] vertices or
-/// skin less than [`MIN_PAD_DEPTH_M`] below the hips. The mesh must fit the skeleton
-/// ([`check_skin`]).
+/// (world, rest pose) and the radius; `None` when the mesh does not fit the skeleton
+/// ([`check_skin`]) or `hips` are not its joints, with fewer than [`MIN_VERTICES`] vertices,
+/// or with skin less than [`MIN_PAD_DEPTH_M`] below the hips. The lowest vertex sets the
+/// depth (it is what shows through a seat), so a caller bounds the radius against
+/// garments or tails hanging from the pelvis.
 pub fn seat_pad(
     skeleton: &Skeleton,
     mesh: &Mesh,
@@ -107,6 +109,10 @@ pub fn seat_pad(
     left: Vec3,
 ) -> Option<([Vec3; 2], f32)> {
     let skin = mesh.skin.as_ref()?;
+    check_skin(skin, skeleton, mesh.positions.len()).ok()?;
+    if hips.iter().any(|&hip| hip >= skeleton.len()) {
+        return None;
+    }
     let rest = rest_world(skeleton);
     let joints = skeleton.joints();
     let mut rotations: Vec<Quat> = joints.iter().map(|j| j.rest_rotation).collect();
@@ -229,10 +235,11 @@ mod tests {
 
     /// A pelvis 1 m up with hips 10 cm to either side and 10 cm down; ten vertices on the
     /// pelvis 18 cm below it and 5 cm back (the buttocks), ten on the left thigh 20 cm below
-    /// its hip. Standing, the thigh's are the lowest (0.70 m); seated, the thigh turns forward
-    /// and carries them up to the hips' height, 20 cm ahead, so the lowest skin is the
-    /// buttocks' 0.82 m, 8 cm under the hips: a pad of radius 4 cm, its ends 4 cm under each
-    /// hip and 5 cm back. By hand.
+    /// its hip and 10–14 cm in front of the bone. Standing, the thigh's are the lowest
+    /// (0.70 m); seated, the thigh turns forward and carries them up to 1.00–1.04 m, 20 cm
+    /// ahead (turned backward, they would drop to 0.76–0.80 m, below the buttocks), so the
+    /// lowest skin is the buttocks' 0.82 m, 8 cm under the hips: a pad of radius 4 cm, its
+    /// ends 4 cm under each hip and 5 cm back. By hand.
     #[test]
     fn the_seat_pad_reaches_the_lowest_skin_of_the_seated_pose() {
         let skeleton = Arc::new(
@@ -245,7 +252,7 @@ mod tests {
         );
         let inverse_bind_matrices = rest_world(&skeleton).iter().map(|t| t.to_mat4().inverse()).collect();
         let buttocks = (0..10).map(|i| Vec3::new(-0.05 + 0.01 * i as f32, 0.82, -0.05));
-        let thigh = (0..10).map(|i| Vec3::new(0.1, 0.7, -0.02 + 0.004 * i as f32));
+        let thigh = (0..10).map(|i| Vec3::new(0.1, 0.7, 0.1 + 0.004 * i as f32));
         let positions: Vec<Vec3> = buttocks.chain(thigh).collect();
         let joints: Vec<[u16; 4]> = (0..20).map(|v| [if v < 10 { 0 } else { 1 }, 0, 0, 0]).collect();
         let mesh = Mesh {
@@ -263,8 +270,10 @@ mod tests {
         assert!((radius - 0.04).abs() < 1e-5, "{radius}");
         assert!(a.distance(Vec3::new(0.1, 0.86, -0.05)) < 1e-5, "{a:?}");
         assert!(b.distance(Vec3::new(-0.1, 0.86, -0.05)) < 1e-5, "{b:?}");
-        // Fewer than MIN_VERTICES counted (the pelvis's ten alone, or none): no pad.
+        // Fewer than MIN_VERTICES counted (the pelvis's ten alone, or none), or hips that are
+        // not joints: no pad.
         assert_eq!(seat_pad(&skeleton, &mesh, [1, 2], |j| j == 0, Vec3::X), None);
         assert!(seat_pad(&skeleton, &mesh, [1, 2], |_| false, Vec3::X).is_none());
+        assert!(seat_pad(&skeleton, &mesh, [1, 3], |_| true, Vec3::X).is_none());
     }
 }

@@ -117,19 +117,14 @@ fn seated_hips(state: &FigureState, ctx: &ControlContext<'_>, seat: &Seat) -> [O
 }
 
 /// How far below the hip joint the seated body reaches, metres: the thigh's radius, or the
-/// upright pelvis's lowest point when that is deeper (a figure sized from its mesh rests on
-/// the pelvis's seat pad, [`crate::kernels::physics::skin_fit::seat_pad`]).
+/// seat pad's depth when the figure has one and it reaches lower (a figure sized from its
+/// mesh rests on its buttocks, [`crate::kernels::physics::skin_fit::seat_pad`]).
 fn seat_depth_m(ctx: &ControlContext<'_>, thigh: usize) -> f32 {
-    let capsule = |b: usize| match ctx.figure.bodies[b].shape {
-        BodyShape::Capsule { a, b, radius_m } => Some((a, b, radius_m)),
-        BodyShape::Box { .. } => None,
+    let thigh_radius = match ctx.figure.bodies[thigh].shape {
+        BodyShape::Capsule { radius_m, .. } => radius_m,
+        BodyShape::Box { half_extents, .. } => half_extents.min_element(),
     };
-    let body = &ctx.figure.bodies[thigh];
-    let thigh_radius = capsule(thigh).map_or(0.0, |(_, _, r)| r);
-    // The pelvis's lowest point below its origin, less the hip joint's depth below it.
-    let pelvis_below_hip =
-        body.parent.and_then(capsule).map_or(f32::NEG_INFINITY, |(a, b, r)| r - a.y.min(b.y) + body.anchor_in_parent.y);
-    thigh_radius.max(pelvis_below_hip)
+    ctx.figure.seat_depth_m.map_or(thigh_radius, |pad| pad.max(thigh_radius))
 }
 
 /// The descent planned from the standing state; `None` without a seat or two full legs.
