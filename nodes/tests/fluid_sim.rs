@@ -6,7 +6,8 @@
 #![cfg(feature = "tetgen")]
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed expect is a failed test
 
-use std::collections::BTreeMap;
+mod node_eval;
+
 use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -21,7 +22,8 @@ use kinegraph_nodes::kernels::fluid::smoke::{advect_per_tet, total};
 use kinegraph_nodes::kernels::fluid::velocity::VelocityField;
 use kinegraph_nodes::model::Mesh;
 use kinegraph_nodes::model::volume::{FluidDomain, Sizing, SmokeSource};
-use kinegraph_nodes::node::{NodeContext, NodeError, NodeOutcome, ParamValue, RunServices, Value};
+use kinegraph_nodes::node::{NodeError, NodeOutcome, ParamValue, Value};
+use node_eval::eval_node;
 
 fn sizing(k0: f64, max: f64) -> Sizing {
     Sizing { k0_m: k0, kd: 0.5, ks_m: 0.0, kw_m_s: 0.0, min_edge_m: k0, max_edge_m: max }
@@ -312,21 +314,10 @@ fn run_simulate(
     mesh: Option<Mesh>,
     params: &[(&str, ParamValue)],
 ) -> Result<NodeOutcome, NodeError> {
-    let registry = kinegraph_nodes::builtin::registry();
-    let node = registry.get("fluid.simulate").unwrap();
-    let mut map: BTreeMap<String, ParamValue> =
-        node.schema().params.iter().filter_map(|p| Some((p.name.to_string(), p.default_value()?))).collect();
-    map.insert("substeps".into(), ParamValue::Int(1));
-    map.insert("frames".into(), ParamValue::Int(2));
-    map.extend(params.iter().map(|(k, v)| (k.to_string(), v.clone())));
-    let cancel = AtomicBool::new(false);
-    let services =
-        RunServices { base_dir: Path::new("."), out_dir: None, cancel: &cancel, memory_limit_bytes: 1 << 32 };
-    let progress = |_: f32| {};
+    let mut params = params.to_vec();
+    params.splice(0..0, [("substeps", ParamValue::Int(1)), ("frames", ParamValue::Int(2))]);
     let inputs = vec![Some(Value::FluidDomain(Arc::new(domain))), None, mesh.map(|m| Value::Mesh(Arc::new(m)))];
-    let mut ctx = NodeContext::new(node.schema(), inputs, &map, &services, &progress);
-    node.eval(&mut ctx)?;
-    Ok(ctx.finish())
+    eval_node("fluid.simulate", inputs, &params, Path::new("."))
 }
 
 fn cube_mesh(centre: DVec3, half: f64) -> Mesh {

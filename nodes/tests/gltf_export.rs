@@ -4,6 +4,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)] // test code: a failed unwrap is a failed test
 
 mod gltf_validator;
+mod node_eval;
 
 use std::path::Path;
 use std::sync::Arc;
@@ -508,28 +509,17 @@ fn several_named_animations_go_into_one_file() {
 /// the input; a skinned mesh connected as props is refused naming that input.
 #[test]
 fn export_glb_node_writes_extra_clips_and_refuses_clashes() {
-    use kinegraph_nodes::node::{NodeContext, NodeError, ParamValue, RunServices, Value};
-    use std::collections::BTreeMap;
-    use std::sync::atomic::AtomicBool;
+    use kinegraph_nodes::node::{NodeError, ParamValue, Value};
+    use node_eval::eval_node;
     let (clip, mesh) = synthetic();
     let second = clip.slice(5, 15);
-    let registry = kinegraph_nodes::builtin::registry();
-    let node = registry.get("export.glb").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let run = |name_2: &str, other: Clip, props: Option<Mesh>| -> Result<(), NodeError> {
-        let params: BTreeMap<String, ParamValue> =
+        let params: Vec<(&str, ParamValue)> =
             [("file", "both.glb"), ("name", "bend"), ("name_2", name_2), ("name_3", "clip_3"), ("name_4", "clip_4")]
                 .into_iter()
-                .map(|(k, v)| (k.to_owned(), ParamValue::Text(v.to_owned())))
+                .map(|(k, v)| (k, ParamValue::Text(v.to_owned())))
                 .collect();
-        let cancel = AtomicBool::new(false);
-        let services = RunServices {
-            base_dir: dir.path(),
-            out_dir: Some(dir.path()),
-            cancel: &cancel,
-            memory_limit_bytes: 1 << 32,
-        };
-        let progress = |_: f32| {};
         let inputs = vec![
             Some(Value::Clip(Arc::new(clip.clone()))),
             Some(Value::Mesh(Arc::new(mesh.clone()))),
@@ -538,8 +528,7 @@ fn export_glb_node_writes_extra_clips_and_refuses_clashes() {
             None,
             props.map(|p| Value::Mesh(Arc::new(p))),
         ];
-        let mut ctx = NodeContext::new(node.schema(), inputs, &params, &services, &progress);
-        node.eval(&mut ctx)
+        eval_node("export.glb", inputs, &params, dir.path()).map(drop)
     };
     run("bend_again", second.clone(), None).unwrap();
     let (doc, _, _) = gltf::import(dir.path().join("both.glb")).unwrap();

@@ -8,10 +8,10 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use std::collections::BTreeMap;
+mod node_eval;
+
 use std::path::Path;
 use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 
 use glam::Vec3;
 use kinegraph_nodes::cancel::Cancel;
@@ -27,7 +27,8 @@ use kinegraph_nodes::kernels::physics::simulate::{Request, Script, SimParams, Si
 use kinegraph_nodes::kernels::props::props_penetration;
 use kinegraph_nodes::model::fk::{Transform, pose_world};
 use kinegraph_nodes::model::{Clip, FrameRange, Mesh, Skeleton, Skin};
-use kinegraph_nodes::node::{NodeContext, NodeError, ParamValue, RunServices, Value};
+use kinegraph_nodes::node::{NodeError, ParamValue, Value};
+use node_eval::eval_node;
 
 fn xbot(data: &Path) -> Arc<Skeleton> {
     read_gltf_file(&data.join("gltf/Xbot.glb"), &GltfReadOptions::default()).unwrap().value.skeleton.unwrap()
@@ -229,9 +230,7 @@ fn seat_skin(mesh: &Mesh, figure: &Figure) -> Mesh {
     let skin = mesh.skin.as_ref().unwrap();
     let keep: Vec<usize> = (0..mesh.positions.len())
         .filter(|&v| {
-            let w = &skin.weights[v];
-            let heaviest = (0..4).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap();
-            let body = &figure.bodies[figure.owner[usize::from(skin.joints[v][heaviest])]];
+            let body = &figure.bodies[figure.owner[skin.heaviest_joint(v).0]];
             matches!(body.role, BodyRole::Pelvis | BodyRole::Thigh)
         })
         .collect();
@@ -338,25 +337,12 @@ fn a_bad_chair_is_a_script_error() {
     }
 }
 
-/// Runs `physics.simulate` on `clip` with `mesh` on its mesh input and the graph's own
-/// sit-and-rise script, for one second.
+/// Runs `physics.simulate` on `clip` with `mesh` on its mesh input and a one-second script.
 fn run_simulate_node(clip: Arc<Clip>, mesh: Mesh) -> Result<(), NodeError> {
-    let registry = kinegraph_nodes::builtin::registry();
-    let node = registry.get("physics.simulate").unwrap();
-    let mut params: BTreeMap<String, ParamValue> =
-        node.schema().params.iter().filter_map(|p| Some((p.name.to_string(), p.default_value()?))).collect();
-    let dir = std::env::temp_dir().join(format!("kg-physics-mesh-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("script.ron"), "(duration_secs: 1.0)").unwrap();
-    params.insert("script".into(), ParamValue::Text("script.ron".into()));
-    let cancel = AtomicBool::new(false);
-    let services = RunServices { base_dir: &dir, out_dir: None, cancel: &cancel, memory_limit_bytes: 1 << 32 };
-    let progress = |_: f32| {};
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("script.ron"), "(duration_secs: 1.0)").unwrap();
     let inputs = vec![Some(Value::Clip(clip)), Some(Value::Mesh(Arc::new(mesh)))];
-    let mut ctx = NodeContext::new(node.schema(), inputs, &params, &services, &progress);
-    let result = node.eval(&mut ctx);
-    std::fs::remove_dir_all(&dir).ok();
-    result
+    eval_node("physics.simulate", inputs, &[("script", ParamValue::Text("script.ron".into()))], dir.path()).map(drop)
 }
 
 /// A mesh that cannot size the figure is an error on the node's mesh input, saying why.

@@ -261,9 +261,8 @@ impl Selection {
                 let j = joint_named(&skin.skeleton, name).map_err(|e| e.to_string())?;
                 Ok((0..n)
                     .map(|v| {
-                        let (js, ws) = (&skin.joints[v], &skin.weights[v]);
-                        let strongest = (0..4).max_by(|&a, &b| ws[a].total_cmp(&ws[b])).unwrap_or(0);
-                        js[strongest] as usize == j && ws[strongest] > 0.0
+                        let (strongest, weight) = skin.heaviest_joint(v);
+                        strongest == j && weight > 0.0
                     })
                     .collect())
             }

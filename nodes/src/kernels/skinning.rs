@@ -213,7 +213,7 @@ impl Default for AutoWeightParams {
 }
 
 /// Distance from `p` to the segment `a`–`b` (a point when they coincide).
-fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
+pub fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
     let ab = b - a;
     let length_sq = ab.length_squared();
     let t = if length_sq > 1e-12 { ((p - a).dot(ab) / length_sq).clamp(0.0, 1.0) } else { 0.0 };

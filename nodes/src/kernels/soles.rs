@@ -20,11 +20,7 @@ pub fn foot_joints(skeleton: &Skeleton, ankle: usize) -> Vec<usize> {
 
 /// The vertices of a skinned mesh whose heaviest weight is on one of `joints`.
 fn sole_vertices(skin: &Skin, joints: &[usize]) -> Vec<usize> {
-    let heaviest = |v: usize| {
-        let (ids, weights) = (&skin.joints[v], &skin.weights[v]);
-        (0..4).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).map(|k| usize::from(ids[k]))
-    };
-    (0..skin.joints.len()).filter(|&v| heaviest(v).is_some_and(|j| joints.contains(&j))).collect()
+    (0..skin.joints.len()).filter(|&v| joints.contains(&skin.heaviest_joint(v).0)).collect()
 }
 
 /// Per foot (each given by its joints, e.g. from [`foot_joints`]), the height of its sole's

@@ -20,6 +20,16 @@ pub struct Skin {
     pub inverse_bind_matrices: Vec<Mat4>,
 }
 
+impl Skin {
+    /// The joint vertex `v` is bound to most, with its weight: what "the vertex belongs to
+    /// that joint" means for soles, bar-net selections and physics shapes.
+    pub fn heaviest_joint(&self, v: usize) -> (usize, f32) {
+        let (joints, weights) = (&self.joints[v], &self.weights[v]);
+        let k = (0..4).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).unwrap_or(0);
+        (usize::from(joints[k]), weights[k])
+    }
+}
+
 /// A triangle mesh (metres, Y up), optionally skinned.
 #[derive(Clone, Debug, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Mesh {

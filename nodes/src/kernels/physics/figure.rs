@@ -32,12 +32,10 @@
 use glam::{Mat3, Quat, Vec3};
 use rapier3d::prelude::*;
 
-use super::skin_fit::{
-    HAND_QUANTILE, RADIUS_QUANTILE, capsule_radius, rest_vertices_by_body, seat_pad, segment_distance,
-};
+use super::skin_fit::{HAND_QUANTILE, RADIUS_QUANTILE, SkinnedRest, capsule_radius};
 use super::{World, pose_to_rapier, rot_from_rapier, rot_to_rapier, to_rapier};
 use crate::kernels::body::{BodyError, MassTable, body_model, find_landmarks, limb_tip};
-use crate::kernels::skinning::SkinError;
+use crate::kernels::skinning::{SkinError, segment_distance};
 use crate::math::quat_normalize_or_identity;
 use crate::model::choice::Choice;
 use crate::model::fk::{Transform, pose_world, rest_world};
@@ -168,7 +166,7 @@ pub struct Figure {
     /// Height of the soles in the rest pose, metres: spawn the figure `−rest_sole_y_m` up to
     /// stand it on a ground at 0.
     pub rest_sole_y_m: f32,
-    /// With a seat pad (a figure sized from its mesh, [`super::skin_fit::seat_pad`]): how far
+    /// With a seat pad (a figure sized from its mesh, [`super::skin_fit::SkinnedRest::seat_pad`]): how far
     /// below the hip joints the seated skin reaches, metres.
     pub seat_depth_m: Option<f32>,
 }
@@ -390,9 +388,16 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
     let owner: Vec<usize> =
         (0..skeleton.len()).map(|j| ancestors(j).into_iter().find_map(|a| driver_of[a]).unwrap_or(0)).collect();
 
-    let skin_points = mesh.map(|m| rest_vertices_by_body(skeleton, m, &owner, plans.len())).transpose()?;
+    let skinned = mesh.map(|m| SkinnedRest::new(skeleton, m)).transpose()?;
+    let skin_points = skinned.as_ref().map(|s| s.vertices_by_body(&owner, plans.len()));
+    // The pelvis's seat pad. One deeper than a tenth of stature below the hips is not
+    // buttocks (a garment or a tail hanging from the pelvis): the pelvis keeps its capsule.
+    let seated_body = |j: usize| matches!(plans[owner[j]].role, BodyRole::Pelvis | BodyRole::Thigh);
+    let pad = skinned
+        .as_ref()
+        .and_then(|s| s.seat_pad([lm.limbs[0][0], lm.limbs[1][0]], seated_body, left))
+        .filter(|&(_, radius)| radius <= 0.05 * stature);
     let mut bodies: Vec<FigureBody> = Vec::with_capacity(plans.len());
-    let mut seat_depth_m = None;
     for (i, plan) in plans.iter().enumerate() {
         let origin = rest[plan.joint];
         let mut end = rest[plan.end];
@@ -422,13 +427,6 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
         let measured = points
             .filter(|_| plan.role != BodyRole::Pelvis)
             .and_then(|points| capsule_radius(points, origin, end, quantile));
-        let seated_body = |j: usize| matches!(plans[owner[j]].role, BodyRole::Pelvis | BodyRole::Thigh);
-        // A pad deeper than a tenth of stature below the hips is not buttocks (a garment or
-        // a tail hanging from the pelvis).
-        let pad = mesh
-            .filter(|_| plan.role == BodyRole::Pelvis)
-            .and_then(|mesh| seat_pad(skeleton, mesh, [lm.limbs[0][0], lm.limbs[1][0]], seated_body, left))
-            .filter(|&(_, radius)| radius <= 0.05 * stature);
         let radius = match (measured, plan.role) {
             // A trunk body can be fatter than it is long; a limb's end caps must not reach
             // past its neighbours' joints.
@@ -446,8 +444,7 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
             }
             .clamp(0.005, 0.5 * length.max(0.02)),
         };
-        let shape = if let Some(([a, b], radius_m)) = pad {
-            seat_depth_m = Some(2.0 * radius_m);
+        let shape = if let (BodyRole::Pelvis, Some(([a, b], radius_m))) = (plan.role, pad) {
             BodyShape::Capsule { a: a - origin, b: b - origin, radius_m }
         } else if plan.role == BodyRole::Foot {
             // Sole at the foot's lowest point, from behind the ankle to the toe tip.
@@ -585,7 +582,7 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
         mass_method: model.method,
         friction: params.friction,
         rest_sole_y_m: lowest - 0.01 * stature,
-        seat_depth_m,
+        seat_depth_m: pad.map(|(_, radius)| 2.0 * radius),
     })
 }
 

@@ -11,7 +11,7 @@
 //! thigh's vertices near the buttock lie far off the bone), and a capsule as fat as the
 //! farthest vertex would hold the body off the ground and the seat.
 //!
-//! The pelvis is the exception ([`seat_pad`]): what a seated body rests on is the buttocks,
+//! The pelvis is the exception ([`SkinnedRest::seat_pad`]): what a seated body rests on is the buttocks,
 //! below and behind the hip joints, not a ball about the pelvis's bone. A capsule round that
 //! bone, as fat as the hips are wide, rolled forward on the seat like a wheel as the trunk
 //! leant to rise (a 17 cm radius carries the hips 20 cm forward for a 1.2 rad lean) and the
@@ -22,9 +22,9 @@ use std::f32::consts::FRAC_PI_2;
 
 use glam::{Quat, Vec3};
 
-use crate::kernels::skinning::{SkinError, blend_matrices, check_skin, skinning_matrices};
+use crate::kernels::skinning::{SkinError, blend_matrices, check_skin, segment_distance, skinning_matrices};
 use crate::model::fk::{Transform, pose_world, rest_world};
-use crate::model::{Mesh, Skeleton};
+use crate::model::{Mesh, Skeleton, Skin};
 
 /// Share of a body's vertices its capsule holds (the quantile of their distances to the
 /// bone): the median.
@@ -41,40 +41,102 @@ pub const MIN_PAD_DEPTH_M: f32 = 0.02;
 /// few vertices say little about a body's girth).
 pub const MIN_VERTICES: usize = 20;
 
-/// The vertices of `mesh`, skinned to `skeleton` and posed in its rest pose (world metres),
-/// grouped by body: `owner[j]` is the body that carries joint `j`, `bodies` their number.
-pub fn rest_vertices_by_body(
-    skeleton: &Skeleton,
-    mesh: &Mesh,
-    owner: &[usize],
-    bodies: usize,
-) -> Result<Vec<Vec<Vec3>>, SkinError> {
-    let skin = mesh.skin.as_ref().ok_or(SkinError::NotSkinned)?;
-    check_skin(skin, skeleton, mesh.positions.len())?;
-    let matrices = skinning_matrices(&rest_world(skeleton), &skin.inverse_bind_matrices);
-    let mut by_body = vec![Vec::new(); bodies];
-    for (v, position) in mesh.positions.iter().enumerate() {
-        let (joints, weights) = (&skin.joints[v], &skin.weights[v]);
-        let p = blend_matrices(&matrices, joints, weights).transform_point3(*position);
-        let list = owner.get(heaviest_joint(joints, weights)).and_then(|&body| by_body.get_mut(body));
-        if let (Some(list), true) = (list, p.is_finite()) {
-            list.push(p);
-        }
+/// A mesh checked once against the skeleton it is skinned to, with that skeleton's rest
+/// pose: what the figure's shapes are measured from.
+pub struct SkinnedRest<'a> {
+    skeleton: &'a Skeleton,
+    mesh: &'a Mesh,
+    skin: &'a Skin,
+    rest: Vec<Transform>,
+}
+
+impl<'a> SkinnedRest<'a> {
+    /// `mesh` on `skeleton`; refused when it is not skinned to it ([`check_skin`]).
+    pub fn new(skeleton: &'a Skeleton, mesh: &'a Mesh) -> Result<Self, SkinError> {
+        let skin = mesh.skin.as_ref().ok_or(SkinError::NotSkinned)?;
+        check_skin(skin, skeleton, mesh.positions.len())?;
+        Ok(SkinnedRest { skeleton, mesh, skin, rest: rest_world(skeleton) })
     }
-    Ok(by_body)
-}
 
-/// The joint of a vertex's four that weighs most.
-fn heaviest_joint(joints: &[u16; 4], weights: &[f32; 4]) -> usize {
-    let k = (0..4).max_by(|&a, &b| weights[a].total_cmp(&weights[b])).unwrap_or(0);
-    usize::from(joints[k])
-}
+    /// The vertices whose heaviest joint passes `keep`, posed by linear blend skinning with
+    /// the joints' world transforms `world` (non-finite results dropped), with that joint.
+    fn posed<'w>(
+        &'w self,
+        world: &[Transform],
+        keep: impl Fn(usize) -> bool + 'w,
+    ) -> impl Iterator<Item = (usize, Vec3)> + 'w {
+        let matrices = skinning_matrices(world, &self.skin.inverse_bind_matrices);
+        let skin = self.skin;
+        self.mesh.positions.iter().enumerate().filter_map(move |(v, position)| {
+            let (joint, _) = skin.heaviest_joint(v);
+            let p = blend_matrices(&matrices, &skin.joints[v], &skin.weights[v]).transform_point3(*position);
+            (keep(joint) && p.is_finite()).then_some((joint, p))
+        })
+    }
 
-/// Distance from `p` to the segment `a`–`b` (a point when they coincide).
-pub fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
-    let ab = b - a;
-    let t = if ab.length_squared() > 0.0 { ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
-    p.distance(a + ab * t)
+    /// The vertices posed in the rest pose (world metres), grouped by body: `owner[j]` is
+    /// the body that carries joint `j`, `bodies` their number.
+    pub fn vertices_by_body(&self, owner: &[usize], bodies: usize) -> Vec<Vec<Vec3>> {
+        let mut by_body = vec![Vec::new(); bodies];
+        for (joint, p) in self.posed(&self.rest, |_| true) {
+            if let Some(list) = owner.get(joint).and_then(|&body| by_body.get_mut(body)) {
+                list.push(p);
+            }
+        }
+        by_body
+    }
+
+    /// The pelvis's seat pad: the mesh posed seated (the rest pose with both thighs turned
+    /// forward by 90° about the figure's `left`), the vertices carried by the pelvis or a
+    /// thigh (`seated_body(joint)`), and their lowest point below the hip joints `hips`: a
+    /// capsule from under one hip to under the other, its top at the hips' height and its
+    /// bottom at that lowest skin, as far back as the lowest tenth of those vertices lie on
+    /// average. Seated, not at rest: linear blend skinning of a bent hip pulls the buttocks
+    /// and the crotch down by a few centimetres more than they hang standing. Returns the
+    /// two ends (world, rest pose) and the radius; `None` when `hips` are not joints, with
+    /// fewer than [`MIN_VERTICES`] vertices, or with skin less than [`MIN_PAD_DEPTH_M`]
+    /// below the hips. The lowest vertex sets the depth (it is what shows through a seat),
+    /// so a caller bounds the radius against garments or tails hanging from the pelvis.
+    pub fn seat_pad(
+        &self,
+        hips: [usize; 2],
+        seated_body: impl Fn(usize) -> bool,
+        left: Vec3,
+    ) -> Option<([Vec3; 2], f32)> {
+        let joints = self.skeleton.joints();
+        if hips.iter().any(|&hip| hip >= joints.len()) {
+            return None;
+        }
+        let rest = &self.rest;
+        let mut rotations: Vec<Quat> = joints.iter().map(|j| j.rest_rotation).collect();
+        let translations: Vec<Vec3> = joints.iter().map(|j| j.rest_offset).collect();
+        let flex = Quat::from_axis_angle(left, -FRAC_PI_2);
+        for &hip in &hips {
+            let parent = joints[hip].parent.map_or(Quat::IDENTITY, |p| rest[p].rotation);
+            rotations[hip] = parent.inverse() * flex * rest[hip].rotation;
+        }
+        let mut world = vec![Transform::IDENTITY; joints.len()];
+        pose_world(self.skeleton, &rotations, &translations, &mut world);
+        let seated: Vec<Vec3> = self.posed(&world, seated_body).map(|(_, p)| p).collect();
+        if seated.len() < MIN_VERTICES {
+            return None;
+        }
+        let (hip_l, hip_r) = (rest[hips[0]].translation, rest[hips[1]].translation);
+        let mid = (hip_l + hip_r) * 0.5;
+        let mut heights: Vec<f32> = seated.iter().map(|p| p.y).collect();
+        heights.sort_unstable_by(f32::total_cmp);
+        let depth = mid.y - heights[0];
+        if depth.is_nan() || depth < MIN_PAD_DEPTH_M {
+            return None;
+        }
+        let forward = left.cross(Vec3::Y);
+        let low = heights[(heights.len() - 1) / 10];
+        let lowest: Vec<f32> = seated.iter().filter(|p| p.y <= low).map(|p| (*p - mid).dot(forward)).collect();
+        let back = lowest.iter().sum::<f32>() / lowest.len().max(1) as f32;
+        let radius = 0.5 * depth;
+        let end = |hip: Vec3| hip.with_y(mid.y) - Vec3::Y * radius + forward * back;
+        Some(([end(hip_l), end(hip_r)], radius))
+    }
 }
 
 /// The radius of a capsule on the bone `a`–`b` that holds the share `quantile` of `points`
@@ -89,70 +151,6 @@ pub fn capsule_radius(points: &[Vec3], a: Vec3, b: Vec3, quantile: f32) -> Optio
     Some(*kth)
 }
 
-/// The pelvis's seat pad: the mesh posed seated (the skeleton's rest pose with both thighs
-/// turned forward by 90° about the figure's `left`), the vertices carried by the pelvis or
-/// a thigh (`seated_body(joint)`), and their lowest point below the hip joints `hips`: a
-/// capsule from under one hip to under the other, its top at the hips' height and its
-/// bottom at that lowest skin, as far back as the lowest tenth of those vertices lie on
-/// average. Seated, not at rest: linear blend skinning of a bent hip pulls the buttocks and
-/// the crotch down by a few centimetres more than they hang standing. Returns the two ends
-/// (world, rest pose) and the radius; `None` when the mesh does not fit the skeleton
-/// ([`check_skin`]) or `hips` are not its joints, with fewer than [`MIN_VERTICES`] vertices,
-/// or with skin less than [`MIN_PAD_DEPTH_M`] below the hips. The lowest vertex sets the
-/// depth (it is what shows through a seat), so a caller bounds the radius against
-/// garments or tails hanging from the pelvis.
-pub fn seat_pad(
-    skeleton: &Skeleton,
-    mesh: &Mesh,
-    hips: [usize; 2],
-    seated_body: impl Fn(usize) -> bool,
-    left: Vec3,
-) -> Option<([Vec3; 2], f32)> {
-    let skin = mesh.skin.as_ref()?;
-    check_skin(skin, skeleton, mesh.positions.len()).ok()?;
-    if hips.iter().any(|&hip| hip >= skeleton.len()) {
-        return None;
-    }
-    let rest = rest_world(skeleton);
-    let joints = skeleton.joints();
-    let mut rotations: Vec<Quat> = joints.iter().map(|j| j.rest_rotation).collect();
-    let translations: Vec<Vec3> = joints.iter().map(|j| j.rest_offset).collect();
-    let flex = Quat::from_axis_angle(left, -FRAC_PI_2);
-    for &hip in &hips {
-        let parent = joints[hip].parent.map_or(Quat::IDENTITY, |p| rest[p].rotation);
-        rotations[hip] = parent.inverse() * flex * rest[hip].rotation;
-    }
-    let mut world = vec![Transform::IDENTITY; skeleton.len()];
-    pose_world(skeleton, &rotations, &translations, &mut world);
-    let matrices = skinning_matrices(&world, &skin.inverse_bind_matrices);
-    let seated: Vec<Vec3> = mesh
-        .positions
-        .iter()
-        .enumerate()
-        .filter(|(v, _)| seated_body(heaviest_joint(&skin.joints[*v], &skin.weights[*v])))
-        .map(|(v, p)| blend_matrices(&matrices, &skin.joints[v], &skin.weights[v]).transform_point3(*p))
-        .filter(|p| p.is_finite())
-        .collect();
-    if seated.len() < MIN_VERTICES {
-        return None;
-    }
-    let (hip_l, hip_r) = (rest[hips[0]].translation, rest[hips[1]].translation);
-    let mid = (hip_l + hip_r) * 0.5;
-    let mut heights: Vec<f32> = seated.iter().map(|p| p.y).collect();
-    heights.sort_unstable_by(f32::total_cmp);
-    let depth = mid.y - heights[0];
-    if depth.is_nan() || depth < MIN_PAD_DEPTH_M {
-        return None;
-    }
-    let forward = left.cross(Vec3::Y);
-    let low = heights[(heights.len() - 1) / 10];
-    let lowest: Vec<f32> = seated.iter().filter(|p| p.y <= low).map(|p| (*p - mid).dot(forward)).collect();
-    let back = lowest.iter().sum::<f32>() / lowest.len().max(1) as f32;
-    let radius = 0.5 * depth;
-    let end = |hip: Vec3| hip.with_y(mid.y) - Vec3::Y * radius + forward * back;
-    Some(([end(hip_l), end(hip_r)], radius))
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used)]
@@ -163,7 +161,7 @@ mod tests {
     use glam::{Mat4, Quat};
 
     use super::*;
-    use crate::model::{Joint, Skin};
+    use crate::model::Joint;
 
     /// `n` points on a ring of radius `r` about the Y axis at height `y`.
     fn ring(n: usize, r: f32, y: f32) -> Vec<Vec3> {
@@ -218,7 +216,7 @@ mod tests {
             }),
             ..Mesh::default()
         };
-        let by_body = rest_vertices_by_body(&skeleton, &mesh, &[0, 1], 2).unwrap();
+        let by_body = SkinnedRest::new(&skeleton, &mesh).unwrap().vertices_by_body(&[0, 1], 2);
         // The first vertex: 0.8 of the child's bend (0.5 m along its +Y, turned 90° about Z
         // to −X: (−0.5, 1, 0)) and 0.2 of the root's (its bind position): by hand.
         let want = Vec3::new(-0.5, 1.0, 0.0) * 0.8 + Vec3::new(0.0, 1.5, 0.0) * 0.2;
@@ -230,7 +228,7 @@ mod tests {
         let want = Vec3::new(0.1, 0.0, 0.0) * 0.9 + Vec3::new(1.0, 1.1, 0.0) * 0.1;
         assert!(by_body[0][0].distance(want) < 1e-6, "{:?}", by_body[0][0]);
         let unskinned = Mesh { skin: None, ..mesh };
-        assert_eq!(rest_vertices_by_body(&skeleton, &unskinned, &[0, 1], 2), Err(SkinError::NotSkinned));
+        assert_eq!(SkinnedRest::new(&skeleton, &unskinned).err(), Some(SkinError::NotSkinned));
     }
 
     /// A pelvis 1 m up with hips 10 cm to either side and 10 cm down; ten vertices on the
@@ -266,14 +264,15 @@ mod tests {
             }),
             ..Mesh::default()
         };
-        let ([a, b], radius) = seat_pad(&skeleton, &mesh, [1, 2], |_| true, Vec3::X).unwrap();
+        let skinned = SkinnedRest::new(&skeleton, &mesh).unwrap();
+        let ([a, b], radius) = skinned.seat_pad([1, 2], |_| true, Vec3::X).unwrap();
         assert!((radius - 0.04).abs() < 1e-5, "{radius}");
         assert!(a.distance(Vec3::new(0.1, 0.86, -0.05)) < 1e-5, "{a:?}");
         assert!(b.distance(Vec3::new(-0.1, 0.86, -0.05)) < 1e-5, "{b:?}");
         // Fewer than MIN_VERTICES counted (the pelvis's ten alone, or none), or hips that are
         // not joints: no pad.
-        assert_eq!(seat_pad(&skeleton, &mesh, [1, 2], |j| j == 0, Vec3::X), None);
-        assert!(seat_pad(&skeleton, &mesh, [1, 2], |_| false, Vec3::X).is_none());
-        assert!(seat_pad(&skeleton, &mesh, [1, 3], |_| true, Vec3::X).is_none());
+        assert_eq!(skinned.seat_pad([1, 2], |j| j == 0, Vec3::X), None);
+        assert!(skinned.seat_pad([1, 2], |_| false, Vec3::X).is_none());
+        assert!(skinned.seat_pad([1, 3], |_| true, Vec3::X).is_none());
     }
 }

@@ -118,7 +118,7 @@ fn seated_hips(state: &FigureState, ctx: &ControlContext<'_>, seat: &Seat) -> [O
 
 /// How far below the hip joint the seated body reaches, metres: the thigh's radius, or the
 /// seat pad's depth when the figure has one and it reaches lower (a figure sized from its
-/// mesh rests on its buttocks, [`crate::kernels::physics::skin_fit::seat_pad`]).
+/// mesh rests on its buttocks, [`crate::kernels::physics::skin_fit::SkinnedRest::seat_pad`]).
 fn seat_depth_m(ctx: &ControlContext<'_>, thigh: usize) -> f32 {
     let thigh_radius = match ctx.figure.bodies[thigh].shape {
         BodyShape::Capsule { radius_m, .. } => radius_m,
