@@ -12,7 +12,7 @@
 //!    bone's length by role, trunk radii from the hip and shoulder widths; with the
 //!    character's skinned mesh, measured from the vertices each body carries, see
 //!    [`super::skin_fit`]), a box per foot from the ankle to the toe tip with its sole at
-//!    the lowest point of the foot.
+//!    the lowest point of the foot (with the mesh, the shoe's box: [`sole_box`]).
 //! 4. Masses from [`body_model`] (de Leva 1996, the table the momentum nodes use): each
 //!    limb segment and the head to the body of that name, the upper, middle and lower trunk
 //!    to the chest, abdomen and pelvis (other models: to the body whose bone passes nearest
@@ -32,7 +32,7 @@
 use glam::{Mat3, Quat, Vec3};
 use rapier3d::prelude::*;
 
-use super::skin_fit::{HAND_QUANTILE, RADIUS_QUANTILE, SkinnedRest, capsule_radius};
+use super::skin_fit::{HAND_QUANTILE, RADIUS_QUANTILE, SkinnedRest, SoleBox, capsule_radius, sole_box};
 use super::{World, pose_to_rapier, rot_from_rapier, rot_to_rapier, to_rapier};
 use crate::kernels::body::{BodyError, MassTable, body_model, find_landmarks, limb_tip};
 use crate::kernels::skinning::{SkinError, segment_distance};
@@ -398,6 +398,8 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
         .and_then(|s| s.seat_pad([lm.limbs[0][0], lm.limbs[1][0]], seated_body, left))
         .filter(|&(_, radius)| radius <= 0.05 * stature);
     let mut bodies: Vec<FigureBody> = Vec::with_capacity(plans.len());
+    // The soles' height when the feet's boxes are measured from the skin.
+    let mut measured_sole_y: Option<f32> = None;
     for (i, plan) in plans.iter().enumerate() {
         let origin = rest[plan.joint];
         let mut end = rest[plan.end];
@@ -447,21 +449,29 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
         let shape = if let (BodyRole::Pelvis, Some(([a, b], radius_m))) = (plan.role, pad) {
             BodyShape::Capsule { a: a - origin, b: b - origin, radius_m }
         } else if plan.role == BodyRole::Foot {
-            // Sole at the foot's lowest point, from behind the ankle to the toe tip.
             let toe = rest[plan.end];
-            let along = (toe - origin).reject_from(up);
-            let dir = along.try_normalize().unwrap_or(forward);
-            let heel = origin - dir * 0.04 * stature;
-            let sole_y = toe.y.min(origin.y) - 0.01 * stature;
-            let top_y = origin.y;
-            let length_h = (toe - heel).reject_from(up).length();
-            let centre = Vec3::new((heel.x + toe.x) * 0.5, (sole_y + top_y) * 0.5, (heel.z + toe.z) * 0.5) - origin;
-            let side_dir = up.cross(dir);
-            BodyShape::Box {
-                centre,
-                half_extents: Vec3::new(0.5 * length_h, 0.5 * (top_y - sole_y).max(0.02), 0.03 * stature),
-                rotation: Quat::from_mat3(&Mat3::from_cols(dir, up, -side_dir)),
+            let dir = (toe - origin).reject_from(up).try_normalize().unwrap_or(forward);
+            let rotation = Quat::from_mat3(&Mat3::from_cols(dir, up, -up.cross(dir)));
+            // Measured from the foot's skin, or from the skeleton: the sole at the foot's
+            // lowest joint less 1 % of stature, from behind the ankle to the toe tip.
+            let measured = points.and_then(|points| sole_box(points, origin, dir));
+            if let Some(m) = measured {
+                let bottom = m.centre.y - m.half_extents.y;
+                measured_sole_y = Some(measured_sole_y.map_or(bottom, |y: f32| y.min(bottom)));
             }
+            let sole = measured.unwrap_or_else(|| {
+                let heel = origin - dir * 0.04 * stature;
+                let (sole_y, top_y) = (toe.y.min(origin.y) - 0.01 * stature, origin.y);
+                SoleBox {
+                    centre: ((heel + toe) * 0.5).with_y((sole_y + top_y) * 0.5),
+                    half_extents: Vec3::new(
+                        0.5 * (toe - heel).reject_from(up).length(),
+                        0.5 * (top_y - sole_y).max(0.02),
+                        0.03 * stature,
+                    ),
+                }
+            });
+            BodyShape::Box { centre: sole.centre - origin, half_extents: sole.half_extents, rotation }
         } else {
             // Limb capsules stop one radius short of the next joint, so the shank's end does
             // not poke through the sole.
@@ -581,7 +591,7 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
         left,
         mass_method: model.method,
         friction: params.friction,
-        rest_sole_y_m: lowest - 0.01 * stature,
+        rest_sole_y_m: measured_sole_y.unwrap_or(lowest - 0.01 * stature),
         seat_depth_m: pad.map(|(_, radius)| 2.0 * radius),
     })
 }

@@ -17,6 +17,9 @@
 //! leant to rise (a 17 cm radius carries the hips 20 cm forward for a 1.2 rad lean) and the
 //! figure fell off the stool. So with a mesh the pelvis's shape is a pad across the hips,
 //! from the hip joints' height down to the lowest skin of the mesh posed seated.
+//!
+//! A foot's box is the shoe ([`sole_box`]): its bottom at the lowest skin, so the shoes rest
+//! on the floor rather than on a box guessed from the ankle and toe joints.
 
 use std::f32::consts::FRAC_PI_2;
 
@@ -146,9 +149,53 @@ pub fn capsule_radius(points: &[Vec3], a: Vec3, b: Vec3, quantile: f32) -> Optio
         return None;
     }
     let mut distances: Vec<f32> = points.iter().map(|&p| segment_distance(p, a, b)).collect();
-    let k = ((distances.len() - 1) as f32 * quantile.clamp(0.0, 1.0)).round() as usize;
-    let (_, kth, _) = distances.select_nth_unstable_by(k, f32::total_cmp);
-    Some(*kth)
+    Some(quantile_of(&mut distances, quantile))
+}
+
+/// The value below which the share `quantile` of `values` lies (nearest rank; `values` is
+/// reordered). `values` must not be empty.
+fn quantile_of(values: &mut [f32], quantile: f32) -> f32 {
+    let k = ((values.len() - 1) as f32 * quantile.clamp(0.0, 1.0)).round() as usize;
+    *values.select_nth_unstable_by(k, f32::total_cmp).1
+}
+
+/// Share of a foot's skin left outside its box at the heel, at the toe and at either side:
+/// a stray vertex (a lace, a buckle) does not stretch the sole.
+pub const SOLE_TRIM: f32 = 0.01;
+
+/// A foot's box measured from its skin in the rest pose (world metres, Y up).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SoleBox {
+    /// The box's centre.
+    pub centre: Vec3,
+    /// Half its length along the foot, its height and its width.
+    pub half_extents: Vec3,
+}
+
+/// The box of a foot from the skin it carries (`points`, rest pose): its bottom at the
+/// lowest vertex, which is what meets the floor (a box from the skeleton's ankle and toe
+/// joints left the Mixamo Xbot's shoes 1.5 cm above the floor); its top at the `ankle`
+/// joint; heel to toe along `dir` (horizontal, the foot's direction) and side to side
+/// between the [`SOLE_TRIM`] and `1 − SOLE_TRIM` quantiles of the skin. `None` with fewer
+/// than [`MIN_VERTICES`] points or no skin at least 1 cm below the ankle.
+pub fn sole_box(points: &[Vec3], ankle: Vec3, dir: Vec3) -> Option<SoleBox> {
+    if points.len() < MIN_VERTICES {
+        return None;
+    }
+    let side = Vec3::Y.cross(dir);
+    let bottom = points.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    let height = ankle.y - bottom;
+    if height.is_nan() || height < 0.01 {
+        return None;
+    }
+    let range = |axis: Vec3| {
+        let mut offsets: Vec<f32> = points.iter().map(|&p| (p - ankle).dot(axis)).collect();
+        (quantile_of(&mut offsets, SOLE_TRIM), quantile_of(&mut offsets, 1.0 - SOLE_TRIM))
+    };
+    let ((heel, toe), (right, left)) = (range(dir), range(side));
+    let centre = (ankle + dir * 0.5 * (heel + toe) + side * 0.5 * (right + left)).with_y(bottom + 0.5 * height);
+    let half_extents = Vec3::new(0.5 * (toe - heel), 0.5 * height, 0.5 * (left - right));
+    Some(SoleBox { centre, half_extents })
 }
 
 #[cfg(test)]
@@ -274,5 +321,32 @@ mod tests {
         assert_eq!(skinned.seat_pad([1, 2], |j| j == 0, Vec3::X), None);
         assert!(skinned.seat_pad([1, 2], |_| false, Vec3::X).is_none());
         assert!(skinned.seat_pad([1, 3], |_| true, Vec3::X).is_none());
+    }
+
+    /// A shoe-shaped skin by hand: the corners of a box 0.25 m long (5 cm behind the ankle
+    /// to 20 cm in front along +Z), 9 cm wide (centred 1 cm to the figure's left of the
+    /// ankle), from the floor up to 8 cm, the ankle joint 9 cm up; each corner 20 times, and
+    /// one stray vertex (a lace) 50 cm ahead. The box is the shoe's: its bottom at the floor,
+    /// its top at the ankle, the lace trimmed.
+    #[test]
+    fn the_sole_box_holds_the_shoe_from_the_lowest_skin_up_to_the_ankle() {
+        let (ankle, dir) = (Vec3::new(0.0, 0.09, 0.0), Vec3::Z);
+        // Y × Z = X: the side axis points along +X, the figure's left here.
+        let mut points = Vec::new();
+        for along in [-0.05, 0.20] {
+            for side in [-0.035, 0.055] {
+                for y in [0.0, 0.08] {
+                    points.extend(std::iter::repeat_n(Vec3::new(side, y, along), 20));
+                }
+            }
+        }
+        points.push(Vec3::new(0.0, 0.05, 0.5));
+        let sole = sole_box(&points, ankle, dir).unwrap();
+        let want = SoleBox { centre: Vec3::new(0.01, 0.045, 0.075), half_extents: Vec3::new(0.125, 0.045, 0.045) };
+        assert!(sole.centre.abs_diff_eq(want.centre, 1e-6), "{sole:?}");
+        assert!(sole.half_extents.abs_diff_eq(want.half_extents, 1e-6), "{sole:?}");
+        // Too few vertices, or no skin a centimetre below the ankle: no measured box.
+        assert_eq!(sole_box(&points[..MIN_VERTICES - 1], ankle, dir), None);
+        assert_eq!(sole_box(&points, Vec3::new(0.0, 0.005, 0.0), dir), None);
     }
 }
