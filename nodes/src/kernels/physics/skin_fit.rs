@@ -94,8 +94,9 @@ impl<'a> SkinnedRest<'a> {
     /// thigh (`seated_body(joint)`), and their lowest point below the hip joints `hips`: a
     /// capsule from under one hip to under the other, its top at the hips' height and its
     /// bottom at that lowest skin, as far back as the lowest tenth of those vertices lie on
-    /// average. Seated, not at rest: linear blend skinning of a bent hip pulls the buttocks
-    /// and the crotch down by a few centimetres more than they hang standing. Returns the
+    /// average. Seated, not at rest: at rest the thighs' skin hangs to the knees, so only
+    /// the seated pose says which of it meets a seat (on the Xbot the lowest seated skin is
+    /// 11.5 cm below the hips, within 0.4 mm of the pelvis's lowest skin at rest). Returns the
     /// two ends (world, rest pose) and the radius; `None` when `hips` are not joints, with
     /// fewer than [`MIN_VERTICES`] vertices, or with skin less than [`MIN_PAD_DEPTH_M`]
     /// below the hips. The lowest vertex sets the depth (it is what shows through a seat),
