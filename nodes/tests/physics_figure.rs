@@ -169,14 +169,15 @@ fn a_pd_held_figure_stands_unpushed_for_five_seconds() {
     }
 }
 
-/// Sized from its mesh, the figure's feet are the shoes' soles: the Mixamo Xbot standing in
-/// the simulation for 2 s (balance holding it, no push), its mesh skinned from the simulated
+/// Sized from its mesh, the figure's feet are the shoes' soles: a character standing in the
+/// simulation for 2 s (balance holding it, no push), its mesh skinned from the simulated
 /// clip by linear blend skinning, has the lowest vertex of its shoes within 0.5 cm of the
 /// floor (the bar for planted soles) in every frame after the first 0.2 s, the soles
-/// settling onto the ground. Feet boxes from the skeleton's ankle and toe joints held the
-/// shoes 1.5 cm above the floor (printed).
+/// settling onto the ground. On the Mixamo Xbot, feet boxes from the skeleton's ankle and
+/// toe joints held the shoes 1.5 cm above the floor; on the Mixamo character of the FBX
+/// corpus they happened to fit within 0.3 cm (both printed).
 #[test]
-fn sized_from_its_mesh_the_standing_xbot_has_its_shoes_on_the_floor() {
+fn sized_from_its_mesh_a_standing_character_has_its_shoes_on_the_floor() {
     use kinegraph_nodes::cancel::Cancel;
     use kinegraph_nodes::kernels::load::load_character;
     use kinegraph_nodes::kernels::physics::figure::BodyRole;
@@ -184,34 +185,33 @@ fn sized_from_its_mesh_the_standing_xbot_has_its_shoes_on_the_floor() {
     use kinegraph_nodes::kernels::skinning::deform_lbs;
 
     let Some(data) = shared_data() else { return };
-    let character = load_character(&data.join("gltf/Xbot.glb"), 0).unwrap().value;
-    let skeleton = character.clip.skeleton().clone();
-    let mesh = Arc::new(character.mesh);
-    let skin = mesh.skin.as_ref().unwrap();
-    let script = Script { duration_secs: 2.0, controllers: None, requests: vec![], pushes: vec![], chair: None };
-    // Lowest shoe vertex per frame after 0.2 s, metres.
-    let soles = |sized: bool| {
-        let params = SimParams { mesh: sized.then(|| mesh.clone()), ..SimParams::default() };
-        let r = simulate(&skeleton, None, &script, &params, Cancel::NEVER).unwrap();
-        let shoes: Vec<usize> = (0..mesh.positions.len())
-            .filter(|&v| r.figure.bodies[r.figure.owner[skin.heaviest_joint(v).0]].role == BodyRole::Foot)
-            .collect();
-        let skinned = deform_lbs(&mesh, &Arc::new(r.clip.clone())).unwrap();
-        let settled = (0.2 * r.clip.fps()).ceil() as usize;
-        (settled..r.clip.frame_count())
-            .map(|f| shoes.iter().map(|&v| skinned.frame_positions(f)[v].y).fold(f32::INFINITY, f32::min))
-            .collect::<Vec<f32>>()
-    };
-    let range = |h: &[f32]| {
-        (h.iter().copied().fold(f32::INFINITY, f32::min), h.iter().copied().fold(f32::NEG_INFINITY, f32::max))
-    };
-    let (sized, skeleton_sized) = (range(&soles(true)), range(&soles(false)));
-    println!(
-        "lowest shoe vertex above the floor, standing: sized from the mesh {:.2}..{:.2} cm, from the skeleton {:.2}..{:.2} cm",
-        100.0 * sized.0,
-        100.0 * sized.1,
-        100.0 * skeleton_sized.0,
-        100.0 * skeleton_sized.1
-    );
-    assert!(sized.0 > -0.005 && sized.1 < 0.005, "shoes {:.4}..{:.4} m from the floor", sized.0, sized.1);
+    for file in ["gltf/Xbot.glb", "fbx/standard_walk.fbx"] {
+        let character = load_character(&data.join(file), 0).unwrap().value;
+        let skeleton = character.clip.skeleton().clone();
+        let mesh = Arc::new(character.mesh);
+        let skin = mesh.skin.as_ref().unwrap();
+        let script = Script { duration_secs: 2.0, controllers: None, requests: vec![], pushes: vec![], chair: None };
+        // Lowest and highest of the lowest shoe vertex over the frames after 0.2 s, metres.
+        let soles = |sized: bool| {
+            let params = SimParams { mesh: sized.then(|| mesh.clone()), ..SimParams::default() };
+            let r = simulate(&skeleton, None, &script, &params, Cancel::NEVER).unwrap();
+            let shoes: Vec<usize> = (0..mesh.positions.len())
+                .filter(|&v| r.figure.bodies[r.figure.owner[skin.heaviest_joint(v).0]].role == BodyRole::Foot)
+                .collect();
+            let skinned = deform_lbs(&mesh, &Arc::new(r.clip.clone())).unwrap();
+            let settled = (0.2 * r.clip.fps()).ceil() as usize;
+            (settled..r.clip.frame_count())
+                .map(|f| shoes.iter().map(|&v| skinned.frame_positions(f)[v].y).fold(f32::INFINITY, f32::min))
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), h| (lo.min(h), hi.max(h)))
+        };
+        let (sized, skeleton_sized) = (soles(true), soles(false));
+        println!(
+            "{file}: lowest shoe vertex above the floor, standing: sized from the mesh {:.2}..{:.2} cm, from the skeleton {:.2}..{:.2} cm",
+            100.0 * sized.0,
+            100.0 * sized.1,
+            100.0 * skeleton_sized.0,
+            100.0 * skeleton_sized.1
+        );
+        assert!(sized.0 > -0.005 && sized.1 < 0.005, "{file}: shoes {:.4}..{:.4} m from the floor", sized.0, sized.1);
+    }
 }
