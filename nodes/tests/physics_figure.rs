@@ -174,8 +174,9 @@ fn a_pd_held_figure_stands_unpushed_for_five_seconds() {
 /// clip by linear blend skinning, has the lowest vertex of its shoes within 0.5 cm of the
 /// floor (the bar for planted soles) in every frame after the first 0.2 s, the soles
 /// settling onto the ground. On the Mixamo Xbot, feet boxes from the skeleton's ankle and
-/// toe joints held the shoes 1.5 cm above the floor; on the Mixamo character of the FBX
-/// corpus they happened to fit within 0.3 cm (both printed).
+/// toe joints held the shoes 1.5 cm above the floor (asserted above 1 cm: the measure sees
+/// the defect); on the Mixamo character of the FBX corpus they happened to fit within
+/// 0.3 cm (printed).
 #[test]
 fn sized_from_its_mesh_a_standing_character_has_its_shoes_on_the_floor() {
     use kinegraph_nodes::cancel::Cancel;
@@ -213,5 +214,8 @@ fn sized_from_its_mesh_a_standing_character_has_its_shoes_on_the_floor() {
             100.0 * skeleton_sized.1
         );
         assert!(sized.0 > -0.005 && sized.1 < 0.005, "{file}: shoes {:.4}..{:.4} m from the floor", sized.0, sized.1);
+        if file.ends_with("Xbot.glb") {
+            assert!(skeleton_sized.0 > 0.01, "the skeleton's boxes held the shoes only {} m up", skeleton_sized.0);
+        }
     }
 }

@@ -181,7 +181,8 @@ const RISE_AT: f32 = 4.5;
 const RUN_SECS: f32 = 10.0;
 
 /// Sits and rises on `chair`, the figure's shapes sized from `sized_from` if given, and
-/// measures how deep `measured` (skinned to the skeleton) goes into the stool.
+/// measures how deep each of the `measured` meshes (skinned to the skeleton) goes into the
+/// stool.
 fn run(skeleton: &Arc<Skeleton>, chair: Chair, sized_from: Option<&Arc<Mesh>>, measured: &[&Mesh]) -> Verdict {
     let params = SimParams { mesh: sized_from.cloned(), ..SimParams::default() };
     let r = simulate(skeleton, None, &sit_and_rise(chair, RISE_AT, RUN_SECS), &params, Cancel::NEVER).unwrap();
@@ -251,13 +252,13 @@ fn skin_of(mesh: &Mesh, figure: &Figure, role: BodyRole) -> Mesh {
 /// (the skin on its pelvis and thighs, posed by linear blend skinning from the simulated
 /// clip) rests on the stool instead of sinking into it; the figure sized from the skeleton
 /// alone sinks several centimetres on the same stools, by the same measure. The buttocks
-/// (the pelvis's skin, on the seat pad) stay within 1 cm of the seat's top. The thighs are
+/// (the pelvis's skin, on the seat pad) go less than 1 cm into the seat. The thighs are
 /// capsules holding half their skin (the median radius): level on the lower stools their
-/// skin stays within 1 cm too, but on the 0.50 m stool, higher than the knees, the thighs
-/// slope down over its front edge and their underside goes 1.4 cm into it (0.6 cm while the
-/// feet's boxes came from the skeleton and held the shoes 1.5 cm above the floor, the knees
-/// that much higher), so the bound on the thighs is 1.5 cm. What happens after the rise
-/// request is printed, not asserted (see the README).
+/// skin goes less than 1 cm in too, but on the 0.50 m stool, higher than the knees, the
+/// thighs slope down over its front edge and their underside goes 1.37 cm into it (0.61 cm
+/// while the feet's boxes came from the skeleton and held the shoes 1.5 cm above the floor,
+/// the knees that much higher): there the 1.5 cm bound is a regression bound on a known
+/// defect. What happens after the rise request is printed, not asserted (see the README).
 #[test]
 fn sized_from_its_mesh_the_seated_xbot_rests_on_the_stool() {
     let Some(data) = shared_data() else { return };
@@ -275,7 +276,8 @@ fn sized_from_its_mesh_the_seated_xbot_rests_on_the_stool() {
         assert!((0.0..0.15).contains(&above) && back > chair.behind_m - 0.05, "{sized:?}");
         let [buttocks_cm, thighs_cm] = sized.sunk_cm[..] else { unreachable!() };
         assert!(buttocks_cm < 1.0, "sized from the mesh, the buttocks go {buttocks_cm:.2} cm into the stool");
-        assert!(thighs_cm < 1.5, "sized from the mesh, the thighs go {thighs_cm:.2} cm into the stool");
+        let thighs_bound_cm = if seat_height_m < 0.5 { 1.0 } else { 1.5 };
+        assert!(thighs_cm < thighs_bound_cm, "sized from the mesh, the thighs go {thighs_cm:.2} cm into the stool");
         // The measure sees the defect the sizing removes (5.0–5.2 cm on the 0.40 and 0.45 m
         // stools, 3.5 cm on the 0.50 m one).
         let skeleton_cm = from_skeleton.sunk_cm.iter().copied().fold(0.0, f64::max);

@@ -27,8 +27,8 @@ const CLIP: Input<Arc<Clip>> = Input::required(
 const MESH: Input<Arc<Mesh>> = Input::optional(
     "mesh",
     "The character's mesh, skinned to the clip's skeleton (optional): each capsule's radius is measured from the \
-     skin its body carries and the pelvis becomes a pad down to the buttocks, so a seated body rests on the \
-     stool instead of sinking into it.",
+     skin its body carries, the pelvis becomes a pad down to the buttocks and each foot's box the shoe, so a \
+     seated body rests on the stool instead of sinking into it and the shoes stand on the floor.",
 );
 const SCRIPT: InputPathParam = InputPathParam::new(
     "script",

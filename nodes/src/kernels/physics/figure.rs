@@ -262,7 +262,7 @@ fn ball_limits(role: BodyRole, side: Option<usize>) -> [[f32; 2]; 3] {
 }
 
 /// Builds the figure of `skeleton` from its rest pose; with `mesh` (skinned to `skeleton`),
-/// the capsules' radii are measured from it.
+/// the capsules' radii, the seat pad and the feet's boxes are measured from it.
 pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Mesh>) -> Result<Figure, FigureError> {
     if skeleton.len() < 2 {
         return Err(FigureError::TooFewJoints { joints: skeleton.len() });
@@ -398,8 +398,8 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
         .and_then(|s| s.seat_pad([lm.limbs[0][0], lm.limbs[1][0]], seated_body, left))
         .filter(|&(_, radius)| radius <= 0.05 * stature);
     let mut bodies: Vec<FigureBody> = Vec::with_capacity(plans.len());
-    // The soles' height when the feet's boxes are measured from the skin.
-    let mut measured_sole_y: Option<f32> = None;
+    // Whether a foot's box was measured from its skin (see `rest_sole_y_m` below).
+    let mut any_shoe = false;
     for (i, plan) in plans.iter().enumerate() {
         let origin = rest[plan.joint];
         let mut end = rest[plan.end];
@@ -454,12 +454,9 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
             let rotation = Quat::from_mat3(&Mat3::from_cols(dir, up, -up.cross(dir)));
             // Measured from the foot's skin, or from the skeleton: the sole at the foot's
             // lowest joint less 1 % of stature, from behind the ankle to the toe tip.
-            let measured = points.and_then(|points| sole_box(points, origin, dir));
-            if let Some(m) = measured {
-                let bottom = m.centre.y - m.half_extents.y;
-                measured_sole_y = Some(measured_sole_y.map_or(bottom, |y: f32| y.min(bottom)));
-            }
-            let sole = measured.unwrap_or_else(|| {
+            let shoe = points.and_then(|points| sole_box(points, origin, dir));
+            any_shoe |= shoe.is_some();
+            let sole = shoe.unwrap_or_else(|| {
                 let heel = origin - dir * 0.04 * stature;
                 let (sole_y, top_y) = (toe.y.min(origin.y) - 0.01 * stature, origin.y);
                 SoleBox {
@@ -582,6 +579,19 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
         bodies[i].kd = kd;
         bodies[i].supported_mass_kg = m;
     }
+    // From the skeleton the soles are 1 % of stature below the lowest joint; a shoe measured
+    // from the skin sets its own, and then the lowest of the feet's boxes counts.
+    let rest_sole_y_m = if any_shoe {
+        bodies
+            .iter()
+            .filter_map(|b| match b.shape {
+                BodyShape::Box { centre, half_extents, .. } => Some(rest[b.joint].y + centre.y - half_extents.y),
+                BodyShape::Capsule { .. } => None,
+            })
+            .fold(f32::INFINITY, f32::min)
+    } else {
+        lowest - 0.01 * stature
+    };
     Ok(Figure {
         bodies,
         owner,
@@ -591,7 +601,7 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
         left,
         mass_method: model.method,
         friction: params.friction,
-        rest_sole_y_m: measured_sole_y.unwrap_or(lowest - 0.01 * stature),
+        rest_sole_y_m,
         seat_depth_m: pad.map(|(_, radius)| 2.0 * radius),
     })
 }

@@ -156,8 +156,8 @@ pub struct SimParams {
     pub world: WorldParams,
     /// Figure set-up.
     pub figure: FigureParams,
-    /// The character's mesh, skinned to the skeleton: when given, the bodies' capsules are
-    /// sized from it ([`super::skin_fit`]).
+    /// The character's mesh, skinned to the skeleton: when given, the bodies' capsules, the
+    /// seat pad and the feet's boxes are sized from it ([`super::skin_fit`]).
     pub mesh: Option<std::sync::Arc<crate::model::Mesh>>,
     /// Output frame rate, frames per second.
     pub fps: f64,

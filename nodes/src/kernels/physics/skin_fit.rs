@@ -40,8 +40,8 @@ pub const HAND_QUANTILE: f32 = 0.75;
 /// A seat pad needs the buttocks at least this far below the hip joints, metres.
 pub const MIN_PAD_DEPTH_M: f32 = 0.02;
 
-/// A body carrying fewer vertices than this keeps the radius sized from the skeleton (a
-/// few vertices say little about a body's girth).
+/// A body carrying fewer vertices than this keeps its shape sized from the skeleton (a
+/// few vertices say little about a body's girth or a shoe's sole).
 pub const MIN_VERTICES: usize = 20;
 
 /// A mesh checked once against the skeleton it is skinned to, with that skeleton's rest
@@ -161,7 +161,8 @@ fn quantile_of(values: &mut [f32], quantile: f32) -> f32 {
 }
 
 /// Share of a foot's skin left outside its box at the heel, at the toe and at either side:
-/// a stray vertex (a lace, a buckle) does not stretch the sole.
+/// a stray vertex (a lace, a buckle) does not stretch the sole. (Nearest rank: with fewer
+/// than 51 vertices nothing is trimmed.)
 pub const SOLE_TRIM: f32 = 0.01;
 
 /// A foot's box measured from its skin in the rest pose (world metres, Y up).
@@ -176,9 +177,9 @@ pub struct SoleBox {
 /// The box of a foot from the skin it carries (`points`, rest pose): its bottom at the
 /// lowest vertex, which is what meets the floor (a box from the skeleton's ankle and toe
 /// joints left the Mixamo Xbot's shoes 1.5 cm above the floor); its top at the `ankle`
-/// joint; heel to toe along `dir` (horizontal, the foot's direction) and side to side
-/// between the [`SOLE_TRIM`] and `1 − SOLE_TRIM` quantiles of the skin. `None` with fewer
-/// than [`MIN_VERTICES`] points or no skin at least 1 cm below the ankle.
+/// joint; heel to toe along `dir` (a horizontal unit vector, the foot's direction) and
+/// side to side between the [`SOLE_TRIM`] and `1 − SOLE_TRIM` quantiles of the skin. `None`
+/// with fewer than [`MIN_VERTICES`] points or no skin at least 1 cm below the ankle.
 pub fn sole_box(points: &[Vec3], ankle: Vec3, dir: Vec3) -> Option<SoleBox> {
     if points.len() < MIN_VERTICES {
         return None;
@@ -325,29 +326,36 @@ mod tests {
     }
 
     /// A shoe-shaped skin by hand: the corners of a box 0.25 m long (5 cm behind the ankle
-    /// to 20 cm in front along +Z), 9 cm wide (centred 1 cm to the figure's left of the
-    /// ankle), from the floor up to 8 cm, the ankle joint 9 cm up; each corner 20 times, and
-    /// one stray vertex (a lace) 50 cm ahead. The box is the shoe's: its bottom at the floor,
-    /// its top at the ankle, the lace trimmed.
+    /// to 20 cm in front), 9 cm wide (centred 1 cm to the foot's left of the ankle), from
+    /// the floor up to 8 cm, each corner 20 times; one stray vertex (a lace) 50 cm ahead and
+    /// one (a buckle) 30 cm to the side. The foot points diagonally, (1, 0, 1)/√2, from an
+    /// ankle 9 cm up at (0.3, −0.2) in the plane. The box is the shoe's: its bottom at the
+    /// floor, its top at the ankle, the strays trimmed.
     #[test]
     fn the_sole_box_holds_the_shoe_from_the_lowest_skin_up_to_the_ankle() {
-        let (ankle, dir) = (Vec3::new(0.0, 0.09, 0.0), Vec3::Z);
-        // Y × Z = X: the side axis points along +X, the figure's left here.
+        let (ankle, dir) = (
+            Vec3::new(0.3, 0.09, -0.2),
+            Vec3::new(std::f32::consts::FRAC_1_SQRT_2, 0.0, std::f32::consts::FRAC_1_SQRT_2),
+        );
+        let side = Vec3::new(dir.z, 0.0, -dir.x); // Y × dir: the foot's left.
+        let at = |along: f32, aside: f32, y: f32| ankle.with_y(y) + dir * along + side * aside;
         let mut points = Vec::new();
         for along in [-0.05, 0.20] {
-            for side in [-0.035, 0.055] {
+            for aside in [-0.035, 0.055] {
                 for y in [0.0, 0.08] {
-                    points.extend(std::iter::repeat_n(Vec3::new(side, y, along), 20));
+                    points.extend(std::iter::repeat_n(at(along, aside, y), 20));
                 }
             }
         }
-        points.push(Vec3::new(0.0, 0.05, 0.5));
+        points.extend([at(0.5, 0.0, 0.05), at(0.1, 0.3, 0.05)]);
         let sole = sole_box(&points, ankle, dir).unwrap();
-        let want = SoleBox { centre: Vec3::new(0.01, 0.045, 0.075), half_extents: Vec3::new(0.125, 0.045, 0.045) };
-        assert!(sole.centre.abs_diff_eq(want.centre, 1e-6), "{sole:?}");
-        assert!(sole.half_extents.abs_diff_eq(want.half_extents, 1e-6), "{sole:?}");
+        // Centre: 7.5 cm along and 1 cm aside of the ankle, i.e. 0.085/√2 = 0.0601041 on x and
+        // (0.075 − 0.01)/√2 = 0.0459619 on z; halfway up to the ankle.
+        let want_centre = Vec3::new(0.3601041, 0.045, -0.1540381);
+        assert!(sole.centre.abs_diff_eq(want_centre, 1e-6), "{sole:?}");
+        assert!(sole.half_extents.abs_diff_eq(Vec3::new(0.125, 0.045, 0.045), 1e-6), "{sole:?}");
         // Too few vertices, or no skin a centimetre below the ankle: no measured box.
         assert_eq!(sole_box(&points[..MIN_VERTICES - 1], ankle, dir), None);
-        assert_eq!(sole_box(&points, Vec3::new(0.0, 0.005, 0.0), dir), None);
+        assert_eq!(sole_box(&points, ankle.with_y(0.005), dir), None);
     }
 }
