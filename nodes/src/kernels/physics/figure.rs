@@ -398,8 +398,9 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
         .and_then(|s| s.seat_pad([lm.limbs[0][0], lm.limbs[1][0]], seated_body, left))
         .filter(|&(_, radius)| radius <= 0.05 * stature);
     let mut bodies: Vec<FigureBody> = Vec::with_capacity(plans.len());
-    // Whether a foot's box was measured from its skin (see `rest_sole_y_m` below).
-    let mut any_shoe = false;
+    // The feet's soles, lowest, and whether a foot's box was measured from its skin (see
+    // `rest_sole_y_m` below).
+    let (mut lowest_sole_y, mut any_shoe) = (f32::INFINITY, false);
     for (i, plan) in plans.iter().enumerate() {
         let origin = rest[plan.joint];
         let mut end = rest[plan.end];
@@ -423,29 +424,6 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
             });
         }
         let points = skin_points.as_ref().map(|points| points[i].as_slice());
-        let quantile = if plan.role == BodyRole::Hand { HAND_QUANTILE } else { RADIUS_QUANTILE };
-        // The pelvis is a seat pad or keeps its skeleton-sized capsule: a capsule round its
-        // short bone as fat as its skin rolls on a seat like a wheel (see skin_fit).
-        let measured = points
-            .filter(|_| plan.role != BodyRole::Pelvis)
-            .and_then(|points| capsule_radius(points, origin, end, quantile));
-        let radius = match (measured, plan.role) {
-            // A trunk body can be fatter than it is long; a limb's end caps must not reach
-            // past its neighbours' joints.
-            (Some(r), BodyRole::Abdomen | BodyRole::Chest | BodyRole::Head) => r.clamp(0.005, 0.15 * stature),
-            (Some(r), _) => r.clamp(0.005, 0.5 * length.max(0.02)),
-            (None, role) => match role {
-                BodyRole::Pelvis | BodyRole::Abdomen => 0.5 * hip_width.max(0.5 * shoulder_width) * 0.9,
-                BodyRole::Chest => 0.3 * shoulder_width,
-                BodyRole::Head => 0.055 * stature,
-                BodyRole::Thigh => 0.15 * length,
-                BodyRole::Shank => 0.11 * length,
-                BodyRole::UpperArm => 0.15 * length,
-                BodyRole::Forearm => 0.13 * length,
-                BodyRole::Hand | BodyRole::Foot => 0.2 * length,
-            }
-            .clamp(0.005, 0.5 * length.max(0.02)),
-        };
         let shape = if let (BodyRole::Pelvis, Some(([a, b], radius_m))) = (plan.role, pad) {
             BodyShape::Capsule { a: a - origin, b: b - origin, radius_m }
         } else if plan.role == BodyRole::Foot {
@@ -468,8 +446,32 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
                     ),
                 }
             });
+            lowest_sole_y = lowest_sole_y.min(sole.centre.y - sole.half_extents.y);
             BodyShape::Box { centre: sole.centre - origin, half_extents: sole.half_extents, rotation }
         } else {
+            let quantile = if plan.role == BodyRole::Hand { HAND_QUANTILE } else { RADIUS_QUANTILE };
+            // The pelvis is a seat pad or keeps its skeleton-sized capsule: a capsule round its
+            // short bone as fat as its skin rolls on a seat like a wheel (see skin_fit).
+            let measured = points
+                .filter(|_| plan.role != BodyRole::Pelvis)
+                .and_then(|points| capsule_radius(points, origin, end, quantile));
+            let radius = match (measured, plan.role) {
+                // A trunk body can be fatter than it is long; a limb's end caps must not reach
+                // past its neighbours' joints.
+                (Some(r), BodyRole::Abdomen | BodyRole::Chest | BodyRole::Head) => r.clamp(0.005, 0.15 * stature),
+                (Some(r), _) => r.clamp(0.005, 0.5 * length.max(0.02)),
+                (None, role) => match role {
+                    BodyRole::Pelvis | BodyRole::Abdomen => 0.5 * hip_width.max(0.5 * shoulder_width) * 0.9,
+                    BodyRole::Chest => 0.3 * shoulder_width,
+                    BodyRole::Head => 0.055 * stature,
+                    BodyRole::Thigh => 0.15 * length,
+                    BodyRole::Shank => 0.11 * length,
+                    BodyRole::UpperArm => 0.15 * length,
+                    BodyRole::Forearm => 0.13 * length,
+                    BodyRole::Hand | BodyRole::Foot => 0.2 * length,
+                }
+                .clamp(0.005, 0.5 * length.max(0.02)),
+            };
             // Limb capsules stop one radius short of the next joint, so the shank's end does
             // not poke through the sole.
             let dir = (end - origin) / length;
@@ -581,17 +583,7 @@ pub fn build_figure(skeleton: &Skeleton, params: &FigureParams, mesh: Option<&Me
     }
     // From the skeleton the soles are 1 % of stature below the lowest joint; a shoe measured
     // from the skin sets its own, and then the lowest of the feet's boxes counts.
-    let rest_sole_y_m = if any_shoe {
-        bodies
-            .iter()
-            .filter_map(|b| match b.shape {
-                BodyShape::Box { centre, half_extents, .. } => Some(rest[b.joint].y + centre.y - half_extents.y),
-                BodyShape::Capsule { .. } => None,
-            })
-            .fold(f32::INFINITY, f32::min)
-    } else {
-        lowest - 0.01 * stature
-    };
+    let rest_sole_y_m = if any_shoe { lowest_sole_y } else { lowest - 0.01 * stature };
     Ok(Figure {
         bodies,
         owner,
