@@ -128,13 +128,12 @@ impl<'a> SkinnedRest<'a> {
         let (hip_l, hip_r) = (rest[hips[0]].translation, rest[hips[1]].translation);
         let mid = (hip_l + hip_r) * 0.5;
         let mut heights: Vec<f32> = seated.iter().map(|p| p.y).collect();
-        heights.sort_unstable_by(f32::total_cmp);
-        let depth = mid.y - heights[0];
+        let depth = mid.y - quantile_of(&mut heights, 0.0);
         if depth.is_nan() || depth < MIN_PAD_DEPTH_M {
             return None;
         }
         let forward = left.cross(Vec3::Y);
-        let low = heights[(heights.len() - 1) / 10];
+        let low = quantile_of(&mut heights, 0.1);
         let lowest: Vec<f32> = seated.iter().filter(|p| p.y <= low).map(|p| (*p - mid).dot(forward)).collect();
         let back = lowest.iter().sum::<f32>() / lowest.len().max(1) as f32;
         let radius = 0.5 * depth;
