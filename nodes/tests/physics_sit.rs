@@ -116,10 +116,13 @@ fn judge(r: &SimResult, measured: &[&Mesh], chair: &Chair, rise_at: f32, secs: f
     let drift = |p: &Pose| (0..2).map(|s| (p.ankles[s] - first.ankles[s]).with_y(0.0).length()).fold(0.0f32, f32::max);
     let feet_still =
         |p: &Pose| drift(p) < FEET_SLIDE_M && (0..2).all(|s| (p.ankles[s].y - first.ankles[s].y).abs() < ANKLE_RISE_M);
-    // Seated: the hip joints a thigh's radius (7 cm on the Xbot) and a little above the seat,
-    // past its front edge (the hips started over the feet, `behind_m` in front of the edge,
-    // within 5 cm), not off its back nor its sides.
-    let sat = (0.0..0.12).contains(&above_seat)
+    // Seated: the hip joints the seated body's depth above the seat (a thigh's radius, 7 cm
+    // on the skeleton-sized Xbot; the seat pad's, 11.5 cm, sized from its mesh) and at most
+    // SEATED_SLACK_M more, past its front edge (the hips started over the feet, `behind_m`
+    // in front of the edge, within 5 cm), not off its back nor its sides.
+    let thigh = r.figure.bodies.iter().position(|b| b.role == BodyRole::Thigh).expect("the figure has thighs");
+    let on_seat = 0.0..r.figure.seated_depth_m(thigh) + SEATED_SLACK_M;
+    let sat = on_seat.contains(&above_seat)
         && moved_back > chair.behind_m - 0.05
         && moved_back < chair.behind_m + chair.size_m[1]
         && moved_aside < 0.5 * chair.size_m[0]
@@ -137,7 +140,7 @@ fn judge(r: &SimResult, measured: &[&Mesh], chair: &Chair, rise_at: f32, secs: f
     let steps = ((secs - rise_at) * 10.0) as usize;
     let stayed_down = (0..=steps).all(|k| pose_at(r, rise_at + k as f32 * 0.1).hips.y < seated.hips.y + 0.1);
     let kept_seated = stayed_down.then(|| {
-        (0.0..0.12).contains(&(last.hips.y - chair.seat_height_m))
+        on_seat.contains(&(last.hips.y - chair.seat_height_m))
             && last.head.y - last.hips.y > 0.4
             && r.timeline.last().is_some_and(|a| a.controller == "sit" && a.outcome == Outcome::Active)
     });
@@ -169,6 +172,10 @@ fn judge(r: &SimResult, measured: &[&Mesh], chair: &Chair, rise_at: f32, secs: f
         timeline,
     }
 }
+
+/// How far above resting on the seat the hips of a seated figure may be, metres (measured
+/// on the Xbot, skeleton- or mesh-sized: −0.1 to 1.4 cm above the seated body's depth).
+const SEATED_SLACK_M: f32 = 0.05;
 
 /// How far an ankle may slide over the ground, metres. Not planted: measured, the feet slide
 /// 3–9 cm while the Xbot sits (about 2 cm during the descent, 3–4 cm when the seat takes

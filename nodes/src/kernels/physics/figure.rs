@@ -675,6 +675,18 @@ pub struct Spawned {
 }
 
 impl Figure {
+    /// How far below the hip joints the seated body reaches, metres: the radius of the
+    /// thigh body `thigh`, or the seat pad's depth when the figure has one and it reaches
+    /// lower (a figure sized from its mesh rests on its buttocks,
+    /// [`super::skin_fit::SkinnedRest::seat_pad`]).
+    pub fn seated_depth_m(&self, thigh: usize) -> f32 {
+        let thigh_radius = match self.bodies[thigh].shape {
+            BodyShape::Capsule { radius_m, .. } => radius_m,
+            BodyShape::Box { half_extents, .. } => half_extents.min_element(),
+        };
+        self.seat_depth_m.map_or(thigh_radius, |pad| pad.max(thigh_radius))
+    }
+
     /// Body index by name.
     pub fn body_index(&self, name: &str) -> Option<usize> {
         self.bodies.iter().position(|b| b.name == name)

@@ -24,7 +24,6 @@ use super::posture::{
 };
 use super::{facing, leg};
 use crate::kernels::physics::controller::{BID_CAN_REACH, BID_SENSIBLE, ControlContext, Controller, Status, Targets};
-use crate::kernels::physics::figure::BodyShape;
 use crate::kernels::physics::seat::Seat;
 use crate::kernels::physics::state::FigureState;
 
@@ -111,20 +110,9 @@ fn seated_hips(state: &FigureState, ctx: &ControlContext<'_>, seat: &Seat) -> [O
         let (thigh, _, foot) = leg(ctx, side)?;
         let ankle = state.body_pos[foot];
         let edge = (seat.front_edge() - ankle).dot(forward);
-        let depth = seat_depth_m(ctx, thigh);
+        let depth = ctx.figure.seated_depth_m(thigh);
         Some((lengths, Vec2::new(edge - HIP_BEHIND_EDGE_M, seat.top_centre.y + depth + HOVER_M - ankle.y)))
     })
-}
-
-/// How far below the hip joint the seated body reaches, metres: the thigh's radius, or the
-/// seat pad's depth when the figure has one and it reaches lower (a figure sized from its
-/// mesh rests on its buttocks, [`crate::kernels::physics::skin_fit::SkinnedRest::seat_pad`]).
-fn seat_depth_m(ctx: &ControlContext<'_>, thigh: usize) -> f32 {
-    let thigh_radius = match ctx.figure.bodies[thigh].shape {
-        BodyShape::Capsule { radius_m, .. } => radius_m,
-        BodyShape::Box { half_extents, .. } => half_extents.min_element(),
-    };
-    ctx.figure.seat_depth_m.map_or(thigh_radius, |pad| pad.max(thigh_radius))
 }
 
 /// The descent planned from the standing state; `None` without a seat or two full legs.
