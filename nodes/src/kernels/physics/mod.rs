@@ -49,11 +49,22 @@ pub struct WorldParams {
     pub gravity_m_s2: f32,
     /// Solver iterations per step; rapier substeps the integration as many times (default 4).
     pub solver_iterations: usize,
+    /// Projected Gauss–Seidel passes over the contacts and joints in each substep (default 1,
+    /// rapier's, which the controllers are tuned for). One pass lets static friction give a
+    /// little every substep: a figure standing still under balance slides its feet 32–47 cm
+    /// in 10 s. Four passes keep them within 1 cm for about 11 % more time per step, but the
+    /// protective step, the rises and the learned pre-conditions are not yet tuned for it.
+    pub contact_iterations: usize,
 }
 
 impl Default for WorldParams {
     fn default() -> Self {
-        WorldParams { dt_secs: 1.0 / 300.0, gravity_m_s2: STANDARD_GRAVITY_M_S2, solver_iterations: 4 }
+        WorldParams {
+            dt_secs: 1.0 / 300.0,
+            gravity_m_s2: STANDARD_GRAVITY_M_S2,
+            solver_iterations: 4,
+            contact_iterations: 1,
+        }
     }
 }
 
@@ -101,10 +112,17 @@ impl World {
                 params.solver_iterations
             )));
         }
+        if !(1..=64).contains(&params.contact_iterations) {
+            return Err(PhysicsError::BadParams(format!(
+                "contact iterations {} must be within 1..=64",
+                params.contact_iterations
+            )));
+        }
         let mut inner = PhysicsWorld::new();
         inner.gravity = Vector::new(0.0, -params.gravity_m_s2, 0.0);
         inner.integration_parameters.dt = params.dt_secs;
         inner.integration_parameters.num_solver_iterations = params.solver_iterations;
+        inner.integration_parameters.num_internal_pgs_iterations = params.contact_iterations;
         Ok(World { inner })
     }
 
