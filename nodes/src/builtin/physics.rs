@@ -52,9 +52,10 @@ const DT: FloatParam =
     FloatParam::new("dt_secs", "Physics time step (stable from 1/2000 to 1/60 s).", 1.0 / 300.0, 1e-6, 1.0, "s");
 const CONTACT_ITERATIONS: IntParam = IntParam::new(
     "contact_iterations",
-    "Contact solver passes per physics substep. 1 (the default, what the controllers are tuned for) lets feet \
-     that stand still creep 3–5 cm a second; 4 holds them within 1 cm over 10 s for ~11 % more time, but the \
-     protective step, the rises and the learned pre-conditions are not yet tuned for it.",
+    "Contact solver passes per physics substep. 1 (the default) lets feet that stand still creep 3–5 cm a \
+     second; 4 holds them within 1 cm over 10 s for ~11 % more time. Balance, the step and the fall work with \
+     either; the rise does not yet work with 4 (it lunges and the feet hop forward), and the learned \
+     pre-conditions were trained with 1.",
     1,
     1,
     64,

@@ -50,10 +50,10 @@ pub struct WorldParams {
     /// Solver iterations per step; rapier substeps the integration as many times (default 4).
     pub solver_iterations: usize,
     /// Projected Gauss–Seidel passes over the contacts and joints in each substep (default 1,
-    /// rapier's, which the controllers are tuned for). One pass lets static friction give a
-    /// little every substep: a figure standing still under balance slides its feet 32–47 cm
-    /// in 10 s. Four passes keep them within 1 cm for about 11 % more time per step, but the
-    /// protective step, the rises and the learned pre-conditions are not yet tuned for it.
+    /// rapier's). One pass lets static friction give a little every substep: a figure
+    /// standing still under balance slides its feet 32–47 cm in 10 s. Four passes keep them
+    /// within 1 cm for about 11 % more time per step; balance, the step and the fall work
+    /// with either, the rise not yet with four (see the README).
     pub contact_iterations: usize,
 }
 

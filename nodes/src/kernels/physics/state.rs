@@ -13,6 +13,13 @@ use super::{World, from_rapier};
 
 /// A sole corner closer to the ground than this touches it, metres.
 pub const CONTACT_HEIGHT_M: f32 = 0.02;
+/// Once a foot touches the ground, its corners up to this height count in the support
+/// polygon, metres. A foot rocking back on its heel (or up on its toes) lifts the far corners
+/// past [`CONTACT_HEIGHT_M`] for a moment and then comes back down flat; counting only the
+/// touching corners shrank the polygon to the heel edge, and balance gave up on the Xbot's
+/// 15 N·s backward push with the capture point still 3 cm in front of the heels (and the
+/// protective step's landing, judged on the new foot's heel alone, failed as often as not).
+pub const SUPPORT_HEIGHT_M: f32 = 0.04;
 /// The head is on the ground below this clearance, metres.
 pub const HEAD_CONTACT_M: f32 = 0.01;
 
@@ -33,9 +40,15 @@ pub struct FigureState {
     pub foot_down: [bool; 2],
     /// Each foot's sole centre, metres.
     pub sole_centre: [Vec3; 2],
-    /// Convex hull (x, z), counter-clockwise seen from above, of the sole corners touching
-    /// the ground; empty when no foot does.
+    /// The base of support: convex hull (x, z), counter-clockwise seen from above, of the
+    /// corners of the feet that touch the ground, those up to [`SUPPORT_HEIGHT_M`] high;
+    /// empty when no foot does. What balance, the step and the fall judge the capture point
+    /// against.
     pub support: Vec<Vec2>,
+    /// Convex hull (x, z) of the sole corners touching the ground (below
+    /// [`CONTACT_HEIGHT_M`]): where the feet press now. Seated, the feet rest tipped onto
+    /// their heels and press only there; sit and rise plan against this polygon.
+    pub contact: Vec<Vec2>,
     /// Capture point of the linear inverted pendulum at the COM's height (x, z), metres.
     pub capture_point: Vec2,
     /// Signed distance of the COM's ground projection to the support polygon, metres
@@ -74,6 +87,7 @@ impl FigureState {
         let com = com / m.max(1e-6);
         let com_vel = mom / m.max(1e-6);
         let mut corners: Vec<Vec2> = Vec::new();
+        let mut touching: Vec<Vec2> = Vec::new();
         let mut foot_down = [false; 2];
         let mut sole_centre = [Vec3::ZERO; 2];
         let mut head_clearance_m = f32::INFINITY;
@@ -84,20 +98,17 @@ impl FigureState {
             match (body.role, body.shape) {
                 (BodyRole::Foot, BodyShape::Box { centre, half_extents, rotation }) => {
                     let side = body.side.unwrap_or(0).min(1);
-                    let mut sum = Vec3::ZERO;
-                    for sx in [-1.0, 1.0] {
-                        for sz in [-1.0, 1.0] {
-                            let local = centre
-                                + rotation * Vec3::new(sx * half_extents.x, -half_extents.y, sz * half_extents.z);
-                            let w = p + q * local;
-                            sum += w;
-                            if w.y < CONTACT_HEIGHT_M {
-                                foot_down[side] = true;
-                                corners.push(Vec2::new(w.x, w.z));
-                            }
-                        }
+                    let sole = [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)].map(|(sx, sz)| {
+                        p + q
+                            * (centre + rotation * Vec3::new(sx * half_extents.x, -half_extents.y, sz * half_extents.z))
+                    });
+                    let xz = |w: &Vec3| Vec2::new(w.x, w.z);
+                    if sole.iter().any(|w| w.y < CONTACT_HEIGHT_M) {
+                        foot_down[side] = true;
+                        corners.extend(sole.iter().filter(|w| w.y < SUPPORT_HEIGHT_M).map(xz));
+                        touching.extend(sole.iter().filter(|w| w.y < CONTACT_HEIGHT_M).map(xz));
                     }
-                    sole_centre[side] = sum * 0.25;
+                    sole_centre[side] = sole.iter().sum::<Vec3>() * 0.25;
                 }
                 (BodyRole::Head, BodyShape::Capsule { a, b, radius_m }) => {
                     head_clearance_m = (p + q * a).y.min((p + q * b).y) - radius_m;
@@ -119,6 +130,7 @@ impl FigureState {
             })
             .collect();
         let support = convex_hull(&corners);
+        let contact = convex_hull(&touching);
         let com_xz = Vec2::new(com.x, com.z);
         let capture_point = capture_point(com_xz, Vec2::new(com_vel.x, com_vel.z), com.y, gravity_m_s2);
         FigureState {
@@ -132,6 +144,7 @@ impl FigureState {
             com_support_distance_m: signed_distance(&support, com_xz),
             capture_distance_m: signed_distance(&support, capture_point),
             support,
+            contact,
             capture_point,
             head_clearance_m,
             head_down_speed_m_s,
@@ -156,12 +169,20 @@ impl FigureState {
     /// segment), or the soles' midpoint without support. The area centroid, unlike the
     /// vertex mean, does not jump when a collinear corner joins or leaves the hull.
     pub fn support_centre(&self) -> Vec2 {
-        if self.support.is_empty() {
+        self.centre_of(&self.support)
+    }
+
+    /// Area centroid of the contact polygon, as [`support_centre`](Self::support_centre).
+    pub fn contact_centre(&self) -> Vec2 {
+        self.centre_of(&self.contact)
+    }
+
+    fn centre_of(&self, polygon: &[Vec2]) -> Vec2 {
+        if polygon.is_empty() {
             let c = (self.sole_centre[0] + self.sole_centre[1]) * 0.5;
             return Vec2::new(c.x, c.z);
         }
-        polygon_centroid(&self.support)
-            .unwrap_or_else(|| self.support.iter().copied().sum::<Vec2>() / self.support.len() as f32)
+        polygon_centroid(polygon).unwrap_or_else(|| polygon.iter().copied().sum::<Vec2>() / polygon.len() as f32)
     }
 }
 

@@ -206,16 +206,16 @@ pub fn set_leg(
     targets.set_relative(figure, foot, (st * ss).inverse() * turn(-shank_rad) * st * ss * sf);
 }
 
-/// The support polygon's rearmost point along `forward` (a world position projected on it,
-/// metres); `+∞` without support.
+/// The contact polygon's rearmost point along `forward` (a world position projected on it,
+/// metres); `+∞` without contact.
 pub fn heel_along(state: &FigureState, forward: Vec3) -> f32 {
-    state.support.iter().map(|v| v.dot(Vec2::new(forward.x, forward.z))).fold(f32::INFINITY, f32::min)
+    state.contact.iter().map(|v| v.dot(Vec2::new(forward.x, forward.z))).fold(f32::INFINITY, f32::min)
 }
 
-/// The support polygon's centre forward of the ankles' midpoint, metres.
+/// The contact polygon's centre forward of the ankles' midpoint, metres.
 pub fn com_target(state: &FigureState, ctx: &ControlContext<'_>, forward: Vec3) -> f32 {
     let ankles: Vec3 = (0..2).filter_map(|side| Some(state.body_pos[leg(ctx, side)?.2])).sum::<Vec3>() * 0.5;
-    state.support_centre().dot(Vec2::new(forward.x, forward.z)) - ankles.dot(forward)
+    state.contact_centre().dot(Vec2::new(forward.x, forward.z)) - ankles.dot(forward)
 }
 
 /// How far the body may bend from standing before a joint limit: the shank's forward lean

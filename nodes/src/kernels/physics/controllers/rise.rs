@@ -29,7 +29,7 @@ use super::posture::{
     set_trunk, smooth,
 };
 use crate::kernels::physics::controller::{BID_CAN_REACH, ControlContext, Controller, Status, Targets};
-use crate::kernels::physics::state::FigureState;
+use crate::kernels::physics::state::{FigureState, signed_distance};
 
 /// The trunk leans forward at most this much to gather momentum, radians.
 pub const RISE_LEAN_RAD: f32 = 1.2;
@@ -140,9 +140,12 @@ impl Controller for Rise {
         let f2 = Vec2::new(forward.x, forward.z);
         let heel_f = heel_along(state, forward);
         let capture_f = state.capture_point.dot(f2);
+        // Seated and rising, the feet press where they touch (tipped onto the heels): the
+        // capture point is judged against the contact polygon.
+        let capture_inside = -signed_distance(&state.contact, state.capture_point);
         let extend = match plan.extend_from {
             None if plan.pitch >= 0.95 * plan.lean_rad
-                && state.capture_distance_m < -SEAT_OFF_MARGIN_M
+                && capture_inside > SEAT_OFF_MARGIN_M
                 && state.foot_down == [true, true] =>
             {
                 plan.extend_from = Some((state.time_secs, plan.pitch));
@@ -152,14 +155,14 @@ impl Controller for Rise {
             None if t > LEAN_FAIL_SECS => {
                 return Status::Failed(format!(
                     "the capture point stayed {:.3} m behind the feet's support",
-                    state.capture_distance_m
+                    -capture_inside
                 ));
             }
             None => 0.0,
             Some((t0, _)) => {
                 let done = state.com.y > 0.9 * ctx.standing_com_height_m
                     && state.trunk_upright > 15f32.to_radians().cos()
-                    && state.capture_distance_m < -SETTLED_INSIDE_M
+                    && capture_inside > SETTLED_INSIDE_M
                     && state.com_vel.with_y(0.0).length() < SETTLED_SPEED_M_S;
                 if plan.progress >= 1.0 && done {
                     return Status::Succeeded;
@@ -198,7 +201,7 @@ impl Controller for Rise {
                 let most_now = (most + spine).min(lifted);
                 let hip = lengths.hip_at((thigh, shank));
                 let balanced = plan.split.pitch_for(hip, lengths.knee_at(shank), plan.com_target_m, most_now);
-                let ahead = capture_f - state.support_centre().dot(f2);
+                let ahead = capture_f - state.contact_centre().dot(f2);
                 (balanced - K_LEAN * ahead).clamp(0.0, most_now)
             }
         };

@@ -7,8 +7,11 @@
 //! ([`step_target`]; re-aimed for most of the swing) over [`SWING_SECS`], lifted by
 //! `LIFT_M·sin(π·s)`; the leg's hip and knee angles come from the two-link inverse
 //! kinematics of the thigh and shank lengths, the knee pointing forward. The stance hip
-//! keeps the pelvis upright over the stance thigh as it was at the start; both feet are
-//! kept level.
+//! keeps the pelvis upright over the stance thigh as it was at the start, yielding
+//! ([`STANCE_HIP_GAIN`]); both feet are kept level. The step is planned in the frame the
+//! figure faced when it started: the swing leg's reaction yaws a figure on one gripping foot
+//! by 20–30°, and re-reading the facing every step swung the no-crossover line and the knee's
+//! direction with it (the CMU foot landed 10 cm short of the capture point).
 //!
 //! Pre-condition: a foot down, trunk within 35° of vertical, COM at least 75 % of its
 //! standing height, capture point outside the support, and the capture point predicted for
@@ -44,6 +47,10 @@ pub const LAND_SECS: f32 = SWING_SECS - LEAD_SECS;
 pub const MIN_WIDTH_M: f32 = 0.12;
 /// Gain multiplier on the swing leg's joints, so the foot tracks its path in time.
 pub const SWING_GAIN: f32 = 3.0;
+/// Gain multiplier on the stance hip. At full stiffness the hip fought the trunk's pitch
+/// after a chest push, and its reaction slid the gripping stance foot 11 cm back and out
+/// within 0.1 s; yielding, it slides 3 cm (CMU, 45 N·s forward, 4 contact passes).
+pub const STANCE_HIP_GAIN: f32 = 0.25;
 /// The swing path is read this far ahead, seconds: the PD motors follow their targets
 /// with a lag of about kd/kp (≈ 0.07 s for the leg gains), which this compensates.
 pub const LEAD_SECS: f32 = 0.1;
@@ -68,6 +75,9 @@ struct Plan {
     lifted: bool,
     /// The stance thigh's world rotation (relative to rest) when the step started.
     stance_thigh: Quat,
+    /// The figure's facing (forward, left) when the step started: the frame the step is
+    /// planned in (see the module's doc).
+    frame: (Vec3, Vec3),
 }
 
 /// The stance foot a step would pivot on, given the capture point: the foot away from ξ's
@@ -95,14 +105,14 @@ pub fn predicted_capture(state: &FigureState, ctx: &ControlContext<'_>, stance: 
 /// pendulum pivoting on the stance sole). A sole centred there holds the capture point under
 /// the foot when it lands, so the COM comes to rest over the new support (the capture
 /// point's defining property). Never closer than [`MIN_WIDTH_M`] sideways to the stance sole
-/// (no crossover), and within [`REACH`] leg lengths of it.
+/// (no crossover) along `left`, and within [`REACH`] leg lengths of it.
 pub fn step_target(
     state: &FigureState,
     ctx: &ControlContext<'_>,
+    left: Vec3,
     (swing, stance): (usize, usize),
     landing: Vec2,
 ) -> Vec2 {
-    let (_, left) = facing(state, ctx);
     let stance_xz = Vec2::new(state.sole_centre[stance].x, state.sole_centre[stance].z);
     let mut t = landing;
     let l = Vec2::new(left.x, left.z);
@@ -145,7 +155,8 @@ impl Controller for Step {
     fn activate(&mut self, state: &FigureState, ctx: &ControlContext<'_>) {
         let (swing, stance) = choose_feet(state, ctx);
         let from = state.sole_centre[swing];
-        let to = step_target(state, ctx, (swing, stance), predicted_capture(state, ctx, stance, LAND_SECS));
+        let frame = facing(state, ctx);
+        let to = step_target(state, ctx, frame.1, (swing, stance), predicted_capture(state, ctx, stance, LAND_SECS));
         let stance_thigh = leg(ctx, stance).map_or(Quat::IDENTITY, |(t, _, _)| state.body_rot[t]);
         self.plan = Some(Plan {
             start_secs: state.time_secs,
@@ -154,6 +165,7 @@ impl Controller for Step {
             to: Vec3::new(to.x, from.y, to.y),
             lifted: false,
             stance_thigh,
+            frame,
         });
     }
     fn control(&mut self, state: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
@@ -168,7 +180,7 @@ impl Controller for Step {
             if out_of_reach(state, ctx, stance, landing) {
                 return Status::Failed("the capture point ran out of a step's reach".into());
             }
-            let to = step_target(state, ctx, (plan.swing, stance), landing);
+            let to = step_target(state, ctx, plan.frame.1, (plan.swing, stance), landing);
             plan.to = Vec3::new(to.x, plan.from.y, to.y);
         }
         let plan = *plan;
@@ -210,7 +222,7 @@ impl Controller for Step {
         let d = ankle - hip;
         let reach = d.length().clamp(0.2 * (l1 + l2), 0.999 * (l1 + l2));
         let dir = d.try_normalize().unwrap_or(Vec3::NEG_Y);
-        let (forward, _) = facing(state, ctx);
+        let forward = plan.frame.0;
         let bend = forward.reject_from(dir).try_normalize().unwrap_or(forward);
         let cos_hip = ((l1 * l1 + reach * reach - l2 * l2) / (2.0 * l1 * reach)).clamp(-1.0, 1.0);
         let knee = hip + (dir * cos_hip + bend * (1.0 - cos_hip * cos_hip).sqrt()) * l1;
@@ -225,6 +237,7 @@ impl Controller for Step {
         // splay and roll its foot onto the edge: the CMU stance sole slid 21 cm sideways).
         targets.set_relative(fig, s_thigh, plan.stance_thigh);
         targets.set_relative(fig, s_foot, state.body_rot[s_shank].inverse());
+        targets.gain[s_thigh] = STANCE_HIP_GAIN;
         for b in [thigh, shank, foot] {
             targets.gain[b] = SWING_GAIN;
         }
