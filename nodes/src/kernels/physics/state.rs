@@ -1,7 +1,7 @@
-//! What the controllers sense: the figure's centre of mass and its velocity, the support
-//! polygon of the soles touching the ground, the capture point of the linear inverted
-//! pendulum, the trunk's tilt and the head's height. The supervisor computes it once per
-//! step for every controller (the paper's "common sensor values").
+//! What the controllers sense: the figure's centre of mass and its velocity, the base of
+//! support of the feet on the ground and the polygon where they press, the capture point of
+//! the linear inverted pendulum, the trunk's tilt and the head's height. The supervisor
+//! computes it once per step for every controller (the paper's "common sensor values").
 //!
 //! All positions are world metres, Y up, ground at `y = 0`; horizontal quantities are
 //! `Vec2(x, z)`.

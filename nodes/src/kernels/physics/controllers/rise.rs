@@ -7,16 +7,17 @@
 //! [`RISE_LEAN_RAD`] (the pelvis up to the hips' limit, the spine for the rest; less if
 //! they allow less) and the arms reach forward, with the hips on the seat; seat-off comes
 //! once the lean is (nearly) complete, both feet are down and the capture point is
-//! [`SEAT_OFF_MARGIN_M`] inside the feet's support. **Extend**: the hips leave the seat on a
+//! [`SEAT_OFF_MARGIN_M`] inside the feet's contact polygon (seated, the feet press only at
+//! their heels: [`FigureState::contact`]). **Extend**: the hips leave the seat on a
 //! straight line to standing over the ankles over [`EXTEND_SECS`], the shanks' lean capped
 //! by the ankles; the lean keeps the COM over the feet where the legs put the hips (from the
-//! figure's mass split), easing off while the capture point runs ahead of the support's
+//! figure's mass split), easing off while the capture point runs ahead of the contact's
 //! centre; the extension waits whenever the capture point nears the heels. Balance takes
 //! over from the post-condition.
 //!
 //! Pre-condition: sitting on the seat, both feet down, trunk within 40° of vertical.
 //! Post-condition: the COM above 90 % of its standing height, the trunk within 15° of
-//! vertical, the capture point [`SETTLED_INSIDE_M`] inside the support and the COM nearly
+//! vertical, the capture point [`SETTLED_INSIDE_M`] inside the contact polygon and the COM nearly
 //! still. Expected performance: seat-off within [`LEAN_FAIL_SECS`], the trunk within 80° of
 //! vertical, no foot off the ground for longer than [`FOOT_OFF_SECS`], and standing within
 //! `2·EXTEND_SECS + 1` s of seat-off.
@@ -33,14 +34,14 @@ use crate::kernels::physics::state::{FigureState, signed_distance};
 
 /// The trunk leans forward at most this much to gather momentum, radians.
 pub const RISE_LEAN_RAD: f32 = 1.2;
-/// Seat-off: the capture point this far inside the feet's support, metres.
+/// Seat-off: the capture point this far inside the feet's contact polygon, metres.
 pub const SEAT_OFF_MARGIN_M: f32 = 0.03;
-/// Standing is reached with the capture point this far inside the support, metres, and
+/// Standing is reached with the capture point this far inside the contact polygon, metres, and
 /// the COM moving horizontally slower than [`SETTLED_SPEED_M_S`]: balance takes over then.
 pub const SETTLED_INSIDE_M: f32 = 0.02;
 /// See [`SETTLED_INSIDE_M`], m/s.
 pub const SETTLED_SPEED_M_S: f32 = 0.1;
-/// Trunk lean taken off per metre the capture point runs ahead of the support's centre
+/// Trunk lean taken off per metre the capture point runs ahead of the contact polygon's centre
 /// while extending, rad/m.
 pub const K_LEAN: f32 = 3.0;
 /// How fast the pelvis pitches forward to gather momentum, rad/s.
@@ -196,7 +197,7 @@ impl Controller for Rise {
             }
             // Extend: the lean that keeps the COM over the feet where the capped legs put the
             // hips, no more than at seat-off; less while the capture point runs ahead of the
-            // support's centre, more while it lags.
+            // contact polygon's centre, more while it lags.
             Some((_, lifted)) => {
                 let most_now = (most + spine).min(lifted);
                 let hip = lengths.hip_at((thigh, shank));
