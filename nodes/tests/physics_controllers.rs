@@ -12,7 +12,7 @@ mod node_eval;
 use std::path::Path;
 use std::sync::Arc;
 
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 use kinegraph_nodes::cancel::Cancel;
 use kinegraph_nodes::corpus::shared_data;
 use kinegraph_nodes::formats::bvh::{BvhReadOptions, read_bvh_file};
@@ -21,10 +21,10 @@ use kinegraph_nodes::kernels::physics::controller::{
     BID_CAN_REACH, BID_SENSIBLE, ControlContext, Controller, Outcome, Reason, Status, Supervisor, Targets,
 };
 use kinegraph_nodes::kernels::physics::controllers::fall::HEAD_HIT_M_S;
-use kinegraph_nodes::kernels::physics::figure::{FigureParams, build_figure};
+use kinegraph_nodes::kernels::physics::figure::{BodyRole, Figure, FigureParams, build_figure};
 use kinegraph_nodes::kernels::physics::simulate::{Push, Script, SimParams, SimResult, simulate};
 use kinegraph_nodes::kernels::physics::state::{FigureState, capture_point, convex_hull, signed_distance};
-use kinegraph_nodes::model::Skeleton;
+use kinegraph_nodes::model::{Clip, Skeleton, forward_kinematics};
 
 fn cmu(data: &Path) -> Arc<Skeleton> {
     let (clip, _) = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value;
@@ -215,9 +215,8 @@ fn supervisor_activates_the_best_bid_times_preference_and_reacts_to_failure_and_
 /// off here); the left leg measures 7e-4 rad off, which the 2e-3 rad bound allows.
 #[test]
 fn balance_leans_turned_legs_about_the_same_world_axis() {
-    use glam::{Quat, Vec3};
+    use glam::Quat;
     use kinegraph_nodes::kernels::physics::controllers::balance::{Balance, K_ANKLE};
-    use kinegraph_nodes::kernels::physics::figure::BodyRole;
     let Some(data) = shared_data() else { return };
     let skeleton = cmu(&data);
     let figure = build_figure(&skeleton, &FigureParams::default(), None).unwrap();
@@ -300,13 +299,30 @@ fn forward(skeleton: &Skeleton) -> [f32; 3] {
     build_figure(skeleton, &FigureParams::default(), None).unwrap().forward.to_array()
 }
 
+/// The clip frame nearest `secs`.
+fn frame_at(clip: &Clip, secs: f32) -> usize {
+    ((f64::from(secs) * clip.fps()).round() as usize).min(clip.frame_count() - 1)
+}
+
+/// The ankle of foot `side` (0 left, 1 right): the joint that drives the figure's foot body.
+fn ankle(figure: &Figure, side: usize) -> usize {
+    figure.bodies.iter().find(|b| b.role == BodyRole::Foot && b.side == Some(side)).unwrap().joint
+}
+
+/// How far each ankle (left, right) moved from `from_secs` to `to_secs`, by forward
+/// kinematics of the simulated clip.
+fn ankles_moved(r: &SimResult, from_secs: f32, to_secs: f32) -> [Vec3; 2] {
+    let fk = forward_kinematics(&r.clip);
+    let (from, to) = (frame_at(&r.clip, from_secs), frame_at(&r.clip, to_secs));
+    [0, 1].map(|side| fk.position(to, ankle(&r.figure, side)) - fk.position(from, ankle(&r.figure, side)))
+}
+
 /// Without an initial pose the figure stands with its soles under its hips, whatever its
 /// rest pose (CMU's splays the legs 20°, soles 0.77 m apart): the soles' sideways distance
 /// equals the hip joints' distance in the skeleton's rest pose (an independent reading, by
 /// forward kinematics of the skeleton) within 2 cm, and the COM is over the support.
 #[test]
 fn standing_pose_puts_the_soles_under_the_hips() {
-    use kinegraph_nodes::kernels::physics::figure::BodyRole;
     use kinegraph_nodes::kernels::physics::simulate::stage;
     use kinegraph_nodes::model::fk::rest_world;
     let Some(data) = shared_data() else { return };
@@ -375,8 +391,6 @@ const FALL_PUSH_NS: f32 = 120.0;
 #[test]
 fn larger_push_makes_a_protective_step_that_reaches_its_post_condition() {
     use kinegraph_nodes::kernels::physics::controllers::step::LAND_MARGIN_M;
-    use kinegraph_nodes::kernels::physics::figure::BodyRole;
-    use kinegraph_nodes::model::forward_kinematics;
     let Some(data) = shared_data() else { return };
     let (label, skeleton) = ("cmu", cmu(&data));
     let r = run(&skeleton, &push_script(3.0, "chest", forward(&skeleton), STEP_PUSH_NS, None));
@@ -390,14 +404,8 @@ fn larger_push_makes_a_protective_step_that_reaches_its_post_condition() {
         |t: f32| r.samples.iter().min_by(|a, b| (a.time_secs - t).abs().total_cmp(&(b.time_secs - t).abs())).unwrap();
     let at_end = at(step.end_secs);
     // The swing foot: the ankle that moved most forward over the step, read from the clip.
-    let fk = forward_kinematics(&r.clip);
-    let frame = |t: f32| ((t * r.clip.fps() as f32).round() as usize).min(r.clip.frame_count() - 1);
-    let fwd = r.figure.forward;
-    let advance = |side| {
-        let b = r.figure.bodies.iter().find(|b| b.role == BodyRole::Foot && b.side == Some(side)).unwrap();
-        (fk.position(frame(step.end_secs), b.joint) - fk.position(frame(step.start_secs), b.joint)).dot(fwd)
-    };
-    let stepped = advance(0).max(advance(1));
+    let [left, right] = ankles_moved(&r, step.start_secs, step.end_secs);
+    let stepped = left.dot(r.figure.forward).max(right.dot(r.figure.forward));
     let head_before = r.samples.first().unwrap().head_clearance_m;
     let head_low = r
         .samples
@@ -424,8 +432,6 @@ fn larger_push_makes_a_protective_step_that_reaches_its_post_condition() {
 /// a rocking foot's corners).
 #[test]
 fn protective_step_lands_on_the_capture_point_across_pushes() {
-    use kinegraph_nodes::kernels::physics::figure::BodyRole;
-    use kinegraph_nodes::model::forward_kinematics;
     let Some(data) = shared_data() else { return };
     let mut landed = Vec::new();
     for (label, skeleton) in [("cmu", cmu(&data)), ("xbot", xbot(&data))] {
@@ -439,17 +445,8 @@ fn protective_step_lands_on_the_capture_point_across_pushes() {
                 if step.outcome != Outcome::Succeeded {
                     continue;
                 }
-                let fk = forward_kinematics(&r.clip);
-                let frame = |t: f32| ((t * r.clip.fps() as f32).round() as usize).min(r.clip.frame_count() - 1);
-                let moved = (0..2)
-                    .map(|side| {
-                        let b =
-                            r.figure.bodies.iter().find(|b| b.role == BodyRole::Foot && b.side == Some(side)).unwrap();
-                        let (from, to) =
-                            (fk.position(frame(step.start_secs), b.joint), fk.position(frame(step.end_secs), b.joint));
-                        (to - from).with_y(0.0).length()
-                    })
-                    .fold(0.0f32, f32::max);
+                let [left, right] = ankles_moved(&r, step.start_secs, step.end_secs);
+                let moved = left.with_y(0.0).length().max(right.with_y(0.0).length());
                 assert!(
                     moved > 0.1,
                     "{label} {deg}° {impulse} N·s: the step succeeded but no ankle moved 10 cm ({moved} m)"
@@ -660,7 +657,6 @@ fn bad_scripts_and_steps_are_typed_errors() {
 /// independent reading), up to the rigid-body approximation of the bodies.
 #[test]
 fn initial_pose_comes_from_the_clip_frame() {
-    use kinegraph_nodes::model::forward_kinematics;
     let Some(data) = shared_data() else { return };
     let (clip, _) = read_bvh_file(&data.join("bvh/cmu/02_01.bvh"), BvhReadOptions::default()).unwrap().value;
     let frame = 40;
@@ -700,8 +696,6 @@ fn initial_pose_comes_from_the_clip_frame() {
 #[test]
 fn a_balanced_figure_keeps_its_feet_where_they_stand() {
     use kinegraph_nodes::kernels::load::load_character;
-    use kinegraph_nodes::kernels::physics::figure::BodyRole;
-    use kinegraph_nodes::model::forward_kinematics;
     use kinegraph_nodes::node::{ParamValue, Value};
     let Some(data) = shared_data() else { return };
     let dir = tempfile::tempdir().unwrap();
@@ -723,12 +717,10 @@ fn a_balanced_figure_keeps_its_feet_where_they_stand() {
             let report = out.outputs.iter().find_map(|o| if let Some(Value::Report(r)) = o { Some(r) } else { None });
             assert_eq!(report.unwrap()["controllers"], serde_json::json!(["balance"]), "{label}: balance alone stands");
             let fk = forward_kinematics(clip);
-            let frame = |t: f64| ((t * clip.fps()).round() as usize).min(clip.frame_count() - 1);
             let creep = |side| {
-                let foot = figure.bodies.iter().find(|b| b.role == BodyRole::Foot && b.side == Some(side)).unwrap();
-                let start = fk.position(frame(0.5), foot.joint);
-                (frame(0.5)..clip.frame_count())
-                    .map(|f| (fk.position(f, foot.joint) - start).with_y(0.0).length())
+                let start = fk.position(frame_at(clip, 0.5), ankle(&figure, side));
+                (frame_at(clip, 0.5)..clip.frame_count())
+                    .map(|f| (fk.position(f, ankle(&figure, side)) - start).with_y(0.0).length())
                     .fold(0.0f32, f32::max)
             };
             let (left, right) = (creep(0), creep(1));

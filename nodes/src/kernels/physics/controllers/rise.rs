@@ -155,7 +155,7 @@ impl Controller for Rise {
             }
             None if t > LEAN_FAIL_SECS => {
                 return Status::Failed(format!(
-                    "the capture point stayed {:.3} m behind the feet's support",
+                    "the capture point stayed {:.3} m behind where the feet press",
                     -capture_inside
                 ));
             }
