@@ -109,7 +109,9 @@ fn bad_model_files_are_typed_errors_naming_the_file() {
 /// Fresh trials (seed 7, never used in training) of balance and of the protective step on
 /// the CMU 02_01 figure, run through the `Learned` wrapper: its bid agrees with the
 /// outcome at least 90 % of the time. The hand-written pre-condition's accuracy on the
-/// same trials is printed beside it.
+/// same trials is printed beside it. 200 trials each: on 60 the step's agreement (54 of 60,
+/// 0.900) sat on the bar, within one standard error (3 % at 94 % over 60 trials); on 200
+/// it is 0.940 (balance 0.975), matching the 200 held-out trials of training.
 #[test]
 fn shipped_models_predict_fresh_trials() {
     let Some(data) = shared_data() else { return };
@@ -117,7 +119,7 @@ fn shipped_models_predict_fresh_trials() {
     for controller in ["balance", "step"] {
         let model = Arc::new(LearnedPrecondition::read(&shipped(controller)).unwrap());
         let fresh =
-            sample_trials(clip.skeleton(), controller, Some(&model), (7, 0, 60), &SimParams::default()).unwrap();
+            sample_trials(clip.skeleton(), controller, Some(&model), (7, 0, 200), &SimParams::default()).unwrap();
         let n = fresh.len() as f64;
         let agree = fresh.iter().filter(|d| (d.bid > 0) == d.success).count() as f64 / n;
         let hand = fresh.iter().filter(|d| (d.hand_bid > 0) == d.success).count() as f64 / n;
