@@ -6,7 +6,7 @@
 //! | controller | pre-condition (bid) | post-condition | expected performance |
 //! |---|---|---|---|
 //! | [`balance`] | both feet down, trunk upright, capture point inside the support | none: holds until a request or failure | capture point stays inside the support, feet stay down |
-//! | [`step`] | a foot down, trunk upright, capture point outside the support, and predicted at landing within a step | swing foot down with the capture point inside the new support | predicted capture point within reach, foot down within 0.8 s, trunk upright |
+//! | [`step`] | a foot down, trunk upright, capture point outside the support, and predicted at landing within a step | the catching foot down, then the trailing foot closed up beside it, with the capture point inside the support | predicted capture point within reach, each foot down within 0.8 s, trunk upright |
 //! | [`fall`] | the figure is falling (capture point outside, or no foot down), not on a seat, and the head is up | at rest on the ground | the head never hits the ground (faster than 1 m/s) |
 //! | [`sit`] | standing balanced, a seat's front edge 2 cm behind the soles' centres, the seated hips within reach; or sitting on the seat (holds it) | none: sits and stays seated until a request | trunk within 75°, seated within 0.5 s of the descent's end and 9 s of starting |
 //! | [`rise`] | sitting on the seat, both feet down, trunk within 40° | COM at 90 % of standing, trunk within 15°, capture point 2 cm inside the support, COM nearly still | seat-off within 1.5 s, trunk within 80°, feet down, standing within 4 s of seat-off |
