@@ -165,6 +165,11 @@ impl FigureState {
         Vec2::new(self.com.x, self.com.z)
     }
 
+    /// Foot `side`'s sole centre projected on the ground (x, z).
+    pub fn sole_xz(&self, side: usize) -> Vec2 {
+        Vec2::new(self.sole_centre[side].x, self.sole_centre[side].z)
+    }
+
     /// Area centroid of the support polygon (the mean of its vertices for a point or a
     /// segment), or the soles' midpoint without support. The area centroid, unlike the
     /// vertex mean, does not jump when a collinear corner joins or leaves the hull.

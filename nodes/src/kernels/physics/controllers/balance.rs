@@ -15,7 +15,7 @@
 //! capture point stays within [`FAIL_OUTSIDE_M`] of the polygon, no foot is off the ground
 //! for longer than [`FOOT_OFF_SECS`], the trunk stays within 40° and the COM above 60 %; no post-condition (balance holds until a request or a failure).
 
-use glam::Quat;
+use glam::{Quat, Vec3};
 
 use super::{facing, leg};
 use crate::kernels::physics::controller::{BID_CAN_REACH, ControlContext, Controller, Status, Targets};
@@ -66,6 +66,17 @@ pub fn balanced(state: &FigureState, ctx: &ControlContext<'_>, margin_m: f32, ti
         && state.capture_distance_m < margin_m
 }
 
+/// The rotation that leans a body away from the capture point's offset `(u_f, u_l)` (metres
+/// ahead and to the left of where it should be), about the axes `(forward, left)`: back (by
+/// −k·u_f about `left`, which tilts up backwards) when ξ is ahead, to the right (by k·u_l
+/// about `forward`) when it is to the left. The gain `k` (rad/m) acts on the part of each
+/// offset past `from_m`; each angle is clamped to `max_rad`.
+pub fn lean_away((u_f, u_l): (f32, f32), (forward, left): (Vec3, Vec3), k: f32, from_m: f32, max_rad: f32) -> Quat {
+    let shrink = |x: f32| x.signum() * (x.abs() - from_m).max(0.0);
+    Quat::from_axis_angle(left, (-k * shrink(u_f)).clamp(-max_rad, max_rad))
+        * Quat::from_axis_angle(forward, (k * shrink(u_l)).clamp(-max_rad, max_rad))
+}
+
 impl Controller for Balance {
     fn name(&self) -> &'static str {
         "balance"
@@ -113,18 +124,12 @@ impl Controller for Balance {
         };
         let u = super::xz(state.capture_point - centre);
         let (u_f, u_l) = (u.dot(forward), u.dot(left));
-        // Lean the body back when ξ is ahead (rotation about left by −θ tilts up backwards)
-        // and to the right when ξ is to the left.
-        let lean = |k: f32, from: f32, max: f32, u_l: f32| {
-            let shrink = |x: f32| x.signum() * (x.abs() - from).max(0.0);
-            // Relative rotations are in the rest pose's axes.
-            Quat::from_axis_angle(ctx.figure.left, (-k * shrink(u_f)).clamp(-max, max))
-                * Quat::from_axis_angle(ctx.figure.forward, (k * shrink(u_l)).clamp(-max, max))
-        };
-        let ankle = lean(K_ANKLE, 0.0, MAX_ANKLE_RAD, u_l);
+        // Relative rotations are in the rest pose's axes.
+        let axes = (ctx.figure.forward, ctx.figure.left);
+        let ankle = lean_away((u_f, u_l), axes, K_ANKLE, 0.0, MAX_ANKLE_RAD);
         // The hip strategy is sagittal only: rolling the pelvis sideways over two planted
         // feet would raise one hip and lift the other foot off the ground.
-        let hip = lean(K_HIP, HIP_FROM_M, 0.4, 0.0);
+        let hip = lean_away((u_f, 0.0), axes, K_HIP, HIP_FROM_M, 0.4);
         for side in 0..2 {
             let Some((thigh, _, foot)) = leg(ctx, side) else { continue };
             // Foot flat, shank leant in world axes: the shank's world rotation becomes

@@ -31,7 +31,7 @@
 
 use glam::{Quat, Vec2, Vec3};
 
-use super::balance::{K_ANKLE, MAX_ANKLE_RAD};
+use super::balance::{K_ANKLE, MAX_ANKLE_RAD, lean_away};
 use super::{facing, leg, xz};
 use crate::kernels::physics::controller::{BID_CAN_REACH, ControlContext, Controller, Status, Targets};
 use crate::kernels::physics::state::FigureState;
@@ -141,7 +141,7 @@ pub fn choose_feet(state: &FigureState, ctx: &ControlContext<'_>) -> (usize, usi
 /// The capture point `remaining_secs` from now while the figure pivots on the stance
 /// sole's centre `p`: `ξ(t) = p + (ξ₀ − p)·e^{ω t}`, `ω = √(g/h)` at the COM height `h`.
 pub fn predicted_capture(state: &FigureState, ctx: &ControlContext<'_>, stance: usize, remaining_secs: f32) -> Vec2 {
-    let stance_xz = Vec2::new(state.sole_centre[stance].x, state.sole_centre[stance].z);
+    let stance_xz = state.sole_xz(stance);
     let omega = (ctx.gravity_m_s2 / state.com.y.max(0.1)).sqrt();
     stance_xz + (state.capture_point - stance_xz) * (omega * remaining_secs.max(0.0)).exp()
 }
@@ -159,10 +159,10 @@ pub fn step_target(
     (swing, stance): (usize, usize),
     landing: Vec2,
 ) -> Vec2 {
-    let stance_xz = Vec2::new(state.sole_centre[stance].x, state.sole_centre[stance].z);
+    let stance_xz = state.sole_xz(stance);
     let mut t = landing;
     let l = Vec2::new(left.x, left.z);
-    let sign = if (state.sole_centre[swing] - state.sole_centre[stance]).dot(left) >= 0.0 { 1.0 } else { -1.0 };
+    let sign = side_of(state, left, (swing, stance));
     let width = (t - stance_xz).dot(l) * sign;
     if width < MIN_WIDTH_M {
         t += l * sign * (MIN_WIDTH_M - width);
@@ -172,11 +172,24 @@ pub fn step_target(
     if d.length() > reach { stance_xz + d * (reach / d.length()) } else { t }
 }
 
-/// Where the catching sole is aimed: [`BEYOND_M`] past the capture point predicted for the
-/// landing `landing`, away from the `stance` sole.
-fn catch_point(state: &FigureState, stance: usize, landing: Vec2) -> Vec2 {
-    let stance_xz = Vec2::new(state.sole_centre[stance].x, state.sole_centre[stance].z);
-    landing + (landing - stance_xz).normalize_or_zero() * BEYOND_M
+/// +1 when the `swing` sole is on the `left` side of the `stance` sole, −1 otherwise.
+fn side_of(state: &FigureState, left: Vec3, (swing, stance): (usize, usize)) -> f32 {
+    if (state.sole_centre[swing] - state.sole_centre[stance]).dot(left) >= 0.0 { 1.0 } else { -1.0 }
+}
+
+/// Where the swing sole goes, given the capture point predicted for its landing: the
+/// catching foot [`BEYOND_M`] past it, away from the stance sole; the closing foot
+/// [`beside`] the catching one; both within [`step_target`]'s limits. At the stance sole's
+/// height.
+fn swing_target(state: &FigureState, ctx: &ControlContext<'_>, plan: &Plan, landing: Vec2) -> Vec3 {
+    let stance = 1 - plan.swing;
+    let aim = if plan.closing.is_some() {
+        beside(state, plan, landing)
+    } else {
+        landing + (landing - state.sole_xz(stance)).normalize_or_zero() * BEYOND_M
+    };
+    let to = step_target(state, ctx, plan.frame.1, (plan.swing, stance), aim);
+    Vec3::new(to.x, plan.from.y, to.y)
 }
 
 /// Where the closing swing puts the trailing sole: so that the capture point predicted for
@@ -184,10 +197,9 @@ fn catch_point(state: &FigureState, stance: usize, landing: Vec2) -> Vec2 {
 /// stood and at most [`MAX_WIDEN_M`] wider (the no-crossover and reach limits of
 /// [`step_target`] follow).
 fn beside(state: &FigureState, plan: &Plan, landing: Vec2) -> Vec2 {
-    let caught = Vec2::new(state.sole_centre[1 - plan.swing].x, state.sole_centre[1 - plan.swing].z);
+    let caught = state.sole_xz(1 - plan.swing);
     let (f, l) = (Vec2::new(plan.frame.0.x, plan.frame.0.z), Vec2::new(plan.frame.1.x, plan.frame.1.z));
-    let side = (state.sole_centre[plan.swing] - state.sole_centre[1 - plan.swing]).dot(plan.frame.1);
-    let sign = if side >= 0.0 { 1.0 } else { -1.0 };
+    let sign = side_of(state, plan.frame.1, (plan.swing, 1 - plan.swing));
     let d = landing - caught;
     let width = (2.0 * d.dot(l) * sign).clamp(plan.width_m, plan.width_m + MAX_WIDEN_M);
     caught + l * (sign * width) + f * (2.0 * d.dot(f))
@@ -214,8 +226,7 @@ fn close(state: &FigureState, ctx: &ControlContext<'_>, plan: &Plan) -> Plan {
 /// Whether a predicted capture point is farther than a step ([`REACH`] leg lengths) from
 /// the `stance` sole.
 fn out_of_reach(state: &FigureState, ctx: &ControlContext<'_>, stance: usize, capture: Vec2) -> bool {
-    let s = state.sole_centre[stance];
-    capture.distance(Vec2::new(s.x, s.z)) > REACH * ctx.leg_length_m
+    capture.distance(state.sole_xz(stance)) > REACH * ctx.leg_length_m
 }
 
 impl Controller for Step {
@@ -241,20 +252,20 @@ impl Controller for Step {
         let (swing, stance) = choose_feet(state, ctx);
         let from = state.sole_centre[swing];
         let frame = facing(state, ctx);
-        let aim = catch_point(state, stance, predicted_capture(state, ctx, stance, LAND_SECS));
-        let to = step_target(state, ctx, frame.1, (swing, stance), aim);
         let stance_thigh = leg(ctx, stance).map_or(Quat::IDENTITY, |(t, _, _)| state.body_rot[t]);
-        self.plan = Some(Plan {
+        let mut plan = Plan {
             start_secs: state.time_secs,
             swing,
             from,
-            to: Vec3::new(to.x, from.y, to.y),
+            to: from,
             lifted: false,
             stance_thigh,
             frame,
             width_m: (state.sole_centre[swing] - state.sole_centre[stance]).dot(frame.1).abs(),
             closing: None,
-        });
+        };
+        plan.to = swing_target(state, ctx, &plan, predicted_capture(state, ctx, stance, LAND_SECS));
+        self.plan = Some(plan);
     }
     fn control(&mut self, state: &FigureState, ctx: &ControlContext<'_>, targets: &mut Targets) -> Status {
         let Some(plan) = self.plan.as_mut() else { return Status::Failed("not activated".into()) };
@@ -268,10 +279,7 @@ impl Controller for Step {
             if out_of_reach(state, ctx, stance, landing) {
                 return Status::Failed("the capture point ran out of a step's reach".into());
             }
-            let aim =
-                if plan.closing.is_some() { beside(state, plan, landing) } else { catch_point(state, stance, landing) };
-            let to = step_target(state, ctx, plan.frame.1, (plan.swing, stance), aim);
-            plan.to = Vec3::new(to.x, plan.from.y, to.y);
+            plan.to = swing_target(state, ctx, plan, landing);
         }
         if state.trunk_upright < 50f32.to_radians().cos() {
             return Status::Failed("the trunk tilted past 50°".into());
@@ -352,8 +360,7 @@ impl Controller for Step {
             // centre of pressure towards it.
             let (forward, left) = plan.frame;
             let u = xz(state.capture_point) - state.sole_centre[1 - plan.swing].with_y(0.0);
-            let lean = Quat::from_axis_angle(left, (-K_ANKLE * u.dot(forward)).clamp(-MAX_ANKLE_RAD, MAX_ANKLE_RAD))
-                * Quat::from_axis_angle(forward, (K_ANKLE * u.dot(left)).clamp(-MAX_ANKLE_RAD, MAX_ANKLE_RAD));
+            let lean = lean_away((u.dot(forward), u.dot(left)), plan.frame, K_ANKLE, 0.0, MAX_ANKLE_RAD);
             targets.set_relative(fig, s_foot, (lean * c.shank).inverse() * c.foot);
         }
         Status::Running
