@@ -469,8 +469,8 @@ fn protective_step_lands_on_the_capture_point_across_pushes() {
 /// After the protective step the figure stands again: over the same 30 pushes, 5 s each with
 /// 4 contact passes (what `push_and_recover` uses; with 1 the feet creep), the run ends under
 /// balance taken up before 4 s, the fall controller never ran and the COM ends over the
-/// support. At least 8 of 30 (measured 10: 1 CMU, 9 Xbot; 1 before the step closed the
-/// trailing foot up beside the catching one). The rest step again and fall, mostly the CMU
+/// support. At least 8 of 30 (measured 10: 1 CMU, 9 Xbot; none before the step closed
+/// the trailing foot up beside the catching one). The rest step again and fall, mostly the CMU
 /// figure: a closing foot that lands on its edge keeps its ankle from pushing sideways and
 /// the figure drifts off it (holding the feet flat in balance stood 13, but slid the feet of
 /// a figure risen from a stool 13–19 cm, past physics_sit's 12 cm).
