@@ -127,6 +127,27 @@ pub struct TetMesh {
     pub face_dual_length_m: Vec<f64>,
 }
 
+/// Smallest of the six dihedral angles of the tet `p`, degrees: 70.5° for a regular tet,
+/// near 0° for a sliver (four nearly coplanar nodes), 0° for a flat one. The angle at the
+/// edge shared by the faces opposite nodes k and l is π less the angle between their outward
+/// normals.
+pub fn min_dihedral_deg(p: [DVec3; 4]) -> f64 {
+    let outward = |k: usize| {
+        let [a, b, c] = [(k + 1) % 4, (k + 2) % 4, (k + 3) % 4].map(|j| p[j]);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        if (p[k] - a).dot(n) > 0.0 { -n } else { n }
+    };
+    let normals: [DVec3; 4] = std::array::from_fn(outward);
+    let mut smallest: f64 = 180.0;
+    for k in 0..4 {
+        for l in k + 1..4 {
+            let cos = (-normals[k].dot(normals[l])).clamp(-1.0, 1.0);
+            smallest = smallest.min(cos.acos().to_degrees());
+        }
+    }
+    if normals.contains(&DVec3::ZERO) { 0.0 } else { smallest }
+}
+
 /// Circumcentre of the tet (a, b, c, d); `None` when it is flat.
 pub fn tet_circumcentre(a: DVec3, b: DVec3, c: DVec3, d: DVec3) -> Option<DVec3> {
     let (u, v, w) = (b - a, c - a, d - a);
@@ -293,19 +314,18 @@ impl TetMesh {
         })
     }
 
+    /// Smallest of tet `t`'s six dihedral angles, degrees ([`min_dihedral_deg`]).
+    pub fn min_dihedral_deg(&self, t: usize) -> f64 {
+        min_dihedral_deg(self.tets[t].map(|i| self.nodes_m[i as usize]))
+    }
+
     /// Quality figures: tet count, min dihedral angle, max radius–edge ratio, non-Delaunay
     /// interior faces.
     pub fn stats(&self) -> MeshStats {
         let mut min_dihedral = f64::INFINITY;
         let mut max_ratio: f64 = 0.0;
         for t in 0..self.tets.len() {
-            let normals = self.outward_faces(t).map(|(n, _, _)| n);
-            for k in 0..4 {
-                for l in k + 1..4 {
-                    let cos = (-normals[k].dot(normals[l])).clamp(-1.0, 1.0);
-                    min_dihedral = min_dihedral.min(cos.acos().to_degrees());
-                }
-            }
+            min_dihedral = min_dihedral.min(self.min_dihedral_deg(t));
             let p = self.tets[t].map(|i| self.nodes_m[i as usize]);
             let mut shortest = f64::INFINITY;
             for k in 0..4 {
@@ -359,6 +379,31 @@ mod tests {
         for f in 0..4 {
             assert!((mesh.face_circumcentre_m[f] - mesh.tet_centroid(0)).dot(mesh.face_normal[f]) > 0.0);
         }
+    }
+
+    #[test]
+    fn dihedral_angles_of_known_tets() {
+        // Regular tet: every dihedral angle is acos(1/3) = 70.53°.
+        let regular = [
+            DVec3::new(1.0, 1.0, 1.0),
+            DVec3::new(1.0, -1.0, -1.0),
+            DVec3::new(-1.0, 1.0, -1.0),
+            DVec3::new(-1.0, -1.0, 1.0),
+        ];
+        assert!((min_dihedral_deg(regular) - (1.0f64 / 3.0).acos().to_degrees()).abs() < 1e-12);
+        // Corner tet: 90° at the three axis edges, acos(1/√3) = 54.74° at the slanted ones.
+        let corner = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
+        assert!((min_dihedral_deg(corner) - (1.0 / 3f64.sqrt()).acos().to_degrees()).abs() < 1e-12);
+        // A sliver: a unit square's corners lifted ±h alternately. At a square's edge, the
+        // other two nodes seen along it are at (±4h²/s, 1, ±2h/s), s = 1 + 4h², so the angle
+        // is 2·atan(2h/√s), about 4h rad.
+        let h = 1e-3;
+        let sliver =
+            [DVec3::new(0.0, 0.0, h), DVec3::new(1.0, 0.0, -h), DVec3::new(1.0, 1.0, h), DVec3::new(0.0, 1.0, -h)];
+        let expected = 2.0 * (2.0 * h / (1.0 + 4.0 * h * h).sqrt()).atan();
+        assert!((min_dihedral_deg(sliver) - expected.to_degrees()).abs() < 1e-9);
+        // Flat: 0.
+        assert_eq!(min_dihedral_deg([DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::new(1.0, 1.0, 0.0)]), 0.0);
     }
 
     #[test]
