@@ -40,6 +40,15 @@ pub fn box_corners(lo: DVec3, hi: DVec3) -> [DVec3; 8] {
     })
 }
 
+/// The twelve edges of the box `lo..hi`, as pairs of [`box_corners`].
+pub fn box_edges(lo: DVec3, hi: DVec3) -> impl Iterator<Item = (DVec3, DVec3)> {
+    let corners = box_corners(lo, hi);
+    // Corner i's coordinate along axis a is hi's when bit a of i is set.
+    (0..8).flat_map(move |i| {
+        [1, 2, 4].into_iter().filter(move |bit| i & bit == 0).map(move |bit| (corners[i], corners[i | bit]))
+    })
+}
+
 impl Obstacle {
     /// An axis-aligned box obstacle (a dropped crate, a test solid) from its centre and half
     /// extents, metres: twelve triangles, counter-clockwise seen from outside.
