@@ -5,7 +5,7 @@
 //! §7) and advection (velocity reconstruction + tracing every face). Group `fluid_remesh`:
 //! the remesh `fluid.simulate` runs every step (node placement by a uniform sizing field
 //! warm-started from the last step's nodes, Delaunay, carving, relaxation, Delaunay and
-//! carving again) around the same cube at about 25k, 50k, 100k and 200k tets.
+//! carving again, then sliver mending) around the same cube at about 25k, 50k, 100k and 200k tets.
 //! Run: `cargo bench -p kinegraph-nodes --bench fluid_step`.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
